@@ -1,0 +1,79 @@
+/* eng.h - the LUT engine: Hillaire's four tables on a Vulkan compute device.
+ *
+ * One engine owns one VkDevice and one queue. Work is submitted without
+ * blocking; completion is signalled on an eventfd so that the daemon's loop
+ * never waits on the GPU. At most one computation is in flight.
+ *
+ * Table memory: texels are RGBA, float32 (16 bytes) or float16 (8 bytes)
+ * as the state's storage says, rows of width texels, rows bottom-up in v,
+ * the aerial volume's slices stacked (see proto/skymap.h for the mappings).
+ *   transmittance  RGB transmittance to the top of the atmosphere, A = 1
+ *   multiscatter   RGB psi_ms per unit illuminance (1/sr), A = f_ms (mean)
+ *   skyview        RGB radiance (cd/m2 per channel when illuminances are in lx),
+ *                  A = mean transmittance along the view ray
+ *   aerial         RGB in-scattered radiance, A = mean transmittance
+ */
+#ifndef SKYD_ENG_H
+#define SKYD_ENG_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "state.h"
+
+struct eng;
+
+struct eng_device {
+	uint32_t index;			/* in vkEnumeratePhysicalDevices order */
+	int type;			/* VkPhysicalDeviceType */
+	uint32_t vendor_id, device_id;
+	char name[256];
+	char driver[256];
+	char type_name[16];		/* "discrete", "integrated", "virtual", "cpu", "other" */
+};
+
+struct eng_timing {
+	uint32_t computed;		/* STATE_BIT mask of the tables computed */
+	double table_ms[STATE_N_TABLES];/* GPU time per table (timestamps), else wall time */
+	double total_ms;		/* submit to completion, wall clock */
+};
+
+/* Lists the Vulkan devices, at most max of them, into ret (may be NULL when
+ * max is 0). Returns the number of devices, or -errno; err says why (no
+ * loader: which package to install). */
+int eng_list_devices(struct eng_device *ret, size_t max, char *err, size_t err_size);
+
+/* Opens a device. selector: NULL or "" picks by preference (discrete, then
+ * integrated, then virtual, then CPU, e.g. lavapipe) unless $SKYD_DEVICE is
+ * set; otherwise a device index or a case-insensitive substring of the
+ * device's name. On failure returns -errno with a one-line cause in err. */
+int eng_new(const char *selector, char *err, size_t err_size, struct eng **ret);
+void eng_free(struct eng *e);
+
+const struct eng_device *eng_device(const struct eng *e);
+/* The largest table in bytes the device can hold in one storage buffer. */
+uint64_t eng_max_table_bytes(const struct eng *e);
+
+/* Starts computing the tables in mask for state s (already validated). The
+ * caller passes exactly what must be recomputed; the engine keeps the other
+ * tables from earlier computations, so they must be valid for s. A size or
+ * storage change makes the engine reallocate and forces every table that
+ * changed shape. Returns 0, -EBUSY while a computation is in flight,
+ * -EINVAL on a bad state, or -EIO on a device error (err says which). */
+int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err,
+	       size_t err_size);
+/* An eventfd that becomes readable when the submitted work has finished. */
+int eng_event_fd(const struct eng *e);
+/* Non-blocking: 0 and the timing once finished, -EAGAIN before. */
+int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_size);
+/* Blocks until the submitted work has finished. */
+int eng_wait(struct eng *e, struct eng_timing *ret, char *err, size_t err_size);
+/* eng_submit then eng_wait. */
+int eng_compute(struct eng *e, const struct sky_state *s, uint32_t mask,
+		struct eng_timing *ret, char *err, size_t err_size);
+
+/* The table as computed by the last completed computation, in host memory.
+ * Valid until the next eng_submit or eng_free. ret_bytes may be NULL. */
+const void *eng_table(const struct eng *e, enum state_table t, size_t *ret_bytes);
+
+#endif

@@ -1,0 +1,529 @@
+/* state.c - the sky state, its keys, their parsing and their invalidation. */
+#include "state.h"
+
+#include <errno.h>
+#include <locale.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char *const state_table_names[STATE_N_TABLES] = {
+	"transmittance", "multiscatter", "skyview", "aerial",
+};
+
+#define T_BIT STATE_BIT(STATE_TRANSMITTANCE)
+#define M_BIT STATE_BIT(STATE_MULTISCATTER)
+#define S_BIT STATE_BIT(STATE_SKYVIEW)
+#define A_BIT STATE_BIT(STATE_AERIAL)
+/* What a change to one table forces downstream. */
+#define FROM_T (T_BIT | M_BIT | S_BIT | A_BIT)
+#define FROM_M (M_BIT | S_BIT | A_BIT)
+#define LIGHTS (S_BIT | A_BIT)
+
+enum kind { K_DOUBLE, K_TRIPLE, K_UINT, K_ENUM };
+
+struct key {
+	const char *name;
+	enum kind kind;
+	size_t offset;
+	uint32_t dirty;		/* tables a change of this key invalidates */
+	double min, max;	/* inclusive; for K_ENUM unused */
+	const char *const *names; /* K_ENUM value names, NULL-terminated */
+};
+
+static const char *const storage_names[] = { "f32", "f16", NULL };
+static const char *const spacing_names[] = { "linear", "squared", NULL };
+
+#define OFF(field) offsetof(struct sky_state, field)
+#define QT(i, f) OFF(quality.t[i].f)
+#define BIG 1e300
+
+static const struct key keys[] = {
+	{ "bottom_radius_km", K_DOUBLE, OFF(atmo.bottom_radius_km), FROM_T, 1e-3, 1e7, 0 },
+	{ "top_radius_km", K_DOUBLE, OFF(atmo.top_radius_km), FROM_T, 1e-3, 1e7, 0 },
+	{ "ground_albedo", K_TRIPLE, OFF(atmo.ground_albedo), FROM_M, 0, 1, 0 },
+	{ "altitude_km", K_DOUBLE, OFF(altitude_km), LIGHTS, -BIG, 1e7, 0 },
+
+	{ "sun_elevation_deg", K_DOUBLE, OFF(sun.elevation_deg), LIGHTS, -90, 90, 0 },
+	{ "sun_azimuth_deg", K_DOUBLE, OFF(sun.azimuth_deg), LIGHTS, -360, 720, 0 },
+	{ "sun_illuminance_lx", K_DOUBLE, OFF(sun.illuminance_lx), LIGHTS, 0, 1e9, 0 },
+	{ "sun_color", K_TRIPLE, OFF(sun.color), LIGHTS, 0, 1e3, 0 },
+	{ "sun_angular_radius_deg", K_DOUBLE, OFF(sun.angular_radius_deg), LIGHTS, 1e-4, 20, 0 },
+	{ "moon_elevation_deg", K_DOUBLE, OFF(moon.elevation_deg), LIGHTS, -90, 90, 0 },
+	{ "moon_azimuth_deg", K_DOUBLE, OFF(moon.azimuth_deg), LIGHTS, -360, 720, 0 },
+	{ "moon_illuminance_lx", K_DOUBLE, OFF(moon.illuminance_lx), LIGHTS, 0, 1e9, 0 },
+	{ "moon_color", K_TRIPLE, OFF(moon.color), LIGHTS, 0, 1e3, 0 },
+	{ "moon_angular_radius_deg", K_DOUBLE, OFF(moon.angular_radius_deg), LIGHTS, 1e-4, 20, 0 },
+
+	{ "camera_yaw_deg", K_DOUBLE, OFF(camera.yaw_deg), A_BIT, -360, 720, 0 },
+	{ "camera_pitch_deg", K_DOUBLE, OFF(camera.pitch_deg), A_BIT, -90, 90, 0 },
+	{ "camera_roll_deg", K_DOUBLE, OFF(camera.roll_deg), A_BIT, -180, 180, 0 },
+	{ "camera_vfov_deg", K_DOUBLE, OFF(camera.vfov_deg), A_BIT, 0.1, 179, 0 },
+	{ "camera_aspect", K_DOUBLE, OFF(camera.aspect), A_BIT, 0.01, 100, 0 },
+
+	{ "transmittance_width", K_UINT, QT(0, width), FROM_T, 2, 4096, 0 },
+	{ "transmittance_height", K_UINT, QT(0, height), FROM_T, 2, 4096, 0 },
+	{ "transmittance_steps", K_UINT, QT(0, steps), FROM_T, 1, 4096, 0 },
+	{ "multiscatter_width", K_UINT, QT(1, width), FROM_M, 2, 1024, 0 },
+	{ "multiscatter_height", K_UINT, QT(1, height), FROM_M, 2, 1024, 0 },
+	{ "multiscatter_steps", K_UINT, QT(1, steps), FROM_M, 1, 4096, 0 },
+	{ "multiscatter_dirs", K_UINT, OFF(quality.multiscatter_dirs), FROM_M, 2, 64, 0 },
+	{ "skyview_width", K_UINT, QT(2, width), S_BIT, 2, 4096, 0 },
+	{ "skyview_height", K_UINT, QT(2, height), S_BIT, 2, 4096, 0 },
+	{ "skyview_steps", K_UINT, QT(2, steps), S_BIT, 1, 4096, 0 },
+	{ "skyview_min_steps", K_UINT, OFF(quality.skyview_min_steps), S_BIT, 1, 4096, 0 },
+	{ "aerial_width", K_UINT, QT(3, width), A_BIT, 1, 1024, 0 },
+	{ "aerial_height", K_UINT, QT(3, height), A_BIT, 1, 1024, 0 },
+	{ "aerial_depth", K_UINT, QT(3, depth), A_BIT, 1, 1024, 0 },
+	{ "aerial_steps", K_UINT, QT(3, steps), A_BIT, 1, 256, 0 },
+	{ "aerial_range_km", K_DOUBLE, OFF(quality.aerial_range_km), A_BIT, 1e-3, 1e5, 0 },
+	{ "aerial_spacing", K_ENUM, OFF(quality.aerial_spacing), A_BIT, 0, 0, spacing_names },
+	{ "storage", K_ENUM, OFF(quality.storage), STATE_ALL_TABLES, 0, 0, storage_names },
+};
+
+/* Per-constituent keys: "<name>_<suffix>", e.g. mie_g, ozone_absorption_per_km. */
+enum ckey {
+	C_SCATTERING, C_ABSORPTION, C_SCALE_HEIGHT, C_G, C_PHASE, C_WIDTH,
+	C_EXP_TERM, C_EXP_SCALE, C_LINEAR, C_CONSTANT,
+};
+static const char *const phase_names[] = {
+	"none", "rayleigh", "cornette_shanks", "henyey_greenstein", NULL,
+};
+static const struct {
+	const char *suffix;
+	enum ckey which;
+	int layer;
+} ckeys[] = {
+	{ "scattering_per_km", C_SCATTERING, 0 },
+	{ "absorption_per_km", C_ABSORPTION, 0 },
+	{ "scale_height_km", C_SCALE_HEIGHT, 0 },
+	{ "g", C_G, 0 },
+	{ "phase", C_PHASE, 0 },
+	{ "layer0_width_km", C_WIDTH, 0 },
+	{ "layer0_exp_term", C_EXP_TERM, 0 },
+	{ "layer0_exp_scale_per_km", C_EXP_SCALE, 0 },
+	{ "layer0_linear_per_km", C_LINEAR, 0 },
+	{ "layer0_constant", C_CONSTANT, 0 },
+	{ "layer1_exp_term", C_EXP_TERM, 1 },
+	{ "layer1_exp_scale_per_km", C_EXP_SCALE, 1 },
+	{ "layer1_linear_per_km", C_LINEAR, 1 },
+	{ "layer1_constant", C_CONSTANT, 1 },
+};
+
+void state_default(struct sky_state *ret)
+{
+	struct sky_state s = { 0 };
+
+	snprintf(s.preset, sizeof(s.preset), "earth");
+	atmo_earth(&s.atmo);
+	s.altitude_km = 0.2;
+	s.sun = (struct state_light){ .elevation_deg = 30.0, .azimuth_deg = 180.0,
+		.illuminance_lx = 128000.0, .color = { 1, 1, 1 },
+		.angular_radius_deg = 0.004675 * 180.0 / M_PI };
+	s.moon = (struct state_light){ .elevation_deg = -30.0, .azimuth_deg = 0.0,
+		.illuminance_lx = 0.0, .color = { 1, 1, 1 },
+		.angular_radius_deg = 0.259 };
+	s.camera = (struct state_camera){ .yaw_deg = 180.0, .pitch_deg = 0.0,
+		.roll_deg = 0.0, .vfov_deg = 60.0, .aspect = 16.0 / 9.0 };
+	s.quality.t[STATE_TRANSMITTANCE] = (struct state_table_quality){ 256, 64, 1, 40 };
+	s.quality.t[STATE_MULTISCATTER] = (struct state_table_quality){ 32, 32, 1, 20 };
+	s.quality.t[STATE_SKYVIEW] = (struct state_table_quality){ 192, 108, 1, 30 };
+	s.quality.t[STATE_AERIAL] = (struct state_table_quality){ 32, 32, 32, 1 };
+	s.quality.multiscatter_dirs = 64;
+	s.quality.skyview_min_steps = 4;
+	s.quality.aerial_range_km = 128.0;
+	s.quality.aerial_spacing = STATE_SQUARED;
+	s.quality.storage = STATE_F32;
+	*ret = s;
+}
+
+/* Strict C-locale double: the whole string, finite. strtod reads the
+ * locale's decimal point, so it runs under a "C" locale_t. */
+static int parse_double(const char *v, double *ret)
+{
+	static locale_t c_locale;
+	char *end;
+
+	if (!c_locale)
+		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
+	if (!c_locale || !*v)
+		return -EINVAL;
+	locale_t old = uselocale(c_locale);
+	errno = 0;
+	double d = strtod(v, &end);
+	int e = errno;
+	uselocale(old);
+	if (*end || end == v || !isfinite(d) || (e == ERANGE && d != 0.0))
+		return -EINVAL;
+	*ret = d;
+	return 0;
+}
+
+static int parse_triple(const char *v, double ret[3])
+{
+	char buf[128], *parts[3];
+	int n = 0;
+
+	if (strlen(v) >= sizeof(buf))
+		return -EINVAL;
+	snprintf(buf, sizeof(buf), "%s", v);
+	char *p = buf;
+	for (;;) {
+		if (n == 3)
+			return -EINVAL;
+		parts[n++] = p;
+		char *comma = strchr(p, ',');
+		if (!comma)
+			break;
+		*comma = 0;
+		p = comma + 1;
+	}
+	if (n != 1 && n != 3)
+		return -EINVAL;
+	double out[3];
+	for (int i = 0; i < n; i++)
+		if (parse_double(parts[i], &out[i]) < 0)
+			return -EINVAL;
+	for (int i = 0; i < 3; i++)
+		ret[i] = out[n == 1 ? 0 : i];
+	return 0;
+}
+
+static int enum_index(const char *const *names, const char *v)
+{
+	for (int i = 0; names[i]; i++)
+		if (strcmp(names[i], v) == 0)
+			return i;
+	return -1;
+}
+
+#define ERR(...) (snprintf(err, err_size, __VA_ARGS__), -EINVAL)
+
+static int set_key(struct sky_state *s, const struct key *k, const char *v,
+		   char *err, size_t err_size)
+{
+	char *base = (char *)s + k->offset;
+	double d, t[3];
+
+	switch (k->kind) {
+	case K_DOUBLE:
+		if (parse_double(v, &d) < 0)
+			return ERR("%s: '%s' is not a finite number", k->name, v);
+		if (d < k->min || d > k->max)
+			return ERR("%s: %g is outside [%g, %g]", k->name, d, k->min, k->max);
+		*(double *)base = d;
+		return 0;
+	case K_TRIPLE:
+		if (parse_triple(v, t) < 0)
+			return ERR("%s: '%s' is not one or three finite numbers", k->name, v);
+		for (int i = 0; i < 3; i++)
+			if (t[i] < k->min || t[i] > k->max)
+				return ERR("%s: %g is outside [%g, %g]", k->name, t[i], k->min, k->max);
+		memcpy(base, t, sizeof(t));
+		return 0;
+	case K_UINT: {
+		char *end;
+		if (!*v || *v == '-' || *v == '+')
+			return ERR("%s: '%s' is not a whole number", k->name, v);
+		errno = 0;
+		unsigned long long u = strtoull(v, &end, 10);
+		if (*end || errno)
+			return ERR("%s: '%s' is not a whole number", k->name, v);
+		if (u < k->min || u > k->max)
+			return ERR("%s: %llu is outside [%g, %g]", k->name, u, k->min, k->max);
+		if (strcmp(k->name, "multiscatter_dirs") == 0 && u != 2 && u != 64)
+			return ERR("multiscatter_dirs: must be 2 or 64");
+		*(uint32_t *)base = (uint32_t)u;
+		return 0;
+	}
+	case K_ENUM: {
+		int i = enum_index(k->names, v);
+		if (i < 0)
+			return ERR("%s: '%s' is not one of the allowed values", k->name, v);
+		*(int *)base = i;
+		return 0;
+	}
+	}
+	return ERR("%s: internal error", k->name);
+}
+
+static struct atmo_constituent *find_constituent(struct sky_state *s, const char *key,
+						 const char **ret_suffix)
+{
+	for (int i = 0; i < s->atmo.n_constituents; i++) {
+		size_t n = strlen(s->atmo.c[i].name);
+		if (n && strncmp(key, s->atmo.c[i].name, n) == 0 && key[n] == '_') {
+			*ret_suffix = key + n + 1;
+			return &s->atmo.c[i];
+		}
+	}
+	return NULL;
+}
+
+static int set_constituent(struct atmo_constituent *c, const char *key, const char *suffix,
+			   const char *v, char *err, size_t err_size)
+{
+	for (size_t i = 0; i < sizeof(ckeys) / sizeof(ckeys[0]); i++) {
+		if (strcmp(ckeys[i].suffix, suffix) != 0)
+			continue;
+		struct atmo_layer *l = &c->density.layers[ckeys[i].layer];
+		double d, t[3];
+		if (ckeys[i].which == C_PHASE) {
+			int p = enum_index(phase_names, v);
+			if (p < 0)
+				return ERR("%s: '%s' is not none, rayleigh, cornette_shanks or henyey_greenstein", key, v);
+			c->phase = (enum atmo_phase)p;
+			return 0;
+		}
+		if (ckeys[i].which == C_SCATTERING || ckeys[i].which == C_ABSORPTION) {
+			if (parse_triple(v, t) < 0)
+				return ERR("%s: '%s' is not one or three finite numbers", key, v);
+			for (int ch = 0; ch < 3; ch++)
+				if (t[ch] < 0.0)
+					return ERR("%s: coefficients must be >= 0", key);
+			memcpy(ckeys[i].which == C_SCATTERING ? c->scattering_per_km
+							      : c->absorption_per_km, t, sizeof(t));
+			return 0;
+		}
+		if (parse_double(v, &d) < 0)
+			return ERR("%s: '%s' is not a finite number", key, v);
+		switch (ckeys[i].which) {
+		case C_SCALE_HEIGHT:
+			if (!(d > 0.0))
+				return ERR("%s: must be > 0", key);
+			c->density = (struct atmo_profile){ 0 };
+			c->density.layers[1].exp_term = 1.0;
+			c->density.layers[1].exp_scale_per_km = -1.0 / d;
+			return 0;
+		case C_G:
+			if (!(fabs(d) < 1.0))
+				return ERR("%s: must satisfy |g| < 1", key);
+			c->g = d;
+			return 0;
+		case C_WIDTH:
+			if (d < 0.0)
+				return ERR("%s: must be >= 0", key);
+			l->width_km = d;
+			return 0;
+		case C_EXP_TERM: l->exp_term = d; return 0;
+		case C_EXP_SCALE: l->exp_scale_per_km = d; return 0;
+		case C_LINEAR: l->linear_per_km = d; return 0;
+		case C_CONSTANT: l->constant = d; return 0;
+		default: break;
+		}
+	}
+	return ERR("%s: unknown key", key);
+}
+
+static const struct key *find_key(const char *name)
+{
+	for (size_t i = 0; i < sizeof(keys) / sizeof(keys[0]); i++)
+		if (strcmp(keys[i].name, name) == 0)
+			return &keys[i];
+	return NULL;
+}
+
+int state_set(struct sky_state *s, const char *key, const char *value,
+	      uint32_t *ret_dirty, char *err, size_t err_size)
+{
+	struct sky_state before = *s;
+	uint32_t dirty;
+	int r;
+
+	if (strcmp(key, "preset") == 0) {
+		struct atmo a;
+		if (atmo_preset(value, &a) < 0)
+			return ERR("preset: '%s' is not earth or mars", value);
+		s->atmo = a;
+		snprintf(s->preset, sizeof(s->preset), "%s", value);
+		dirty = FROM_T;
+	} else {
+		const struct key *k = find_key(key);
+		if (k) {
+			r = set_key(s, k, value, err, err_size);
+			dirty = k->dirty;
+		} else {
+			const char *suffix;
+			struct atmo_constituent *c = find_constituent(s, key, &suffix);
+			if (!c)
+				return ERR("%s: unknown key", key);
+			r = set_constituent(c, key, suffix, value, err, err_size);
+			dirty = FROM_T;
+		}
+		if (r < 0)
+			return r;
+		/* ground_albedo alone leaves transmittance as it was. */
+	}
+	if (ret_dirty && memcmp(&before, s, sizeof(before)) != 0)
+		*ret_dirty |= dirty;
+	return 0;
+}
+
+int state_set_pair(struct sky_state *s, const char *pair, uint32_t *ret_dirty,
+		   char *err, size_t err_size)
+{
+	const char *eq = strchr(pair, '=');
+	char key[64];
+
+	if (!eq || eq == pair)
+		return ERR("'%s': expected key=value", pair);
+	if ((size_t)(eq - pair) >= sizeof(key))
+		return ERR("'%.32s...': key too long", pair);
+	memcpy(key, pair, eq - pair);
+	key[eq - pair] = 0;
+	return state_set(s, key, eq + 1, ret_dirty, err, err_size);
+}
+
+size_t state_texel_bytes(enum state_storage st)
+{
+	return st == STATE_F16 ? 8 : 16;
+}
+
+size_t state_table_bytes(const struct sky_state *s, enum state_table t)
+{
+	const struct state_table_quality *q = &s->quality.t[t];
+	return (size_t)q->width * q->height * (t == STATE_AERIAL ? q->depth : 1) *
+	       state_texel_bytes(s->quality.storage);
+}
+
+int state_validate(const struct sky_state *s, uint64_t max_buffer_bytes,
+		   char *err, size_t err_size)
+{
+	int r = atmo_validate(&s->atmo, err, err_size);
+	if (r < 0)
+		return r;
+	if (s->quality.skyview_min_steps > s->quality.t[STATE_SKYVIEW].steps)
+		return ERR("skyview_min_steps: must not exceed skyview_steps");
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		size_t bytes = state_table_bytes(s, (enum state_table)t);
+		if (max_buffer_bytes && bytes > max_buffer_bytes)
+			return ERR("%s_width: table of %zu bytes exceeds the device limit of %llu",
+				   state_table_names[t], bytes,
+				   (unsigned long long)max_buffer_bytes);
+	}
+	return 0;
+}
+
+static void format_value(const struct sky_state *s, const struct key *k, char *buf, size_t n)
+{
+	const char *base = (const char *)s + k->offset;
+	switch (k->kind) {
+	case K_DOUBLE: snprintf(buf, n, "%.9g", *(const double *)base); break;
+	case K_TRIPLE: {
+		const double *t = (const double *)base;
+		snprintf(buf, n, "%.9g,%.9g,%.9g", t[0], t[1], t[2]);
+		break;
+	}
+	case K_UINT: snprintf(buf, n, "%u", *(const uint32_t *)base); break;
+	case K_ENUM: snprintf(buf, n, "%s", k->names[*(const int *)base]); break;
+	}
+}
+
+static void format_constituent(const struct atmo_constituent *c, size_t which, char *buf, size_t n)
+{
+	const struct atmo_layer *l = &c->density.layers[ckeys[which].layer];
+	switch (ckeys[which].which) {
+	case C_SCATTERING:
+	case C_ABSORPTION: {
+		const double *t = ckeys[which].which == C_SCATTERING ? c->scattering_per_km
+								    : c->absorption_per_km;
+		snprintf(buf, n, "%.9g,%.9g,%.9g", t[0], t[1], t[2]);
+		break;
+	}
+	case C_SCALE_HEIGHT:
+		/* Defined only for a pure exponential profile. */
+		if (c->density.layers[1].exp_scale_per_km < 0 && c->density.layers[0].width_km == 0)
+			snprintf(buf, n, "%.9g", -1.0 / c->density.layers[1].exp_scale_per_km);
+		else
+			snprintf(buf, n, "none");
+		break;
+	case C_G: snprintf(buf, n, "%.9g", c->g); break;
+	case C_PHASE: snprintf(buf, n, "%s", phase_names[c->phase]); break;
+	case C_WIDTH: snprintf(buf, n, "%.9g", l->width_km); break;
+	case C_EXP_TERM: snprintf(buf, n, "%.9g", l->exp_term); break;
+	case C_EXP_SCALE: snprintf(buf, n, "%.9g", l->exp_scale_per_km); break;
+	case C_LINEAR: snprintf(buf, n, "%.9g", l->linear_per_km); break;
+	case C_CONSTANT: snprintf(buf, n, "%.9g", l->constant); break;
+	}
+}
+
+void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx)
+{
+	char buf[128], name[64];
+
+	fn(ctx, "preset", s->preset);
+	for (size_t i = 0; i < sizeof(keys) / sizeof(keys[0]); i++) {
+		format_value(s, &keys[i], buf, sizeof(buf));
+		fn(ctx, keys[i].name, buf);
+	}
+	for (int c = 0; c < s->atmo.n_constituents; c++)
+		for (size_t i = 0; i < sizeof(ckeys) / sizeof(ckeys[0]); i++) {
+			snprintf(name, sizeof(name), "%s_%s", s->atmo.c[c].name, ckeys[i].suffix);
+			format_constituent(&s->atmo.c[c], i, buf, sizeof(buf));
+			fn(ctx, name, buf);
+		}
+}
+
+int state_get(const struct sky_state *s, const char *key, char *buf, size_t size)
+{
+	if (strcmp(key, "preset") == 0) {
+		snprintf(buf, size, "%s", s->preset);
+		return 0;
+	}
+	const struct key *k = find_key(key);
+	if (k) {
+		format_value(s, k, buf, size);
+		return 0;
+	}
+	for (int c = 0; c < s->atmo.n_constituents; c++) {
+		size_t n = strlen(s->atmo.c[c].name);
+		if (strncmp(key, s->atmo.c[c].name, n) || key[n] != '_')
+			continue;
+		for (size_t i = 0; i < sizeof(ckeys) / sizeof(ckeys[0]); i++)
+			if (strcmp(key + n + 1, ckeys[i].suffix) == 0) {
+				format_constituent(&s->atmo.c[c], i, buf, size);
+				return 0;
+			}
+	}
+	return -ENOENT;
+}
+
+int state_parse_tables(const char *list, uint32_t *ret_mask)
+{
+	uint32_t mask = 0;
+	const char *p = list;
+
+	while (*p) {
+		size_t n = strcspn(p, ",");
+		int found = 0;
+		if (n == 3 && strncmp(p, "all", 3) == 0) {
+			mask |= STATE_ALL_TABLES;
+			found = 1;
+		}
+		for (int t = 0; t < STATE_N_TABLES && !found; t++)
+			if (strlen(state_table_names[t]) == n &&
+			    strncmp(p, state_table_names[t], n) == 0) {
+				mask |= STATE_BIT(t);
+				found = 1;
+			}
+		if (!found)
+			return -EINVAL;
+		p += n;
+		if (*p == ',')
+			p++;
+	}
+	if (!mask)
+		return -EINVAL;
+	*ret_mask = mask;
+	return 0;
+}
+
+uint32_t state_closure(uint32_t mask)
+{
+	if (mask & (S_BIT | A_BIT))
+		mask |= M_BIT;
+	if (mask & M_BIT)
+		mask |= T_BIT;
+	return mask;
+}

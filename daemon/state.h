@@ -1,0 +1,111 @@
+/* state.h - the state of one sky and its key=value vocabulary.
+ *
+ * The same keys serve the command line (skyd --once key=value), the config
+ * file and the control protocol. A change is parsed whole into a copy, then
+ * validated, then applied: it applies entirely or not at all.
+ */
+#ifndef SKYD_STATE_H
+#define SKYD_STATE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "atmo.h"
+
+/* The four tables, in dependency order. */
+enum state_table {
+	STATE_TRANSMITTANCE = 0,
+	STATE_MULTISCATTER = 1,
+	STATE_SKYVIEW = 2,
+	STATE_AERIAL = 3,
+	STATE_N_TABLES = 4,
+};
+#define STATE_BIT(t) (1u << (t))
+#define STATE_ALL_TABLES 0xfu
+
+enum state_storage { STATE_F32 = 0, STATE_F16 = 1 };
+enum state_spacing { STATE_LINEAR = 0, STATE_SQUARED = 1 };
+
+struct state_light {
+	double elevation_deg;		/* geometric, above the astronomical horizon */
+	double azimuth_deg;		/* eastward from north */
+	double illuminance_lx;		/* at the top of the atmosphere, normal incidence */
+	double color[3];		/* linear RGB, scaled so luminance is 1 */
+	double angular_radius_deg;
+};
+
+struct state_camera {
+	double yaw_deg;			/* azimuth of the view axis, eastward from north */
+	double pitch_deg;		/* elevation of the view axis */
+	double roll_deg;
+	double vfov_deg;
+	double aspect;			/* width / height */
+};
+
+/* Size and quadrature of one table. depth is 1 except for aerial perspective. */
+struct state_table_quality {
+	uint32_t width, height, depth;
+	uint32_t steps;
+};
+
+struct state_quality {
+	struct state_table_quality t[STATE_N_TABLES];
+	uint32_t multiscatter_dirs;	/* 2 (up and down) or 64 */
+	uint32_t skyview_min_steps;
+	double aerial_range_km;
+	enum state_spacing aerial_spacing;
+	enum state_storage storage;
+};
+
+struct sky_state {
+	char preset[ATMO_NAME_MAX];
+	struct atmo atmo;
+	double altitude_km;		/* observer above the ground, kept apart from radius */
+	struct state_light sun;
+	struct state_light moon;	/* lit when moon_illuminance_lx > 0 */
+	struct state_camera camera;
+	struct state_quality quality;
+};
+
+/* Default: Earth, sun at 30 degrees, observer at 0.2 km, reference sizes. */
+void state_default(struct sky_state *ret);
+
+/* Parses one key=value into s. On failure returns -EINVAL (unknown key,
+ * malformed or out-of-range number) or -ERANGE and writes a message naming
+ * the key and the rule to err; s may be partly changed, so callers work on
+ * a copy. Numbers are parsed in the C locale. ret_dirty, if not NULL, gets
+ * the tables this key invalidates ORed in. */
+int state_set(struct sky_state *s, const char *key, const char *value,
+	      uint32_t *ret_dirty, char *err, size_t err_size);
+
+/* Splits "key=value" and calls state_set. */
+int state_set_pair(struct sky_state *s, const char *pair, uint32_t *ret_dirty,
+		   char *err, size_t err_size);
+
+/* Cross-key rules (top above bottom, sizes within limits). max_dim is the
+ * device's largest buffer dimension rule: 0 means no device limit known. */
+int state_validate(const struct sky_state *s, uint64_t max_buffer_bytes,
+		   char *err, size_t err_size);
+
+/* Calls fn for every key with its current value formatted. */
+typedef void (*state_emit_fn)(void *ctx, const char *key, const char *value);
+void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx);
+
+/* Formats one key's value; -ENOENT if unknown. */
+int state_get(const struct sky_state *s, const char *key, char *buf, size_t size);
+
+/* Tables that differ between a and b given what they depend on. */
+uint32_t state_diff(const struct sky_state *a, const struct sky_state *b);
+
+/* Bytes of one texel in the given storage (4 channels). */
+size_t state_texel_bytes(enum state_storage st);
+size_t state_table_bytes(const struct sky_state *s, enum state_table t);
+
+extern const char *const state_table_names[STATE_N_TABLES];
+/* Table mask from a comma list ("skyview,aerial", "all"); -EINVAL if unknown. */
+int state_parse_tables(const char *list, uint32_t *ret_mask);
+/* The tables t depends on, t included. */
+uint32_t state_closure(uint32_t mask);
+
+#endif

@@ -1,0 +1,98 @@
+/* test_state.c - the key vocabulary: parsing, refusal, invalidation. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "state.h"
+#include "test.h"
+
+static void test_defaults_are_valid(void)
+{
+	struct sky_state s;
+	char err[256];
+	state_default(&s);
+	CHECK(state_validate(&s, 0, err, sizeof(err)) == 0);
+	CHECK(s.atmo.c[ATMO_RAYLEIGH].scattering_per_km[2] == 33.1e-3);
+	CHECK(s.quality.t[STATE_TRANSMITTANCE].width == 256);
+}
+
+static void test_refusals_name_the_key(void)
+{
+	static const char *bad[] = {
+		"nonsense_key=1", "sun_elevation_deg=nan", "sun_elevation_deg=inf",
+		"sun_elevation_deg=91", "sun_elevation_deg=12abc", "ground_albedo=1.5",
+		"mie_g=1", "mie_g=-1.0", "rayleigh_scattering_per_km=-1e-3",
+		"skyview_width=0", "multiscatter_dirs=7", "storage=f64", "preset=venus",
+		"transmittance_width=-3", "transmittance_width=1e3",
+	};
+	for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
+		struct sky_state s;
+		char err[256] = "", key[64];
+		state_default(&s);
+		CHECK(state_set_pair(&s, bad[i], NULL, err, sizeof(err)) < 0);
+		snprintf(key, sizeof(key), "%.*s", (int)strcspn(bad[i], "="), bad[i]);
+		if (!strstr(err, key))
+			FAIL("'%s': message '%s' does not name the key", bad[i], err);
+	}
+}
+
+static void test_cross_key_rules(void)
+{
+	struct sky_state s;
+	char err[256];
+	state_default(&s);
+	CHECK(state_set_pair(&s, "top_radius_km=6000", NULL, err, sizeof(err)) == 0);
+	CHECK(state_validate(&s, 0, err, sizeof(err)) < 0);
+	CHECK(strstr(err, "top_radius_km") != NULL);
+	state_default(&s);
+	CHECK(state_validate(&s, 1024, err, sizeof(err)) < 0);
+}
+
+static void test_invalidation(void)
+{
+	struct sky_state s;
+	char err[256];
+	uint32_t dirty = 0;
+	state_default(&s);
+	CHECK(state_set_pair(&s, "sun_elevation_deg=10", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == (STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL)));
+	dirty = 0;
+	CHECK(state_set_pair(&s, "sun_elevation_deg=10", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == 0);
+	CHECK(state_set_pair(&s, "camera_yaw_deg=10", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == STATE_BIT(STATE_AERIAL));
+	dirty = 0;
+	CHECK(state_set_pair(&s, "mie_g=0.7", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == STATE_ALL_TABLES);
+	dirty = 0;
+	CHECK(state_set_pair(&s, "ground_albedo=0.1", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == (STATE_ALL_TABLES & ~STATE_BIT(STATE_TRANSMITTANCE)));
+}
+
+static void test_roundtrip(void)
+{
+	struct sky_state s;
+	char err[256], buf[128];
+	state_default(&s);
+	CHECK(state_set_pair(&s, "rayleigh_scattering_per_km=1e-3,2e-3,3e-3", NULL, err, sizeof(err)) == 0);
+	CHECK(state_get(&s, "rayleigh_scattering_per_km", buf, sizeof(buf)) == 0);
+	CHECK(strcmp(buf, "0.001,0.002,0.003") == 0);
+	CHECK(state_set_pair(&s, "mie_scale_height_km=2.5", NULL, err, sizeof(err)) == 0);
+	CHECK(state_get(&s, "mie_scale_height_km", buf, sizeof(buf)) == 0);
+	CHECK(strcmp(buf, "2.5") == 0);
+	CHECK(state_get(&s, "no_such_key", buf, sizeof(buf)) < 0);
+	uint32_t m;
+	CHECK(state_parse_tables("skyview,aerial", &m) == 0 && m == 0xc);
+	CHECK(state_closure(m) == STATE_ALL_TABLES);
+	CHECK(state_parse_tables("skyview,bogus", &m) < 0);
+}
+
+int main(void)
+{
+	test_defaults_are_valid();
+	test_refusals_name_the_key();
+	test_cross_key_rules();
+	test_invalidation();
+	test_roundtrip();
+	return test_report("test_state");
+}
