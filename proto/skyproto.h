@@ -1,0 +1,116 @@
+/* skyproto.h - the contract between skyd and its clients: protocol version,
+ * limits, error codes, and the layout of the shared memory.
+ *
+ * This is the only header the daemon and the clients both include (with
+ * skymap.h for the uv mappings). Any change bumps SKY_PROTO_VERSION or
+ * SKY_SHM_LAYOUT_VERSION. PROTOCOL.md beside it is the script writer's manual.
+ */
+#ifndef SKYD_SKYPROTO_H
+#define SKYD_SKYPROTO_H
+
+#include <stdint.h>
+
+/* Text protocol: greeting "OK skyd <SKY_PROTO_VERSION>". */
+#define SKY_PROTO_VERSION "1"
+#define SKY_PROTO_LINE_MAX 4096		/* bytes per request line, newline included */
+
+/* ACK codes: "ACK [code] {verb} message". */
+enum sky_ack {
+	SKY_ACK_SYNTAX = 1,		/* malformed line, key=value expected */
+	SKY_ACK_ARG = 2,		/* a value that is not valid for its key */
+	SKY_ACK_PERMISSION = 4,		/* the peer's role may not do this */
+	SKY_ACK_UNKNOWN = 5,		/* unknown verb */
+	SKY_ACK_NO_EXIST = 50,		/* unknown key, table or view */
+	SKY_ACK_RANGE = 51,		/* a number outside its range */
+	SKY_ACK_LIMIT = 52,		/* a per-client bound was reached */
+	SKY_ACK_TOO_LONG = 53,		/* request line over SKY_PROTO_LINE_MAX */
+	SKY_ACK_STATE = 54,		/* not allowed in this state (end without batch) */
+	SKY_ACK_ENGINE = 60,		/* the device failed; last good tables stay */
+};
+
+/* Shared memory ------------------------------------------------------------
+ *
+ * One memfd: a header, then n_slots slots of slot_bytes each, the first at
+ * header_bytes. Every offset is from the start of the mapping and aligned to
+ * 64 bytes. All multi-byte fields are native-endian (same machine).
+ *
+ * Reading a slot (never blocks the writer, holds nothing):
+ *   s1 = atomic_load_acquire(&slot->seq); if odd, retry or take another slot
+ *   copy or sample what is needed
+ *   atomic_thread_fence(acquire); s2 = atomic_load_relaxed(&slot->seq)
+ *   if s1 != s2 the copy is torn: retry
+ * The newest slot is header->current_slot; header->generation increments on
+ * every publication and is the futex word to wait on.
+ */
+#define SKY_SHM_MAGIC 0x31594b53u	/* "SKY1" little-endian */
+#define SKY_SHM_LAYOUT_VERSION 1u
+#define SKY_SHM_MAX_TABLES 4u
+#define SKY_SHM_MIN_SLOTS 3u
+
+enum sky_shm_table_id {
+	SKY_TABLE_TRANSMITTANCE = 0,
+	SKY_TABLE_MULTISCATTER = 1,
+	SKY_TABLE_SKYVIEW = 2,
+	SKY_TABLE_AERIAL = 3,
+};
+
+enum sky_shm_format {
+	SKY_FORMAT_RGBA32F = 1,		/* 16 bytes a texel */
+	SKY_FORMAT_RGBA16F = 2,		/* 8 bytes a texel, IEEE binary16 */
+};
+
+struct sky_shm_table {
+	uint32_t id;			/* enum sky_shm_table_id */
+	uint32_t format;		/* enum sky_shm_format */
+	uint32_t width, height, depth;	/* depth 1 for 2-D tables */
+	uint32_t texel_bytes;
+	uint64_t offset;		/* from the start of a slot */
+	uint64_t bytes;
+};
+
+/* The state that produced a slot. Angles in radians, lengths in km,
+ * directions as unit vectors in the observer's east-north-up frame. */
+struct sky_shm_state {
+	double utc_unix_s;		/* simulation time, NaN when angles were set directly */
+	double latitude_rad, longitude_rad;
+	double altitude_km;		/* observer above the ground */
+	double bottom_radius_km, top_radius_km;
+	double ground_albedo[3];
+	double sun_direction[3];
+	double sun_illuminance_lx[3];	/* per channel, top of the atmosphere */
+	double sun_angular_radius_rad;
+	double moon_direction[3];
+	double moon_illuminance_lx[3];	/* 0 when the moon lights nothing */
+	double moon_angular_radius_rad;
+	double camera_forward[3], camera_right[3], camera_up[3];
+	double camera_vfov_rad, camera_aspect;
+	double aerial_range_km;
+	uint32_t aerial_squared;	/* 1: squared slice spacing, 0: linear */
+	uint32_t reserved0;
+	double reserved[16];
+};
+
+struct sky_shm_slot {
+	uint32_t seq;			/* odd while written, even when stable (atomic) */
+	uint32_t valid_tables;		/* bit (1 << sky_shm_table_id) per valid table */
+	uint64_t generation;		/* the generation this slot was published in */
+	int64_t apply_time_ns;		/* CLOCK_REALTIME at which it becomes current; 0 now */
+	uint64_t checksum;		/* of the valid tables' bytes, see PROTOCOL.md */
+	struct sky_shm_state state;
+};
+
+struct sky_shm_header {
+	uint32_t magic;			/* SKY_SHM_MAGIC */
+	uint32_t layout_version;	/* SKY_SHM_LAYOUT_VERSION */
+	uint32_t uv_mapping_version;	/* SKYMAP_VERSION */
+	uint32_t header_bytes;		/* offset of slot 0 */
+	uint32_t n_slots;		/* >= SKY_SHM_MIN_SLOTS */
+	uint32_t n_tables;
+	uint64_t slot_bytes;
+	uint64_t total_bytes;
+	uint32_t generation;		/* futex word: +1 on every publication (atomic) */
+	uint32_t current_slot;		/* newest published slot (atomic) */
+	struct sky_shm_table tables[SKY_SHM_MAX_TABLES];
+};
+
+#endif
