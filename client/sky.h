@@ -1,0 +1,433 @@
+/* sky.h - libsky, the client library of skyd: the manual and the API.
+ *
+ * OVERVIEW
+ *
+ * skyd computes the sky lookup tables of one sky (Hillaire, EGSR 2020) and
+ * publishes them in a sealed shared-memory region; it is steered over a
+ * Unix socket with a line-based text protocol (proto/PROTOCOL.md). libsky
+ * is the C side of both:
+ *
+ *   - sky_connect() opens the control socket and reads the greeting;
+ *     sky_request() sends one request line and waits for its reply;
+ *     sky_send() and sky_dispatch() do the same without blocking.
+ *   - sky_subscribe() asks for tables; the daemon passes the shared memory
+ *     as a file descriptor with the reply and libsky maps it read-only.
+ *   - sky_view_begin() / sky_view_end() read the newest published slot in
+ *     place (zero copy) and say afterwards whether it stayed intact;
+ *     sky_snapshot() copies a slot into the caller's memory, retrying a torn
+ *     copy. Neither ever blocks the daemon nor holds anything it waits for.
+ *   - sky_wait() sleeps until a new generation is published (a futex on the
+ *     header's generation word), or, for programs with an event loop,
+ *     sky_get_fd() and sky_dispatch() deliver "changed" events.
+ *   - sky_sample_*() evaluate the tables on the CPU with the published uv
+ *     mappings (proto/skymap.h, proto/skysample.h: the daemon's `sample`
+ *     verbs use the same code and agree bit for bit); sky_render() fills an
+ *     RGB float image in the equirectangular, perspective or planetarium
+ *     fisheye (domemaster) projection.
+ *
+ * A minimal reader:
+ *
+ *     sky_client *c;
+ *     if (sky_connect(NULL, &c) < 0) ...
+ *     if (sky_subscribe(c, SKY_TABLES_ALL, 0) < 0) ...
+ *     uint32_t gen = 0;
+ *     for (;;) {
+ *         struct sky_view v;
+ *         if (sky_view_begin(c, &v) == 0) {
+ *             double rgb[3];
+ *             sky_sample_sky(&v, 10.0, 180.0, 0, rgb);
+ *             if (sky_view_end(c, &v)) use(rgb);   // else: torn, try again
+ *         }
+ *         sky_wait(c, v.generation, 1000, &gen);
+ *     }
+ *     sky_disconnect(c);
+ *
+ * ERRORS
+ *
+ * Every function that can fail returns 0 (or a documented non-negative
+ * value) on success and a negative errno on failure; sky_strerror() names
+ * it. Arguments are checked (-EINVAL). Output parameters (ret_*) are left
+ * untouched on failure. libsky never prints, never exits, never aborts,
+ * never raises SIGPIPE (it writes with MSG_NOSIGNAL) and installs no
+ * signal handlers. A request the daemon refuses is not an error of the call:
+ * sky_request() returns the positive ACK code (enum sky_ack in
+ * proto/skyproto.h) and the reply holds the message.
+ *
+ * THREADS
+ *
+ * A sky_client is not internally locked: calls that take a sky_client must
+ * not run concurrently on the same client (use one client per thread, or a
+ * lock of your own). Different clients are independent. The sampling and
+ * rendering functions take only a const struct sky_view and touch no client
+ * state: any number of threads may call them at once on views of the same
+ * client, while another thread uses the client, provided the view's memory
+ * stays mapped (see LIFETIMES). sky_strerror(), sky_version() and
+ * sky_default_path() are thread-safe.
+ *
+ * EVENT LOOPS
+ *
+ * sky_get_fd() returns the socket. Poll it for POLLIN (and POLLOUT while
+ * sky_want_write() is true); when it is ready, call sky_dispatch() until it
+ * returns 0: it reads what is there without blocking, writes what is queued,
+ * and returns one event per call (replies to sky_send(), "changed" events,
+ * a new shared-memory layout, hang-up). The fd is the same for the life of
+ * the connection; sky_reconnect() replaces it (re-register it). The futex
+ * wait (sky_wait) is for threads without a loop; both may be used, but not
+ * at the same time on the same client.
+ *
+ * LIFETIMES
+ *
+ * A view from sky_view_begin() points into the client's mapping: it stays
+ * readable until the next call on that client that can replace the mapping
+ * (sky_dispatch, sky_request, sky_subscribe, sky_reconnect, sky_disconnect).
+ * A view filled by sky_snapshot() points into the caller's buffer and into
+ * the mapping's header (read-only fields that never change): the same
+ * rule applies to its header pointer only. The memory of the tables is
+ * never freed under a view by the daemon: a crash of skyd leaves the
+ * mapping readable (with the last tables) until the client replaces it.
+ * Strings and replies returned by libsky are owned by libsky; each function
+ * says until when they stay valid.
+ *
+ * FORK
+ *
+ * Every descriptor libsky opens is close-on-exec. After fork() the child
+ * shares the parent's socket: it must not use a sky_client made by the
+ * parent except to sky_disconnect() it (which only closes and unmaps, it
+ * sends nothing); it connects anew if it needs skyd.
+ *
+ * RECONNECTING
+ *
+ * When skyd goes away (crash, restart) the socket reports a hang-up:
+ * sky_dispatch() returns SKY_EVENT_HANGUP, sky_request() returns
+ * -ECONNRESET (or -EPIPE), sky_wait() keeps timing out. Reconnecting is
+ * explicit, with one safe exception: sky_reconnect() connects to the same
+ * path again, reads the greeting, renews the subscription (same tables,
+ * same flags) and maps the new memory. sky_request() and sky_send() on a
+ * client whose hang-up was already seen, or whose write fails because the
+ * peer is gone (nothing was delivered), call sky_reconnect() once by
+ * themselves and then send. A request that was delivered but whose reply
+ * never came is never resent (it may have been applied): the call returns
+ * -ECONNRESET and the caller decides.
+ *
+ * VERSIONS
+ *
+ * libsky follows semantic versioning (SONAME libsky.so.0). Every function
+ * says the version it appeared in. SKY_VERSION is the version of the
+ * header; sky_version() that of the library actually loaded.
+ */
+#ifndef SKY_H
+#define SKY_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "skyproto.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#if defined(__GNUC__) && !defined(SKY_NO_VISIBILITY)
+#define SKY_EXPORT __attribute__((visibility("default")))
+#else
+#define SKY_EXPORT
+#endif
+
+#define SKY_VERSION_MAJOR 0
+#define SKY_VERSION_MINOR 1
+#define SKY_VERSION_PATCH 0
+#define SKY_MAKE_VERSION(a, b, c) (((a) << 16) | ((b) << 8) | (c))
+#define SKY_VERSION SKY_MAKE_VERSION(SKY_VERSION_MAJOR, SKY_VERSION_MINOR, SKY_VERSION_PATCH)
+
+/* The connection to one skyd. Opaque. */
+typedef struct sky_client sky_client;
+/* One reply to one request: status, message and key: value lines. Opaque. */
+typedef struct sky_reply sky_reply;
+
+/* Table bits for sky_subscribe() and struct sky_view (bit = 1 << id of
+ * enum sky_shm_table_id). */
+#define SKY_TABLE_BIT(id) (1u << (id))
+#define SKY_TABLES_ALL 0xfu
+
+/* ---- Library ---------------------------------------------------------- */
+
+/* The version of the loaded library, SKY_MAKE_VERSION(major, minor, patch).
+ * Thread-safe. Since 0.1. */
+SKY_EXPORT unsigned sky_version(void);
+
+/* A static English description of err (negative errno or positive ACK
+ * code: "daemon refused (range)"). Never NULL, never freed. Thread-safe.
+ * Since 0.1. */
+SKY_EXPORT const char *sky_strerror(int err);
+
+/* Writes the default socket path into buf: $XDG_RUNTIME_DIR/skyd/control
+ * when XDG_RUNTIME_DIR is set and that socket exists, else
+ * /run/skyd/control (also when neither exists: connecting then fails
+ * with -ENOENT and names the path). Returns the length, -ENAMETOOLONG if
+ * buf is too small (or the path exceeds sun_path), -EINVAL on bad args.
+ * Thread-safe (reads the environment). Since 0.1. */
+SKY_EXPORT int sky_default_path(char *buf, size_t size);
+
+/* ---- Connection -------------------------------------------------------- */
+
+/* Connects to skyd at path (NULL: sky_default_path()), blocking, and reads
+ * the greeting "OK skyd <version>". On success *ret_client is a new client
+ * the caller frees with sky_disconnect(). Errors: -ENOENT / -ECONNREFUSED
+ * (no daemon), -EACCES, -ETIMEDOUT (no greeting within the timeout, 5 s),
+ * -EPROTO (not skyd), -EPROTONOSUPPORT (another protocol major version).
+ * Since 0.1. */
+SKY_EXPORT int sky_connect(const char *path, sky_client **ret_client);
+
+/* Closes the connection, unmaps the shared memory and frees the client and
+ * everything it returned (replies, views into its mapping). NULL is a
+ * no-op. Sends nothing, so it is safe in a forked child. Since 0.1. */
+SKY_EXPORT void sky_disconnect(sky_client *c);
+
+/* Reconnects to the path given to sky_connect(): drops the old socket (and
+ * every queued request and undelivered event), connects, reads the greeting
+ * and, if the client had subscribed, subscribes again with the same tables
+ * and flags and maps the new memory (the old mapping is released). 0 or the
+ * error of sky_connect() / sky_subscribe(); on failure the client stays
+ * disconnected and may try again. Since 0.1. */
+SKY_EXPORT int sky_reconnect(sky_client *c);
+
+/* The protocol version from the greeting ("1"), owned by the client, valid
+ * until sky_reconnect() or sky_disconnect(). Since 0.1. */
+SKY_EXPORT const char *sky_protocol_version(const sky_client *c);
+
+/* Timeout of the blocking calls (connect's greeting, sky_request, and
+ * sky_subscribe) in milliseconds; < 0: forever. Default 5000. A request
+ * that times out closes the connection (its reply could otherwise arrive
+ * as the reply of the next request): the next call reconnects. Since 0.1. */
+SKY_EXPORT void sky_set_timeout(sky_client *c, int timeout_ms);
+
+/* ---- Requests ---------------------------------------------------------- */
+
+/* Sends one request line (no newline; at most SKY_PROTO_LINE_MAX - 1
+ * bytes, no control characters) and waits for its reply. Events and replies
+ * to earlier sky_send() requests that arrive first are queued for
+ * sky_dispatch(). Returns 0 when the daemon answered OK, the positive ACK
+ * code when it refused (the request changed nothing), or -errno: -EINVAL
+ * (bad line), -ETIMEDOUT, -ECONNRESET (the daemon went away after the line
+ * was delivered: it may or may not have been applied), -EPROTO (garbled
+ * reply). If ret_reply is not NULL it gets the reply (OK or ACK), which the
+ * caller frees with sky_reply_free(); on -errno it is untouched. Since 0.1. */
+SKY_EXPORT int sky_request(sky_client *c, const char *line, sky_reply **ret_reply);
+
+/* Queues one request line to be written without blocking (part of it may
+ * be written at once; the rest by sky_dispatch()). Its reply comes back as
+ * a SKY_EVENT_REPLY from sky_dispatch() carrying userdata. At most 64
+ * requests may wait for their replies: -EAGAIN beyond. Since 0.1. */
+SKY_EXPORT int sky_send(sky_client *c, const char *line, uint64_t userdata);
+
+/* Accessors of a reply. Strings are owned by the reply and valid until
+ * sky_reply_free(). Thread-safe on a reply no thread frees. Since 0.1. */
+/* 0 for OK, else the ACK code. */
+SKY_EXPORT int sky_reply_ack(const sky_reply *r);
+/* The ACK message ("{set} sun_elevation_deg: 91 is above 90"), "" for OK. */
+SKY_EXPORT const char *sky_reply_message(const sky_reply *r);
+/* Number of "key: value" lines before OK / ACK. */
+SKY_EXPORT size_t sky_reply_count(const sky_reply *r);
+/* Key and value of line i (< count), NULL past the end. */
+SKY_EXPORT const char *sky_reply_key(const sky_reply *r, size_t i);
+SKY_EXPORT const char *sky_reply_value(const sky_reply *r, size_t i);
+/* Value of the first line with that key, NULL if none. */
+SKY_EXPORT const char *sky_reply_get(const sky_reply *r, const char *key);
+/* Frees a reply; NULL is a no-op. Since 0.1. */
+SKY_EXPORT void sky_reply_free(sky_reply *r);
+
+/* ---- Events and loop integration ----------------------------------------- */
+
+enum sky_event_type {
+	SKY_EVENT_NONE = 0,
+	SKY_EVENT_REPLY = 1,		/* reply to sky_send(): userdata, ack, reply */
+	SKY_EVENT_CHANGED = 2,		/* a new generation: generation, tables */
+	SKY_EVENT_LAYOUT = 3,		/* a new shared memory was mapped: old views are gone */
+	SKY_EVENT_HANGUP = 4,		/* skyd closed the connection; see RECONNECTING */
+};
+
+struct sky_event {
+	enum sky_event_type type;
+	uint64_t userdata;		/* SKY_EVENT_REPLY: as given to sky_send() */
+	int ack;			/* SKY_EVENT_REPLY: 0 OK, else the ACK code */
+	const sky_reply *reply;		/* SKY_EVENT_REPLY: valid until the next sky_dispatch()
+					 * or any other call on the client */
+	uint32_t generation;		/* SKY_EVENT_CHANGED */
+	uint32_t tables;		/* SKY_EVENT_CHANGED: SKY_TABLE_BIT mask that changed */
+};
+
+/* The socket to poll (POLLIN; POLLOUT while sky_want_write()), -ENOTCONN
+ * after a hang-up until sky_reconnect(). Since 0.1. */
+SKY_EXPORT int sky_get_fd(const sky_client *c);
+
+/* True while queued request bytes wait for the socket to drain. Since 0.1. */
+SKY_EXPORT bool sky_want_write(const sky_client *c);
+
+/* Never blocks. Writes what is queued, reads what the socket holds, and
+ * returns 1 with one event in *ret_event, or 0 when nothing is pending (poll
+ * again). Call it until it returns 0 after every wake-up. After
+ * SKY_EVENT_HANGUP it returns -ENOTCONN until sky_reconnect(). -EPROTO on a
+ * garbled stream (the connection is then closed). Since 0.1. */
+SKY_EXPORT int sky_dispatch(sky_client *c, struct sky_event *ret_event);
+
+/* ---- Shared memory --------------------------------------------------------- */
+
+enum sky_subscribe_flags {
+	SKY_SUBSCRIBE_EVENTS = 1,	/* also send "changed" event lines (sky_dispatch) */
+};
+
+/* Subscribes to the tables in the mask (SKY_TABLE_BIT of each; the daemon
+ * adds what they depend on) and maps the shared memory passed with the
+ * reply, read-only. A second call changes the subscription. Returns 0, the
+ * positive ACK code, or -errno: -EPROTO (no descriptor came, or the header
+ * fails its checks), -EPROTONOSUPPORT (layout or uv-mapping version this
+ * library does not know). Blocking, like sky_request(). Since 0.1. */
+SKY_EXPORT int sky_subscribe(sky_client *c, uint32_t tables, unsigned flags);
+
+/* The header of the mapping (read-only; generation and current_slot change
+ * under you: read them atomically), or NULL before sky_subscribe(). Valid
+ * like a view (see LIFETIMES). Since 0.1. */
+SKY_EXPORT const struct sky_shm_header *sky_header(const sky_client *c);
+
+/* A consistent view of one slot. Filled by sky_view_begin() (zero copy) or
+ * sky_snapshot() (a copy). Read the fields, do not write them. */
+struct sky_view {
+	const struct sky_shm_header *header;
+	const struct sky_shm_slot *slot;	/* state, generation, valid tables */
+	uint32_t generation;			/* header generation when taken */
+	uint32_t valid_tables;			/* SKY_TABLE_BIT mask */
+	uint32_t slot_index;
+	uint32_t seq;				/* the even sequence read at the start */
+	const void *slot_base;			/* start of the slot's bytes */
+};
+
+/* Points ret_view at the newest stable slot in place, without copying.
+ * Never blocks: if the writer holds the newest slot it retries a bounded
+ * number of times, then returns -EAGAIN. -ENOTCONN before sky_subscribe().
+ * Read what you need, then call sky_view_end(): only if it returns true were
+ * the values read consistent; otherwise the writer reused the slot while
+ * you read (discard the results, begin again). Since 0.1. */
+SKY_EXPORT int sky_view_begin(sky_client *c, struct sky_view *ret_view);
+
+/* True if the slot was not rewritten since sky_view_begin(). Does not
+ * release anything (there is nothing to release: a view holds no lock).
+ * Since 0.1. */
+SKY_EXPORT bool sky_view_end(const sky_client *c, const struct sky_view *v);
+
+/* Bytes sky_snapshot() needs: the slot size of the current layout, 0 before
+ * sky_subscribe(). Since 0.1. */
+SKY_EXPORT size_t sky_snapshot_size(const sky_client *c);
+
+/* Copies the newest stable slot into buf (size >= sky_snapshot_size(),
+ * 64-byte alignment recommended, 8 required) and points ret_view at the
+ * copy, which stays consistent for as long as the caller keeps buf. A torn
+ * copy is detected by the slot's sequence and retried, up to 16 times:
+ * then -EAGAIN. -ENOBUFS if size is too small, -ENOTCONN before
+ * sky_subscribe(). Since 0.1. */
+SKY_EXPORT int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_view *ret_view);
+
+/* Waits until the header's generation differs from seen, or timeout_ms
+ * passes (< 0: forever, 0: just look). The daemon wakes the futex on every
+ * publication. 0 and *ret_generation (may be NULL) set to the current
+ * generation; -ETIMEDOUT; -EINTR if a signal interrupted it; -ENOTCONN
+ * before sky_subscribe(). Does not read the socket. Since 0.1. */
+SKY_EXPORT int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generation);
+
+/* ---- Sampling (thread-safe on a view; see THREADS) ------------------------ */
+
+/* Flags of sky_sample_sky() and sky_render(). */
+enum sky_sample_flags {
+	SKY_SAMPLE_SUN_DISK = 1,	/* add the sun's disk */
+	SKY_SAMPLE_MOON_DISK = 2,	/* add the moon's disk */
+	SKY_SAMPLE_LIMB_DARKENING = 4,	/* darken the sun's limb (linear law, u = 0.6, flux kept) */
+};
+
+/* Transmittance (RGB, [0, 1]) from altitude_km to the top of the atmosphere
+ * along the cosine of the zenith angle mu, for rays above the horizon.
+ * -ENODATA if the view has no valid transmittance table. Since 0.1. */
+SKY_EXPORT int sky_sample_transmittance(const struct sky_view *v, double altitude_km, double mu,
+					double ret_rgb[3]);
+
+/* Sky radiance (RGB, cd/m2 per channel) toward elevation_deg above the
+ * horizon and azimuth_deg eastward from north, from the sky-view table at
+ * the observer of the view's state. With SKY_SAMPLE_SUN_DISK / MOON_DISK a
+ * direction inside a disk also gets illuminance / (pi r^2) times the
+ * transmittance toward it (r the angular radius); that needs the
+ * transmittance table too. -ENODATA if a needed table is not valid.
+ * Since 0.1. */
+SKY_EXPORT int sky_sample_sky(const struct sky_view *v, double elevation_deg, double azimuth_deg,
+			      unsigned flags, double ret_rgb[3]);
+
+/* Aerial perspective at screen position (screen_u right, screen_v up, both
+ * in [0, 1]) of the camera in the view's state, distance_km along the view
+ * ray: in-scattered radiance (RGB, cd/m2) and the transmittance (NULL to
+ * skip). Apply as L = L_surface * T + in-scattered. Since 0.1. */
+SKY_EXPORT int sky_sample_aerial(const struct sky_view *v, double screen_u, double screen_v,
+				 double distance_km, double ret_rgb[3], double *ret_transmittance);
+
+/* The sun's transmitted illuminance at the observer (lx per channel, on a
+ * surface facing the sun; 0 below the horizon). The same number as the
+ * daemon's `sample sun`. Since 0.1. */
+SKY_EXPORT int sky_sample_sun(const struct sky_view *v, double ret_lx[3]);
+
+/* Horizontal sky irradiance (lx per channel, no sun): the sky-view table
+ * integrated over the upper hemisphere. The same number as `sample
+ * ambient`. About 8000 bilinear samples. Since 0.1. */
+SKY_EXPORT int sky_sample_ambient(const struct sky_view *v, double ret_lx[3]);
+
+/* ---- Rendering --------------------------------------------------------- */
+
+enum sky_projection {
+	/* Columns: azimuth 0 (north) at the left edge, increasing eastward over
+	 * 360 degrees; rows: elevation +90 at the top edge to -90 at the
+	 * bottom. Pixel (x, y) is the direction of its centre. */
+	SKY_PROJECTION_EQUIRECT = 0,
+	/* A pinhole camera looking at (yaw_deg, pitch_deg), roll_deg about
+	 * the axis, vfov_deg the vertical field of view, square pixels. */
+	SKY_PROJECTION_PERSPECTIVE = 1,
+	/* Planetarium domemaster: azimuthal equidistant, 180 degrees, zenith
+	 * at the centre, the horizon on the inscribed circle of the
+	 * min(width, height) square; the front (azimuth yaw_deg) at the
+	 * bottom, azimuth + 90 at the right (as seen from inside the dome).
+	 * Pixels outside the circle are black. */
+	SKY_PROJECTION_FISHEYE = 2,
+};
+
+struct sky_render_params {
+	enum sky_projection projection;
+	uint32_t width, height;		/* pixels, each >= 1 */
+	double yaw_deg;			/* perspective: view azimuth; fisheye: front azimuth */
+	double pitch_deg;		/* perspective only */
+	double roll_deg;		/* perspective only */
+	double vfov_deg;		/* perspective only, (0, 180) */
+	unsigned flags;			/* enum sky_sample_flags */
+};
+
+/* The unit ENU direction through the centre of pixel (x, y) (x right, y
+ * down, the top-left pixel's centre at (0.5, 0.5): pass x + 0.5 for pixel
+ * x). Returns 1 and sets ret_dir when the point shows the sky, 0 when it
+ * lies outside the fisheye circle, -EINVAL on bad parameters. Since 0.1. */
+SKY_EXPORT int sky_render_direction(const struct sky_render_params *p, double x, double y,
+				    double ret_dir[3]);
+
+/* The inverse: where direction dir (unit, ENU) lands, in the same continuous
+ * pixel coordinates. 1 and ret_x/ret_y when it is in front of the camera
+ * (perspective) or above the horizon (fisheye) or anywhere (equirect), 0
+ * otherwise. Since 0.1. */
+SKY_EXPORT int sky_render_position(const struct sky_render_params *p, const double dir[3],
+				   double *ret_x, double *ret_y);
+
+/* Renders the sky of the view into ret_rgb: width * height * 3 floats,
+ * linear RGB radiance (cd/m2), rows top to bottom. Below the geometric
+ * horizon the sky-view table's value (the ground as the sky-view table
+ * holds it). Uses the sky-view table, and the transmittance table for the
+ * disks. -ENODATA if they are not valid. Thread-safe. Since 0.1. */
+SKY_EXPORT int sky_render(const struct sky_view *v, const struct sky_render_params *p,
+			  float *ret_rgb);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

@@ -1,0 +1,524 @@
+/* skyctl.c - the command-line front end of skyd: every protocol verb as a
+ * subcommand, plus watch, dump and render, all through libsky. */
+#include <errno.h>
+#include <limits.h>
+#include <locale.h>
+#include <math.h>
+#include <poll.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "dump.h"
+#include "sky.h"
+
+/* Exit codes, documented in usage() and client/README-skyctl.md. */
+enum { EXIT_OK = 0, EXIT_REFUSED = 1, EXIT_USAGE = 2 };
+
+struct opts {
+	const char *socket;
+	int timeout_ms;
+};
+
+struct cmd {
+	const char *name;
+	const char *usage;
+	int (*run)(const struct opts *o, int argc, char **argv);
+};
+
+static const char *const table_names[SKY_SHM_MAX_TABLES] = {
+	"transmittance", "multiscatter", "skyview", "aerial",
+};
+
+static int connect_or_complain(const struct opts *o, sky_client **ret)
+{
+	char path[128] = "";
+	if (!o->socket)
+		sky_default_path(path, sizeof(path));
+	int r = sky_connect(o->socket, ret);
+	if (r < 0) {
+		fprintf(stderr, "skyctl: cannot connect to '%s': %s\n", o->socket ? o->socket : path,
+			sky_strerror(r));
+		return EXIT_USAGE;
+	}
+	sky_set_timeout(*ret, o->timeout_ms);
+	return EXIT_OK;
+}
+
+static void print_reply(const sky_reply *rep)
+{
+	for (size_t i = 0; i < sky_reply_count(rep); i++)
+		printf("%s: %s\n", sky_reply_key(rep, i), sky_reply_value(rep, i));
+}
+
+/* Sends one line, prints the reply (key: value lines on stdout, an ACK on
+ * stderr) and maps the outcome to an exit code. */
+static int request_print(sky_client *c, const char *line)
+{
+	sky_reply *rep = NULL;
+	int r = sky_request(c, line, &rep);
+	if (r < 0) {
+		fprintf(stderr, "skyctl: %s: %s\n", line, sky_strerror(r));
+		return EXIT_REFUSED;
+	}
+	print_reply(rep);
+	if (r > 0)
+		fprintf(stderr, "ACK [%d] %s\n", r, sky_reply_message(rep));
+	sky_reply_free(rep);
+	return r ? EXIT_REFUSED : EXIT_OK;
+}
+
+/* Joins verb and arguments with single spaces; arguments are passed as they
+ * are (the daemon parses them), but a newline in one is refused here. */
+static int join_line(const char *verb, int argc, char **argv, char *buf, size_t size)
+{
+	size_t n = (size_t)snprintf(buf, size, "%s", verb);
+	for (int i = 0; i < argc; i++) {
+		if (strpbrk(argv[i], "\r\n")) {
+			fprintf(stderr, "skyctl: a line break inside '%s'\n", argv[i]);
+			return -EINVAL;
+		}
+		n += (size_t)snprintf(buf + (n < size ? n : size), n < size ? size - n : 0, " %s",
+				      argv[i]);
+	}
+	if (n >= size) {
+		fprintf(stderr, "skyctl: request longer than %zu bytes\n", size - 1);
+		return -EINVAL;
+	}
+	return 0;
+}
+
+/* Every verb without a special front end: the arguments go to the daemon
+ * as they are. */
+static int run_verb(const struct opts *o, const char *verb, int argc, char **argv)
+{
+	char line[SKY_PROTO_LINE_MAX];
+	sky_client *c;
+	if (join_line(verb, argc, argv, line, sizeof(line)) < 0)
+		return EXIT_USAGE;
+	int e = connect_or_complain(o, &c);
+	if (e)
+		return e;
+	e = request_print(c, line);
+	sky_disconnect(c);
+	return e;
+}
+
+static int cmd_set(const struct opts *o, int argc, char **argv)
+{
+	if (argc < 1) {
+		fprintf(stderr, "usage: skyctl set key=value...\n");
+		return EXIT_USAGE;
+	}
+	for (int i = 0; i < argc; i++) {
+		if (!strchr(argv[i], '=')) {
+			fprintf(stderr, "skyctl: set: '%s' is not key=value\n", argv[i]);
+			return EXIT_USAGE;
+		}
+	}
+	return run_verb(o, "set", argc, argv);
+}
+
+static int cmd_help(const struct opts *o, int argc, char **argv)
+{
+	return run_verb(o, "help", argc, argv);
+}
+
+/* batch: lines of key=value (or "set key=value ...") from stdin, sent
+ * between "batch" and "end" as one change. Blank lines and # comments are
+ * skipped. */
+static int cmd_batch(const struct opts *o, int argc, char **argv)
+{
+	if (argc) {
+		fprintf(stderr, "usage: skyctl batch < lines\n");
+		return EXIT_USAGE;
+	}
+	sky_client *c;
+	int e = connect_or_complain(o, &c);
+	if (e)
+		return e;
+	char buf[SKY_PROTO_LINE_MAX + 2];
+	sky_reply *rep = NULL;
+	int r = sky_request(c, "batch", &rep);
+	unsigned lineno = 0;
+	while (r == 0 && fgets(buf, sizeof(buf), stdin)) {
+		lineno++;
+		size_t n = strcspn(buf, "\r\n");
+		if (buf[n] == 0 && !feof(stdin)) {
+			fprintf(stderr, "skyctl: stdin:%u: line too long\n", lineno);
+			r = -EINVAL;
+			break;
+		}
+		buf[n] = 0;
+		char *p = buf + strspn(buf, " \t");
+		if (!*p || *p == '#')
+			continue;
+		sky_reply_free(rep);
+		rep = NULL;
+		r = sky_request(c, p, &rep);
+		if (r > 0)
+			fprintf(stderr, "skyctl: stdin:%u: ", lineno);
+	}
+	if (r == 0) {
+		sky_reply_free(rep);
+		rep = NULL;
+		r = sky_request(c, "end", &rep);
+	}
+	e = EXIT_OK;
+	if (r < 0) {
+		if (r != -EINVAL)
+			fprintf(stderr, "skyctl: batch: %s\n", sky_strerror(r));
+		e = EXIT_REFUSED;
+	} else {
+		print_reply(rep);
+		if (r > 0) {
+			fprintf(stderr, "ACK [%d] %s\n", r, sky_reply_message(rep));
+			e = EXIT_REFUSED;
+		}
+	}
+	sky_reply_free(rep);
+	sky_disconnect(c);
+	return e;
+}
+
+static void print_tables(uint32_t mask)
+{
+	bool first = true;
+	for (unsigned i = 0; i < SKY_SHM_MAX_TABLES; i++) {
+		if (mask & SKY_TABLE_BIT(i)) {
+			printf("%s%s", first ? "" : ",", table_names[i]);
+			first = false;
+		}
+	}
+	if (first)
+		printf("none");
+}
+
+/* watch [--count N]: subscribes with events and prints one line per new
+ * generation; the first line ("watching: generation=G") says it is ready. */
+static int cmd_watch(const struct opts *o, int argc, char **argv)
+{
+	long count = -1;
+	for (int i = 0; i < argc; i++) {
+		char *end;
+		if (strcmp(argv[i], "--count") == 0 && i + 1 < argc) {
+			count = strtol(argv[++i], &end, 10);
+			if (*end || count < 1) {
+				fprintf(stderr, "skyctl: watch: bad count '%s'\n", argv[i]);
+				return EXIT_USAGE;
+			}
+		} else {
+			fprintf(stderr, "usage: skyctl watch [--count N]\n");
+			return EXIT_USAGE;
+		}
+	}
+	sky_client *c;
+	int e = connect_or_complain(o, &c);
+	if (e)
+		return e;
+	int r = sky_subscribe(c, SKY_TABLES_ALL, SKY_SUBSCRIBE_EVENTS);
+	if (r != 0) {
+		fprintf(stderr, "skyctl: subscribe: %s\n", sky_strerror(r));
+		sky_disconnect(c);
+		return EXIT_REFUSED;
+	}
+	printf("watching: generation=%u\n",
+	       __atomic_load_n(&sky_header(c)->generation, __ATOMIC_ACQUIRE));
+	fflush(stdout);
+	e = EXIT_OK;
+	while (count != 0) {
+		struct sky_event ev;
+		r = sky_dispatch(c, &ev);
+		if (r < 0) {
+			fprintf(stderr, "skyctl: watch: %s\n", sky_strerror(r));
+			e = EXIT_REFUSED;
+			break;
+		}
+		if (r == 0) {
+			struct pollfd p = { sky_get_fd(c), POLLIN | (sky_want_write(c) ? POLLOUT : 0), 0 };
+			if (poll(&p, 1, -1) < 0 && errno != EINTR) {
+				e = EXIT_REFUSED;
+				break;
+			}
+			continue;
+		}
+		if (ev.type == SKY_EVENT_HANGUP) {
+			fprintf(stderr, "skyctl: watch: skyd closed the connection\n");
+			e = EXIT_REFUSED;
+			break;
+		}
+		if (ev.type != SKY_EVENT_CHANGED)
+			continue;
+		printf("generation=%u tables=", ev.generation);
+		print_tables(ev.tables);
+		putchar('\n');
+		fflush(stdout);
+		if (count > 0)
+			count--;
+	}
+	sky_disconnect(c);
+	return e;
+}
+
+/* Connects, subscribes to tables and copies the newest slot; the buffer is
+ * the caller's to free. */
+static int take_snapshot(const struct opts *o, uint32_t tables, sky_client **ret_c,
+			 void **ret_buf, struct sky_view *ret_view)
+{
+	int e = connect_or_complain(o, ret_c);
+	if (e)
+		return e;
+	int r = sky_subscribe(*ret_c, tables, 0);
+	if (r == 0) {
+		size_t n = sky_snapshot_size(*ret_c);
+		*ret_buf = aligned_alloc(64, (n + 63) / 64 * 64);
+		r = *ret_buf ? sky_snapshot(*ret_c, *ret_buf, n, ret_view) : -ENOMEM;
+	}
+	if (r != 0) {
+		fprintf(stderr, "skyctl: %s\n", sky_strerror(r));
+		sky_disconnect(*ret_c);
+		return EXIT_REFUSED;
+	}
+	return EXIT_OK;
+}
+
+/* dump DIR: one EXR per valid table (DIR/<table>.exr), written by the same
+ * code as skyd --dump. */
+static int cmd_dump(const struct opts *o, int argc, char **argv)
+{
+	if (argc != 1) {
+		fprintf(stderr, "usage: skyctl dump DIR\n");
+		return EXIT_USAGE;
+	}
+	if (mkdir(argv[0], 0755) < 0 && errno != EEXIST) {
+		fprintf(stderr, "skyctl: dump: cannot create '%s': %s\n", argv[0], strerror(errno));
+		return EXIT_REFUSED;
+	}
+	sky_client *c;
+	void *buf = NULL;
+	struct sky_view v;
+	int e = take_snapshot(o, SKY_TABLES_ALL, &c, &buf, &v);
+	if (e)
+		return e;
+	for (uint32_t n = 0; n < v.header->n_tables && !e; n++) {
+		const struct sky_shm_table *t = &v.header->tables[n];
+		if (!(v.valid_tables & SKY_TABLE_BIT(t->id)))
+			continue;
+		struct dump_table dt = {
+			.name = table_names[t->id], .width = t->width, .height = t->height,
+			.depth = t->depth, .format = t->format,
+			.texels = (const unsigned char *)v.slot_base + t->offset,
+		};
+		char path[PATH_MAX], err[256];
+		snprintf(path, sizeof(path), "%s/%s.exr", argv[0], dt.name);
+		if (dump_exr(path, &dt, err, sizeof(err)) < 0) {
+			fprintf(stderr, "skyctl: dump: %s\n", err);
+			e = EXIT_REFUSED;
+		} else {
+			printf("%s\n", path);
+		}
+	}
+	printf("generation: %u\n", v.generation);
+	free(buf);
+	sky_disconnect(c);
+	return e;
+}
+
+static int parse_double(const char *s, double *ret)
+{
+	char *end;
+	errno = 0;
+	double x = strtod(s, &end);
+	if (end == s || *end || errno || !isfinite(x))
+		return -EINVAL;
+	*ret = x;
+	return 0;
+}
+
+/* render --view fisheye|equirect|perspective [--size WxH] [--yaw D]
+ * [--pitch D] [--vfov D] [--exposure E] [--no-disks] OUT.png */
+static int cmd_render(const struct opts *o, int argc, char **argv)
+{
+	struct sky_render_params p = { .projection = SKY_PROJECTION_FISHEYE, .vfov_deg = 60.0,
+				       .flags = SKY_SAMPLE_SUN_DISK | SKY_SAMPLE_MOON_DISK |
+						SKY_SAMPLE_LIMB_DARKENING };
+	const char *out = NULL;
+	double exposure = 0.0;
+	bool sized = false;
+	for (int i = 0; i < argc; i++) {
+		const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
+		int bad = 0;
+		if (strcmp(a, "--view") == 0 && val) {
+			i++;
+			if (strcmp(val, "fisheye") == 0)
+				p.projection = SKY_PROJECTION_FISHEYE;
+			else if (strcmp(val, "equirect") == 0)
+				p.projection = SKY_PROJECTION_EQUIRECT;
+			else if (strcmp(val, "perspective") == 0)
+				p.projection = SKY_PROJECTION_PERSPECTIVE;
+			else
+				bad = 1;
+		} else if (strcmp(a, "--size") == 0 && val) {
+			i++;
+			char *end;
+			unsigned long w = strtoul(val, &end, 10), h = 0;
+			if (*end == 'x')
+				h = strtoul(end + 1, &end, 10);
+			bad = *end || w < 1 || h < 1 || w > 16384 || h > 16384 || val[0] == '-';
+			p.width = (uint32_t)w;
+			p.height = (uint32_t)h;
+			sized = true;
+		} else if (strcmp(a, "--yaw") == 0 && val) {
+			bad = parse_double(argv[++i], &p.yaw_deg) < 0;
+		} else if (strcmp(a, "--pitch") == 0 && val) {
+			bad = parse_double(argv[++i], &p.pitch_deg) < 0 || fabs(p.pitch_deg) > 90.0;
+		} else if (strcmp(a, "--vfov") == 0 && val) {
+			bad = parse_double(argv[++i], &p.vfov_deg) < 0 || p.vfov_deg <= 0.0 ||
+			      p.vfov_deg >= 180.0;
+		} else if (strcmp(a, "--exposure") == 0 && val) {
+			bad = parse_double(argv[++i], &exposure) < 0 || exposure < 0.0;
+		} else if (strcmp(a, "--no-disks") == 0) {
+			p.flags = 0;
+		} else if (a[0] != '-' && !out) {
+			out = a;
+		} else {
+			bad = 1;
+		}
+		if (bad) {
+			fprintf(stderr, "skyctl: render: bad argument '%s'\n", a);
+			return EXIT_USAGE;
+		}
+	}
+	if (!out) {
+		fprintf(stderr, "usage: skyctl render --view fisheye|equirect|perspective "
+				"[--size WxH] OUT.png\n");
+		return EXIT_USAGE;
+	}
+	if (!sized) {
+		p.width = p.projection == SKY_PROJECTION_FISHEYE ? 1024 : 1024;
+		p.height = p.projection == SKY_PROJECTION_EQUIRECT ? 512 :
+			   p.projection == SKY_PROJECTION_FISHEYE ? 1024 : 576;
+	}
+	sky_client *c;
+	void *buf = NULL;
+	struct sky_view v;
+	uint32_t need = SKY_TABLE_BIT(SKY_TABLE_SKYVIEW) | SKY_TABLE_BIT(SKY_TABLE_TRANSMITTANCE);
+	int e = take_snapshot(o, need, &c, &buf, &v);
+	if (e)
+		return e;
+	size_t npx = (size_t)p.width * p.height;
+	float *rgb = malloc(npx * 3 * sizeof(float));
+	float *rgba = malloc(npx * 4 * sizeof(float));
+	int r = rgb && rgba ? sky_render(&v, &p, rgb) : -ENOMEM;
+	if (r == 0) {
+		/* dump_png shows row 0 at the bottom; ours is the top row. */
+		for (uint32_t y = 0; y < p.height; y++) {
+			const float *src = rgb + (size_t)(p.height - 1 - y) * p.width * 3;
+			float *dst = rgba + (size_t)y * p.width * 4;
+			for (uint32_t x = 0; x < p.width; x++) {
+				dst[4 * x + 0] = src[3 * x + 0];
+				dst[4 * x + 1] = src[3 * x + 1];
+				dst[4 * x + 2] = src[3 * x + 2];
+				dst[4 * x + 3] = 1.0f;
+			}
+		}
+		struct dump_table dt = { .name = "render", .width = p.width, .height = p.height,
+					 .depth = 1, .format = SKY_FORMAT_RGBA32F, .texels = rgba };
+		struct dump_tonemap tm = { .exposure = exposure, .curve = DUMP_CURVE_ACES };
+		char err[256];
+		if (dump_png(out, &dt, &tm, err, sizeof(err)) < 0) {
+			fprintf(stderr, "skyctl: render: %s\n", err);
+			e = EXIT_REFUSED;
+		} else {
+			printf("%s: %ux%u generation %u\n", out, p.width, p.height, v.generation);
+		}
+	} else {
+		fprintf(stderr, "skyctl: render: %s\n", sky_strerror(r));
+		e = EXIT_REFUSED;
+	}
+	free(rgb);
+	free(rgba);
+	free(buf);
+	sky_disconnect(c);
+	return e;
+}
+
+static const struct cmd cmds[] = {
+	{ "set", "set key=value...         change the sky (one change, one recompute)", cmd_set },
+	{ "get", "get [key...]             print the state, every key or the ones named", NULL },
+	{ "status", "status                   generation, compute times, device, clients, last error", NULL },
+	{ "batch", "batch < lines            apply stdin's key=value lines as one change", cmd_batch },
+	{ "subscribe", "subscribe tables=...      subscribe and print the layout", NULL },
+	{ "sample", "sample sky el_deg=E az_deg=A | sample sun | sample ambient", NULL },
+	{ "ping", "ping                     check that skyd answers", NULL },
+	{ "commands", "commands                 list the daemon's verbs", NULL },
+	{ "help", "help VERB                the daemon's help for a verb", cmd_help },
+	{ "watch", "watch [--count N]        print each new generation", cmd_watch },
+	{ "dump", "dump DIR                 write the current tables as EXR files", cmd_dump },
+	{ "render", "render --view fisheye|equirect|perspective [--size WxH] [--yaw D]\n"
+		    "                         [--pitch D] [--vfov D] [--exposure E] [--no-disks] OUT.png",
+	  cmd_render },
+};
+
+static void usage(FILE *f)
+{
+	fprintf(f, "usage: skyctl [--socket PATH] [--timeout MS] COMMAND [ARGS...]\n\n"
+		   "Commands (any other verb of the protocol is sent as it is):\n");
+	for (size_t i = 0; i < sizeof(cmds) / sizeof(cmds[0]); i++)
+		fprintf(f, "  %s\n", cmds[i].usage);
+	fprintf(f, "\nThe socket is --socket, else $XDG_RUNTIME_DIR/skyd/control, else "
+		   "/run/skyd/control.\n"
+		   "Replies print as 'key: value' lines on stdout; a refusal prints its ACK line on "
+		   "stderr.\n\n"
+		   "Exit status:\n"
+		   "  0  success (the daemon answered OK)\n"
+		   "  1  the daemon refused (ACK) or the operation failed\n"
+		   "  2  usage error, or skyd cannot be reached\n");
+}
+
+int main(int argc, char **argv)
+{
+	struct opts o = { .socket = NULL, .timeout_ms = 10000 };
+	int i = 1;
+	setlocale(LC_ALL, "C");
+	for (; i < argc && argv[i][0] == '-'; i++) {
+		if ((strcmp(argv[i], "--socket") == 0 || strcmp(argv[i], "-s") == 0) && i + 1 < argc) {
+			o.socket = argv[++i];
+		} else if (strcmp(argv[i], "--timeout") == 0 && i + 1 < argc) {
+			char *end;
+			long t = strtol(argv[++i], &end, 10);
+			if (*end || t < -1 || t > INT_MAX) {
+				fprintf(stderr, "skyctl: bad timeout '%s'\n", argv[i]);
+				return EXIT_USAGE;
+			}
+			o.timeout_ms = (int)t;
+		} else if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
+			usage(stdout);
+			return EXIT_OK;
+		} else if (strcmp(argv[i], "--version") == 0) {
+			unsigned v = sky_version();
+			printf("skyctl (libsky %u.%u.%u, protocol %s)\n", v >> 16, (v >> 8) & 0xff,
+			       v & 0xff, SKY_PROTO_VERSION);
+			return EXIT_OK;
+		} else {
+			fprintf(stderr, "skyctl: unknown option '%s'\n", argv[i]);
+			usage(stderr);
+			return EXIT_USAGE;
+		}
+	}
+	if (i >= argc) {
+		usage(stderr);
+		return EXIT_USAGE;
+	}
+	const char *verb = argv[i];
+	for (size_t k = 0; k < sizeof(cmds) / sizeof(cmds[0]); k++) {
+		if (strcmp(cmds[k].name, verb) == 0 && cmds[k].run)
+			return cmds[k].run(&o, argc - i - 1, argv + i + 1);
+	}
+	if (!verb[0] || strpbrk(verb, " =\t")) {
+		fprintf(stderr, "skyctl: '%s' is not a command\n", verb);
+		return EXIT_USAGE;
+	}
+	return run_verb(&o, verb, argc - i - 1, argv + i + 1);
+}

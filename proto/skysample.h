@@ -1,0 +1,336 @@
+/* skysample.h - the CPU sampler of the published tables, shared by libsky and
+ * the daemon's `sample` verbs so that both give the same numbers bit for bit.
+ *
+ * Header-only, double precision, depends on <math.h>, <stdint.h>, <string.h>,
+ * skyproto.h (formats, state) and skymap.h (the uv mappings). Nothing here
+ * allocates, blocks or keeps state; every function is thread-safe as long
+ * as the memory it reads does not change under it (the caller's business:
+ * see the slot sequence protocol in skyproto.h).
+ *
+ * Conventions: directions in the observer's east-north-up frame, azimuth
+ * eastward from north, elevation above the astronomical horizon, radians.
+ * Sampling is bilinear between texel centres, texel i of n centred at
+ * (i + 0.5) / n; the sky-view longitude wraps, every other axis clamps.
+ * The aerial perspective volume is indexed by screen position (u right,
+ * v up, in [0, 1]; froxel (i, j) centred at ((i + 0.5) / W, (j + 0.5) / H))
+ * and by the distance along the view ray through skymap_aerial_slice().
+ */
+#ifndef SKYD_SKYSAMPLE_H
+#define SKYD_SKYSAMPLE_H
+
+#include <errno.h>
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+#include "skymap.h"
+#include "skyproto.h"
+
+/* One table as laid out in a slot (or a copy of one). */
+struct skysample_table {
+	const void *texels;		/* RGBA, rows bottom-up in v, slices stacked */
+	uint32_t format;		/* enum sky_shm_format */
+	uint32_t width, height, depth;
+};
+
+/* IEEE binary16 -> double, exact for every input (subnormals, inf, NaN). */
+static inline double skysample_half(uint16_t h)
+{
+	int e = (h >> 10) & 0x1f;
+	double m = h & 0x3ff, x;
+	if (e == 0)
+		x = ldexp(m, -24);
+	else if (e == 31)
+		x = m ? NAN : INFINITY;
+	else
+		x = ldexp(m + 1024.0, e - 25);
+	return (h & 0x8000) ? -x : x;
+}
+
+/* Texel (i, j, k) as four doubles; indices must be in range. */
+static inline void skysample_texel(const struct skysample_table *t, uint32_t i, uint32_t j,
+				   uint32_t k, double ret_rgba[4])
+{
+	size_t idx = (((size_t)k * t->height + j) * t->width + i) * 4;
+	if (t->format == SKY_FORMAT_RGBA16F) {
+		const uint16_t *p = (const uint16_t *)t->texels + idx;
+		for (int c = 0; c < 4; c++)
+			ret_rgba[c] = skysample_half(p[c]);
+	} else {
+		const float *p = (const float *)t->texels + idx;
+		for (int c = 0; c < 4; c++)
+			ret_rgba[c] = p[c];
+	}
+}
+
+/* Splits a texture coordinate into two texel indices and the weight of the
+ * second; wrap selects the periodic axis. */
+static inline void skysample_axis(double u, uint32_t n, int wrap, uint32_t *ret_i0,
+				  uint32_t *ret_i1, double *ret_f)
+{
+	double x = u * n - 0.5;
+	if (!(x == x))			/* NaN reads as the first texel, never out of range */
+		x = 0.0;
+	double fl = floor(x);
+	double f = x - fl;
+	if (wrap) {
+		double m = fmod(fl, (double)n);
+		if (m < 0.0)
+			m += n;
+		uint32_t i0 = (uint32_t)m;
+		*ret_i0 = i0 < n ? i0 : 0;
+		*ret_i1 = *ret_i0 + 1 < n ? *ret_i0 + 1 : 0;
+		*ret_f = f;
+		return;
+	}
+	if (fl < 0.0) {
+		*ret_i0 = *ret_i1 = 0;
+		*ret_f = 0.0;
+	} else if (fl >= n - 1) {
+		*ret_i0 = *ret_i1 = n - 1;
+		*ret_f = 0.0;
+	} else {
+		*ret_i0 = (uint32_t)fl;
+		*ret_i1 = *ret_i0 + 1;
+		*ret_f = f;
+	}
+}
+
+/* Bilinear sample of slice k at (u, v). */
+static inline void skysample_bilinear(const struct skysample_table *t, double u, double v,
+				      uint32_t k, int wrap_u, double ret_rgba[4])
+{
+	uint32_t i0, i1, j0, j1;
+	double fu, fv, a[4], b[4], c[4], d[4];
+	skysample_axis(u, t->width, wrap_u, &i0, &i1, &fu);
+	skysample_axis(v, t->height, 0, &j0, &j1, &fv);
+	skysample_texel(t, i0, j0, k, a);
+	skysample_texel(t, i1, j0, k, b);
+	skysample_texel(t, i0, j1, k, c);
+	skysample_texel(t, i1, j1, k, d);
+	for (int n = 0; n < 4; n++) {
+		double lo = a[n] + fu * (b[n] - a[n]);
+		double hi = c[n] + fu * (d[n] - c[n]);
+		ret_rgba[n] = lo + fv * (hi - lo);
+	}
+}
+
+/* Finds table id in the header's directory and points ret at it inside the
+ * slot that starts at slot_base. -ENOENT when the layout has no such table.
+ * The directory is assumed checked (skysample_check_layout). */
+static inline int skysample_table_from_slot(const struct sky_shm_header *hdr,
+					    const void *slot_base, uint32_t id,
+					    struct skysample_table *ret)
+{
+	for (uint32_t n = 0; n < hdr->n_tables && n < SKY_SHM_MAX_TABLES; n++) {
+		const struct sky_shm_table *d = &hdr->tables[n];
+		if (d->id != id)
+			continue;
+		ret->texels = (const unsigned char *)slot_base + d->offset;
+		ret->format = d->format;
+		ret->width = d->width;
+		ret->height = d->height;
+		ret->depth = d->depth;
+		return 0;
+	}
+	return -ENOENT;
+}
+
+/* Checks a header read from a peer before anything indexes with it: magic,
+ * versions, slot geometry inside total_bytes (itself <= map_bytes), each
+ * table inside a slot with bytes = w * h * d * texel_bytes. 0 or -EPROTO
+ * (-EPROTONOSUPPORT for a version this code does not know). */
+static inline int skysample_check_layout(const struct sky_shm_header *hdr, uint64_t map_bytes)
+{
+	if (map_bytes < sizeof(*hdr) || hdr->magic != SKY_SHM_MAGIC)
+		return -EPROTO;
+	if (hdr->layout_version != SKY_SHM_LAYOUT_VERSION || hdr->uv_mapping_version != SKYMAP_VERSION)
+		return -EPROTONOSUPPORT;
+	if (hdr->n_slots < SKY_SHM_MIN_SLOTS || hdr->n_slots > 1024 ||
+	    hdr->n_tables > SKY_SHM_MAX_TABLES || hdr->header_bytes < sizeof(*hdr) ||
+	    hdr->slot_bytes < sizeof(struct sky_shm_slot) || hdr->total_bytes > map_bytes ||
+	    hdr->slot_bytes > hdr->total_bytes)
+		return -EPROTO;
+	if (hdr->header_bytes + (uint64_t)hdr->n_slots * hdr->slot_bytes > hdr->total_bytes)
+		return -EPROTO;
+	for (uint32_t n = 0; n < hdr->n_tables; n++) {
+		const struct sky_shm_table *d = &hdr->tables[n];
+		uint32_t tb = d->format == SKY_FORMAT_RGBA32F ? 16 : d->format == SKY_FORMAT_RGBA16F ? 8 : 0;
+		if (!tb || d->texel_bytes != tb || d->id >= SKY_SHM_MAX_TABLES || !d->width ||
+		    !d->height || !d->depth || d->width > 65536 || d->height > 65536 ||
+		    d->depth > 65536)
+			return -EPROTO;
+		uint64_t bytes = (uint64_t)d->width * d->height * d->depth * tb;
+		if (d->bytes != bytes || d->offset < sizeof(struct sky_shm_slot) ||
+		    d->offset > hdr->slot_bytes || bytes > hdr->slot_bytes - d->offset ||
+		    d->offset % 8)
+			return -EPROTO;
+	}
+	return 0;
+}
+
+/* Transmittance to the top of the atmosphere from altitude_km along the
+ * cosine of the zenith angle mu, for a ray that does not meet the ground
+ * (the table holds nothing else: a caller asking below the horizon gets the
+ * horizon's value). RGB, in [0, 1]. */
+static inline void skysample_transmittance(const struct skysample_table *t,
+					   const struct sky_shm_state *st, double altitude_km,
+					   double mu, double ret_rgb[3])
+{
+	double u, v, px[4];
+	skymap_transmittance_uv(st->bottom_radius_km, st->top_radius_km, altitude_km, mu, t->width,
+				t->height, &u, &v);
+	skysample_bilinear(t, u, v, 0, 0, px);
+	for (int c = 0; c < 3; c++)
+		ret_rgb[c] = px[c];
+}
+
+/* Sky radiance from the sky-view table toward (elevation, azimuth), at the
+ * observer's altitude in the state; no sun or moon disk. RGB radiance, in
+ * cd/m2 per channel when the illuminances are in lx. */
+static inline void skysample_sky(const struct skysample_table *t, const struct sky_shm_state *st,
+				 double elevation_rad, double azimuth_rad, double ret_rgb[3])
+{
+	double u, v, px[4];
+	double hc = skymap_horizon_cos(st->bottom_radius_km, st->altitude_km);
+	skymap_skyview_uv(hc, 0.5 * SKYMAP_PI - elevation_rad, azimuth_rad, t->height, &u, &v);
+	skysample_bilinear(t, u, v, 0, 1, px);
+	for (int c = 0; c < 3; c++)
+		ret_rgb[c] = px[c];
+}
+
+/* Aerial perspective at screen position (screen_u, screen_v) of the camera
+ * in the state, distance_km along the view ray: in-scattered RGB radiance
+ * and the mean transmittance. Depth 0 is (0, 1); beyond the last slice the
+ * last slice holds. Between slices and between the camera and slice 0 the
+ * value is linear in the slice coordinate. */
+static inline void skysample_aerial(const struct skysample_table *t,
+				    const struct sky_shm_state *st, double screen_u,
+				    double screen_v, double distance_km, double ret_rgb[3],
+				    double *ret_transmittance)
+{
+	double w = skymap_aerial_slice(distance_km, t->depth, st->aerial_range_km,
+				       st->aerial_squared != 0);
+	double a[4], b[4] = { 0.0, 0.0, 0.0, 1.0 }, f;
+	if (!(w == w))
+		w = -1.0;
+	if (w <= 0.0) {
+		skysample_bilinear(t, screen_u, screen_v, 0, 0, a);
+		f = w + 1.0;		/* 0 at the camera, 1 at the far edge of slice 0 */
+		if (f < 0.0)
+			f = 0.0;
+	} else if (w >= t->depth - 1) {
+		skysample_bilinear(t, screen_u, screen_v, t->depth - 1, 0, a);
+		f = 1.0;
+	} else {
+		uint32_t k = (uint32_t)floor(w);
+		skysample_bilinear(t, screen_u, screen_v, k, 0, b);
+		skysample_bilinear(t, screen_u, screen_v, k + 1, 0, a);
+		f = w - k;
+	}
+	for (int c = 0; c < 3; c++)
+		ret_rgb[c] = b[c] + f * (a[c] - b[c]);
+	*ret_transmittance = b[3] + f * (a[3] - b[3]);
+}
+
+/* 1 when a ray from the observer along cos-zenith mu meets the ground. */
+static inline int skysample_hits_ground(const struct sky_shm_state *st, double mu)
+{
+	return mu < skymap_horizon_cos(st->bottom_radius_km, st->altitude_km);
+}
+
+/* The transmittance from the observer to a light in direction dir (unit,
+ * ENU): 0 when the light is below the geometric horizon. */
+static inline void skysample_light_transmittance(const struct skysample_table *t,
+						 const struct sky_shm_state *st,
+						 const double dir[3], double ret_rgb[3])
+{
+	if (skysample_hits_ground(st, dir[2])) {
+		ret_rgb[0] = ret_rgb[1] = ret_rgb[2] = 0.0;
+		return;
+	}
+	skysample_transmittance(t, st, st->altitude_km, dir[2], ret_rgb);
+}
+
+/* The sun's illuminance at the observer on a surface facing the sun (lx per
+ * channel): top-of-atmosphere illuminance times transmittance. */
+static inline void skysample_sun(const struct skysample_table *trans,
+				 const struct sky_shm_state *st, double ret_lx[3])
+{
+	double tr[3];
+	skysample_light_transmittance(trans, st, st->sun_direction, tr);
+	for (int c = 0; c < 3; c++)
+		ret_lx[c] = st->sun_illuminance_lx[c] * tr[c];
+}
+
+/* Quadrature of skysample_ambient: midpoint rule, SKYSAMPLE_AMBIENT_EL rings
+ * of elevation over [0, pi/2] and SKYSAMPLE_AMBIENT_AZ sectors of azimuth;
+ * the weights cos(theta) sin(theta) dtheta dphi are scaled so that they sum
+ * to pi exactly, so a uniform sky of radiance L gives pi L. */
+#define SKYSAMPLE_AMBIENT_EL 64
+#define SKYSAMPLE_AMBIENT_AZ 128
+
+/* Horizontal sky irradiance (lx per channel): the sky-view radiance
+ * integrated over the upper hemisphere, weighted by cos(zenith); no sun. */
+static inline void skysample_ambient(const struct skysample_table *t,
+				     const struct sky_shm_state *st, double ret_lx[3])
+{
+	double sum[3] = { 0.0, 0.0, 0.0 }, wsum = 0.0;
+	double dth = 0.5 * SKYMAP_PI / SKYSAMPLE_AMBIENT_EL;
+	for (int i = 0; i < SKYSAMPLE_AMBIENT_EL; i++) {
+		double th = (i + 0.5) * dth;
+		double w = cos(th) * sin(th);
+		double ring[3] = { 0.0, 0.0, 0.0 };
+		for (int j = 0; j < SKYSAMPLE_AMBIENT_AZ; j++) {
+			double az = (j + 0.5) * (2.0 * SKYMAP_PI / SKYSAMPLE_AMBIENT_AZ), rgb[3];
+			skysample_sky(t, st, 0.5 * SKYMAP_PI - th, az, rgb);
+			for (int c = 0; c < 3; c++)
+				ring[c] += rgb[c];
+		}
+		for (int c = 0; c < 3; c++)
+			sum[c] += w * ring[c];
+		wsum += w * SKYSAMPLE_AMBIENT_AZ;
+	}
+	for (int c = 0; c < 3; c++)
+		ret_lx[c] = SKYMAP_PI * sum[c] / wsum;
+}
+
+/* Unit ENU direction of (elevation, azimuth). */
+static inline void skysample_direction(double elevation_rad, double azimuth_rad, double ret[3])
+{
+	ret[0] = cos(elevation_rad) * sin(azimuth_rad);
+	ret[1] = cos(elevation_rad) * cos(azimuth_rad);
+	ret[2] = sin(elevation_rad);
+}
+
+/* Radiance of a light's disk seen along view (unit, ENU), added to ret_rgb:
+ * illuminance / (pi r^2) times the transmittance toward the light, inside
+ * the angular radius r. limb_u > 0 applies the linear limb-darkening law
+ * I(m) = 1 - u (1 - m), normalised by 1 - u/3 so the disk keeps its
+ * illuminance. */
+static inline void skysample_add_disk(const struct skysample_table *trans,
+				      const struct sky_shm_state *st, const double dir[3],
+				      const double illuminance_lx[3], double angular_radius_rad,
+				      const double view[3], double limb_u, double ret_rgb[3])
+{
+	if (!(angular_radius_rad > 0.0))
+		return;
+	double d = view[0] * dir[0] + view[1] * dir[1] + view[2] * dir[2];
+	double cr = cos(angular_radius_rad);
+	if (d < cr)
+		return;
+	double tr[3];
+	skysample_light_transmittance(trans, st, dir, tr);
+	double solid = SKYMAP_PI * angular_radius_rad * angular_radius_rad;
+	double limb = 1.0;
+	if (limb_u > 0.0) {
+		/* sin of the angle from the centre, relative to the radius */
+		double s = skymap_safe_sqrt(1.0 - d * d) / sin(angular_radius_rad);
+		double m = skymap_safe_sqrt(1.0 - (s > 1.0 ? 1.0 : s * s));
+		limb = (1.0 - limb_u * (1.0 - m)) / (1.0 - limb_u / 3.0);
+	}
+	for (int c = 0; c < 3; c++)
+		ret_rgb[c] += illuminance_lx[c] / solid * tr[c] * limb;
+}
+
+#endif
