@@ -693,8 +693,9 @@ int dump_png(const char *path, const struct dump_table *t, const struct dump_ton
 	}
 	errno = 0;	/* so that png_on_error sees only a write's errno */
 	if (png_encode(png, info, f, t, exposure, curve, row) < 0) {
-		r = fail(err, err_size, pe.saved_errno ? -pe.saved_errno : -EIO, "'%s': png: %s", path,
-			 pe.msg);
+		r = fail(err, err_size, pe.saved_errno ? -pe.saved_errno : -EIO, "'%s': png: %s%s%s%s",
+			 path, pe.msg, pe.saved_errno ? " (" : "",
+			 pe.saved_errno ? strerror(pe.saved_errno) : "", pe.saved_errno ? ")" : "");
 		goto out;
 	}
 out:
