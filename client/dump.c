@@ -12,6 +12,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/random.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -98,6 +99,54 @@ static void texel_rgba(const struct dump_table *t, size_t index, float ret[4])
 	}
 }
 
+/* Output files ---------------------------------------------------------- */
+
+/* A file is written under a temporary name beside its final one and renamed
+ * over it only when complete: a reader of the dump directory never sees half
+ * a file, and a failed write leaves what was there before. */
+struct out_file {
+	char tmp[4096];
+	int fd;
+};
+
+static int out_open(struct out_file *o, const char *path, char *err, size_t err_size)
+{
+	o->fd = -1;
+	for (int attempt = 0; attempt < 16; attempt++) {
+		uint32_t salt = 0;
+
+		if (getrandom(&salt, sizeof(salt), GRND_NONBLOCK) < 0)
+			salt = (uint32_t)getpid() * 2654435761u + (uint32_t)attempt;
+		if ((size_t)snprintf(o->tmp, sizeof(o->tmp), "%s.tmp-%08x", path, salt) >= sizeof(o->tmp))
+			return fail(err, err_size, -ENAMETOOLONG, "'%s': %s", path, strerror(ENAMETOOLONG));
+		o->fd = open(o->tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOCTTY, 0644);
+		if (o->fd >= 0)
+			return 0;
+		if (errno != EEXIST)
+			break;
+	}
+	return fail(err, err_size, -errno, "'%s': %s", path, strerror(errno));
+}
+
+/* The caller has closed o->fd (and checked that). */
+static int out_commit(struct out_file *o, const char *path, char *err, size_t err_size)
+{
+	assert(o->fd < 0);
+	if (rename(o->tmp, path) == 0)
+		return 0;
+	int r = fail(err, err_size, -errno, "'%s': rename: %s", path, strerror(errno));
+	unlink(o->tmp);
+	return r;
+}
+
+static void out_abort(struct out_file *o)
+{
+	if (o->fd >= 0)
+		close(o->fd);
+	o->fd = -1;
+	unlink(o->tmp);
+}
+
 /* EXR ------------------------------------------------------------------- */
 
 /* Our own file I/O under the C core, so that the fd is CLOEXEC, errno
@@ -133,7 +182,7 @@ static int64_t exr_write_fn(exr_const_context_t ctx, void *user, const void *buf
 			continue;
 		if (n <= 0) {
 			io->saved_errno = n < 0 ? errno : EIO;
-			error_cb(ctx, EXR_ERR_WRITE_IO, "write: %s", strerror(io->saved_errno));
+			error_cb(ctx, EXR_ERR_WRITE_IO, "%s", strerror(io->saved_errno));
 			return -1;
 		}
 		done += (uint64_t)n;
@@ -221,6 +270,7 @@ int dump_exr(const char *path, const struct dump_table *t, char *err, size_t err
 	exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
 	exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
 	struct exr_io io = { .fd = -1 };
+	struct out_file out;
 	exr_context_t ctx = NULL;
 	exr_result_t rv = EXR_ERR_SUCCESS;
 	uint8_t *stage = NULL;
@@ -239,9 +289,9 @@ int dump_exr(const char *path, const struct dump_table *t, char *err, size_t err
 	row_bytes = tb * t->width;
 	image_h = t->height * t->depth;
 
-	io.fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOCTTY, 0644);
-	if (io.fd < 0)
-		return fail(err, err_size, -errno, "'%s': %s", path, strerror(errno));
+	if ((r = out_open(&out, path, err, err_size)) < 0)
+		return r;
+	io.fd = out.fd;
 
 	init.error_handler_fn = exr_on_error;
 	init.user_data = &io;
@@ -317,10 +367,12 @@ int dump_exr(const char *path, const struct dump_table *t, char *err, size_t err
 	ctx = NULL;
 	if (rv != EXR_ERR_SUCCESS)
 		goto exr_failed;
-	r = close(io.fd);
-	io.fd = -1;
+	r = close(out.fd);
+	out.fd = -1;
 	if (r < 0)
 		r = fail(err, err_size, -errno, "'%s': close: %s", path, strerror(errno));
+	else
+		r = out_commit(&out, path, err, err_size);
 	goto out;
 
 exr_failed:
@@ -330,11 +382,9 @@ out:
 		exr_encoding_destroy(ctx, &enc);
 	if (ctx)
 		exr_finish(&ctx);
-	if (io.fd >= 0)
-		close(io.fd);
 	free(stage);
 	if (r < 0)
-		unlink(path);
+		out_abort(&out);
 	return r;
 }
 
@@ -612,11 +662,12 @@ int dump_png(const char *path, const struct dump_table *t, const struct dump_ton
 	enum dump_curve curve = opt ? opt->curve : DUMP_CURVE_ACES;
 	double exposure = opt ? opt->exposure : 0.0;
 	struct png_err pe = { .msg = "" };
+	struct out_file out;
 	png_structp png = NULL;
 	png_infop info = NULL;
 	uint8_t *row = NULL;
 	FILE *f = NULL;
-	int fd, r;
+	int r;
 
 	if ((r = table_check(t, err, err_size)) < 0)
 		return r;
@@ -625,15 +676,14 @@ int dump_png(const char *path, const struct dump_table *t, const struct dump_ton
 	if (!(exposure > 0.0) && (r = dump_auto_exposure(t, &exposure)) < 0)
 		return fail(err, err_size, r, "'%s': exposure: %s", path, strerror(-r));
 
-	fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOCTTY, 0644);
-	if (fd < 0)
-		return fail(err, err_size, -errno, "'%s': %s", path, strerror(errno));
-	f = fdopen(fd, "wb");
+	if ((r = out_open(&out, path, err, err_size)) < 0)
+		return r;
+	f = fdopen(out.fd, "wb");
 	if (!f) {
 		r = fail(err, err_size, -errno, "'%s': %s", path, strerror(errno));
-		close(fd);
 		goto out;
 	}
+	out.fd = -1;	/* f owns it */
 	row = malloc(3 * (size_t)t->width);
 	png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &pe, png_on_error, png_on_warning);
 	info = png ? png_create_info_struct(png) : NULL;
@@ -641,9 +691,11 @@ int dump_png(const char *path, const struct dump_table *t, const struct dump_ton
 		r = fail(err, err_size, -ENOMEM, "'%s': out of memory", path);
 		goto out;
 	}
+	errno = 0;	/* so that png_on_error sees only a write's errno */
 	if (png_encode(png, info, f, t, exposure, curve, row) < 0) {
-		r = fail(err, err_size, pe.saved_errno ? -pe.saved_errno : -EIO, "'%s': png: %s", path,
-			 pe.msg);
+		r = fail(err, err_size, pe.saved_errno ? -pe.saved_errno : -EIO, "'%s': png: %s%s%s%s",
+			 path, pe.msg, pe.saved_errno ? " (" : "",
+			 pe.saved_errno ? strerror(pe.saved_errno) : "", pe.saved_errno ? ")" : "");
 		goto out;
 	}
 out:
@@ -651,8 +703,10 @@ out:
 	if (f && fclose(f) != 0 && r == 0)
 		r = fail(err, err_size, -errno, "'%s': %s", path, strerror(errno));
 	free(row);
+	if (r == 0)
+		r = out_commit(&out, path, err, err_size);
 	if (r < 0)
-		unlink(path);
+		out_abort(&out);
 	return r;
 }
 

@@ -2,9 +2,10 @@
  * manifest) and reading the EXR back, for skyd --once --dump and skyctl dump.
  *
  * Nothing here knows the daemon: a table is described by struct dump_table,
- * with the formats of proto/skyproto.h. Every function returns 0 or -errno
- * and, on failure, writes one line saying what and where into err (which may
- * be NULL). Nothing prints, exits or keeps global state.
+ * with the formats of proto/skyproto.h. Every function returns 0 or -errno;
+ * those that take err also write there, on failure, one line saying what and
+ * where (err may be NULL). Nothing prints, exits or keeps global state, so
+ * different tables may be dumped from different threads at once.
  *
  * Orientation, the same for the EXR and the PNG preview:
  *   the image is W wide and H * D high; slice k of a 3-D table occupies the
@@ -36,8 +37,9 @@ struct dump_table {
 
 /* Write one table as a single-part scanline EXR, ZIP-compressed, channels
  * R, G, B, A as FLOAT (binary16 input is widened exactly). The file is
- * created with mode 0644 (less the umask) or truncated; on failure it is
- * removed. */
+ * written as "<path>.tmp-<random>" (mode 0644 less the umask) and renamed to
+ * path when complete, so it replaces an older one atomically; on failure the
+ * temporary is removed and path left as it was. */
 int dump_exr(const char *path, const struct dump_table *table, char *err, size_t err_size);
 
 /* What dump_read_exr found beside the pixels. A file written by another
@@ -74,9 +76,11 @@ struct dump_tonemap {
  * one float per texel and a sort. */
 int dump_auto_exposure(const struct dump_table *table, double *ret_exposure);
 
-/* Write an 8-bit sRGB PNG preview of a table: exposure, then the curve per
- * channel, then the sRGB transfer function; alpha dropped; same orientation
- * as the EXR. opt NULL means automatic exposure and the ACES curve. */
+/* Write an 8-bit sRGB PNG preview of a table (with an sRGB chunk): exposure,
+ * then the curve per channel, then the sRGB transfer function; negative and
+ * NaN values show black, +inf white; alpha dropped; same orientation as the
+ * EXR. opt NULL means automatic exposure and the ACES curve. The file is
+ * written and renamed into place like dump_exr's. */
 int dump_png(const char *path, const struct dump_table *table, const struct dump_tonemap *opt,
 	     char *err, size_t err_size);
 

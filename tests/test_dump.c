@@ -6,10 +6,12 @@
 #include <math.h>
 #include <openexr.h>
 #include <png.h>
+#include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "dump.h"
@@ -454,6 +456,79 @@ static void test_errors(void)
 	CHECK(dump_png(in_dir("bad.png"), &table, &tm, err, sizeof(err)) == -EINVAL);
 }
 
+static bool file_is(const char *path, const char *text)
+{
+	char buf[64] = "";
+	FILE *f = fopen(path, "re");
+	size_t n = f ? fread(buf, 1, sizeof(buf) - 1, f) : 0;
+
+	if (f)
+		fclose(f);
+	return n == strlen(text) && memcmp(buf, text, n) == 0;
+}
+
+static int count_temporaries(void)
+{
+	DIR *d = opendir(dir);
+	struct dirent *e;
+	int n = 0;
+
+	while (d && (e = readdir(d)))
+		n += strstr(e->d_name, ".tmp-") != NULL;
+	if (d)
+		closedir(d);
+	return n;
+}
+
+/* A write that fails half way (here at the file size limit) keeps the old
+ * file and leaves no temporary; a later good write replaces it. */
+static void test_failed_write_keeps_old_file(void)
+{
+	enum { W = 64, H = 64 };
+	static float t[W * H * 4];
+	struct dump_table table = { "noise", W, H, 1, SKY_FORMAT_RGBA32F, t };
+	struct rlimit old, small;
+	char exr[4200], png[4200], err[512] = "";
+	uint32_t x = 12345;
+	float *back = NULL;
+	struct dump_exr_info info;
+
+	for (size_t n = 0; n < sizeof(t) / sizeof(t[0]); n++) {
+		x = x * 1664525u + 1013904223u;	/* fixed seed: incompressible, reproducible */
+		t[n] = (float)(x >> 8) / (float)(1 << 24);
+	}
+	snprintf(exr, sizeof(exr), "%s", in_dir("keep.exr"));
+	snprintf(png, sizeof(png), "%s", in_dir("keep.png"));
+	for (int i = 0; i < 2; i++) {
+		FILE *f = fopen(i ? png : exr, "we");
+		CHECK(f && fputs("previous", f) >= 0);
+		if (f)
+			fclose(f);
+	}
+	if (getrlimit(RLIMIT_FSIZE, &old) < 0) {
+		FAIL("getrlimit: %s", strerror(errno));
+		return;
+	}
+	small = old;
+	small.rlim_cur = 1000;
+	signal(SIGXFSZ, SIG_IGN);
+	CHECK(setrlimit(RLIMIT_FSIZE, &small) == 0);
+	CHECK(dump_exr(exr, &table, err, sizeof(err)) == -EFBIG);
+	CHECK(strstr(err, exr) != NULL);
+	CHECK(dump_png(png, &table, NULL, err, sizeof(err)) == -EFBIG);
+	CHECK(strstr(err, png) != NULL);
+	CHECK(setrlimit(RLIMIT_FSIZE, &old) == 0);
+	signal(SIGXFSZ, SIG_DFL);
+	CHECK(file_is(exr, "previous") && file_is(png, "previous"));
+	CHECK(count_temporaries() == 0);
+
+	CHECK(dump_exr(exr, &table, err, sizeof(err)) == 0);
+	CHECK(dump_read_exr(exr, &info, &back, err, sizeof(err)) == 0);
+	CHECK(back && memcmp(back, t, sizeof(t)) == 0);
+	free(back);
+	CHECK(count_temporaries() == 0);
+}
+
 static void remove_dir(void)
 {
 	DIR *d = opendir(dir);
@@ -484,6 +559,7 @@ int main(void)
 	test_json();
 	test_json_misuse();
 	test_errors();
+	test_failed_write_keeps_old_file();
 	remove_dir();
 	return test_report("test_dump");
 }
