@@ -68,6 +68,21 @@ static double phase(enum atmo_phase kind, double g, double mu)
 	return hg * 1.5 * (1.0 + mu * mu) / (2.0 + g * g);
 }
 
+static double sinhc(double x)
+{
+	return fabs(x) < 1e-4 ? 1.0 + x * x / 6.0 : sinh(x) / x;
+}
+
+/* Mean density over a step from ha to hb; see mean_density in common.glsl. */
+static double mean_density(const struct atmo_profile *p, double ha, double hb)
+{
+	double hm = 0.5 * (ha + hb);
+	const struct atmo_layer *l = hm < p->layers[0].width_km ? &p->layers[0] : &p->layers[1];
+	double d = l->exp_term * exp(l->exp_scale_per_km * hm) * sinhc(0.5 * l->exp_scale_per_km * (hb - ha)) +
+		   l->linear_per_km * hm + l->constant;
+	return d < 0 ? 0 : d > 1 ? 1 : d;
+}
+
 static v3 phased_scattering(const struct ctx *c, double h, double mu)
 {
 	v3 s = { 0 };
@@ -207,10 +222,19 @@ static void compute_transmittance(const struct ctx *c, const struct state_table_
 			double h, mu;
 			skymap_transmittance_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						     q->width, q->height, &h, &mu);
-			double d = distance_to_top(c, h, mu), dt = d / q->steps, rr;
+			double d = distance_to_top(c, h, mu), dt = d / q->steps, rr, ha = h;
 			v3 tau = { 0 };
-			for (uint32_t k = 0; k < q->steps; k++)
-				tau = add(tau, medium(c, altitude_along(c, h, mu, (k + 0.5) * dt, &rr)).extinction);
+			for (uint32_t k = 0; k < q->steps; k++) {
+				double hb = altitude_along(c, h, mu, (k + 1) * dt, &rr);
+				for (int n = 0; n < c->a->n_constituents; n++) {
+					const struct atmo_constituent *a = &c->a->c[n];
+					tau = add(tau, scale(v(a->scattering_per_km[0] + a->absorption_per_km[0],
+							       a->scattering_per_km[1] + a->absorption_per_km[1],
+							       a->scattering_per_km[2] + a->absorption_per_km[2]),
+							     mean_density(&a->density, ha, hb)));
+				}
+				ha = hb;
+			}
 			put(out + 4 * (j * q->width + i), vexp_neg(scale(tau, dt)), 1.0);
 		}
 }

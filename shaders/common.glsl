@@ -91,6 +91,26 @@ float density(int i, float h)
 			      : layer_density(vec4(0.0, c.layer0c_1.yzw), c.layer1c.x, h);
 }
 
+// sinh(x) / x, the exact mean of exp over a step whose exponent changes
+// linearly by 2x: it makes a step over an exponential layer exact.
+float sinhc(float x)
+{
+	float x2 = x * x;
+	return x2 < 1e-2 ? 1.0 + x2 * (1.0 / 6.0 + x2 / 120.0) : sinh(x) / x;
+}
+
+// Mean density of constituent i over a step from altitude ha to hb, exact for
+// exponential and linear terms when the altitude changes linearly.
+float mean_density(int i, float ha, float hb)
+{
+	Constituent c = P.C[i];
+	float hm = 0.5 * (ha + hb);
+	vec4 l = hm < c.layer0.x ? c.layer0 : vec4(0.0, c.layer0c_1.yzw);
+	float constant = hm < c.layer0.x ? c.layer0c_1.x : c.layer1c.x;
+	float e = l.y * exp(l.z * hm) * sinhc(0.5 * l.z * (hb - ha));
+	return clamp(e + l.w * hm + constant, 0.0, 1.0);
+}
+
 int phase_kind(int i) { return i == 0 ? PHASE_0 : i == 1 ? PHASE_1 : i == 2 ? PHASE_2 : PHASE_3; }
 
 // Phase functions in 1/sr. The HG/CS denominator 1 + g^2 - 2 g mu is written

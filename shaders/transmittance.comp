@@ -1,6 +1,6 @@
 // transmittance.comp - transmittance to the top of the atmosphere per
-// (altitude, zenith cosine), Bruneton's mapping, midpoint rule over the whole
-// ray (no sample offset that drops the end of the ray).
+// (altitude, zenith cosine), Bruneton's mapping, steps that cover the whole
+// ray (no sample offset that drops its end).
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
@@ -24,12 +24,17 @@ void main()
 	float d = d_min + x_mu * (d_max - d_min);
 	float mu = d <= 0.0 ? 1.0 : clamp((H * H - rho * rho - d * d) / (2.0 * r * d), -1.0, 1.0);
 
-	float dt = d / float(STEPS);
+	// Each step integrates every layer exactly for a linear change of
+	// altitude (sinh(x) / x); a midpoint rule at 2.5 km steps would read a
+	// 1.2 km scale height 16 % thin.
+	float dt = d / float(STEPS), rr;
 	vec3 tau = vec3(0.0);
+	float ha = h;
 	for (int i = 0; i < STEPS; i++) {
-		float rr;
-		float hs = altitude_along(h, mu, (float(i) + 0.5) * dt, rr);
-		tau += medium(hs).extinction;
+		float hb = altitude_along(h, mu, float(i + 1) * dt, rr);
+		for (int k = 0; k < N_CONST; k++)
+			tau += mean_density(k, ha, hb) * (P.C[k].scattering.rgb + P.C[k].absorption.rgb);
+		ha = hb;
 	}
 	STORE_TEXEL(TB, px.y * OUT_W + px.x, vec4(exp(-tau * dt), 1.0));
 }
