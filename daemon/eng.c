@@ -824,13 +824,8 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 static void groups(const struct sky_state *s, int t, uint32_t *x, uint32_t *y)
 {
 	const struct state_table_quality *q = &s->quality.t[t];
-	if (t == STATE_MULTISCATTER) {	/* a workgroup per texel */
-		*x = q->width;
-		*y = q->height;
-	} else {
-		*x = (q->width + 7) / 8;
-		*y = (q->height + 7) / 8;
-	}
+	*x = (q->width + 7) / 8;
+	*y = (q->height + 7) / 8;
 }
 
 int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err, size_t err_size)

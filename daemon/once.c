@@ -50,7 +50,7 @@ static int write_manifest(const char *dir, const struct sky_state *s, const stru
 	FILE *f = fopen(path, "we");
 	if (!f) {
 		int rc = -errno;
-		snprintf(err, err_size, "'%s': %s", path, strerror(errno));
+		snprintf(err, err_size, "'%.256s': %s", path, strerror(errno));
 		return rc;
 	}
 	struct dump_json *j = dump_json_new_file(f);
@@ -102,7 +102,7 @@ static int write_manifest(const char *dir, const struct sky_state *s, const stru
 	if (fclose(f) != 0 && rc == 0)
 		rc = -errno;
 	if (rc < 0)
-		snprintf(err, err_size, "'%s': cannot write: %s", path, strerror(-rc));
+		snprintf(err, err_size, "'%.256s': cannot write: %s", path, strerror(-rc));
 	return rc;
 }
 
