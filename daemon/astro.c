@@ -427,6 +427,18 @@ static void set_direction(struct astro_direction *d, double elevation_deg, doubl
 	d->azimuth_deg = azimuth_deg;
 }
 
+/* The observer's distance from the earth's axis (x) and from the equator's
+ * plane (y), in equatorial radii, on SPA's ellipsoid (SPA 3.12.2-3.12.5). */
+static void observer_xy(const struct astro_site *site, double *ret_x, double *ret_y)
+{
+	double phi = site->lat_deg;
+	double u = atan(0.99664719 * tand(phi));
+	double e_rel = site->elevation_m / (EARTH_EQUATORIAL_RADIUS_KM * 1000.0);
+
+	*ret_x = cos(u) + e_rel * cosd(phi);
+	*ret_y = 0.99664719 * sin(u) + e_rel * sind(phi);
+}
+
 /* From geocentric apparent (alpha, delta) to the topocentric horizon, SPA
  * 3.10-3.15 (Meeus ch. 40 in SPA's notation). sin_parallax is the sine of
  * the equatorial horizontal parallax. ret_h_deg gets the topocentric hour
@@ -436,12 +448,9 @@ static void topocentric(const struct astro_site *site, const struct astro_option
 			double radius_deg, struct astro_direction *ret_geometric,
 			struct astro_direction *ret_apparent, double *ret_h_deg)
 {
-	double phi = site->lat_deg;
+	double phi = site->lat_deg, x, y;
 	double h_deg = wrap360(nu_deg + site->lon_deg - alpha_deg);
-	double u = atan(0.99664719 * tand(phi));
-	double e_rel = site->elevation_m / (EARTH_EQUATORIAL_RADIUS_KM * 1000.0);
-	double x = cos(u) + e_rel * cosd(phi);
-	double y = 0.99664719 * sin(u) + e_rel * sind(phi);
+	observer_xy(site, &x, &y);
 	double cd = cosd(delta_deg), ch = cosd(h_deg);
 	double den = cd - x * sin_parallax * ch;
 	double dalpha_deg = atan2d(-x * sin_parallax * sind(h_deg), den);
@@ -515,11 +524,13 @@ static int check_options(const struct astro_options *o, char *err, size_t err_si
 		return refuse(err, err_size, "delta_ut1_s: %g is not in (-1, 1)", o->delta_ut1_s);
 	if (!in_range(o->pressure_mbar, 0.0, 5000.0))
 		return refuse(err, err_size, "pressure_mbar: %g is not in [0, 5000]", o->pressure_mbar);
-	if (!(o->temperature_c > -273.15 && o->temperature_c <= 100.0))
-		return refuse(err, err_size, "temperature_c: %g is not in (-273.15, 100]",
+	/* The refraction formula divides by 273 + T and by e0 + 5.11: these
+	 * ranges keep both well away from zero. */
+	if (!in_range(o->temperature_c, -100.0, 100.0))
+		return refuse(err, err_size, "temperature_c: %g is not in [-100, 100]",
 			      o->temperature_c);
-	if (!in_range(o->horizon_refraction_deg, -5.0, 5.0))
-		return refuse(err, err_size, "horizon_refraction_deg: %g is not in [-5, 5]",
+	if (!in_range(o->horizon_refraction_deg, 0.0, 3.0))
+		return refuse(err, err_size, "horizon_refraction_deg: %g is not in [0, 3]",
 			      o->horizon_refraction_deg);
 	return 0;
 }
@@ -762,6 +773,21 @@ static void moon_geocentric(double t, double *ret_lambda_deg, double *ret_beta_d
 	*ret_distance_km = 385000.56 + sr / 1000.0;
 }
 
+/* Observer to body: the geocentric vector less the observer's, in the
+ * equatorial frame turned so that the observer's meridian is x. */
+static double topocentric_distance_km(const struct astro_site *site, double distance_km,
+				      double alpha_deg, double delta_deg, double nu_deg)
+{
+	double x, y;
+
+	observer_xy(site, &x, &y);
+	double h_deg = nu_deg + site->lon_deg - alpha_deg;
+	double bx = distance_km * cosd(delta_deg) * cosd(h_deg) - x * EARTH_EQUATORIAL_RADIUS_KM;
+	double by = distance_km * cosd(delta_deg) * sind(h_deg);
+	double bz = distance_km * sind(delta_deg) - y * EARTH_EQUATORIAL_RADIUS_KM;
+	return sqrt(bx * bx + by * by + bz * bz);
+}
+
 int astro_moon(const struct astro_site *site, double utc_s, const struct astro_options *opt,
 	       struct astro_moon *ret, char *err, size_t err_size)
 {
@@ -787,25 +813,13 @@ int astro_moon(const struct astro_site *site, double utc_s, const struct astro_o
 	m.declination_deg = delta_deg;
 
 	double sin_parallax = EARTH_EQUATORIAL_RADIUS_KM / m.distance_km;
-	double h_deg;
-	/* Refraction threshold: the moon's mean radius, like SPA's for the sun. */
-	topocentric(site, &o, alpha_deg, delta_deg, sun.nu_deg, sin_parallax, 0.2725 * asind(sin_parallax),
-		    &m.geometric, &m.apparent, &h_deg);
+	/* The moon's radius is 0.2725 of the earth's: its angular radius is
+	 * 0.2725 of its parallax; refraction stops below that, as for the sun. */
+	topocentric(site, &o, alpha_deg, delta_deg, sun.nu_deg, sin_parallax,
+		    0.2725 * asind(sin_parallax), &m.geometric, &m.apparent, NULL);
 
-	/* Observer to moon: the geocentric vector less the observer's, both in
-	 * the equatorial frame turned so that the observer's meridian is x. */
-	{
-		double phi = site->lat_deg;
-		double u = atan(0.99664719 * tand(phi));
-		double e_rel = site->elevation_m / (EARTH_EQUATORIAL_RADIUS_KM * 1000.0);
-		double ox = (cos(u) + e_rel * cosd(phi)) * EARTH_EQUATORIAL_RADIUS_KM;
-		double oz = (0.99664719 * sin(u) + e_rel * sind(phi)) * EARTH_EQUATORIAL_RADIUS_KM;
-		double hg = wrap360(sun.nu_deg + site->lon_deg - alpha_deg);
-		double mx = m.distance_km * cosd(delta_deg) * cosd(hg) - ox;
-		double my = m.distance_km * cosd(delta_deg) * sind(hg);
-		double mz = m.distance_km * sind(delta_deg) - oz;
-		m.topocentric_distance_km = sqrt(mx * mx + my * my + mz * mz);
-	}
+	m.topocentric_distance_km = topocentric_distance_km(site, m.distance_km, alpha_deg,
+							    delta_deg, sun.nu_deg);
 
 	/* Meeus 48.2-48.3 with the sun's apparent place and distance. */
 	double r_km = sun.r_au * AU_KM;

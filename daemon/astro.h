@@ -39,10 +39,10 @@ struct astro_options {
 	double delta_t_s;		/* TT - UT1 when !delta_t_auto, |x| <= 1e6 */
 	double delta_ut1_s;		/* UT1 - UTC from IERS Bulletin A, (-1, 1) */
 	double pressure_mbar;		/* at the site, for refraction, [0, 5000] */
-	double temperature_c;		/* at the site, for refraction, (-273.15, 100] */
+	double temperature_c;		/* at the site, for refraction, [-100, 100] */
 	double horizon_refraction_deg;	/* refraction at the horizon for rise and set
 					 * and for where refraction stops being applied:
-					 * SPA's atmos_refract, 0.5667 by default, [-5, 5] */
+					 * SPA's atmos_refract, 0.5667 by default, [0, 3] */
 };
 
 /* delta T automatic, UT1 = UTC, 1013.25 mbar, 15 C, 0.5667 deg. */
@@ -164,7 +164,7 @@ int astro_moon(const struct astro_site *site, double utc_s, const struct astro_o
  * rather than 0 h UT so that every event belongs to the asked day. Where the
  * sun does not cross a threshold that day the kind says so and the times are
  * NAN; no time is made up. Accuracy: seconds (the report's example agrees
- * to 0.01 s), worse in the days a polar day begins or ends. */
+ * to 0.03 s), worse in the days a polar day begins or ends. */
 int astro_sun_times(const struct astro_site *site, const struct astro_date *date,
 		    const struct astro_options *opt, struct astro_times *ret,
 		    char *err, size_t err_size);
