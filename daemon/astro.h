@@ -142,9 +142,8 @@ struct astro_times {
 /* Night-sky floor, for the engine to add where the sun and moon leave the
  * sky dark. Horizontal illuminance from starlight, airglow and zodiacal
  * light on a clear moonless night: about 0.002 lx (USNO Circular 171 via
- * PHYSICS.md: "below -18: about 0.002 lx"; Bond and Henderson 1963 give
- * 0.0005-0.002 lx). Zenith luminance of a dark site: V = 21.6..22.0
- * mag/arcsec^2 (Leinert et al. 1998, "The 1997 reference of diffuse night
+ * PHYSICS.md: "below -18: about 0.002 lx"). Zenith luminance of a dark
+ * site: V = 21.6..22.0 mag/arcsec^2 (Leinert et al. 1998, "The 1997 reference of diffuse night
  * sky brightness", A&AS 127, 1), i.e. with L = 10.8e4 * 10^(-0.4 V) cd/m^2
  * about 0.2 mcd/m^2. */
 #define ASTRO_NIGHT_FLOOR_ILLUMINANCE_LX 0.002
