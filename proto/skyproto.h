@@ -11,7 +11,7 @@
 #include <stdint.h>
 
 /* Text protocol: greeting "OK skyd <SKY_PROTO_VERSION>". */
-#define SKY_PROTO_VERSION "1"
+#define SKY_PROTO_VERSION "2"
 #define SKY_PROTO_LINE_MAX 4096		/* bytes per request line, newline included */
 
 /* ACK codes: "ACK [code] {verb} message". */
@@ -40,10 +40,13 @@ enum sky_ack {
  *   atomic_thread_fence(acquire); s2 = atomic_load_relaxed(&slot->seq)
  *   if s1 != s2 the copy is torn: retry
  * The newest slot is header->current_slot; header->generation increments on
- * every publication and is the futex word to wait on.
+ * every publication and is the futex word to wait on. When the layout
+ * changes (new sizes), the old region gets superseded = 1 and one last
+ * generation increment to wake its waiters; the new memfd arrives on the
+ * control socket with a "layout:" line (PROTOCOL.md).
  */
 #define SKY_SHM_MAGIC 0x31594b53u	/* "SKY1" little-endian */
-#define SKY_SHM_LAYOUT_VERSION 1u
+#define SKY_SHM_LAYOUT_VERSION 2u
 #define SKY_SHM_MAX_TABLES 4u
 #define SKY_SHM_MIN_SLOTS 3u
 
@@ -95,7 +98,7 @@ struct sky_shm_slot {
 	uint32_t valid_tables;		/* bit (1 << sky_shm_table_id) per valid table */
 	uint64_t generation;		/* the generation this slot was published in */
 	int64_t apply_time_ns;		/* CLOCK_REALTIME at which it becomes current; 0 now */
-	uint64_t checksum;		/* of the valid tables' bytes, see PROTOCOL.md */
+	uint64_t checksum;		/* of the state and the valid tables, sky_shm_checksum_words */
 	struct sky_shm_state state;
 };
 
@@ -110,7 +113,25 @@ struct sky_shm_header {
 	uint64_t total_bytes;
 	uint32_t generation;		/* futex word: +1 on every publication (atomic) */
 	uint32_t current_slot;		/* newest published slot (atomic) */
+	uint32_t superseded;		/* 1: never written again; a new region comes on the socket */
+	uint32_t reserved0;
 	struct sky_shm_table tables[SKY_SHM_MAX_TABLES];
 };
+
+/* The slot checksum (PROTOCOL.md, "Checksum"): FNV-1a 64 over 64-bit
+ * native-endian words, first the slot's state, then every valid table in id
+ * order. words counts 8-byte words; start a checksum with SKY_SHM_CHECKSUM_SEED. */
+#define SKY_SHM_CHECKSUM_SEED 0xcbf29ce484222325ull
+static inline uint64_t sky_shm_checksum_words(uint64_t h, const void *data, uint64_t words)
+{
+	const unsigned char *p = (const unsigned char *)data;
+	for (uint64_t i = 0; i < words; i++) {
+		uint64_t w;
+		__builtin_memcpy(&w, p + 8 * i, 8);
+		h ^= w;
+		h *= 0x100000001b3ull;
+	}
+	return h;
+}
 
 #endif

@@ -1,0 +1,42 @@
+/* ctl.h - the control server: the Unix socket, one bounded connection per
+ * client, and the protocol's verbs (proto/PROTOCOL.md), one handler each.
+ *
+ * Every client has a line buffer of SKY_PROTO_LINE_MAX bytes and an output
+ * queue: past CTL_OUT_HIGH queued bytes its requests wait until it reads;
+ * past CTL_OUT_MAX (only events can get there) it is dropped. Accepting
+ * pauses while the process is out of fds.
+ */
+#ifndef SKYD_CTL_H
+#define SKYD_CTL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define CTL_OUT_HIGH (64u << 10)
+#define CTL_OUT_MAX (1u << 20)
+#define CTL_MAX_CLIENTS 4096
+#define CTL_BATCH_MAX 256		/* set lines in one batch */
+
+struct ctl;
+struct loop;
+struct srv;
+
+/* Where the socket goes when --socket is not given:
+ * $XDG_RUNTIME_DIR/skyd/control, else /run/skyd/control. */
+int ctl_default_path(char *buf, size_t size);
+
+/* Listens on path: its directory is created 0700 if missing and must be
+ * ours and writable by nobody else; a stale socket is replaced, a live one
+ * (another skyd answers) is an error. listen_fd >= 0 uses an inherited,
+ * listening socket instead (systemd socket activation) and path only for
+ * messages. err says what to do on failure. */
+int ctl_new(struct loop *l, struct srv *s, const char *path, int listen_fd, char *err,
+	    size_t err_size, struct ctl **ret);
+/* Closes every connection and removes the socket it created. */
+void ctl_free(struct ctl *c);
+
+/* The srv listener's hooks, to be wired by main. */
+void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_region);
+void ctl_failed(void *ctx, uint64_t generation, const char *message);
+
+#endif

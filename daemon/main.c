@@ -1,0 +1,223 @@
+/* main.c - skyd: the one-shot modes go to once_main; otherwise the daemon,
+ * set up in order and torn down in reverse. */
+#include <errno.h>
+#include <getopt.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <systemd/sd-daemon.h>
+#include <unistd.h>
+
+#include "config.h"
+#include "ctl.h"
+#include "eng.h"
+#include "log.h"
+#include "loop.h"
+#include "once.h"
+#include "proto.h"
+#include "srv.h"
+#include "state.h"
+
+struct options {
+	const char *socket_path;
+	const char *config_path;
+	const char *device;
+	int check_only;
+	enum log_level level;
+	int first_pair;			/* argv index of the first key=value */
+};
+
+static void usage(FILE *f)
+{
+	fprintf(f,
+		"usage: skyd [options] [key=value ...]\n"
+		"       skyd --once --dump DIR [key=value ...]\n"
+		"       skyd --list-devices\n"
+		"\n"
+		"Computes sky lookup tables on the GPU and serves them over shared memory;\n"
+		"steered through a control socket (proto/PROTOCOL.md).\n"
+		"\n"
+		"  --socket PATH     control socket (default $XDG_RUNTIME_DIR/skyd/control,\n"
+		"                    else /run/skyd/control; systemd socket activation wins)\n"
+		"  --config FILE     key = value lines applied at start\n"
+		"  -n                check the configuration (and key=value args) and exit\n"
+		"  --device SEL      Vulkan device index or name substring ($SKYD_DEVICE)\n"
+		"  --log-level L     error, warning, info (default) or debug ($SKYD_LOG)\n"
+		"  -h, --help        this text\n"
+		"  --version         protocol and program versions\n");
+}
+
+static int parse_options(int argc, char **argv, struct options *o)
+{
+	enum { OPT_SOCKET = 256, OPT_CONFIG, OPT_DEVICE, OPT_LOG, OPT_VERSION };
+	static const struct option longs[] = {
+		{ "socket", required_argument, NULL, OPT_SOCKET },
+		{ "config", required_argument, NULL, OPT_CONFIG },
+		{ "device", required_argument, NULL, OPT_DEVICE },
+		{ "log-level", required_argument, NULL, OPT_LOG },
+		{ "help", no_argument, NULL, 'h' },
+		{ "version", no_argument, NULL, OPT_VERSION },
+		{ 0 },
+	};
+	int c;
+
+	o->level = LOG_LEVEL_INFO;
+	while ((c = getopt_long(argc, argv, "+nh", longs, NULL)) != -1) {
+		switch (c) {
+		case OPT_SOCKET: o->socket_path = optarg; break;
+		case OPT_CONFIG: o->config_path = optarg; break;
+		case OPT_DEVICE: o->device = optarg; break;
+		case OPT_LOG:
+			if (log_parse_level(optarg, &o->level) < 0) {
+				fprintf(stderr, "skyd: --log-level: '%s' is not error, warning, info or debug\n", optarg);
+				return 2;
+			}
+			break;
+		case 'n': o->check_only = 1; break;
+		case 'h': usage(stdout); return 0;
+		case OPT_VERSION:
+			printf("skyd %s, protocol %s, shared memory layout %u\n", PROJECT_VERSION,
+			       SKY_PROTO_VERSION, SKY_SHM_LAYOUT_VERSION);
+			return 0;
+		default: usage(stderr); return 2;
+		}
+	}
+	o->first_pair = optind;
+	return -1;
+}
+
+/* The initial state: defaults, the config file, then key=value args. */
+static int initial_state(const struct options *o, int argc, char **argv, struct sky_state *ret)
+{
+	char err[512];
+	struct sky_state s;
+
+	state_default(&s);
+	if (o->config_path && config_load(o->config_path, &s, err, sizeof(err)) < 0) {
+		log_error("%s", err);
+		return -EINVAL;
+	}
+	for (int i = o->first_pair; i < argc; i++)
+		if (state_set_pair(&s, argv[i], NULL, err, sizeof(err)) < 0) {
+			log_error("argument %d: %s", i, err);
+			return -EINVAL;
+		}
+	if (state_validate(&s, 0, err, sizeof(err)) < 0) {
+		log_error("%s", err);
+		return -EINVAL;
+	}
+	*ret = s;
+	return 0;
+}
+
+static void on_signal(void *ctx, int signo)
+{
+	log_info("%s: shutting down", strsignal(signo));
+	loop_quit(ctx);
+}
+
+/* Many clients each hold a socket: take the whole hard limit of fds. */
+static void raise_fd_limit(void)
+{
+	struct rlimit rl;
+
+	if (getrlimit(RLIMIT_NOFILE, &rl) == 0 && rl.rlim_cur < rl.rlim_max) {
+		rl.rlim_cur = rl.rlim_max;
+		setrlimit(RLIMIT_NOFILE, &rl);
+	}
+}
+
+static int run_daemon(const struct options *o, const struct sky_state *initial)
+{
+	static const int signals[] = { SIGINT, SIGTERM };
+	struct loop *loop = NULL;
+	struct eng *eng = NULL;
+	struct srv *srv = NULL;
+	struct ctl *ctl = NULL;
+	char err[512] = "", path[108];
+	int listen_fd = -1, r;
+
+	signal(SIGPIPE, SIG_IGN);
+	raise_fd_limit();
+	r = loop_new(&loop);
+	if (r < 0) {
+		log_error("event loop: %s", strerror(-r));
+		goto out;
+	}
+	r = loop_signals(loop, signals, 2, on_signal, loop);
+	if (r < 0) {
+		log_error("signalfd: %s", strerror(-r));
+		goto out;
+	}
+	r = eng_new(o->device, err, sizeof(err), &eng);
+	if (r < 0) {
+		log_error("no Vulkan device: %s (skyd --list-devices lists them; lavapipe comes with mesa-vulkan-drivers)", err);
+		goto out;
+	}
+	log_info("device: %s (%s)", eng_device(eng)->name, eng_device(eng)->type_name);
+	err[0] = 0;
+	r = state_validate(initial, eng_max_table_bytes(eng), err, sizeof(err));
+	if (r < 0) {
+		log_error("initial state: %s", err);
+		goto out;
+	}
+	r = srv_new(loop, eng, initial, &srv);
+	if (r < 0) {
+		log_error("publisher: %s", strerror(-r));
+		goto out;
+	}
+	if (o->socket_path) {
+		snprintf(path, sizeof(path), "%s", o->socket_path);
+	} else if (sd_listen_fds(1) == 1) {
+		listen_fd = SD_LISTEN_FDS_START;
+		snprintf(path, sizeof(path), "(socket activation)");
+	} else if (ctl_default_path(path, sizeof(path)) < 0) {
+		log_error("$XDG_RUNTIME_DIR is too long for a socket path; pass --socket");
+		r = -ENAMETOOLONG;
+		goto out;
+	}
+	err[0] = 0;
+	r = ctl_new(loop, srv, path, listen_fd, err, sizeof(err), &ctl);
+	if (r < 0) {
+		log_error("%s", err);
+		goto out;
+	}
+	srv_set_listener(srv, &(struct srv_listener){ ctl_published, ctl_failed }, ctl);
+	log_info("listening on %s, protocol %s", path, SKY_PROTO_VERSION);
+	sd_notify(0, "READY=1");
+	r = loop_run(loop);
+	if (r < 0)
+		log_error("event loop: %s", strerror(-r));
+	sd_notify(0, "STOPPING=1");
+out:
+	ctl_free(ctl);
+	srv_free(srv);
+	eng_free(eng);
+	loop_free(loop);
+	return r < 0 ? 1 : 0;
+}
+
+int main(int argc, char **argv)
+{
+	struct options o = { 0 };
+	struct sky_state initial;
+	int r;
+
+	for (int i = 1; i < argc; i++)
+		if (strcmp(argv[i], "--once") == 0 || strcmp(argv[i], "--list-devices") == 0)
+			return once_main(argc, argv);
+	r = parse_options(argc, argv, &o);
+	if (r >= 0)
+		return r;
+	/* journald reads "<N>" priorities from the stream it gets. */
+	log_init(o.level, getenv("JOURNAL_STREAM") != NULL);
+	if (initial_state(&o, argc, argv, &initial) < 0)
+		return 1;
+	if (o.check_only) {
+		printf("%s: ok\n", o.config_path ? o.config_path : "configuration");
+		return 0;
+	}
+	return run_daemon(&o, &initial);
+}

@@ -1,0 +1,287 @@
+/* pub.c - sealed shared memory with seqlocked slots and a futex generation. */
+#include "pub.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <linux/futex.h>
+#include <math.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include "skymap.h"
+
+#define ALIGN_UP(x, a) (((x) + (a) - 1) / (a) * (a))
+#define SEALS (F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_FUTURE_WRITE | F_SEAL_SEAL)
+
+struct pub {
+	int fd;
+	uint8_t *map;
+	uint64_t bytes;
+	struct sky_shm_header *header;
+	uint32_t next_slot;
+	struct state_table_quality shape[STATE_N_TABLES];
+	enum state_storage storage;
+};
+
+static uint8_t *slot_base(const struct pub *p, uint32_t i)
+{
+	return p->map + p->header->header_bytes + (uint64_t)i * p->header->slot_bytes;
+}
+
+int pub_same_layout(const struct pub *p, const struct sky_state *s)
+{
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		const struct state_table_quality *a = &p->shape[t], *b = &s->quality.t[t];
+		uint32_t da = t == STATE_AERIAL ? a->depth : 1, db = t == STATE_AERIAL ? b->depth : 1;
+		if (a->width != b->width || a->height != b->height || da != db)
+			return 0;
+	}
+	return p->storage == s->quality.storage;
+}
+
+static void fill_header(struct sky_shm_header *h, const struct sky_state *s)
+{
+	uint64_t off = ALIGN_UP(sizeof(struct sky_shm_slot), 64);
+
+	h->magic = SKY_SHM_MAGIC;
+	h->layout_version = SKY_SHM_LAYOUT_VERSION;
+	h->uv_mapping_version = SKYMAP_VERSION;
+	h->header_bytes = (uint32_t)ALIGN_UP(sizeof(*h), 4096);
+	h->n_slots = PUB_SLOTS;
+	h->n_tables = STATE_N_TABLES;
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		const struct state_table_quality *q = &s->quality.t[t];
+		struct sky_shm_table *d = &h->tables[t];
+		d->id = (uint32_t)t;
+		d->format = s->quality.storage == STATE_F16 ? SKY_FORMAT_RGBA16F : SKY_FORMAT_RGBA32F;
+		d->width = q->width;
+		d->height = q->height;
+		d->depth = t == STATE_AERIAL ? q->depth : 1;
+		d->texel_bytes = (uint32_t)state_texel_bytes(s->quality.storage);
+		d->offset = off;
+		d->bytes = state_table_bytes(s, (enum state_table)t);
+		off = ALIGN_UP(off + d->bytes, 64);
+	}
+	/* Page-sized slots let a client map one slot alone. */
+	h->slot_bytes = ALIGN_UP(off, 4096);
+	h->total_bytes = h->header_bytes + h->slot_bytes * h->n_slots;
+}
+
+int pub_new(const struct sky_state *s, uint64_t generation, struct pub **ret)
+{
+	struct sky_shm_header h = { 0 };
+	struct pub *p;
+	int r;
+
+	fill_header(&h, s);
+	if (h.total_bytes > (uint64_t)SIZE_MAX / 2)
+		return -EFBIG;
+	p = calloc(1, sizeof(*p));
+	if (!p)
+		return -ENOMEM;
+	p->map = MAP_FAILED;
+	p->fd = memfd_create("skyd-tables", MFD_CLOEXEC | MFD_ALLOW_SEALING);
+	if (p->fd < 0)
+		goto fail_errno;
+	if (ftruncate(p->fd, (off_t)h.total_bytes) < 0)
+		goto fail_errno;
+	p->bytes = h.total_bytes;
+	p->map = mmap(NULL, p->bytes, PROT_READ | PROT_WRITE, MAP_SHARED, p->fd, 0);
+	if (p->map == MAP_FAILED)
+		goto fail_errno;
+	/* FUTURE_WRITE spares the mapping made above and no other. Read-only
+	 * modes also make a root-less reopen of /proc/PID/fd/N read-write fail. */
+	if (fcntl(p->fd, F_ADD_SEALS, SEALS) < 0)
+		goto fail_errno;
+	(void)fchmod(p->fd, 0444);
+	p->header = (struct sky_shm_header *)p->map;
+	*p->header = h;
+	p->header->generation = (uint32_t)generation;
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		p->shape[t] = s->quality.t[t];
+	p->storage = s->quality.storage;
+	/* Slot 0 is current (empty) until the first publication. */
+	p->next_slot = 1;
+	*ret = p;
+	return 0;
+fail_errno:
+	r = -errno;
+	pub_free(p);
+	return r;
+}
+
+void pub_free(struct pub *p)
+{
+	if (!p)
+		return;
+	if (p->map != MAP_FAILED)
+		munmap(p->map, p->bytes);
+	if (p->fd >= 0)
+		close(p->fd);
+	free(p);
+}
+
+int pub_fd(const struct pub *p)
+{
+	return p->fd;
+}
+
+uint64_t pub_bytes(const struct pub *p)
+{
+	return p->bytes;
+}
+
+const struct sky_shm_header *pub_header(const struct pub *p)
+{
+	return p->header;
+}
+
+const struct sky_shm_slot *pub_current(const struct pub *p, const uint8_t **ret_base)
+{
+	uint32_t i = atomic_load_explicit((_Atomic uint32_t *)&p->header->current_slot,
+					  memory_order_relaxed);
+	uint8_t *base = slot_base(p, i);
+
+	if (ret_base)
+		*ret_base = base;
+	return (const struct sky_shm_slot *)base;
+}
+
+static void light_direction(double elevation_deg, double azimuth_deg, double ret[3])
+{
+	double el = elevation_deg * SKYMAP_PI / 180.0, az = azimuth_deg * SKYMAP_PI / 180.0;
+
+	ret[0] = cos(el) * sin(az);	/* east */
+	ret[1] = cos(el) * cos(az);	/* north */
+	ret[2] = sin(el);		/* up */
+}
+
+void pub_shm_state(const struct sky_state *s, struct sky_shm_state *ret)
+{
+	struct sky_shm_state o = { 0 };
+	const double deg = SKYMAP_PI / 180.0;
+
+	/* Time and place are not part of the state yet: unknown, not zero. */
+	o.utc_unix_s = NAN;
+	o.latitude_rad = NAN;
+	o.longitude_rad = NAN;
+	o.altitude_km = s->altitude_km;
+	o.bottom_radius_km = s->atmo.bottom_radius_km;
+	o.top_radius_km = s->atmo.top_radius_km;
+	for (int c = 0; c < 3; c++) {
+		o.ground_albedo[c] = s->atmo.ground_albedo[c];
+		o.sun_illuminance_lx[c] = s->sun.illuminance_lx * s->sun.color[c];
+		o.moon_illuminance_lx[c] = s->moon.illuminance_lx * s->moon.color[c];
+	}
+	light_direction(s->sun.elevation_deg, s->sun.azimuth_deg, o.sun_direction);
+	light_direction(s->moon.elevation_deg, s->moon.azimuth_deg, o.moon_direction);
+	o.sun_angular_radius_rad = s->sun.angular_radius_deg * deg;
+	o.moon_angular_radius_rad = s->moon.angular_radius_deg * deg;
+
+	/* Camera frame: forward from yaw and pitch, right horizontal, up
+	 * completing a right-handed frame, then roll about forward. */
+	double yaw = s->camera.yaw_deg * deg, pitch = s->camera.pitch_deg * deg;
+	double roll = s->camera.roll_deg * deg;
+	double f[3] = { sin(yaw) * cos(pitch), cos(yaw) * cos(pitch), sin(pitch) };
+	double r[3] = { cos(yaw), -sin(yaw), 0.0 };
+	double u[3] = { r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2],
+			r[0] * f[1] - r[1] * f[0] };
+	for (int c = 0; c < 3; c++) {
+		o.camera_forward[c] = f[c];
+		o.camera_right[c] = r[c] * cos(roll) + u[c] * sin(roll);
+		o.camera_up[c] = u[c] * cos(roll) - r[c] * sin(roll);
+	}
+	o.camera_vfov_rad = s->camera.vfov_deg * deg;
+	o.camera_aspect = s->camera.aspect;
+	o.aerial_range_km = s->quality.aerial_range_km;
+	o.aerial_squared = s->quality.aerial_spacing == STATE_SQUARED;
+	*ret = o;
+}
+
+uint64_t pub_checksum(const struct sky_shm_header *h, const struct sky_shm_slot *slot,
+		      const uint8_t *base)
+{
+	uint64_t c = sky_shm_checksum_words(SKY_SHM_CHECKSUM_SEED, &slot->state,
+					    sizeof(slot->state) / 8);
+
+	for (uint32_t t = 0; t < h->n_tables && t < SKY_SHM_MAX_TABLES; t++)
+		if (slot->valid_tables & (1u << t))
+			c = sky_shm_checksum_words(c, base + h->tables[t].offset,
+						   h->tables[t].bytes / 8);
+	return c;
+}
+
+static void futex_wake_all(uint32_t *word)
+{
+	/* Shared (not PRIVATE): the waiters are other processes. */
+	syscall(SYS_futex, word, FUTEX_WAKE, INT_MAX, NULL, NULL, 0);
+}
+
+void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
+		 const void *const tables[STATE_N_TABLES], uint64_t generation)
+{
+	struct sky_shm_header *h = p->header;
+	uint32_t i = p->next_slot;
+	uint8_t *base = slot_base(p, i);
+	struct sky_shm_slot *slot = (struct sky_shm_slot *)base;
+	_Atomic uint32_t *seq = (_Atomic uint32_t *)&slot->seq;
+	uint32_t s0 = atomic_load_explicit(seq, memory_order_relaxed);
+
+	/* Seqlock writer: odd, fence, data, even with release. */
+	atomic_store_explicit(seq, s0 + 1, memory_order_relaxed);
+	atomic_thread_fence(memory_order_release);
+	slot->generation = generation;
+	slot->apply_time_ns = 0;
+	pub_shm_state(s, &slot->state);
+	slot->valid_tables = 0;
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		if ((valid & STATE_BIT(t)) && tables[t]) {
+			memcpy(base + h->tables[t].offset, tables[t], h->tables[t].bytes);
+			slot->valid_tables |= STATE_BIT(t);
+		}
+	slot->checksum = pub_checksum(h, slot, base);
+	atomic_store_explicit(seq, s0 + 2, memory_order_release);
+
+	atomic_store_explicit((_Atomic uint32_t *)&h->current_slot, i, memory_order_release);
+	atomic_store_explicit((_Atomic uint32_t *)&h->generation, (uint32_t)generation,
+			      memory_order_release);
+	futex_wake_all(&h->generation);
+	/* The last slot stays spare for apply-time publications. */
+	p->next_slot = (i + 1) % (h->n_slots - 1);
+}
+
+void pub_supersede(struct pub *p)
+{
+	struct sky_shm_header *h = p->header;
+
+	atomic_store_explicit((_Atomic uint32_t *)&h->superseded, 1, memory_order_release);
+	atomic_fetch_add_explicit((_Atomic uint32_t *)&h->generation, 1, memory_order_release);
+	futex_wake_all(&h->generation);
+}
+
+int pub_adopt_check(int fd, uint64_t *ret_generation)
+{
+	struct sky_shm_header h;
+	struct stat st;
+	int seals = fcntl(fd, F_GET_SEALS);
+
+	if (seals < 0)
+		return -errno;
+	if ((seals & SEALS) != SEALS)
+		return -EPERM;
+	if (fstat(fd, &st) < 0)
+		return -errno;
+	if (pread(fd, &h, sizeof(h), 0) != (ssize_t)sizeof(h))
+		return -EIO;
+	if (h.magic != SKY_SHM_MAGIC || h.layout_version != SKY_SHM_LAYOUT_VERSION ||
+	    h.n_slots < SKY_SHM_MIN_SLOTS || h.total_bytes != (uint64_t)st.st_size)
+		return -EPROTO;
+	*ret_generation = h.generation;
+	return 0;
+}

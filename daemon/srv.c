@@ -1,0 +1,257 @@
+/* srv.c - coalescing changes into computations and computations into
+ * published generations. */
+#include "srv.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "log.h"
+#include "loop.h"
+#include "pub.h"
+
+/* Four slots of the region must fit in memory beside everything else. */
+#define SRV_MAX_REGION_BYTES (2ull << 30)
+
+struct srv {
+	struct loop *loop;
+	struct eng *eng;
+	struct loop_io *eng_io;
+	struct pub *pub;
+	struct srv_listener listener;
+	void *ctx;
+
+	struct sky_state state;		/* newest, what get shows */
+	uint32_t dirty;			/* invalidated since the last submission */
+	int pending;			/* state differs from what was submitted last */
+
+	struct sky_state computing_state;
+	int in_flight;
+	uint32_t in_flight_mask;
+	uint64_t in_flight_generation;
+
+	uint32_t eng_valid;		/* engine tables that match computing_state */
+	uint64_t generation;		/* published */
+	struct srv_status st;
+};
+
+const struct sky_state *srv_state(const struct srv *s)
+{
+	return &s->state;
+}
+
+struct pub *srv_pub(const struct srv *s)
+{
+	return s->pub;
+}
+
+const struct eng_device *srv_device(const struct srv *s)
+{
+	return eng_device(s->eng);
+}
+
+void srv_status(const struct srv *s, struct srv_status *ret)
+{
+	*ret = s->st;
+	ret->generation = s->generation;
+	ret->computing = s->in_flight;
+	ret->pending = s->pending;
+	ret->published_valid = pub_current(s->pub, NULL)->valid_tables;
+}
+
+uint32_t srv_tables_needed(const struct srv *s)
+{
+	return STATE_ALL_TABLES;
+}
+
+int srv_check(const struct srv *s, const struct sky_state *next, char *err, size_t err_size)
+{
+	uint64_t total = 0;
+	int r = state_validate(next, eng_max_table_bytes(s->eng), err, err_size);
+
+	if (r < 0)
+		return r;
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		total += state_table_bytes(next, (enum state_table)t);
+	if (total * PUB_SLOTS > SRV_MAX_REGION_BYTES) {
+		snprintf(err, err_size, "tables of %llu bytes in all exceed the %llu bytes of a region's slot",
+			 (unsigned long long)total,
+			 (unsigned long long)(SRV_MAX_REGION_BYTES / PUB_SLOTS));
+		return -ERANGE;
+	}
+	return 0;
+}
+
+static void fail(struct srv *s, uint64_t generation, const char *message)
+{
+	snprintf(s->st.last_error, sizeof(s->st.last_error), "%s", message);
+	s->st.failures++;
+	log_error("computation for generation %llu failed: %s", (unsigned long long)generation,
+		  message);
+	if (s->listener.failed)
+		s->listener.failed(s->ctx, generation, message);
+}
+
+/* Publishes computing_state with the engine's tables (no GPU work when
+ * mask is 0: only the state changed for tables nobody needs). */
+static void publish(struct srv *s, uint32_t computed)
+{
+	const void *tables[STATE_N_TABLES];
+	int new_region = 0;
+	uint64_t generation = s->in_flight_generation;
+
+	if (!pub_same_layout(s->pub, &s->computing_state)) {
+		struct pub *p;
+		int r = pub_new(&s->computing_state, s->generation, &p);
+		if (r < 0) {
+			char msg[128];
+			snprintf(msg, sizeof(msg), "new shared memory region: %s", strerror(-r));
+			fail(s, generation, msg);
+			s->dirty |= computed;
+			s->eng_valid &= ~computed;
+			return;
+		}
+		pub_supersede(s->pub);
+		pub_free(s->pub);
+		s->pub = p;
+		new_region = 1;
+	}
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		tables[t] = (s->eng_valid & STATE_BIT(t)) ? eng_table(s->eng, (enum state_table)t, NULL)
+							  : NULL;
+	pub_publish(s->pub, &s->computing_state, s->eng_valid, tables, generation);
+	s->generation = generation;
+	s->st.last_error[0] = 0;
+	log_debug("generation %llu published", (unsigned long long)generation);
+	if (s->listener.published)
+		s->listener.published(s->ctx, generation, computed, new_region);
+}
+
+/* Starts computing the newest state if nothing is in flight. */
+static void kick(struct srv *s)
+{
+	char err[256] = "";
+	uint32_t mask;
+	int r;
+
+	if (s->in_flight || !s->pending)
+		return;
+	s->computing_state = s->state;
+	s->pending = 0;
+	s->eng_valid &= ~s->dirty;
+	mask = s->dirty & state_closure(srv_tables_needed(s));
+	s->dirty &= ~mask;
+	s->in_flight_generation = s->generation + 1;
+	s->in_flight_mask = mask;
+	if (!mask) {
+		publish(s, 0);
+		return;
+	}
+	r = eng_submit(s->eng, &s->computing_state, mask, err, sizeof(err));
+	if (r < 0) {
+		s->dirty |= mask;
+		fail(s, s->in_flight_generation, err[0] ? err : strerror(-r));
+		return;
+	}
+	s->in_flight = 1;
+}
+
+static void eng_ready(void *ctx, uint32_t events)
+{
+	struct srv *s = ctx;
+	struct eng_timing timing;
+	char err[256] = "";
+	int r;
+
+	if (!s->in_flight)
+		return;
+	r = eng_complete(s->eng, &timing, err, sizeof(err));
+	if (r == -EAGAIN)
+		return;
+	s->in_flight = 0;
+	s->st.computations++;
+	if (r < 0) {
+		s->dirty |= s->in_flight_mask;
+		s->eng_valid &= ~s->in_flight_mask;
+		fail(s, s->in_flight_generation, err[0] ? err : strerror(-r));
+	} else {
+		s->eng_valid |= s->in_flight_mask;
+		s->st.last_computed = timing.computed ? timing.computed : s->in_flight_mask;
+		s->st.last_total_ms = timing.total_ms;
+		for (int t = 0; t < STATE_N_TABLES; t++)
+			if (s->st.last_computed & STATE_BIT(t))
+				s->st.table_ms[t] = timing.table_ms[t];
+		publish(s, s->in_flight_mask);
+	}
+	kick(s);
+}
+
+int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
+	       uint64_t *ret_generation, char *err, size_t err_size)
+{
+	uint64_t failures = s->st.failures;
+
+	s->state = *next;
+	s->dirty |= dirty;
+	if (!dirty && !s->pending) {
+		/* Nothing new: visible with what is in flight, or already. */
+		*ret_generation = s->in_flight ? s->in_flight_generation : s->generation;
+		return 0;
+	}
+	s->pending = 1;
+	kick(s);
+	if (s->st.failures != failures) {
+		snprintf(err, err_size, "%s", s->st.last_error);
+		return -EIO;
+	}
+	if (s->pending)		/* behind the computation in flight */
+		*ret_generation = s->in_flight_generation + 1;
+	else			/* in flight now, or published at once */
+		*ret_generation = s->in_flight ? s->in_flight_generation : s->generation;
+	return 0;
+}
+
+void srv_set_listener(struct srv *s, const struct srv_listener *listener, void *ctx)
+{
+	s->listener = *listener;
+	s->ctx = ctx;
+}
+
+int srv_new(struct loop *l, struct eng *e, const struct sky_state *initial, struct srv **ret)
+{
+	struct srv *s = calloc(1, sizeof(*s));
+	int r;
+
+	if (!s)
+		return -ENOMEM;
+	s->loop = l;
+	s->eng = e;
+	s->state = *initial;
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		s->st.table_ms[t] = -1;
+	r = pub_new(initial, 0, &s->pub);
+	if (r < 0)
+		goto fail;
+	/* Edge-triggered: right whether or not eng_complete drains the eventfd. */
+	r = loop_io_add(l, eng_event_fd(e), EPOLLIN | EPOLLET, eng_ready, s, &s->eng_io);
+	if (r < 0)
+		goto fail;
+	s->dirty = STATE_ALL_TABLES;
+	s->pending = 1;
+	kick(s);
+	*ret = s;
+	return 0;
+fail:
+	srv_free(s);
+	return r;
+}
+
+void srv_free(struct srv *s)
+{
+	if (!s)
+		return;
+	loop_io_del(s->eng_io);
+	pub_free(s->pub);
+	free(s);
+}

@@ -1,0 +1,73 @@
+/* srv.h - the sky the daemon serves: the current state, the coalescing of
+ * changes into at most one computation in flight, and the publication of
+ * each finished computation as a new generation.
+ *
+ * A change replaces the state at once (get sees it); its tables become
+ * visible in a later generation, which srv_change names. While the engine
+ * works, later changes overwrite the pending state and only the newest is
+ * computed. Only the tables a change invalidated and some client needs are
+ * computed. A failed computation keeps the last good tables published.
+ */
+#ifndef SKYD_SRV_H
+#define SKYD_SRV_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "eng.h"
+#include "state.h"
+
+struct loop;
+struct pub;
+struct srv;
+
+struct srv_listener {
+	/* A new generation is current. tables: those computed for it.
+	 * new_region: it lives in a new memfd (srv_pub) with a new layout. */
+	void (*published)(void *ctx, uint64_t generation, uint32_t tables, int new_region);
+	/* The computation meant for generation failed; message says why. */
+	void (*failed)(void *ctx, uint64_t generation, const char *message);
+};
+
+struct srv_status {
+	uint64_t generation;		/* published */
+	int computing;			/* a computation is in flight */
+	int pending;			/* a newer change waits for it */
+	uint32_t last_computed;		/* STATE_BIT mask of the last successful computation */
+	double last_total_ms;
+	double table_ms[STATE_N_TABLES];/* the last time each table was computed; -1 never */
+	uint32_t published_valid;	/* tables valid in the current slot */
+	uint64_t computations, failures;
+	char last_error[256];		/* "" when the last computation succeeded */
+};
+
+/* Takes neither loop nor engine; both must outlive the srv. The first
+ * computation (every needed table of initial) starts at once. */
+int srv_new(struct loop *l, struct eng *e, const struct sky_state *initial, struct srv **ret);
+/* Who hears of publications and failures (the control server). */
+void srv_set_listener(struct srv *s, const struct srv_listener *listener, void *ctx);
+void srv_free(struct srv *s);
+
+/* The state as last changed (not necessarily computed yet). */
+const struct sky_state *srv_state(const struct srv *s);
+/* The current region; valid until the next publication with a new layout. */
+struct pub *srv_pub(const struct srv *s);
+const struct eng_device *srv_device(const struct srv *s);
+void srv_status(const struct srv *s, struct srv_status *ret);
+
+/* Cross-key and device rules for a candidate state: 0 or -EINVAL / -ERANGE
+ * with the reason in err. */
+int srv_check(const struct srv *s, const struct sky_state *next, char *err, size_t err_size);
+
+/* Makes next (checked) the state; dirty: the tables it invalidates
+ * (state_set's mask). ret_generation: the generation in which it becomes
+ * visible. -EIO when the computation could not start (err says why): the
+ * state is kept and computed with the next change. */
+int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
+	       uint64_t *ret_generation, char *err, size_t err_size);
+
+/* The tables some client needs. Every table for now; the hook where
+ * demand-driven computation (the union of subscriptions) will plug in. */
+uint32_t srv_tables_needed(const struct srv *s);
+
+#endif

@@ -1,0 +1,198 @@
+/* proto.c - the control protocol's line tokenizer and reply parser. */
+#include "proto.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define ERR(...) (snprintf(err, err_size, __VA_ARGS__), -EINVAL)
+
+static int is_name_char(unsigned char c)
+{
+	return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+}
+
+static int is_space(char c)
+{
+	return c == ' ' || c == '\t';
+}
+
+/* Cuts the next space-separated token out of *pp; NULL at the end. */
+static char *next_token(char **pp)
+{
+	char *p = *pp;
+
+	while (is_space(*p))
+		p++;
+	if (!*p)
+		return NULL;
+	char *tok = p;
+	while (*p && !is_space(*p))
+		p++;
+	if (*p)
+		*p++ = 0;
+	*pp = p;
+	return tok;
+}
+
+static int split_arg(char *tok, struct proto_arg *ret, char *err, size_t err_size)
+{
+	char *eq = strchr(tok, '=');
+
+	if (eq)
+		*eq = 0;
+	if (!*tok)
+		return ERR("'=%.32s': key=value expected", eq ? eq + 1 : "");
+	for (char *c = tok; *c; c++)
+		if (!is_name_char((unsigned char)*c))
+			return ERR("'%.32s': a key is lower-case letters, digits and _", tok);
+	ret->key = tok;
+	ret->value = eq ? eq + 1 : NULL;
+	return 0;
+}
+
+static int check_bytes(char *line, char *err, size_t err_size)
+{
+	size_t len = strlen(line);
+
+	if (len && line[len - 1] == '\r')
+		line[--len] = 0;
+	for (size_t i = 0; i < len; i++) {
+		unsigned char c = (unsigned char)line[i];
+		if ((c < 0x20 && c != '\t') || c >= 0x7f)
+			return ERR("byte 0x%02x at column %zu is not printable ASCII", c, i + 1);
+	}
+	return 0;
+}
+
+int proto_parse_request(char *line, struct proto_request *ret, char *err, size_t err_size)
+{
+	char *p = line, *tok;
+	int r;
+
+	ret->verb = NULL;
+	ret->n_args = 0;
+	r = check_bytes(line, err, err_size);
+	if (r < 0)
+		return r;
+	tok = next_token(&p);
+	if (!tok)
+		return -ENODATA;
+	for (char *c = tok; *c; c++)
+		if (!is_name_char((unsigned char)*c))
+			return ERR("verb '%.32s' is not lower-case letters, digits and _", tok);
+	if (strlen(tok) >= PROTO_VERB_MAX)
+		return ERR("verb '%.32s...' is too long", tok);
+	ret->verb = tok;
+	while ((tok = next_token(&p))) {
+		if (ret->n_args == PROTO_MAX_ARGS)
+			return snprintf(err, err_size, "more than %d arguments", PROTO_MAX_ARGS), -E2BIG;
+		r = split_arg(tok, &ret->args[ret->n_args], err, err_size);
+		if (r < 0)
+			return r;
+		ret->n_args++;
+	}
+	return 0;
+}
+
+int proto_split_args(char *s, struct proto_arg *ret, int max)
+{
+	char err[8], *tok, *p = s;
+	int n = 0;
+
+	if (check_bytes(s, err, sizeof(err)) < 0)
+		return -EINVAL;
+	while ((tok = next_token(&p))) {
+		struct proto_arg a;
+		if (split_arg(tok, &a, err, sizeof(err)) < 0)
+			return -EINVAL;
+		if (n < max)
+			ret[n++] = a;
+	}
+	return n;
+}
+
+const char *proto_arg_value(const struct proto_arg *args, int n, const char *key)
+{
+	for (int i = 0; i < n; i++)
+		if (strcmp(args[i].key, key) == 0)
+			return args[i].value ? args[i].value : "";
+	return NULL;
+}
+
+int proto_is_event(const char *key)
+{
+	return strcmp(key, "changed") == 0 || strcmp(key, "layout") == 0 ||
+	       strcmp(key, "failed") == 0;
+}
+
+int proto_parse_reply(char *line, struct proto_reply *ret)
+{
+	size_t len = strlen(line);
+
+	if (len && line[len - 1] == '\r')
+		line[--len] = 0;
+	memset(ret, 0, sizeof(*ret));
+	if (strcmp(line, "OK") == 0 || strncmp(line, "OK ", 3) == 0) {
+		ret->kind = PROTO_OK;
+		ret->value = line[2] ? line + 3 : "";
+		return 0;
+	}
+	if (strncmp(line, "ACK [", 5) == 0) {
+		char *end;
+		long code = strtol(line + 5, &end, 10);
+		if (end == line + 5 || strncmp(end, "] {", 3) != 0 || code < 0 || code > 999)
+			return -EINVAL;
+		char *verb = end + 3, *close = strchr(verb, '}');
+		if (!close)
+			return -EINVAL;
+		*close = 0;
+		ret->kind = PROTO_ACK;
+		ret->ack_code = (int)code;
+		ret->ack_verb = verb;
+		ret->ack_message = close[1] == ' ' ? close + 2 : close + 1;
+		return 0;
+	}
+	char *colon = strstr(line, ": ");
+	if (!colon || colon == line)
+		return -EINVAL;
+	for (char *c = line; c < colon; c++)
+		if (!is_name_char((unsigned char)*c))
+			return -EINVAL;
+	*colon = 0;
+	ret->key = line;
+	ret->value = colon + 2;
+	ret->kind = proto_is_event(line) ? PROTO_EVENT : PROTO_PAIR;
+	return 0;
+}
+
+int proto_format_ack(char *buf, size_t size, int code, const char *verb, const char *message)
+{
+	int n = snprintf(buf, size, "ACK [%d] {%s} %s\n", code, verb ? verb : "", message);
+	/* Sanitize everything after the code: verb and message come from peers. */
+	if (size)
+		for (size_t i = 5; i + 1 < size && buf[i] && buf[i + 1]; i++) {
+			unsigned char c = (unsigned char)buf[i];
+			if (c < 0x20 || c >= 0x7f)
+				buf[i] = '?';
+		}
+	return n;
+}
+
+const char *proto_ack_name(int code)
+{
+	switch (code) {
+	case SKY_ACK_SYNTAX: return "syntax";
+	case SKY_ACK_ARG: return "arg";
+	case SKY_ACK_PERMISSION: return "permission";
+	case SKY_ACK_UNKNOWN: return "unknown";
+	case SKY_ACK_NO_EXIST: return "no_exist";
+	case SKY_ACK_RANGE: return "range";
+	case SKY_ACK_LIMIT: return "limit";
+	case SKY_ACK_TOO_LONG: return "too_long";
+	case SKY_ACK_STATE: return "state";
+	case SKY_ACK_ENGINE: return "engine";
+	}
+	return "unknown";
+}

@@ -1,0 +1,75 @@
+/* proto.h - the line grammar of the control protocol, one parser shared by
+ * skyd, libsky, skyctl and the fuzz target.
+ *
+ * A request is one line "verb arg arg ...", where an arg is key=value or a
+ * bare word, separated by spaces or tabs. A reply is "key: value" lines
+ * closed by "OK" or "ACK [code] {verb} message"; event lines ("changed:",
+ * "layout:", "failed:") may arrive between replies, never inside one.
+ * Everything is parsed in place: the returned pointers point into the line
+ * and stay valid as long as the caller's buffer does.
+ */
+#ifndef SKYD_PROTO_H
+#define SKYD_PROTO_H
+
+#include <stddef.h>
+
+#include "skyproto.h"
+
+#define PROTO_MAX_ARGS 128		/* args per request; a 4 KiB line cannot hold many more */
+#define PROTO_VERB_MAX 32
+
+struct proto_arg {
+	const char *key;		/* the bare word when value is NULL */
+	const char *value;		/* after '=', may be empty; NULL for a bare word */
+};
+
+struct proto_request {
+	const char *verb;
+	int n_args;
+	struct proto_arg args[PROTO_MAX_ARGS];
+};
+
+/* Splits line (NUL-terminated, without its newline; a trailing '\r' is
+ * ignored) in place into ret. Returns 0; -ENODATA for a blank line; -EINVAL
+ * for a malformed line (control or non-ASCII bytes, a verb or key that is not
+ * [a-z0-9_], "=value" without a key) or -E2BIG for too many args, with a
+ * message in err. ret is unspecified on failure. */
+int proto_parse_request(char *line, struct proto_request *ret, char *err, size_t err_size);
+
+/* Splits "k=v k=v ..." (the value of an event or table line) in place.
+ * Returns the number of args stored (at most max) or -EINVAL. */
+int proto_split_args(char *s, struct proto_arg *ret, int max);
+
+/* The value of key among args, or NULL. A bare word counts as key with "". */
+const char *proto_arg_value(const struct proto_arg *args, int n, const char *key);
+
+enum proto_reply_kind {
+	PROTO_PAIR,			/* key: value, part of a reply */
+	PROTO_EVENT,			/* changed: / layout: / failed:, outside replies */
+	PROTO_OK,			/* "OK" or the greeting "OK skyd <version>" */
+	PROTO_ACK,
+};
+
+struct proto_reply {
+	enum proto_reply_kind kind;
+	const char *key, *value;	/* PAIR and EVENT; for OK, value is what follows "OK " or "" */
+	int ack_code;			/* ACK */
+	const char *ack_verb, *ack_message;
+};
+
+/* Parses one reply line in place. Returns 0 or -EINVAL if it is none of the
+ * four kinds. */
+int proto_parse_reply(char *line, struct proto_reply *ret);
+
+/* 1 if key names an event line. */
+int proto_is_event(const char *key);
+
+/* Writes "ACK [code] {verb} message\n" into buf, replacing any byte of the
+ * message that could break the line (control, non-ASCII) with '?'. Returns
+ * the length as snprintf does. */
+int proto_format_ack(char *buf, size_t size, int code, const char *verb, const char *message);
+
+/* The symbolic name of an ACK code ("syntax", "range", ...) or "unknown". */
+const char *proto_ack_name(int code);
+
+#endif
