@@ -88,6 +88,7 @@ struct sky_client {
 	int map_error;			/* result of mapping the last subscribe's memfd */
 	const struct sky_shm_header *map;
 	size_t map_bytes;
+	const struct sky_shm_header *old_map;	/* sky_wait: the superseded region */
 };
 
 /* ---- small helpers ------------------------------------------------------ */
@@ -655,11 +656,13 @@ static int open_socket(const char *path, int *ret_fd)
 	return 0;
 }
 
-/* Blocks (up to the timeout) until cond holds; the loop that serves both
- * the greeting and sky_request(). */
-static int pump_until(sky_client *c, bool (*cond)(const sky_client *))
+/* Blocks (up to timeout_ms, < 0 forever) until cond holds; the loop that
+ * serves the greeting, sky_request() and sky_wait()'s layout change. A
+ * request that times out drops the connection (drop_on_timeout). */
+static int pump_until(sky_client *c, bool (*cond)(const sky_client *), int timeout_ms,
+		      bool drop_on_timeout)
 {
-	int64_t deadline = c->timeout_ms < 0 ? -1 : now_ms() + c->timeout_ms;
+	int64_t deadline = timeout_ms < 0 ? -1 : now_ms() + timeout_ms;
 	while (!cond(c)) {
 		if (c->fd < 0)
 			return -ECONNRESET;
@@ -669,8 +672,10 @@ static int pump_until(sky_client *c, bool (*cond)(const sky_client *))
 			return -errno;
 		if (n == 0) {
 			/* A late reply would be taken for the next request's: drop the line. */
-			drop_connection(c);
-			c->hung_up = true;
+			if (drop_on_timeout) {
+				drop_connection(c);
+				c->hung_up = true;
+			}
 			return -ETIMEDOUT;
 		}
 		if (n < 0)
@@ -711,7 +716,7 @@ static int do_connect(sky_client *c)
 	c->hung_up = false;
 	c->greeted = false;
 	c->bytes_sent = 0;
-	r = pump_until(c, greeted);
+	r = pump_until(c, greeted, c->timeout_ms, true);
 	if (r < 0) {
 		drop_connection(c);
 		c->hung_up = true;
@@ -867,7 +872,7 @@ int sky_request(sky_client *c, const char *line, sky_reply **ret_reply)
 			return -ENOMEM;
 		return 0;
 	}
-	r = pump_until(c, sync_done);
+	r = pump_until(c, sync_done, c->timeout_ms, true);
 	if (r < 0)
 		return r;
 	sky_reply *rep = c->sync_reply;
@@ -1087,17 +1092,45 @@ int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_view *ret_vie
 	return -EAGAIN;
 }
 
+bool sky_view_verify(const struct sky_view *v)
+{
+	if (!v || !v->header || !v->slot_base)
+		return false;
+	return skysample_slot_checksum(v->header, v->slot_base) == v->slot->checksum;
+}
+
+static bool map_replaced(const sky_client *c)
+{
+	return c->map != c->old_map;
+}
+
+/* The region was superseded: the new one is on its way on the socket with a
+ * "layout:" line. Reads the socket (queueing what else comes) until it is
+ * mapped or the deadline passes. */
+static int follow_layout(sky_client *c, int64_t deadline)
+{
+	if (c->fd < 0)
+		return -ENOTCONN;
+	c->old_map = c->map;
+	return pump_until(c, map_replaced, deadline < 0 ? -1 : left_ms(deadline), false);
+}
+
 int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generation)
 {
 	if (!c)
 		return -EINVAL;
 	if (!c->map)
 		return -ENOTCONN;
-	uint32_t *word = (uint32_t *)&c->map->generation;
 	int64_t deadline = timeout_ms < 0 ? -1 : now_ms() + timeout_ms;
 	for (;;) {
+		if (__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE)) {
+			int r = follow_layout(c, deadline);
+			if (r < 0)
+				return r;
+		}
+		uint32_t *word = (uint32_t *)&c->map->generation;
 		uint32_t g = __atomic_load_n(word, __ATOMIC_ACQUIRE);
-		if (g != seen) {
+		if (g != seen && !__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE)) {
 			if (ret_generation)
 				*ret_generation = g;
 			return 0;

@@ -79,7 +79,8 @@
  *
  * A view from sky_view_begin() points into the client's mapping: it stays
  * readable until the next call on that client that can replace the mapping
- * (sky_dispatch, sky_request, sky_subscribe, sky_reconnect, sky_disconnect).
+ * (sky_dispatch, sky_request, sky_subscribe, sky_reconnect, sky_disconnect,
+ * and sky_wait when the layout changes).
  * A view filled by sky_snapshot() points into the caller's buffer and into
  * the mapping's header (read-only fields that never change): the same
  * rule applies to its header pointer only. The memory of the tables is
@@ -326,6 +327,12 @@ SKY_EXPORT int sky_view_begin(sky_client *c, struct sky_view *ret_view);
  * Since 0.1. */
 SKY_EXPORT bool sky_view_end(const sky_client *c, const struct sky_view *v);
 
+/* True if the slot's checksum (skyproto.h: FNV-1a over the state and the
+ * valid tables) matches its contents. Meant for a snapshot, or for a
+ * zero-copy view before sky_view_end(); costs one pass over the slot's
+ * bytes. Thread-safe. Since 0.1. */
+SKY_EXPORT bool sky_view_verify(const struct sky_view *v);
+
 /* Bytes sky_snapshot() needs: the slot size of the current layout, 0 before
  * sky_subscribe(). Since 0.1. */
 SKY_EXPORT size_t sky_snapshot_size(const sky_client *c);
@@ -342,7 +349,10 @@ SKY_EXPORT int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_vi
  * passes (< 0: forever, 0: just look). The daemon wakes the futex on every
  * publication. 0 and *ret_generation (may be NULL) set to the current
  * generation; -ETIMEDOUT; -EINTR if a signal interrupted it; -ENOTCONN
- * before sky_subscribe(). Does not read the socket. Since 0.1. */
+ * before sky_subscribe(). It reads the socket only when the region was
+ * superseded (a layout change): then it waits there for the new region,
+ * maps it (views into the old one end, as with sky_dispatch) and queues
+ * what else arrives for sky_dispatch(). Since 0.1. */
 SKY_EXPORT int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generation);
 
 /* ---- Sampling (thread-safe on a view; see THREADS) ------------------------ */

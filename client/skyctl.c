@@ -126,7 +126,8 @@ static int cmd_help(const struct opts *o, int argc, char **argv)
 }
 
 /* batch: lines of key=value (or "set key=value ...") from stdin, sent
- * between "batch" and "end" as one change. Blank lines and # comments are
+ * between "batch" and "end" as one change; the daemon answers only "end"
+ * (a refused line refuses the whole batch). Blank lines and # comments are
  * skipped. */
 static int cmd_batch(const struct opts *o, int argc, char **argv)
 {
@@ -154,9 +155,13 @@ static int cmd_batch(const struct opts *o, int argc, char **argv)
 		char *p = buf + strspn(buf, " \t");
 		if (!*p || *p == '#')
 			continue;
+		/* a bare key=value line is a set */
+		char line[SKY_PROTO_LINE_MAX + 8];
+		size_t verb = strcspn(p, " =");
+		snprintf(line, sizeof(line), "%s%s", p[verb] == '=' ? "set " : "", p);
 		sky_reply_free(rep);
 		rep = NULL;
-		r = sky_request(c, p, &rep);
+		r = sky_request(c, line, &rep);
 		if (r > 0)
 			fprintf(stderr, "skyctl: stdin:%u: ", lineno);
 	}

@@ -113,6 +113,7 @@ static void fill_slot(uint32_t s, double scale)
 				p[3] = (float)(1.0 - 0.1 * (k + 1));
 			}
 	sl->valid_tables = SKY_TABLES_ALL;
+	sl->checksum = skysample_slot_checksum(shm, sl);
 }
 
 static void build_region(void)
@@ -186,7 +187,7 @@ static void *server(void *arg)
 		if (fd < 0)
 			return NULL;
 		atomic_fetch_add(&connections, 1);
-		send_text(fd, "OK skyd 1\n", -1);
+		send_text(fd, "OK skyd " SKY_PROTO_VERSION "\n", -1);
 		char buf[8192];
 		size_t len = 0;
 		bool open = true, stop = false;
@@ -252,6 +253,8 @@ static void stop_server(void)
 		}
 		sky_disconnect(c);
 	}
+	/* wakes accept() if the server was never told to stop */
+	shutdown(listen_fd, SHUT_RDWR);
 	pthread_join(server_thread, NULL);
 	close(listen_fd);
 	unlink(sock_path);
@@ -281,7 +284,7 @@ static void test_half(void)
 static void test_requests(sky_client *c)
 {
 	sky_reply *rep = NULL;
-	CHECK(strcmp(sky_protocol_version(c), "1") == 0);
+	CHECK(strcmp(sky_protocol_version(c), SKY_PROTO_VERSION) == 0);
 	CHECK(sky_request(c, "ping", NULL) == 0);
 	CHECK(sky_request(c, "get", &rep) == 0);
 	CHECK(sky_reply_count(rep) == 2);
@@ -640,7 +643,9 @@ static void test_consistency(sky_client *c)
 	CHECK(sky_snapshot(c, buf, n, &v) == -EAGAIN);
 	CHECK(sky_snapshot(c, buf, n - 1, &v) == -ENOBUFS);
 	s->seq++;
-	CHECK(sky_snapshot(c, buf, n, &v) == 0 && slot_consistent(&v));
+	CHECK(sky_snapshot(c, buf, n, &v) == 0 && slot_consistent(&v) && sky_view_verify(&v));
+	((float *)((char *)buf + shm->tables[1].offset))[5] += 1.0f;
+	CHECK(!sky_view_verify(&v));
 
 	/* concurrent: a writer rewrites the current slot flat out; every view
 	 * that sky_view_end() accepts and every snapshot must be whole */
@@ -672,7 +677,7 @@ static void test_consistency(sky_client *c)
 			int r = sky_snapshot(c, buf, n, &v);
 			if (r == 0) {
 				snaps++;
-				bad += !slot_consistent(&v);
+				bad += !slot_consistent(&v) || !sky_view_verify(&v);
 			} else {
 				busy += r == -EAGAIN;
 			}
