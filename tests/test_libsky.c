@@ -580,8 +580,8 @@ static void test_projections(sky_client *c)
 	CHECK(sky_view_end(c, &v));
 }
 
-/* The writer side of the seqlock, as the daemon does it, but rewriting the
- * current slot in place so that readers are torn as often as possible. */
+/* The writer side of the seqlock, as the daemon does it, but often
+ * rewriting the current slot in place so that readers are torn. */
 static atomic_bool writer_stop;
 static atomic_long writer_rounds;
 
@@ -589,12 +589,17 @@ static void *writer(void *arg)
 {
 	(void)arg;
 	for (long n = 2; !atomic_load(&writer_stop); n++) {
+		/* three rounds in four as the daemon does (the next slot, then
+		 * publish it); the fourth rewrites the current slot in place */
 		uint32_t cur = __atomic_load_n(&shm->current_slot, __ATOMIC_RELAXED);
+		if (n % 4)
+			cur = (cur + 1) % NSLOT;
 		struct sky_shm_slot *s = slot_of(cur);
 		__atomic_store_n(&s->seq, s->seq + 1, __ATOMIC_RELAXED);
 		atomic_thread_fence(memory_order_release);
 		fill_slot(cur, (double)(n % 16 + 1));
 		__atomic_store_n(&s->seq, s->seq + 1, __ATOMIC_RELEASE);
+		__atomic_store_n(&shm->current_slot, cur, __ATOMIC_RELEASE);
 		__atomic_add_fetch(&shm->generation, 1, __ATOMIC_RELEASE);
 		syscall(SYS_futex, &shm->generation, FUTEX_WAKE, INT32_MAX, NULL, NULL, 0);
 		atomic_fetch_add(&writer_rounds, 1);
@@ -689,7 +694,7 @@ static void test_consistency(sky_client *c)
 	       "%ld snapshots, %ld snapshot gave up, %ld inconsistent\n",
 	       atomic_load(&writer_rounds), accepted, torn, snaps, busy, bad);
 	CHECK(bad == 0);
-	CHECK(accepted + snaps > 0);
+	CHECK(accepted > 0 && snaps > 0);
 	CHECK(atomic_load(&writer_rounds) >= 5000);
 	/* restore the reference contents */
 	for (uint32_t k = 0; k < NSLOT; k++)
