@@ -454,7 +454,7 @@ static const struct cmd cmds[] = {
 	{ "get", "get [key...]             print the state, every key or the ones named", NULL },
 	{ "status", "status                   generation, compute times, device, clients, last error", NULL },
 	{ "batch", "batch < lines            apply stdin's key=value lines as one change", cmd_batch },
-	{ "subscribe", "subscribe tables=...      subscribe and print the layout", NULL },
+	{ "subscribe", "subscribe tables=...     subscribe and print the layout", NULL },
 	{ "sample", "sample sky el_deg=E az_deg=A | sample sun | sample ambient", NULL },
 	{ "ping", "ping                     check that skyd answers", NULL },
 	{ "commands", "commands                 list the daemon's verbs", NULL },
