@@ -4,6 +4,8 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <locale.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -17,6 +19,7 @@
 #include "loop.h"
 #include "proto.h"
 #include "pub.h"
+#include "skysample.h"
 #include "srv.h"
 
 /* One queued piece of output; fd (if >= 0) travels with its first byte. */
@@ -561,6 +564,92 @@ static int cmd_unsubscribe(struct client *c, const struct proto_request *req, st
 	return 0;
 }
 
+/* A strict finite number in the C locale, whatever the process locale. */
+static int parse_number(const char *v, double *ret)
+{
+	static locale_t c_locale;
+	char *end;
+
+	if (!c_locale)
+		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
+	if (!c_locale || !v || !*v)
+		return -EINVAL;
+	errno = 0;
+	double d = strtod_l(v, &end, c_locale);
+	if (*end || !isfinite(d) || errno == ERANGE)
+		return -EINVAL;
+	*ret = d;
+	return 0;
+}
+
+static void reply_rgb(struct reply *r, const char *key_rgb, const char *key_y, const double rgb[3])
+{
+	/* Rec. 709 / sRGB primaries: the luminance of linear RGB. */
+	double y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+
+	reply_add(r, "%s: %.9g,%.9g,%.9g\n%s: %.9g\n", key_rgb, rgb[0], rgb[1], rgb[2], key_y, y);
+}
+
+/* Samples the current slot exactly as a client would (skysample.h). The
+ * daemon is its only writer and runs on this thread, so no seqlock retry. */
+static int cmd_sample(struct client *c, const struct proto_request *req, struct reply *r,
+		      char *msg, size_t msg_size)
+{
+	const struct pub *p = srv_pub(c->ctl->srv);
+	const struct sky_shm_header *h = pub_header(p);
+	const uint8_t *base;
+	const struct sky_shm_slot *slot = pub_current(p, &base);
+	const char *what = req->args[0].key;
+	struct skysample_table t;
+	double rgb[3];
+	uint32_t id;
+
+	if (req->args[0].value)
+		return ACK(SKY_ACK_SYNTAX, "usage: sample sky el_deg=E az_deg=A | sample sun | sample ambient");
+	if (strcmp(what, "sky") == 0 || strcmp(what, "ambient") == 0)
+		id = SKY_TABLE_SKYVIEW;
+	else if (strcmp(what, "sun") == 0)
+		id = SKY_TABLE_TRANSMITTANCE;
+	else
+		return ACK(SKY_ACK_NO_EXIST, "%s: not sky, sun or ambient", what);
+	if (strcmp(what, "sky") == 0) {
+		double el, az;
+		const char *ev = proto_arg_value(req->args, req->n_args, "el_deg");
+		const char *av = proto_arg_value(req->args, req->n_args, "az_deg");
+		for (int i = 1; i < req->n_args; i++)
+			if (strcmp(req->args[i].key, "el_deg") && strcmp(req->args[i].key, "az_deg"))
+				return ACK(SKY_ACK_NO_EXIST, "%s: unknown key (el_deg, az_deg)", req->args[i].key);
+		if (!ev || !av)
+			return ACK(SKY_ACK_SYNTAX, "usage: sample sky el_deg=E az_deg=A");
+		if (parse_number(ev, &el) < 0)
+			return ACK(SKY_ACK_ARG, "el_deg: '%s' is not a finite number", ev);
+		if (parse_number(av, &az) < 0)
+			return ACK(SKY_ACK_ARG, "az_deg: '%s' is not a finite number", av);
+		if (el < -90 || el > 90)
+			return ACK(SKY_ACK_RANGE, "el_deg: %g is outside [-90, 90]", el);
+		if (az < -360 || az > 720)
+			return ACK(SKY_ACK_RANGE, "az_deg: %g is outside [-360, 720]", az);
+		if (!(slot->valid_tables & (1u << id)) ||
+		    skysample_table_from_slot(h, base, id, &t) < 0)
+			return ACK(SKY_ACK_STATE, "no sky-view table published yet");
+		skysample_sky(&t, &slot->state, el * SKYMAP_PI / 180.0, az * SKYMAP_PI / 180.0, rgb);
+		reply_add(r, "generation: %llu\n", (unsigned long long)slot->generation);
+		reply_rgb(r, "radiance_rgb_cd_m2", "luminance_cd_m2", rgb);
+		return 0;
+	}
+	if (req->n_args > 1)
+		return ACK(SKY_ACK_SYNTAX, "sample %s takes no arguments", what);
+	if (!(slot->valid_tables & (1u << id)) || skysample_table_from_slot(h, base, id, &t) < 0)
+		return ACK(SKY_ACK_STATE, "no %s table published yet", state_table_names[id]);
+	if (id == SKY_TABLE_TRANSMITTANCE)
+		skysample_sun(&t, &slot->state, rgb);
+	else
+		skysample_ambient(&t, &slot->state, rgb);
+	reply_add(r, "generation: %llu\n", (unsigned long long)slot->generation);
+	reply_rgb(r, "illuminance_rgb_lx", "illuminance_lx", rgb);
+	return 0;
+}
+
 static int cmd_commands(struct client *c, const struct proto_request *req, struct reply *r,
 			char *msg, size_t msg_size)
 {
@@ -614,6 +703,9 @@ static const struct cmd_entry cmds[] = {
 	  "tables: receive the shared memory (SCM_RIGHTS) and its layout; events: changed: lines",
 	  1, 2, cmd_subscribe },
 	{ "unsubscribe", "unsubscribe", "stop events and layout lines", 0, 0, cmd_unsubscribe },
+	{ "sample", "sample sky el_deg=E az_deg=A | sample sun | sample ambient",
+	  "sky radiance in a direction (no sun disk), the sun's illuminance at the observer, or the horizontal sky irradiance, from the published tables",
+	  1, 3, cmd_sample },
 	{ "commands", "commands", "list the verbs", 0, 0, cmd_commands },
 	{ "help", "help [VERB]", "usage of a verb", 0, 1, cmd_help },
 	{ "ping", "ping", "answer OK", 0, 0, cmd_ping },

@@ -6,6 +6,7 @@
 #include <limits.h>
 #include <linux/futex.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -21,6 +22,7 @@
 
 struct pub {
 	int fd;
+	int ro_fd;			/* what clients get: read-only open of the same memfd */
 	uint8_t *map;
 	uint64_t bytes;
 	struct sky_shm_header *header;
@@ -86,6 +88,7 @@ int pub_new(const struct sky_state *s, uint64_t generation, struct pub **ret)
 	if (!p)
 		return -ENOMEM;
 	p->map = MAP_FAILED;
+	p->ro_fd = -1;
 	p->fd = memfd_create("skyd-tables", MFD_CLOEXEC | MFD_ALLOW_SEALING);
 	if (p->fd < 0)
 		goto fail_errno;
@@ -100,6 +103,11 @@ int pub_new(const struct sky_state *s, uint64_t generation, struct pub **ret)
 	if (fcntl(p->fd, F_ADD_SEALS, SEALS) < 0)
 		goto fail_errno;
 	(void)fchmod(p->fd, 0444);
+	/* Clients get a read-only file: write() and ftruncate() fail on it
+	 * before the seals are even asked. Without /proc, the seals alone hold. */
+	char self[64];
+	snprintf(self, sizeof(self), "/proc/self/fd/%d", p->fd);
+	p->ro_fd = open(self, O_RDONLY | O_CLOEXEC);
 	p->header = (struct sky_shm_header *)p->map;
 	*p->header = h;
 	p->header->generation = (uint32_t)generation;
@@ -122,6 +130,8 @@ void pub_free(struct pub *p)
 		return;
 	if (p->map != MAP_FAILED)
 		munmap(p->map, p->bytes);
+	if (p->ro_fd >= 0)
+		close(p->ro_fd);
 	if (p->fd >= 0)
 		close(p->fd);
 	free(p);
@@ -129,7 +139,7 @@ void pub_free(struct pub *p)
 
 int pub_fd(const struct pub *p)
 {
-	return p->fd;
+	return p->ro_fd >= 0 ? p->ro_fd : p->fd;
 }
 
 uint64_t pub_bytes(const struct pub *p)

@@ -31,7 +31,8 @@ struct pub;
 int pub_new(const struct sky_state *s, uint64_t generation, struct pub **ret);
 void pub_free(struct pub *p);
 
-/* The sealed memfd; owned by pub, dup it to keep it. */
+/* The sealed memfd as clients get it, opened read-only; owned by pub, dup
+ * it to keep it. */
 int pub_fd(const struct pub *p);
 uint64_t pub_bytes(const struct pub *p);
 /* 1 if s has the layout of p (same table shapes and storage). */
