@@ -266,8 +266,10 @@ static int cmd_watch(const struct opts *o, int argc, char **argv)
 	return e;
 }
 
-/* Connects, subscribes to tables and copies the newest slot; the buffer is
- * the caller's to free. */
+/* Connects, subscribes to tables and copies the newest slot that holds
+ * them all (waiting, up to the timeout, for the daemon to compute them:
+ * it computes only what someone subscribed to). The buffer is the caller's
+ * to free. */
 static int take_snapshot(const struct opts *o, uint32_t tables, sky_client **ret_c,
 			 void **ret_buf, struct sky_view *ret_view)
 {
@@ -275,13 +277,19 @@ static int take_snapshot(const struct opts *o, uint32_t tables, sky_client **ret
 	if (e)
 		return e;
 	int r = sky_subscribe(*ret_c, tables, 0);
-	if (r == 0) {
+	*ret_buf = NULL;
+	while (r == 0) {
 		size_t n = sky_snapshot_size(*ret_c);
+		free(*ret_buf);
 		*ret_buf = aligned_alloc(64, (n + 63) / 64 * 64);
 		r = *ret_buf ? sky_snapshot(*ret_c, *ret_buf, n, ret_view) : -ENOMEM;
+		if (r < 0 || (ret_view->valid_tables & tables) == tables)
+			break;
+		r = sky_wait(*ret_c, ret_view->generation, o->timeout_ms, NULL);
 	}
 	if (r != 0) {
 		fprintf(stderr, "skyctl: %s\n", sky_strerror(r));
+		free(*ret_buf);
 		sky_disconnect(*ret_c);
 		return EXIT_REFUSED;
 	}
