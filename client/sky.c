@@ -30,6 +30,10 @@
 #define SKY_SNAPSHOT_TRIES 16
 #define SKY_DEFAULT_TIMEOUT_MS 5000
 
+static const char *const table_names[SKY_SHM_MAX_TABLES] = {
+	"transmittance", "multiscatter", "skyview", "aerial",
+};
+
 struct sky_reply {
 	int ack;
 	int fd;				/* descriptor that came with it, -1 if none */
@@ -75,12 +79,16 @@ struct sky_client {
 	sky_reply *sync_reply;		/* completed reply of sky_request() */
 	bool sync_done;
 
+	bool in_batch;			/* lines after "batch" get no reply until "end" */
+	bool unanswered;		/* the last queued line expects no reply */
+
 	uint32_t sub_tables;
 	unsigned sub_flags;
 	bool subscribed;
 	int map_error;			/* result of mapping the last subscribe's memfd */
 	const struct sky_shm_header *map;
 	size_t map_bytes;
+	const struct sky_shm_header *old_map;	/* sky_wait: the superseded region */
 };
 
 /* ---- small helpers ------------------------------------------------------ */
@@ -364,6 +372,7 @@ static void drop_connection(sky_client *c)
 	c->in_len = 0;
 	c->out_len = c->out_off = 0;
 	c->pend_count = c->pend_head = 0;
+	c->in_batch = false;
 	sky_reply_free(c->cur);
 	c->cur = NULL;
 	close_fds(c);
@@ -380,50 +389,78 @@ static void hang_up(sky_client *c)
 	(void)event_push(c, &ev, NULL);
 }
 
+/* The unsolicited lines of the protocol: "changed: ", "failed: " and
+ * "layout: ". They come only between whole replies. */
 static bool is_event_line(const char *line, size_t len)
 {
-	static const char pfx[] = "changed: ";
-	return len >= sizeof(pfx) - 1 && memcmp(line, pfx, sizeof(pfx) - 1) == 0;
+	static const char *const pfx[] = { "changed: ", "failed: ", "layout: " };
+	for (size_t i = 0; i < sizeof(pfx) / sizeof(pfx[0]); i++) {
+		size_t n = strlen(pfx[i]);
+		if (len >= n && memcmp(line, pfx[i], n) == 0)
+			return true;
+	}
+	return false;
 }
 
-/* "changed: generation=N tables=a,b" -> event. Unknown words are ignored
- * (a later protocol may add some). */
+static uint32_t parse_tables(char *list)
+{
+	uint32_t mask = 0;
+	char *save = NULL;
+	for (char *t = strtok_r(list, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+		for (unsigned i = 0; i < SKY_SHM_MAX_TABLES; i++)
+			if (strcmp(t, table_names[i]) == 0)
+				mask |= SKY_TABLE_BIT(i);
+		if (strcmp(t, "all") == 0)
+			mask = SKY_TABLES_ALL;
+	}
+	return mask;
+}
+
+/* "changed: generation=N tables=a,b", "failed: generation=N message=text",
+ * "layout: generation=N bytes=B" (with the new memfd) -> events. Unknown
+ * words are ignored: a later protocol may add some. */
 static int handle_event_line(sky_client *c, const char *line, size_t len)
 {
 	struct sky_event ev = { .type = SKY_EVENT_CHANGED };
+	sky_reply *owned = NULL;
 	char buf[512];
 	size_t n = len < sizeof(buf) - 1 ? len : sizeof(buf) - 1;
 	memcpy(buf, line, n);
 	buf[n] = 0;
+	char *colon = strchr(buf, ':');
+	*colon = 0;
+	if (strcmp(buf, "failed") == 0)
+		ev.type = SKY_EVENT_FAILED;
+	else if (strcmp(buf, "layout") == 0)
+		ev.type = SKY_EVENT_LAYOUT;
 	char *save = NULL;
-	for (char *w = strtok_r(buf + 9, " ", &save); w; w = strtok_r(NULL, " ", &save)) {
+	for (char *w = strtok_r(colon + 1, " ", &save); w; w = strtok_r(NULL, " ", &save)) {
 		if (strncmp(w, "generation=", 11) == 0) {
-			ev.generation = (uint32_t)strtoul(w + 11, NULL, 10);
+			ev.generation = (uint32_t)strtoull(w + 11, NULL, 10);
 		} else if (strncmp(w, "tables=", 7) == 0) {
-			char *s2 = NULL;
-			for (char *t = strtok_r(w + 7, ",", &s2); t; t = strtok_r(NULL, ",", &s2)) {
-				static const char *const names[] = { "transmittance", "multiscatter",
-								     "skyview", "aerial" };
-				for (unsigned i = 0; i < 4; i++)
-					if (strcmp(t, names[i]) == 0)
-						ev.tables |= SKY_TABLE_BIT(i);
-				if (strcmp(t, "all") == 0)
-					ev.tables = SKY_TABLES_ALL;
+			ev.tables = parse_tables(w + 7);
+		} else if (strncmp(w, "message=", 8) == 0 && !owned) {
+			if (!(owned = reply_new()) || !(owned->message = strdup(w + 8))) {
+				sky_reply_free(owned);
+				return -ENOMEM;
 			}
+			ev.message = owned->message;
 		}
 	}
-	/* A descriptor that came with an event line is a new layout. */
-	if (c->n_fds) {
+	if (ev.type == SKY_EVENT_LAYOUT) {
+		/* The new region came with the line; without it the line is garbage. */
+		if (!c->n_fds)
+			return -EPROTO;
 		int fd = c->fds[0];
 		memmove(c->fds, c->fds + 1, --c->n_fds * sizeof(int));
-		if (map_memfd(c, fd) == 0) {
-			struct sky_event lay = { .type = SKY_EVENT_LAYOUT };
-			int r = event_push(c, &lay, NULL);
-			if (r < 0)
-				return r;
-		}
+		int r = map_memfd(c, fd);
+		if (r < 0)
+			return r;
 	}
-	return event_push(c, &ev, NULL);
+	int r = event_push(c, &ev, owned);
+	if (r < 0)
+		sky_reply_free(owned);
+	return r;
 }
 
 static int complete_reply(sky_client *c)
@@ -619,11 +656,13 @@ static int open_socket(const char *path, int *ret_fd)
 	return 0;
 }
 
-/* Blocks (up to the timeout) until cond holds; the loop that serves both
- * the greeting and sky_request(). */
-static int pump_until(sky_client *c, bool (*cond)(const sky_client *))
+/* Blocks (up to timeout_ms, < 0 forever) until cond holds; the loop that
+ * serves the greeting, sky_request() and sky_wait()'s layout change. A
+ * request that times out drops the connection (drop_on_timeout). */
+static int pump_until(sky_client *c, bool (*cond)(const sky_client *), int timeout_ms,
+		      bool drop_on_timeout)
 {
-	int64_t deadline = c->timeout_ms < 0 ? -1 : now_ms() + c->timeout_ms;
+	int64_t deadline = timeout_ms < 0 ? -1 : now_ms() + timeout_ms;
 	while (!cond(c)) {
 		if (c->fd < 0)
 			return -ECONNRESET;
@@ -633,8 +672,10 @@ static int pump_until(sky_client *c, bool (*cond)(const sky_client *))
 			return -errno;
 		if (n == 0) {
 			/* A late reply would be taken for the next request's: drop the line. */
-			drop_connection(c);
-			c->hung_up = true;
+			if (drop_on_timeout) {
+				drop_connection(c);
+				c->hung_up = true;
+			}
 			return -ETIMEDOUT;
 		}
 		if (n < 0)
@@ -675,7 +716,7 @@ static int do_connect(sky_client *c)
 	c->hung_up = false;
 	c->greeted = false;
 	c->bytes_sent = 0;
-	r = pump_until(c, greeted);
+	r = pump_until(c, greeted, c->timeout_ms, true);
 	if (r < 0) {
 		drop_connection(c);
 		c->hung_up = true;
@@ -749,9 +790,10 @@ static int check_line(const char *line)
 	return n == 0 || n >= SKY_PROTO_LINE_MAX ? -EINVAL : (int)n;
 }
 
-static bool is_subscribe(const char *line)
+static bool is_verb(const char *line, const char *verb)
 {
-	return strncmp(line, "subscribe", 9) == 0 && (line[9] == 0 || line[9] == ' ');
+	size_t n = strlen(verb);
+	return strncmp(line, verb, n) == 0 && (line[n] == 0 || line[n] == ' ');
 }
 
 /* Appends line + newline to the output queue and records what waits for
@@ -772,10 +814,18 @@ static int queue_line(sky_client *c, const char *line, size_t n, uint64_t userda
 	memcpy(c->out + c->out_len, line, n);
 	c->out[c->out_len + n] = '\n';
 	c->out_len += n + 1;
+	/* "batch" and the lines inside it are answered only by "end". */
+	c->unanswered = c->in_batch ? !is_verb(line, "end") : is_verb(line, "batch");
+	if (c->in_batch && !c->unanswered)
+		c->in_batch = false;
+	else if (!c->in_batch && c->unanswered)
+		c->in_batch = true;
+	if (c->unanswered)
+		return 0;
 	struct sky_pending *p = &c->pend[(c->pend_head + c->pend_count) % SKY_MAX_PENDING];
 	p->userdata = userdata;
 	p->sync = sync;
-	p->subscribe = is_subscribe(line);
+	p->subscribe = is_verb(line, "subscribe");
 	c->pend_count++;
 	return 0;
 }
@@ -817,7 +867,12 @@ int sky_request(sky_client *c, const char *line, sky_reply **ret_reply)
 	int r = send_line(c, line, 0, true);
 	if (r < 0)
 		return r;
-	r = pump_until(c, sync_done);
+	if (c->unanswered) {
+		if (ret_reply && !(*ret_reply = reply_new()))
+			return -ENOMEM;
+		return 0;
+	}
+	r = pump_until(c, sync_done, c->timeout_ms, true);
 	if (r < 0)
 		return r;
 	sky_reply *rep = c->sync_reply;
@@ -874,10 +929,6 @@ int sky_dispatch(sky_client *c, struct sky_event *ret_event)
 	*ret_event = q.ev;
 	return 1;
 }
-
-static const char *const table_names[SKY_SHM_MAX_TABLES] = {
-	"transmittance", "multiscatter", "skyview", "aerial",
-};
 
 static int subscribe_line(uint32_t tables, unsigned flags, char *buf, size_t size)
 {
@@ -1041,17 +1092,45 @@ int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_view *ret_vie
 	return -EAGAIN;
 }
 
+bool sky_view_verify(const struct sky_view *v)
+{
+	if (!v || !v->header || !v->slot_base)
+		return false;
+	return skysample_slot_checksum(v->header, v->slot_base) == v->slot->checksum;
+}
+
+static bool map_replaced(const sky_client *c)
+{
+	return c->map != c->old_map;
+}
+
+/* The region was superseded: the new one is on its way on the socket with a
+ * "layout:" line. Reads the socket (queueing what else comes) until it is
+ * mapped or the deadline passes. */
+static int follow_layout(sky_client *c, int64_t deadline)
+{
+	if (c->fd < 0)
+		return -ENOTCONN;
+	c->old_map = c->map;
+	return pump_until(c, map_replaced, deadline < 0 ? -1 : left_ms(deadline), false);
+}
+
 int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generation)
 {
 	if (!c)
 		return -EINVAL;
 	if (!c->map)
 		return -ENOTCONN;
-	uint32_t *word = (uint32_t *)&c->map->generation;
 	int64_t deadline = timeout_ms < 0 ? -1 : now_ms() + timeout_ms;
 	for (;;) {
+		if (__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE)) {
+			int r = follow_layout(c, deadline);
+			if (r < 0)
+				return r;
+		}
+		uint32_t *word = (uint32_t *)&c->map->generation;
 		uint32_t g = __atomic_load_n(word, __ATOMIC_ACQUIRE);
-		if (g != seen) {
+		if (g != seen && !__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE)) {
 			if (ret_generation)
 				*ret_generation = g;
 			return 0;

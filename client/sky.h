@@ -79,7 +79,8 @@
  *
  * A view from sky_view_begin() points into the client's mapping: it stays
  * readable until the next call on that client that can replace the mapping
- * (sky_dispatch, sky_request, sky_subscribe, sky_reconnect, sky_disconnect).
+ * (sky_dispatch, sky_request, sky_subscribe, sky_reconnect, sky_disconnect,
+ * and sky_wait when the layout changes).
  * A view filled by sky_snapshot() points into the caller's buffer and into
  * the mapping's header (read-only fields that never change): the same
  * rule applies to its header pointer only. The memory of the tables is
@@ -207,7 +208,10 @@ SKY_EXPORT void sky_set_timeout(sky_client *c, int timeout_ms);
 /* Sends one request line (no newline; at most SKY_PROTO_LINE_MAX - 1
  * bytes, no control characters) and waits for its reply. Events and replies
  * to earlier sky_send() requests that arrive first are queued for
- * sky_dispatch(). Returns 0 when the daemon answered OK, the positive ACK
+ * sky_dispatch(). "batch" and the lines after it up to "end" get no
+ * reply from the daemon (PROTOCOL.md): for them sky_request() returns 0 at
+ * once with an empty reply, and "end" returns the outcome of the whole
+ * batch. Returns 0 when the daemon answered OK, the positive ACK
  * code when it refused (the request changed nothing), or -errno: -EINVAL
  * (bad line), -ETIMEDOUT, -ECONNRESET (the daemon went away after the line
  * was delivered: it may or may not have been applied), -EPROTO (garbled
@@ -245,6 +249,8 @@ enum sky_event_type {
 	SKY_EVENT_CHANGED = 2,		/* a new generation: generation, tables */
 	SKY_EVENT_LAYOUT = 3,		/* a new shared memory was mapped: old views are gone */
 	SKY_EVENT_HANGUP = 4,		/* skyd closed the connection; see RECONNECTING */
+	SKY_EVENT_FAILED = 5,		/* a recompute failed: generation, message; the
+					 * last good tables stay published */
 };
 
 struct sky_event {
@@ -255,6 +261,7 @@ struct sky_event {
 					 * or any other call on the client */
 	uint32_t generation;		/* SKY_EVENT_CHANGED */
 	uint32_t tables;		/* SKY_EVENT_CHANGED: SKY_TABLE_BIT mask that changed */
+	const char *message;		/* SKY_EVENT_FAILED: why, valid like reply */
 };
 
 /* The socket to poll (POLLIN; POLLOUT while sky_want_write()), -ENOTCONN
@@ -279,7 +286,12 @@ enum sky_subscribe_flags {
 
 /* Subscribes to the tables in the mask (SKY_TABLE_BIT of each; the daemon
  * adds what they depend on) and maps the shared memory passed with the
- * reply, read-only. A second call changes the subscription. Returns 0, the
+ * reply, read-only. A second call changes the subscription. When the daemon
+ * later publishes a new region (new table sizes) it sends it with a
+ * "layout:" line: sky_dispatch() maps it and returns SKY_EVENT_LAYOUT;
+ * until then the old region stays mapped and readable (the daemon bumps
+ * its generation once more when it retires it, so sky_wait() wakes up:
+ * call sky_dispatch() then). Returns 0, the
  * positive ACK code, or -errno: -EPROTO (no descriptor came, or the header
  * fails its checks), -EPROTONOSUPPORT (layout or uv-mapping version this
  * library does not know). Blocking, like sky_request(). Since 0.1. */
@@ -315,6 +327,12 @@ SKY_EXPORT int sky_view_begin(sky_client *c, struct sky_view *ret_view);
  * Since 0.1. */
 SKY_EXPORT bool sky_view_end(const sky_client *c, const struct sky_view *v);
 
+/* True if the slot's checksum (skyproto.h: FNV-1a over the state and the
+ * valid tables) matches its contents. Meant for a snapshot, or for a
+ * zero-copy view before sky_view_end(); costs one pass over the slot's
+ * bytes. Thread-safe. Since 0.1. */
+SKY_EXPORT bool sky_view_verify(const struct sky_view *v);
+
 /* Bytes sky_snapshot() needs: the slot size of the current layout, 0 before
  * sky_subscribe(). Since 0.1. */
 SKY_EXPORT size_t sky_snapshot_size(const sky_client *c);
@@ -331,7 +349,10 @@ SKY_EXPORT int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_vi
  * passes (< 0: forever, 0: just look). The daemon wakes the futex on every
  * publication. 0 and *ret_generation (may be NULL) set to the current
  * generation; -ETIMEDOUT; -EINTR if a signal interrupted it; -ENOTCONN
- * before sky_subscribe(). Does not read the socket. Since 0.1. */
+ * before sky_subscribe(). It reads the socket only when the region was
+ * superseded (a layout change): then it waits there for the new region,
+ * maps it (views into the old one end, as with sky_dispatch) and queues
+ * what else arrives for sky_dispatch(). Since 0.1. */
 SKY_EXPORT int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generation);
 
 /* ---- Sampling (thread-safe on a view; see THREADS) ------------------------ */

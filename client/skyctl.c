@@ -126,7 +126,8 @@ static int cmd_help(const struct opts *o, int argc, char **argv)
 }
 
 /* batch: lines of key=value (or "set key=value ...") from stdin, sent
- * between "batch" and "end" as one change. Blank lines and # comments are
+ * between "batch" and "end" as one change; the daemon answers only "end"
+ * (a refused line refuses the whole batch). Blank lines and # comments are
  * skipped. */
 static int cmd_batch(const struct opts *o, int argc, char **argv)
 {
@@ -154,9 +155,13 @@ static int cmd_batch(const struct opts *o, int argc, char **argv)
 		char *p = buf + strspn(buf, " \t");
 		if (!*p || *p == '#')
 			continue;
+		/* a bare key=value line is a set */
+		char line[SKY_PROTO_LINE_MAX + 8];
+		size_t verb = strcspn(p, " =");
+		snprintf(line, sizeof(line), "%s%s", p[verb] == '=' ? "set " : "", p);
 		sky_reply_free(rep);
 		rep = NULL;
-		r = sky_request(c, p, &rep);
+		r = sky_request(c, line, &rep);
 		if (r > 0)
 			fprintf(stderr, "skyctl: stdin:%u: ", lineno);
 	}
@@ -261,8 +266,10 @@ static int cmd_watch(const struct opts *o, int argc, char **argv)
 	return e;
 }
 
-/* Connects, subscribes to tables and copies the newest slot; the buffer is
- * the caller's to free. */
+/* Connects, subscribes to tables and copies the newest slot that holds
+ * them all (waiting, up to the timeout, for the daemon to compute them:
+ * it computes only what someone subscribed to). The buffer is the caller's
+ * to free. */
 static int take_snapshot(const struct opts *o, uint32_t tables, sky_client **ret_c,
 			 void **ret_buf, struct sky_view *ret_view)
 {
@@ -270,13 +277,19 @@ static int take_snapshot(const struct opts *o, uint32_t tables, sky_client **ret
 	if (e)
 		return e;
 	int r = sky_subscribe(*ret_c, tables, 0);
-	if (r == 0) {
+	*ret_buf = NULL;
+	while (r == 0) {
 		size_t n = sky_snapshot_size(*ret_c);
+		free(*ret_buf);
 		*ret_buf = aligned_alloc(64, (n + 63) / 64 * 64);
 		r = *ret_buf ? sky_snapshot(*ret_c, *ret_buf, n, ret_view) : -ENOMEM;
+		if (r < 0 || (ret_view->valid_tables & tables) == tables)
+			break;
+		r = sky_wait(*ret_c, ret_view->generation, o->timeout_ms, NULL);
 	}
 	if (r != 0) {
 		fprintf(stderr, "skyctl: %s\n", sky_strerror(r));
+		free(*ret_buf);
 		sky_disconnect(*ret_c);
 		return EXIT_REFUSED;
 	}
@@ -449,7 +462,7 @@ static const struct cmd cmds[] = {
 	{ "get", "get [key...]             print the state, every key or the ones named", NULL },
 	{ "status", "status                   generation, compute times, device, clients, last error", NULL },
 	{ "batch", "batch < lines            apply stdin's key=value lines as one change", cmd_batch },
-	{ "subscribe", "subscribe tables=...      subscribe and print the layout", NULL },
+	{ "subscribe", "subscribe tables=...     subscribe and print the layout", NULL },
 	{ "sample", "sample sky el_deg=E az_deg=A | sample sun | sample ambient", NULL },
 	{ "ping", "ping                     check that skyd answers", NULL },
 	{ "commands", "commands                 list the daemon's verbs", NULL },

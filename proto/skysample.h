@@ -169,6 +169,26 @@ static inline int skysample_check_layout(const struct sky_shm_header *hdr, uint6
 	return 0;
 }
 
+/* The slot checksum of skyproto.h over a slot (or a copy of one) at
+ * slot_base: the state, then each valid table in id order. */
+static inline uint64_t skysample_slot_checksum(const struct sky_shm_header *hdr,
+					       const void *slot_base)
+{
+	const struct sky_shm_slot *slot = (const struct sky_shm_slot *)slot_base;
+	uint64_t c = sky_shm_checksum_words(SKY_SHM_CHECKSUM_SEED, &slot->state,
+					    sizeof(slot->state) / 8);
+	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
+		if (!(slot->valid_tables & (1u << id)))
+			continue;
+		for (uint32_t n = 0; n < hdr->n_tables && n < SKY_SHM_MAX_TABLES; n++)
+			if (hdr->tables[n].id == id)
+				c = sky_shm_checksum_words(c, (const unsigned char *)slot_base +
+							      hdr->tables[n].offset,
+							   hdr->tables[n].bytes / 8);
+	}
+	return c;
+}
+
 /* Transmittance to the top of the atmosphere from altitude_km along the
  * cosine of the zenith angle mu, for a ray that does not meet the ground
  * (the table holds nothing else: a caller asking below the horizon gets the
