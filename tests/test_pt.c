@@ -1,0 +1,2 @@
+/* test_pt.c - placeholder */
+int main(void) { return 0; }
