@@ -36,6 +36,8 @@
 #define CHUNK 64		/* samples per work item: the unit of determinism */
 #define MAX_BREAKS 64
 #define DEFENSIVE 0.1		/* share of the uniform proposal on the view ray */
+#define SUNLIT 0.3		/* share of the proposal that follows the sunlit air */
+#define GROUPS 48		/* cells of the sunlit proposal per view ray */
 
 /* 8-point Gauss-Legendre on [-1, 1], positive half. */
 static const double gl_x[4] = { 0.1834346424956498, 0.5255324099163290,
@@ -642,6 +644,11 @@ struct view {
 	int n;			/* cells */
 	double *t;		/* n + 1 cell ends */
 	double *tau[3];		/* optical depth from t0 to t[k] */
+	/* The sunlit proposal: GROUPS spans of cells, each weighted by
+	 * sigma_s T T_sun at its middle, so that twilight samples the lit air. */
+	int ng;
+	double gt[GROUPS + 1];
+	double gcdf[3][GROUPS + 1];
 	int err;
 };
 
@@ -651,6 +658,40 @@ static void view_free(struct view *v)
 	for (int ch = 0; ch < 3; ch++)
 		free(v->tau[ch]);
 	memset(v, 0, sizeof(*v));
+}
+
+/* Builds the sunlit proposal from the optical-depth table and one shadow ray
+ * to the sun's centre per group: a guide only, its pdf is evaluated exactly
+ * as sampled, so its accuracy changes the noise, never the mean. */
+static void view_sunlit(struct view *v, const struct medium *m)
+{
+	int per = (v->n + GROUPS - 1) / GROUPS;
+	double rho[ATMO_MAX_CONSTITUENTS];
+	v->ng = 0;
+	v->gt[0] = v->t[0];
+	for (int ch = 0; ch < 3; ch++)
+		v->gcdf[ch][0] = 0.0;
+	for (int k0 = 0; k0 < v->n; k0 += per) {
+		int k1 = k0 + per < v->n ? k0 + per : v->n, g = v->ng++;
+		double a = v->t[k0], b = v->t[k1], mid = 0.5 * (a + b), x[3], tau_s[3];
+		int kc = k0;
+		while (kc + 1 < k1 && v->t[kc + 1] <= mid)
+			kc++;
+		axpy(v->o, mid, v->d, x);
+		densities(m, x, rho);
+		int ground;
+		double te = exit_distance(m, x, m->sun, &ground);
+		if (!ground)
+			ray_tau(m, x, m->sun, 0.0, te, tau_s);
+		v->gt[g + 1] = b;
+		for (int ch = 0; ch < 3; ch++) {
+			double s = (v->tau[ch][kc + 1] - v->tau[ch][kc]) / (v->t[kc + 1] - v->t[kc]);
+			double tau_v = v->tau[ch][kc] + s * (mid - v->t[kc]);
+			double w = ground ? 0.0 : (b - a) * scattering(m, rho, ch) *
+						  exp(-tau_v - tau_s[ch]);
+			v->gcdf[ch][g + 1] = v->gcdf[ch][g] + w;
+		}
+	}
 }
 
 static int view_build(struct view *v, const struct medium *m, double altitude_km,
@@ -694,6 +735,7 @@ static int view_build(struct view *v, const struct medium *m, double altitude_km
 		for (int ch = 0; ch < 3; ch++)
 			v->tau[ch][v->n] = v->tau[ch][v->n - 1] + c[ch];
 	}
+	view_sunlit(v, m);
 	return 0;
 oom:
 	view_free(v);
@@ -727,9 +769,19 @@ static double sample_view(const struct medium *m, const struct view *v, enum pt_
 	double len = v->t1 - v->t0, tau_tot = v->tau[ch][v->n];
 	double p_col = -expm1(-tau_tot), t;
 	double share = p_col > 0.0 ? DEFENSIVE : 1.0;
+	double w_lit = v->gcdf[ch][v->ng];
+	double lit = w_lit > 0.0 && p_col > 0.0 ? SUNLIT : 0.0;
+	double u = rnd(r);
 	int k;
-	if (rnd(r) < share) {
+	if (u < share) {
 		t = v->t0 + rnd(r) * len;
+		k = view_cell(v, t);
+	} else if (u < share + lit) {
+		double target = rnd(r) * w_lit;
+		int g = 0;
+		while (g < v->ng - 1 && v->gcdf[ch][g + 1] <= target)
+			g++;
+		t = v->gt[g] + rnd(r) * (v->gt[g + 1] - v->gt[g]);
 		k = view_cell(v, t);
 	} else {
 		double target = -log1p(-rnd(r) * p_col);
@@ -752,7 +804,14 @@ static double sample_view(const struct medium *m, const struct view *v, enum pt_
 	if (p_col > 0.0) {
 		double s = (v->tau[ch][k + 1] - v->tau[ch][k]) / (v->t[k + 1] - v->t[k]);
 		double tau_fit = v->tau[ch][k] + s * (t - v->t[k]);
-		pdf += (1.0 - share) * s * exp(-tau_fit) / p_col;
+		pdf += (1.0 - share - lit) * s * exp(-tau_fit) / p_col;
+	}
+	if (lit > 0.0) {
+		int g = 0;	/* the group holding t, as sampled: gt[g] <= t < gt[g+1] */
+		while (g < v->ng - 1 && v->gt[g + 1] <= t)
+			g++;
+		double wg = v->gcdf[ch][g + 1] - v->gcdf[ch][g];
+		pdf += lit * wg / (w_lit * (v->gt[g + 1] - v->gt[g]));
 	}
 
 	/* The view ray's transmittance to t: table plus the partial cell. */
