@@ -282,7 +282,6 @@ static double exit_distance(const struct medium *m, const double x[3], const dou
 static int view_segment(const struct medium *m, const double o[3], const double d[3],
 			double *t0, double *t1, int *ret_ground)
 {
-	double ground = 0;
 	*ret_ground = 0;
 	if (sqrt(dot(o, o)) <= m->rt) {
 		*t0 = 0.0;
@@ -296,7 +295,6 @@ static int view_segment(const struct medium *m, const double o[3], const double 
 	int g;
 	axpy(o, enter, d, x);
 	double len = exit_distance(m, x, d, &g);
-	(void)ground;
 	*t0 = enter;
 	*t1 = enter + len;
 	*ret_ground = g;
@@ -756,13 +754,37 @@ static int view_cell(const struct view *v, double t)
 	return lo;
 }
 
-/* Radiance estimate of one sample of one channel along a view ray. */
+static double sample_air(const struct medium *m, const struct view *v, enum pt_mode mode,
+			 int ch, struct rng *r);
+
+/* Radiance estimate of one sample of one channel along a view ray: the air,
+ * and in PT_GROUND the ground the ray ends on, seen through the air. */
 static double sample_view(const struct medium *m, const struct view *v, enum pt_mode mode,
 			  int ch, struct rng *r)
 {
+	double L = 0.0, rho[ATMO_MAX_CONSTITUENTS] = { 0 };
+	if (v->n > 0)
+		L += sample_air(m, v, mode, ch, r);
+	if (mode == PT_GROUND && v->ground && m->albedo[ch] > 0.0) {
+		double g[3], n[3];
+		axpy(v->o, v->t1, v->d, g);
+		double s = m->rb / sqrt(dot(g, g));
+		for (int i = 0; i < 3; i++) {
+			g[i] *= s;
+			n[i] = g[i] / m->rb;
+		}
+		double Tg = v->n > 0 ? exp(-v->tau[ch][v->n]) : 1.0;
+		L += Tg * nee_ground(m, g, n, ch, r);
+		L += Tg * trace_on(m, g, v->d, rho, 0.0, 1, ch, r);
+	}
+	return L;
+}
+
+/* The light scattered by the air along the view ray. */
+static double sample_air(const struct medium *m, const struct view *v, enum pt_mode mode,
+			 int ch, struct rng *r)
+{
 	double L = 0.0, rho[ATMO_MAX_CONSTITUENTS], x[3];
-	if (v->n == 0)
-		return 0.0;
 
 	/* The first scattering point: proposal = DEFENSIVE uniform + the
 	 * piecewise-exponential fit of sigma_t T on the table. */
@@ -827,19 +849,6 @@ static double sample_view(const struct medium *m, const struct view *v, enum pt_
 		L += W * nee_medium(m, x, v->d, rho, sigma_s, ch, r);
 		if (mode != PT_SINGLE)
 			L += W * trace_on(m, x, v->d, rho, sigma_s, 0, ch, r);
-	}
-
-	if (mode == PT_GROUND && v->ground && m->albedo[ch] > 0.0) {
-		double g[3], n[3];
-		axpy(v->o, v->t1, v->d, g);
-		double s = m->rb / sqrt(dot(g, g));
-		for (int i = 0; i < 3; i++) {
-			g[i] *= s;
-			n[i] = g[i] / m->rb;
-		}
-		double Tg = exp(-tau_tot);
-		L += Tg * nee_ground(m, g, n, ch, r);
-		L += Tg * trace_on(m, g, v->d, rho, 0.0, 1, ch, r);
 	}
 	return L;
 }
