@@ -28,7 +28,7 @@ struct eng_device {
 	int type;			/* VkPhysicalDeviceType */
 	uint32_t vendor_id, device_id;
 	char name[256];
-	char driver[256];
+	char driver[512];
 	char type_name[16];		/* "discrete", "integrated", "virtual", "cpu", "other" */
 };
 

@@ -98,6 +98,13 @@ int state_get(const struct sky_state *s, const char *key, char *buf, size_t size
 /* Tables that differ between a and b given what they depend on. */
 uint32_t state_diff(const struct sky_state *a, const struct sky_state *b);
 
+/* The camera's unit basis in the observer's east-north-up frame from yaw
+ * (azimuth), pitch (elevation) and roll. */
+void state_camera_basis(const struct state_camera *c, double fwd[3], double right[3],
+			double up[3]);
+/* Unit vector in east-north-up from elevation and azimuth (from north, eastward). */
+void state_direction(double elevation_deg, double azimuth_deg, double ret[3]);
+
 /* Bytes of one texel in the given storage (4 channels). */
 size_t state_texel_bytes(enum state_storage st);
 size_t state_table_bytes(const struct sky_state *s, enum state_table t);

@@ -1,0 +1,427 @@
+/* model.c - double-precision mirror of the compute shaders, used as the oracle. */
+#include "model.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdbool.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "skymap.h"
+
+typedef struct {
+	double x, y, z;
+} v3;
+
+static v3 v(double x, double y, double z) { return (v3){ x, y, z }; }
+static v3 add(v3 a, v3 b) { return v(a.x + b.x, a.y + b.y, a.z + b.z); }
+static v3 mul(v3 a, v3 b) { return v(a.x * b.x, a.y * b.y, a.z * b.z); }
+static v3 scale(v3 a, double s) { return v(a.x * s, a.y * s, a.z * s); }
+static v3 vexp_neg(v3 a) { return v(exp(-a.x), exp(-a.y), exp(-a.z)); }
+static double dot(v3 a, v3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static double mean3(v3 a) { return (a.x + a.y + a.z) / 3.0; }
+
+/* The model's view of a state: what the shaders get as uniforms. */
+struct ctx {
+	const struct sky_state *s;
+	const struct atmo *a;
+	double rb, rt, shell, h0;
+	v3 sun, moon, sun_illum, moon_illum;
+	bool moon_lit;
+	const struct model_tables *tab;
+};
+
+static double rho2(const struct ctx *c, double h) { return h * (2.0 * c->rb + h); }
+
+static double horizon_cos(const struct ctx *c, double h)
+{
+	return skymap_horizon_cos(c->rb, h);
+}
+
+struct medium {
+	v3 scattering, absorption, extinction;
+};
+
+static struct medium medium(const struct ctx *c, double h)
+{
+	struct medium m = { 0 };
+	for (int i = 0; i < c->a->n_constituents; i++) {
+		const struct atmo_constituent *k = &c->a->c[i];
+		double d = atmo_density(&k->density, h);
+		m.scattering = add(m.scattering, scale(v(k->scattering_per_km[0], k->scattering_per_km[1],
+							   k->scattering_per_km[2]), d));
+		m.absorption = add(m.absorption, scale(v(k->absorption_per_km[0], k->absorption_per_km[1],
+							   k->absorption_per_km[2]), d));
+	}
+	m.extinction = add(m.scattering, m.absorption);
+	return m;
+}
+
+static double phase(enum atmo_phase kind, double g, double mu)
+{
+	if (kind == ATMO_PHASE_RAYLEIGH)
+		return 3.0 / (16.0 * SKYMAP_PI) * (1.0 + mu * mu);
+	double den = (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - mu);
+	double hg = (1.0 - g * g) / (4.0 * SKYMAP_PI * den * sqrt(den));
+	if (kind == ATMO_PHASE_HENYEY_GREENSTEIN)
+		return hg;
+	return hg * 1.5 * (1.0 + mu * mu) / (2.0 + g * g);
+}
+
+static double sinhc(double x)
+{
+	return fabs(x) < 1e-4 ? 1.0 + x * x / 6.0 : sinh(x) / x;
+}
+
+/* Mean density over a step from ha to hb; see mean_density in common.glsl. */
+static double mean_density(const struct atmo_profile *p, double ha, double hb)
+{
+	double hm = 0.5 * (ha + hb);
+	const struct atmo_layer *l = hm < p->layers[0].width_km ? &p->layers[0] : &p->layers[1];
+	double d = l->exp_term * exp(l->exp_scale_per_km * hm) * sinhc(0.5 * l->exp_scale_per_km * (hb - ha)) +
+		   l->linear_per_km * hm + l->constant;
+	return d < 0 ? 0 : d > 1 ? 1 : d;
+}
+
+static v3 phased_scattering(const struct ctx *c, double h, double mu)
+{
+	v3 s = { 0 };
+	for (int i = 0; i < c->a->n_constituents; i++) {
+		const struct atmo_constituent *k = &c->a->c[i];
+		if (k->phase == ATMO_PHASE_NONE)
+			continue;
+		double w = atmo_density(&k->density, h) * phase(k->phase, k->g, mu);
+		s = add(s, scale(v(k->scattering_per_km[0], k->scattering_per_km[1],
+				   k->scattering_per_km[2]), w));
+	}
+	return s;
+}
+
+/* (1 - exp(-sigma dt)) / sigma without cancellation; dt at sigma = 0. */
+static double seg1(double sigma, double dt)
+{
+	double x = sigma * dt;
+	if (x < 1e-4)
+		return dt * (1.0 - x * (0.5 - x / 6.0));
+	return -expm1(-x) / sigma;
+}
+
+static v3 segment_weight(v3 sigma, double dt)
+{
+	return v(seg1(sigma.x, dt), seg1(sigma.y, dt), seg1(sigma.z, dt));
+}
+
+static double altitude_along(const struct ctx *c, double h, double mu, double t, double *ret_r)
+{
+	double r = c->rb + h;
+	double excess = rho2(c, h) + t * (t + 2.0 * r * mu);
+	*ret_r = sqrt(c->rb * c->rb + (excess > 0 ? excess : 0));
+	return excess / (*ret_r + c->rb);
+}
+
+static double distance_to_top(const struct ctx *c, double h, double mu)
+{
+	return skymap_distance_to_top(c->rb, c->rt, h, mu);
+}
+
+static bool hits_ground(const struct ctx *c, double h, double mu, double *ret_t)
+{
+	double mu_h = horizon_cos(c, h);
+	*ret_t = 0.0;
+	if (h < 0.0 || mu >= mu_h)
+		return false;
+	double r = c->rb + h;
+	double disc = r * r * (mu - mu_h) * (mu + mu_h);
+	double t = -r * mu - skymap_safe_sqrt(disc);
+	*ret_t = t > 0 ? t : 0;
+	return true;
+}
+
+static v3 bilinear(const double *tab, uint32_t w, uint32_t h, double u, double vv)
+{
+	double px = skymap_clamp(u, 0, 1) * w - 0.5, py = skymap_clamp(vv, 0, 1) * h - 0.5;
+	double fx = px - floor(px), fy = py - floor(py);
+	int ix = (int)floor(px), iy = (int)floor(py);
+	int x0 = ix < 0 ? 0 : ix > (int)w - 1 ? (int)w - 1 : ix;
+	int x1 = ix + 1 < 0 ? 0 : ix + 1 > (int)w - 1 ? (int)w - 1 : ix + 1;
+	int y0 = iy < 0 ? 0 : iy > (int)h - 1 ? (int)h - 1 : iy;
+	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)h - 1 ? (int)h - 1 : iy + 1;
+	const double *a = tab + 4 * (y0 * w + x0), *b = tab + 4 * (y0 * w + x1);
+	const double *cc = tab + 4 * (y1 * w + x0), *d = tab + 4 * (y1 * w + x1);
+	double out[3];
+	for (int i = 0; i < 3; i++) {
+		double top = a[i] + (b[i] - a[i]) * fx, bot = cc[i] + (d[i] - cc[i]) * fx;
+		out[i] = top + (bot - top) * fy;
+	}
+	return v(out[0], out[1], out[2]);
+}
+
+static v3 transmittance_to_top(const struct ctx *c, double h, double mu)
+{
+	double t, u, vv;
+	if (hits_ground(c, h, mu, &t))
+		return v(0, 0, 0);
+	const struct model_tables *m = c->tab;
+	skymap_transmittance_uv(c->rb, c->rt, h, mu, m->w[0], m->h[0], &u, &vv);
+	return bilinear(m->t[0], m->w[0], m->h[0], u, vv);
+}
+
+static v3 multiscatter(const struct ctx *c, double h, double mu_s)
+{
+	double u, vv;
+	const struct model_tables *m = c->tab;
+	skymap_multiscatter_uv(c->rb, c->rt, h, mu_s, m->w[1], m->h[1], &u, &vv);
+	return bilinear(m->t[1], m->w[1], m->h[1], u, vv);
+}
+
+static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, v3 illum, v3 sigma_s)
+{
+	double mu_l = dot(up, light);
+	v3 s = mul(phased_scattering(c, h, dot(dir, light)), transmittance_to_top(c, h, mu_l));
+	s = add(s, mul(sigma_s, multiscatter(c, h, mu_l)));
+	return mul(s, illum);
+}
+
+static bool ray_in_shell(const struct ctx *c, double h0, v3 dir, double *t0, double *t1)
+{
+	double r = c->rb + h0, mu = dir.z, tg;
+	*t0 = 0;
+	*t1 = 0;
+	if (h0 > c->shell) {
+		double cc = (h0 - c->shell) * (2.0 * c->rb + h0 + c->shell);
+		double disc = r * r * mu * mu - cc;
+		if (mu >= 0.0 || disc <= 0.0)
+			return false;
+		*t0 = -r * mu - sqrt(disc);
+		*t1 = -r * mu + sqrt(disc);
+		double ra, he = altitude_along(c, h0, mu, *t0, &ra);
+		double mue = (r * mu + *t0) / ra;
+		if (hits_ground(c, he, mue, &tg))
+			*t1 = *t0 + tg;
+	} else {
+		double hh = h0 > 0 ? h0 : 0;
+		*t1 = distance_to_top(c, hh, mu);
+		if (hits_ground(c, hh, mu, &tg))
+			*t1 = tg;
+	}
+	return *t1 > *t0;
+}
+
+static void put(double *dst, v3 rgb, double a)
+{
+	dst[0] = rgb.x;
+	dst[1] = rgb.y;
+	dst[2] = rgb.z;
+	dst[3] = a;
+}
+
+static void compute_transmittance(const struct ctx *c, const struct state_table_quality *q, double *out)
+{
+	for (uint32_t j = 0; j < q->height; j++)
+		for (uint32_t i = 0; i < q->width; i++) {
+			double h, mu;
+			skymap_transmittance_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
+						     q->width, q->height, &h, &mu);
+			double d = distance_to_top(c, h, mu), dt = d / q->steps, rr, ha = h;
+			v3 tau = { 0 };
+			for (uint32_t k = 0; k < q->steps; k++) {
+				double hb = altitude_along(c, h, mu, (k + 1) * dt, &rr);
+				for (int n = 0; n < c->a->n_constituents; n++) {
+					const struct atmo_constituent *a = &c->a->c[n];
+					tau = add(tau, scale(v(a->scattering_per_km[0] + a->absorption_per_km[0],
+							       a->scattering_per_km[1] + a->absorption_per_km[1],
+							       a->scattering_per_km[2] + a->absorption_per_km[2]),
+							     mean_density(&a->density, ha, hb)));
+				}
+				ha = hb;
+			}
+			put(out + 4 * (j * q->width + i), vexp_neg(scale(tau, dt)), 1.0);
+		}
+}
+
+static v3 ms_direction(uint32_t k, uint32_t n)
+{
+	if (n == 2)
+		return v(0, 0, k == 0 ? 1.0 : -1.0);
+	double ct = 1.0 - 2.0 * ((k / 8) + 0.5) / 8.0, ph = 2.0 * SKYMAP_PI * ((k % 8) + 0.5) / 8.0;
+	double st = skymap_safe_sqrt(1.0 - ct * ct);
+	return v(st * cos(ph), st * sin(ph), ct);
+}
+
+static void compute_multiscatter(const struct ctx *c, const struct state_table_quality *q,
+				 uint32_t dirs, double *out)
+{
+	const double albedo[3] = { c->a->ground_albedo[0], c->a->ground_albedo[1], c->a->ground_albedo[2] };
+	for (uint32_t j = 0; j < q->height; j++)
+		for (uint32_t i = 0; i < q->width; i++) {
+			double h, mu_s;
+			skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
+						    q->width, q->height, &h, &mu_s);
+			v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
+			v3 sl = { 0 }, sf = { 0 }, se = { 0 };
+			double r0 = c->rb + h;
+			for (uint32_t k = 0; k < dirs; k++) {
+				v3 dir = ms_direction(k, dirs);
+				double tg, t_end = distance_to_top(c, h, dir.z);
+				bool ground = hits_ground(c, h, dir.z, &tg);
+				if (ground)
+					t_end = tg;
+				double dt = t_end / q->steps;
+				v3 tau = { 0 }, l2 = { 0 }, f = { 0 }, absorbed = { 0 };
+				for (uint32_t s = 0; s < q->steps; s++) {
+					double t = (s + 0.5) * dt, rr;
+					double hs = altitude_along(c, h, dir.z, t, &rr);
+					struct medium m = medium(c, hs);
+					v3 w = mul(vexp_neg(tau), segment_weight(m.extinction, dt));
+					v3 p = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
+					l2 = add(l2, mul(mul(w, m.scattering), scale(transmittance_to_top(c, hs, dot(p, sun)),
+										      1.0 / (4.0 * SKYMAP_PI))));
+					f = add(f, mul(w, m.scattering));
+					absorbed = add(absorbed, mul(w, m.absorption));
+					tau = add(tau, scale(m.extinction, dt));
+				}
+				v3 t_ray = vexp_neg(tau);
+				if (ground) {
+					v3 n = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb, (r0 + dir.z * t_end) / c->rb);
+					double mu_g = dot(n, sun);
+					v3 g = mul(t_ray, transmittance_to_top(c, 0.0, mu_g));
+					l2 = add(l2, scale(mul(g, v(albedo[0], albedo[1], albedo[2])),
+							   (mu_g > 0 ? mu_g : 0) / SKYMAP_PI));
+				}
+				sl = add(sl, l2);
+				sf = add(sf, f);
+				se = add(se, add(t_ray, absorbed));
+			}
+			sl = scale(sl, 1.0 / dirs);
+			sf = scale(sf, 1.0 / dirs);
+			se = scale(se, 1.0 / dirs);
+			v3 psi = v(sl.x / fmax(se.x, 1e-6), sl.y / fmax(se.y, 1e-6), sl.z / fmax(se.z, 1e-6));
+			put(out + 4 * (j * q->width + i), psi, mean3(sf));
+		}
+}
+
+/* In-scattered radiance and optical depth along [a, b] of a view ray. */
+static void march(const struct ctx *c, v3 dir, double a, double b, uint32_t n, bool quadratic,
+		  v3 *radiance, v3 *tau)
+{
+	double r0 = c->rb + c->h0, len = b - a, prev = 0;
+	for (uint32_t i = 0; i < n; i++) {
+		double x = (double)(i + 1) / n, next = quadratic ? len * x * x : len * x;
+		double dt = next - prev, t = a + 0.5 * (prev + next), rr;
+		prev = next;
+		double hs = altitude_along(c, c->h0, dir.z, t, &rr);
+		v3 up = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
+		struct medium m = medium(c, hs);
+		v3 s = light_source(c, hs, up, dir, c->sun, c->sun_illum, m.scattering);
+		if (c->moon_lit)
+			s = add(s, light_source(c, hs, up, dir, c->moon, c->moon_illum, m.scattering));
+		*radiance = add(*radiance, mul(mul(vexp_neg(*tau), s), segment_weight(m.extinction, dt)));
+		*tau = add(*tau, scale(m.extinction, dt));
+	}
+}
+
+static void compute_skyview(const struct ctx *c, const struct state_table_quality *q, double *out)
+{
+	double mu_h = horizon_cos(c, c->h0);
+	for (uint32_t j = 0; j < q->height; j++)
+		for (uint32_t i = 0; i < q->width; i++) {
+			double zen, az, t0, t1;
+			skymap_skyview_inverse(mu_h, (i + 0.5) / q->width, (j + 0.5) / q->height, q->height,
+					       &zen, &az);
+			v3 dir = v(sin(zen) * sin(az), sin(zen) * cos(az), cos(zen));
+			v3 rad = { 0 }, tau = { 0 };
+			if (ray_in_shell(c, c->h0, dir, &t0, &t1)) {
+				double len = t1 - t0, lo = c->s->quality.skyview_min_steps;
+				double nf = ceil(lo + (q->steps - lo) * skymap_clamp(len / 100.0, 0, 1));
+				march(c, dir, t0, t1, nf < 1 ? 1 : (uint32_t)nf, true, &rad, &tau);
+			}
+			put(out + 4 * (j * q->width + i), rad, mean3(vexp_neg(tau)));
+		}
+}
+
+static void compute_aerial(const struct ctx *c, const struct state_table_quality *q, double *out)
+{
+	double fwd[3], right[3], up[3];
+	double tan_half = tan(c->s->camera.vfov_deg * SKYMAP_PI / 360.0), aspect = c->s->camera.aspect;
+	bool squared = c->s->quality.aerial_spacing == STATE_SQUARED;
+
+	state_camera_basis(&c->s->camera, fwd, right, up);
+	for (uint32_t j = 0; j < q->height; j++)
+		for (uint32_t i = 0; i < q->width; i++) {
+			double nx = (i + 0.5) / q->width * 2 - 1, ny = (j + 0.5) / q->height * 2 - 1;
+			v3 d = v(fwd[0] + nx * tan_half * aspect * right[0] + ny * tan_half * up[0],
+				 fwd[1] + nx * tan_half * aspect * right[1] + ny * tan_half * up[1],
+				 fwd[2] + nx * tan_half * aspect * right[2] + ny * tan_half * up[2]);
+			v3 dir = scale(d, 1.0 / sqrt(dot(d, d)));
+			double t0, t1, prev = 0;
+			bool inside = ray_in_shell(c, c->h0, dir, &t0, &t1);
+			v3 rad = { 0 }, tau = { 0 };
+			for (uint32_t k = 0; k < q->depth; k++) {
+				double depth = skymap_aerial_depth_km(k, q->depth, c->s->quality.aerial_range_km, squared);
+				double a = fmax(prev, t0), b = inside ? fmin(depth, t1) : a;
+				prev = depth;
+				if (b > a)
+					march(c, dir, a, b, q->steps, false, &rad, &tau);
+				put(out + 4 * ((k * q->height + j) * q->width + i), rad, mean3(vexp_neg(tau)));
+			}
+		}
+}
+
+void model_tables_finish(struct model_tables *m)
+{
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		free(m->t[t]);
+	memset(m, 0, sizeof(*m));
+}
+
+int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables *ret)
+{
+	struct model_tables m = { 0 };
+	struct ctx c = { .s = s, .a = &s->atmo, .tab = &m };
+	double sun[3], moon[3];
+
+	c.rb = s->atmo.bottom_radius_km;
+	c.rt = s->atmo.top_radius_km;
+	c.shell = c.rt - c.rb;
+	c.h0 = s->altitude_km > 0 ? s->altitude_km : 0;
+	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, sun);
+	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, moon);
+	c.sun = v(sun[0], sun[1], sun[2]);
+	c.moon = v(moon[0], moon[1], moon[2]);
+	c.sun_illum = scale(v(s->sun.color[0], s->sun.color[1], s->sun.color[2]), s->sun.illuminance_lx);
+	c.moon_illum = scale(v(s->moon.color[0], s->moon.color[1], s->moon.color[2]), s->moon.illuminance_lx);
+	c.moon_lit = s->moon.illuminance_lx > 0;
+
+	mask = state_closure(mask);
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		const struct state_table_quality *q = &s->quality.t[t];
+		m.w[t] = q->width;
+		m.h[t] = q->height;
+		m.d[t] = t == STATE_AERIAL ? q->depth : 1;
+		if (!(mask & STATE_BIT(t)))
+			continue;
+		m.t[t] = calloc((size_t)m.w[t] * m.h[t] * m.d[t] * 4, sizeof(double));
+		if (!m.t[t]) {
+			model_tables_finish(&m);
+			return -ENOMEM;
+		}
+	}
+	if (m.t[0])
+		compute_transmittance(&c, &s->quality.t[0], m.t[0]);
+	if (m.t[1])
+		compute_multiscatter(&c, &s->quality.t[1], s->quality.multiscatter_dirs, m.t[1]);
+	if (m.t[2])
+		compute_skyview(&c, &s->quality.t[2], m.t[2]);
+	if (m.t[3])
+		compute_aerial(&c, &s->quality.t[3], m.t[3]);
+	*ret = m;
+	return 0;
+}
+
+void model_refine(const struct sky_state *s, uint32_t factor, struct sky_state *ret)
+{
+	*ret = *s;
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		ret->quality.t[t].steps *= factor;
+	ret->quality.skyview_min_steps = ret->quality.t[STATE_SKYVIEW].steps;
+}

@@ -1,0 +1,29 @@
+/* model.h - the double-precision CPU model of the engine's equations: the
+ * test oracle.
+ *
+ * Same mappings (proto/skymap.h), same quadrature rules, same guards as the
+ * shaders; the caller raises the step counts in the state it passes to make
+ * it converge. Tables are RGBA doubles in the layout of eng.h.
+ */
+#ifndef SKYD_MODEL_H
+#define SKYD_MODEL_H
+
+#include <stdint.h>
+
+#include "state.h"
+
+struct model_tables {
+	double *t[STATE_N_TABLES];	/* RGBA per texel, NULL where not computed */
+	uint32_t w[STATE_N_TABLES], h[STATE_N_TABLES], d[STATE_N_TABLES];
+};
+
+/* Computes the tables in mask and what they depend on, at the sizes and step
+ * counts of s. Returns 0 or -ENOMEM; free with model_tables_finish. */
+int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables *ret);
+void model_tables_finish(struct model_tables *m);
+
+/* A copy of s with every step count multiplied by factor (the oracle's
+ * "high step counts"); sky-view uses its maximum everywhere. */
+void model_refine(const struct sky_state *s, uint32_t factor, struct sky_state *ret);
+
+#endif

@@ -1,0 +1,227 @@
+/* once.c - skyd's offline modes: --list-devices, and --once [--dump DIR],
+ * which computes the tables for a state given on the command line. */
+#include "once.h"
+
+#include <errno.h>
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "dump.h"
+#include "eng.h"
+#include "skymap.h"
+#include "skyproto.h"
+#include "state.h"
+
+static int list_devices(void)
+{
+	struct eng_device devs[16];
+	char err[512];
+	int n = eng_list_devices(devs, 16, err, sizeof(err));
+
+	if (n < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		return 1;
+	}
+	if (n == 0) {
+		fprintf(stderr, "skyd: no Vulkan device: install mesa-vulkan-drivers (lavapipe) or a GPU driver\n");
+		return 1;
+	}
+	for (int i = 0; i < n && i < 16; i++)
+		printf("%u: %s [%s] vendor 0x%04x device 0x%04x, %s\n", devs[i].index, devs[i].name,
+		       devs[i].type_name, devs[i].vendor_id, devs[i].device_id, devs[i].driver);
+	return 0;
+}
+
+static void emit_state(void *ctx, const char *key, const char *value)
+{
+	struct dump_json *j = ctx;
+	dump_json_key(j, key);
+	dump_json_string(j, value);
+}
+
+static int write_manifest(const char *dir, const struct sky_state *s, const struct eng *e,
+			  const struct eng_timing *t, char *err, size_t err_size)
+{
+	char path[4096];
+	snprintf(path, sizeof(path), "%s/manifest.json", dir);
+	FILE *f = fopen(path, "we");
+	if (!f) {
+		int rc = -errno;
+		snprintf(err, err_size, "'%.256s': %s", path, strerror(errno));
+		return rc;
+	}
+	struct dump_json *j = dump_json_new_file(f);
+	dump_json_begin_object(j);
+	dump_json_key(j, "generator");
+	dump_json_string(j, "skyd --once");
+	dump_json_key(j, "uv_mapping_version");
+	dump_json_uint(j, SKYMAP_VERSION);
+	dump_json_key(j, "device");
+	dump_json_string(j, eng_device(e)->name);
+	dump_json_key(j, "total_ms");
+	dump_json_number(j, t->total_ms);
+	dump_json_key(j, "tables");
+	dump_json_begin_array(j);
+	for (int i = 0; i < STATE_N_TABLES; i++) {
+		const struct state_table_quality *q = &s->quality.t[i];
+		char file[64];
+		dump_json_begin_object(j);
+		dump_json_key(j, "name");
+		dump_json_string(j, state_table_names[i]);
+		dump_json_key(j, "width");
+		dump_json_uint(j, q->width);
+		dump_json_key(j, "height");
+		dump_json_uint(j, q->height);
+		dump_json_key(j, "depth");
+		dump_json_uint(j, i == STATE_AERIAL ? q->depth : 1);
+		dump_json_key(j, "format");
+		dump_json_string(j, s->quality.storage == STATE_F16 ? "rgba16f" : "rgba32f");
+		dump_json_key(j, "steps");
+		dump_json_uint(j, q->steps);
+		snprintf(file, sizeof(file), "%s.exr", state_table_names[i]);
+		dump_json_key(j, "exr");
+		dump_json_string(j, file);
+		snprintf(file, sizeof(file), "%s.png", state_table_names[i]);
+		dump_json_key(j, "png");
+		dump_json_string(j, file);
+		dump_json_key(j, "compute_ms");
+		dump_json_number(j, t->table_ms[i]);
+		dump_json_end_object(j);
+	}
+	dump_json_end_array(j);
+	dump_json_key(j, "state");
+	dump_json_begin_object(j);
+	state_foreach(s, emit_state, j);
+	dump_json_end_object(j);
+	dump_json_end_object(j);
+	int rc = dump_json_finish(j);
+	dump_json_free(j);
+	if (fclose(f) != 0 && rc == 0)
+		rc = -errno;
+	if (rc < 0)
+		snprintf(err, err_size, "'%.256s': cannot write: %s", path, strerror(-rc));
+	return rc;
+}
+
+static int dump_tables(const char *dir, const struct sky_state *s, const struct eng *e,
+		       const struct eng_timing *t, char *err, size_t err_size)
+{
+	if (mkdir(dir, 0755) < 0 && errno != EEXIST) {
+		int rc = -errno;
+		snprintf(err, err_size, "'%s': %s", dir, strerror(errno));
+		return rc;
+	}
+	for (int i = 0; i < STATE_N_TABLES; i++) {
+		const struct state_table_quality *q = &s->quality.t[i];
+		struct dump_table tab = { .name = state_table_names[i], .width = q->width,
+			.height = q->height, .depth = i == STATE_AERIAL ? q->depth : 1,
+			.format = s->quality.storage == STATE_F16 ? SKY_FORMAT_RGBA16F : SKY_FORMAT_RGBA32F,
+			.texels = eng_table(e, (enum state_table)i, NULL) };
+		char path[4096];
+		snprintf(path, sizeof(path), "%s/%s.exr", dir, state_table_names[i]);
+		int rc = dump_exr(path, &tab, err, err_size);
+		if (rc == 0) {
+			snprintf(path, sizeof(path), "%s/%s.png", dir, state_table_names[i]);
+			rc = dump_png(path, &tab, NULL, err, err_size);
+		}
+		if (rc < 0)
+			return rc;
+	}
+	return write_manifest(dir, s, e, t, err, err_size);
+}
+
+static void usage(FILE *f)
+{
+	fprintf(f, "usage: skyd --once [--dump DIR] [--device SEL] [key=value ...]\n"
+		   "       skyd --list-devices\n"
+		   "Keys are those of the control protocol (proto/PROTOCOL.md), e.g.\n"
+		   "sun_elevation_deg=10 sun_azimuth_deg=135 altitude_km=0.2 ground_albedo=0.3\n"
+		   "preset=mars skyview_width=256 multiscatter_dirs=2 storage=f16.\n"
+		   "Exit status: 0 done, 1 device or file failure, 2 bad input.\n");
+}
+
+int once_main(int argc, char **argv)
+{
+	static const struct option opts[] = {
+		{ "once", no_argument, NULL, 'o' },
+		{ "list-devices", no_argument, NULL, 'l' },
+		{ "dump", required_argument, NULL, 'd' },
+		{ "device", required_argument, NULL, 'D' },
+		{ "help", no_argument, NULL, 'h' },
+		{ 0 },
+	};
+	const char *dump_dir = NULL, *device = NULL;
+	bool once = false;
+	int c;
+
+	optind = 1;
+	while ((c = getopt_long(argc, argv, "+h", opts, NULL)) != -1) {
+		switch (c) {
+		case 'o': once = true; break;
+		case 'l': return list_devices();
+		case 'd': dump_dir = optarg; break;
+		case 'D': device = optarg; break;
+		case 'h': usage(stdout); return 0;
+		default: usage(stderr); return 2;
+		}
+	}
+	if (!once) {
+		usage(stderr);
+		return 2;
+	}
+
+	/* Parse whole and validate before any GPU work. */
+	struct sky_state s;
+	char err[512];
+	state_default(&s);
+	for (int i = optind; i < argc; i++)
+		if (state_set_pair(&s, argv[i], NULL, err, sizeof(err)) < 0) {
+			fprintf(stderr, "skyd: %s\n", err);
+			return 2;
+		}
+	if (state_validate(&s, 0, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		return 2;
+	}
+
+	struct eng *e;
+	if (eng_new(device, err, sizeof(err), &e) < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		return 1;
+	}
+	int rc = state_validate(&s, eng_max_table_bytes(e), err, sizeof(err));
+	if (rc < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		eng_free(e);
+		return 2;
+	}
+	struct eng_timing t;
+	rc = eng_compute(e, &s, STATE_ALL_TABLES, &t, err, sizeof(err));
+	if (rc == -EINVAL) {
+		fprintf(stderr, "skyd: %s\n", err);
+		eng_free(e);
+		return 2;
+	}
+	if (rc < 0) {
+		fprintf(stderr, "skyd: compute failed on '%s': %s\n", eng_device(e)->name, err);
+		eng_free(e);
+		return 1;
+	}
+	printf("skyd: %s: tables in %.2f ms (transmittance %.2f, multiscatter %.2f, skyview %.2f, aerial %.2f)\n",
+	       eng_device(e)->name, t.total_ms, t.table_ms[0], t.table_ms[1], t.table_ms[2], t.table_ms[3]);
+	if (dump_dir) {
+		rc = dump_tables(dump_dir, &s, e, &t, err, sizeof(err));
+		if (rc < 0) {
+			fprintf(stderr, "skyd: %s\n", err);
+			eng_free(e);
+			return 1;
+		}
+		printf("skyd: wrote %s/{transmittance,multiscatter,skyview,aerial}.{exr,png} and manifest.json\n",
+		       dump_dir);
+	}
+	eng_free(e);
+	return 0;
+}

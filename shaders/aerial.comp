@@ -1,0 +1,52 @@
+// aerial.comp - aerial perspective for one camera: per froxel column, one
+// march through all slices; slice k holds the integral from the camera to
+// the slice's far edge (see proto/skymap.h).
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#include "common.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+void main()
+{
+	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+	if (px.x >= OUT_W || px.y >= OUT_H)
+		return;
+
+	float h0 = P.planet.w, range = P.cam_up.w;
+	vec2 ndc = (vec2(px) + 0.5) / vec2(OUT_W, OUT_H) * 2.0 - 1.0;
+	float tan_half = P.cam_fwd.w;
+	vec3 dir = normalize(P.cam_fwd.xyz + ndc.x * tan_half * P.cam_right.w * P.cam_right.xyz +
+			     ndc.y * tan_half * P.cam_up.xyz);
+
+	Phases ph_sun = ray_phases(dir, P.sun_dir.xyz), ph_moon = ray_phases(dir, P.moon_dir.xyz);
+	float t0, t1;
+	bool inside = ray_in_shell(h0, dir, t0, t1);
+	float r0 = P.planet.x + h0;
+	vec3 radiance = vec3(0.0), tau = vec3(0.0);
+	float prev_depth = 0.0;
+	for (int k = 0; k < OUT_D; k++) {
+		float xk = float(k + 1) / float(OUT_D);
+		float depth = range * (P.misc.z > 0.5 ? xk * xk : xk);
+		// The part of this slice inside the atmosphere and above the ground.
+		float a = max(prev_depth, t0), b = inside ? min(depth, t1) : a;
+		prev_depth = depth;
+		if (b > a) {
+			float dt = (b - a) / float(STEPS);
+			for (int i = 0; i < STEPS; i++) {
+				float t = a + (float(i) + 0.5) * dt, rr;
+				float hs = altitude_along(h0, dir.z, t, rr);
+				vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
+				Step st = sample_step(hs, ph_sun, ph_moon);
+				Medium m = st.m;
+				vec3 s = light_source(hs, up, P.sun_dir.xyz, P.sun_illum.rgb, st.phased_sun, m.scattering);
+				if (MOON_LIT)
+					s += light_source(hs, up, P.moon_dir.xyz, P.moon_illum.rgb, st.phased_moon, m.scattering);
+				radiance += exp(-tau) * s * segment_weight(m.extinction, dt);
+				tau += m.extinction * dt;
+			}
+		}
+		vec3 tr = exp(-tau);
+		STORE_TEXEL(AB, (k * OUT_H + px.y) * OUT_W + px.x, vec4(radiance, (tr.r + tr.g + tr.b) / 3.0));
+	}
+}

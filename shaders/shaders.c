@@ -1,0 +1,14 @@
+/* shaders.c - the SPIR-V of the compute passes, compiled at build time. */
+#include "shaders.h"
+
+#include "transmittance.spv.h"
+#include "multiscatter.spv.h"
+#include "skyview.spv.h"
+#include "aerial.spv.h"
+
+const struct shader_code shader_code[SHADER_COUNT] = {
+	{ "transmittance", shader_transmittance_spv, sizeof(shader_transmittance_spv) },
+	{ "multiscatter", shader_multiscatter_spv, sizeof(shader_multiscatter_spv) },
+	{ "skyview", shader_skyview_spv, sizeof(shader_skyview_spv) },
+	{ "aerial", shader_aerial_spv, sizeof(shader_aerial_spv) },
+};

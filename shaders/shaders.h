@@ -1,0 +1,18 @@
+/* shaders.h - the embedded SPIR-V, one entry per table in state_table order. */
+#ifndef SKYD_SHADERS_H
+#define SKYD_SHADERS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+enum { SHADER_COUNT = 4 };
+
+struct shader_code {
+	const char *name;
+	const uint32_t *words;
+	size_t bytes;
+};
+
+extern const struct shader_code shader_code[SHADER_COUNT];
+
+#endif

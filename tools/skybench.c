@@ -1,0 +1,119 @@
+/* skybench.c - benchmarks of the engine (not tests): `skybench perf` runs
+ * each table N times on the chosen device and prints median and spread. */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "eng.h"
+#include "state.h"
+
+static int cmp_double(const void *a, const void *b)
+{
+	double x = *(const double *)a, y = *(const double *)b;
+	return x < y ? -1 : x > y;
+}
+
+/* Median, 10th and 90th percentile of n samples (sorted in place). */
+static void summarize(double *v, int n, double *med, double *p10, double *p90)
+{
+	qsort(v, n, sizeof(*v), cmp_double);
+	*med = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+	*p10 = v[n / 10];
+	*p90 = v[n - 1 - n / 10];
+}
+
+static int run(struct eng *e, const struct sky_state *s, uint32_t mask, int runs, const char *label,
+	       bool gpu_time_of_one)
+{
+	double *ms = calloc(runs, sizeof(double));
+	char err[512];
+	struct eng_timing t;
+
+	if (!ms)
+		return -ENOMEM;
+	for (int i = 0; i < runs; i++) {
+		int rc = eng_compute(e, s, mask, &t, err, sizeof(err));
+		if (rc < 0) {
+			fprintf(stderr, "skybench: %s\n", err);
+			free(ms);
+			return rc;
+		}
+		ms[i] = t.total_ms;
+		if (gpu_time_of_one)
+			for (int k = 0; k < STATE_N_TABLES; k++)
+				if (mask == STATE_BIT(k) && t.table_ms[k] > 0)
+					ms[i] = t.table_ms[k];
+	}
+	double med, lo, hi;
+	summarize(ms, runs, &med, &lo, &hi);
+	printf("%-32s median %8.3f ms   p10 %8.3f   p90 %8.3f   (%d runs)\n", label, med, lo, hi, runs);
+	free(ms);
+	return 0;
+}
+
+static int perf(int argc, char **argv)
+{
+	struct sky_state s;
+	const char *device = NULL;
+	char err[512];
+	int runs = 30;
+
+	state_default(&s);
+	for (int i = 0; i < argc; i++) {
+		if (!strcmp(argv[i], "--runs") && i + 1 < argc)
+			runs = atoi(argv[++i]);
+		else if (!strcmp(argv[i], "--device") && i + 1 < argc)
+			device = argv[++i];
+		else if (state_set_pair(&s, argv[i], NULL, err, sizeof(err)) < 0) {
+			fprintf(stderr, "skybench: %s\n", err);
+			return 2;
+		}
+	}
+	if (runs < 1 || state_validate(&s, 0, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skybench: %s\n", runs < 1 ? "--runs: must be >= 1" : err);
+		return 2;
+	}
+	struct eng *e;
+	if (eng_new(device, err, sizeof(err), &e) < 0) {
+		fprintf(stderr, "skybench: %s\n", err);
+		return 1;
+	}
+	const struct eng_device *d = eng_device(e);
+	printf("device: %s [%s], %s\n", d->name, d->type_name, d->driver);
+	printf("sizes: transmittance %ux%u/%u steps, multiscatter %ux%u/%u steps x %u dirs, "
+	       "skyview %ux%u/%u steps, aerial %ux%ux%u/%u steps, %s\n",
+	       s.quality.t[0].width, s.quality.t[0].height, s.quality.t[0].steps, s.quality.t[1].width,
+	       s.quality.t[1].height, s.quality.t[1].steps, s.quality.multiscatter_dirs,
+	       s.quality.t[2].width, s.quality.t[2].height, s.quality.t[2].steps, s.quality.t[3].width,
+	       s.quality.t[3].height, s.quality.t[3].depth, s.quality.t[3].steps,
+	       s.quality.storage == STATE_F16 ? "f16" : "f32");
+	/* Warm up: pipelines compiled, buffers allocated. */
+	int rc = run(e, &s, STATE_ALL_TABLES, 2, "warm-up (whole set)", false);
+	for (int t = 0; t < STATE_N_TABLES && rc == 0; t++) {
+		char label[64];
+		snprintf(label, sizeof(label), "%s (GPU time)", state_table_names[t]);
+		rc = run(e, &s, STATE_BIT(t), runs, label, true);
+	}
+	if (rc == 0)
+		rc = run(e, &s, STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL), runs,
+			 "skyview + aerial (wall)", false);
+	if (rc == 0)
+		rc = run(e, &s, STATE_ALL_TABLES, runs, "whole set (wall)", false);
+	eng_free(e);
+	return rc < 0 ? 1 : 0;
+}
+
+static void usage(FILE *f)
+{
+	fprintf(f, "usage: skybench perf [--runs N] [--device SEL] [key=value ...]\n"
+		   "  perf   times each table, sky-view + aerial perspective, and the whole set\n");
+}
+
+int main(int argc, char **argv)
+{
+	if (argc >= 2 && !strcmp(argv[1], "perf"))
+		return perf(argc - 2, argv + 2);
+	usage(argc >= 2 && !strcmp(argv[1], "--help") ? stdout : stderr);
+	return argc >= 2 && !strcmp(argv[1], "--help") ? 0 : 2;
+}
