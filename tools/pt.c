@@ -4,8 +4,9 @@
  * Estimator, per channel and per sample:
  *  - The first scattering point along the view ray is importance-sampled
  *    from a per-direction table of optical depth (a piecewise-exponential
- *    proposal mixed with 10 % uniform, so that every point where light can
- *    scatter has a positive density), weighted by T * sigma_s / pdf. The
+ *    proposal, mixed with 30 % that follows the sunlit air for low suns and
+ *    10 % uniform, so that every point where light can scatter has a
+ *    positive density), weighted by T * sigma_s / pdf. The
  *    transmittance T of the view ray is the same for every sample, so it is
  *    integrated once per direction by Gauss-Legendre on cells cut at the
  *    profiles' kinks: exact to rounding for the smooth pieces.
@@ -786,8 +787,9 @@ static double sample_air(const struct medium *m, const struct view *v, enum pt_m
 {
 	double L = 0.0, rho[ATMO_MAX_CONSTITUENTS], x[3];
 
-	/* The first scattering point: proposal = DEFENSIVE uniform + the
-	 * piecewise-exponential fit of sigma_t T on the table. */
+	/* The first scattering point: proposal = DEFENSIVE uniform + SUNLIT
+	 * groups weighted by the lit air + the piecewise-exponential fit of
+	 * sigma_t T on the table; the pdf is the mixture's, whichever drew t. */
 	double len = v->t1 - v->t0, tau_tot = v->tau[ch][v->n];
 	double p_col = -expm1(-tau_tot), t;
 	double share = p_col > 0.0 ? DEFENSIVE : 1.0;
