@@ -1,0 +1,93 @@
+/* pt.h - a volumetric Monte Carlo path tracer on the CPU: the ground truth
+ * that the sky-view tables are measured against.
+ *
+ * It computes the sky radiance L(direction) seen by an observer at
+ * altitude_km above the ground of a struct atmo: a spherical planet, a
+ * spherical shell of atmosphere with any constituents and density profiles,
+ * a Lambertian ground with a per-channel albedo and a sun of finite angular
+ * radius (a uniform disk) of a given illuminance per channel at the top of the
+ * atmosphere. All scattering orders, per RGB channel, in double precision.
+ *
+ * What L holds, to match the tables: the light scattered at least once
+ * towards the observer by the atmosphere between the observer and the first
+ * surface along the view ray. The sun's disk is not in it, and neither is
+ * the ground's own radiance where a view ray hits the ground (PT_SKY);
+ * PT_GROUND adds that ground radiance (for energy checks) and PT_SINGLE keeps
+ * exactly the first scattering order. Radiance comes in the unit of the
+ * illuminance divided by sr (lx in, cd/m2 out).
+ *
+ * Frames: the observer's local frame, x east, y north, z up; elevation above
+ * the astronomical horizon, azimuth eastward from north, both in degrees.
+ *
+ * Results do not depend on the number of threads: every sample draws from a
+ * counter-based random stream keyed by (seed, direction, sample, channel)
+ * and partial sums are merged in a fixed order.
+ */
+#ifndef SKYD_PT_H
+#define SKYD_PT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "atmo.h"
+
+enum pt_mode {
+	PT_SKY = 0,		/* all orders, in-scattered light only (the tables) */
+	PT_SINGLE = 1,		/* exactly the first scattering order, no ground light */
+	PT_GROUND = 2,		/* PT_SKY plus the radiance of the ground a view ray hits */
+};
+
+struct pt_sun {
+	double elevation_deg;
+	double azimuth_deg;
+	double angular_radius_deg;	/* > 0; the disk is uniform in radiance */
+	double illuminance[3];		/* at the top of the atmosphere, normal incidence */
+};
+
+struct pt_dir {
+	double elevation_deg;
+	double azimuth_deg;
+};
+
+struct pt_options {
+	enum pt_mode mode;
+	double rel_error;	/* stop a direction once every channel's standard
+				 * error is at most rel_error times its mean; 0: never */
+	uint64_t min_samples;	/* per direction, before the error test applies */
+	uint64_t max_samples;	/* per direction: the budget */
+	uint32_t batch;		/* samples per direction between error tests */
+	int threads;		/* 0: all online CPUs */
+	uint64_t seed;
+};
+
+struct pt_result {
+	double radiance[3];
+	double std_error[3];	/* standard error of the mean, per channel */
+	uint64_t samples;	/* paths traced per channel */
+};
+
+/* Defaults: PT_SKY, 1 % relative error, 4096 to 2^24 samples in batches of
+ * 4096, all CPUs, seed 1. */
+void pt_options_default(struct pt_options *ret);
+
+/* Traces n directions until each reaches opt->rel_error or opt->max_samples.
+ * ret holds n results. altitude_km below 0 is clamped to 0; an observer above
+ * the shell sees it from outside. Returns 0, -EINVAL for an atmosphere that
+ * atmo_validate refuses or bad arguments, -ENOMEM, or -errno from pthreads. */
+int pt_render(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+	      const struct pt_dir *dirs, size_t n, const struct pt_options *opt,
+	      struct pt_result *ret);
+
+/* The deterministic single-scattering integral PT_SINGLE estimates: a
+ * composite Gauss-Legendre quadrature along the view ray, with the optical
+ * depths to the observer and to every point of the sun's disk integrated by
+ * the same quadrature (breakpoints at the profiles' kinks, cells sized by
+ * the change of altitude), and the disk by a product rule (Gauss in
+ * 1 - cos, uniform in angle). Accurate to about 1e-6 relative while the sun's
+ * disk is clear of the horizon at every point of the ray; a partly occluded
+ * disk makes the disk rule converge slowly. Returns 0 or -EINVAL. */
+int pt_single_scatter_reference(const struct atmo *a, double altitude_km,
+				const struct pt_sun *sun, const struct pt_dir *dir,
+				double ret_radiance[3]);
+
+#endif

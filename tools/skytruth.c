@@ -1,0 +1,215 @@
+/* skytruth.c - the ground truth on the command line: sky radiance and its
+ * standard error per view direction from the path tracer, for the sky state
+ * that the same key=value pairs give skyd.
+ *
+ *   skytruth [key=value ...] [--error 0.01] [--threads N] [--seed S]
+ *            [--dirs elevation:azimuth,...] [--mode sky|single|ground]
+ *            [--min-samples N] [--max-samples N] [--batch N] [--reference]
+ *
+ * The sun of the state lights the sky (sun_illuminance_lx times sun_color per
+ * channel); the moon is not traced. Radiance is printed in cd/m2 per
+ * channel when the illuminance is in lx.
+ */
+#include <errno.h>
+#include <locale.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "pt.h"
+#include "state.h"
+
+#define MAX_DIRS 4096
+
+static const char default_dirs[] = "90:0,60:180,30:180,30:0,10:90,2:180,2:0,-5:180";
+
+static void usage(FILE *f)
+{
+	fprintf(f,
+		"usage: skytruth [key=value ...] [--error REL] [--threads N] [--seed S]\n"
+		"                [--dirs EL:AZ,...] [--mode sky|single|ground]\n"
+		"                [--min-samples N] [--max-samples N] [--batch N] [--reference]\n"
+		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...).\n"
+		"default --dirs %s\n", default_dirs);
+}
+
+/* Whole-string, finite, C-locale number. */
+static int parse_double(const char *s, double *ret)
+{
+	static locale_t c_locale;
+	char *end;
+	if (!c_locale)
+		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
+	if (!c_locale || !*s)
+		return -EINVAL;
+	errno = 0;
+	double d = strtod_l(s, &end, c_locale);
+	if (*end || errno || !isfinite(d))
+		return -EINVAL;
+	*ret = d;
+	return 0;
+}
+
+static int parse_u64(const char *s, uint64_t *ret)
+{
+	char *end;
+	if (!*s || *s == '-' || *s == '+')
+		return -EINVAL;
+	errno = 0;
+	unsigned long long u = strtoull(s, &end, 10);
+	if (*end || errno)
+		return -EINVAL;
+	*ret = u;
+	return 0;
+}
+
+static int parse_dirs(const char *list, struct pt_dir *dirs, size_t *ret_n)
+{
+	char buf[65536];
+	size_t n = 0;
+	if (strlen(list) >= sizeof(buf))
+		return -EINVAL;
+	snprintf(buf, sizeof(buf), "%s", list);
+	for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok;
+	     tok = strtok_r(NULL, ",", &save)) {
+		char *colon = strchr(tok, ':');
+		if (!colon || n == MAX_DIRS)
+			return -EINVAL;
+		*colon = 0;
+		if (parse_double(tok, &dirs[n].elevation_deg) < 0 ||
+		    parse_double(colon + 1, &dirs[n].azimuth_deg) < 0 ||
+		    fabs(dirs[n].elevation_deg) > 90.0)
+			return -EINVAL;
+		n++;
+	}
+	if (!n)
+		return -EINVAL;
+	*ret_n = n;
+	return 0;
+}
+
+static double now_s(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+int main(int argc, char **argv)
+{
+	static struct pt_dir dirs[MAX_DIRS];
+	static struct pt_result res[MAX_DIRS];
+	struct sky_state s;
+	struct pt_options opt;
+	char err[256];
+	size_t n = 0;
+	int reference = 0;
+
+	state_default(&s);
+	pt_options_default(&opt);
+	if (parse_dirs(default_dirs, dirs, &n) < 0)
+		return 1;
+
+	for (int i = 1; i < argc; i++) {
+		const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+		uint64_t u;
+		double d;
+		if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+			usage(stdout);
+			return 0;
+		} else if (strcmp(a, "--reference") == 0) {
+			reference = 1;
+		} else if (strncmp(a, "--", 2) == 0) {
+			if (!v) {
+				fprintf(stderr, "skytruth: %s needs a value\n", a);
+				return 2;
+			}
+			i++;
+			int bad = 0;
+			if (strcmp(a, "--error") == 0)
+				bad = parse_double(v, &d) < 0 || d < 0.0 || (opt.rel_error = d, 0);
+			else if (strcmp(a, "--threads") == 0)
+				bad = parse_u64(v, &u) < 0 || u > 256 || (opt.threads = (int)u, 0);
+			else if (strcmp(a, "--seed") == 0)
+				bad = parse_u64(v, &u) < 0 || (opt.seed = u, 0);
+			else if (strcmp(a, "--min-samples") == 0)
+				bad = parse_u64(v, &u) < 0 || (opt.min_samples = u, 0);
+			else if (strcmp(a, "--max-samples") == 0)
+				bad = parse_u64(v, &u) < 0 || !u || (opt.max_samples = u, 0);
+			else if (strcmp(a, "--batch") == 0)
+				bad = parse_u64(v, &u) < 0 || !u || u > (1u << 30) ||
+				      (opt.batch = (uint32_t)u, 0);
+			else if (strcmp(a, "--dirs") == 0)
+				bad = parse_dirs(v, dirs, &n) < 0;
+			else if (strcmp(a, "--mode") == 0) {
+				if (strcmp(v, "sky") == 0)
+					opt.mode = PT_SKY;
+				else if (strcmp(v, "single") == 0)
+					opt.mode = PT_SINGLE;
+				else if (strcmp(v, "ground") == 0)
+					opt.mode = PT_GROUND;
+				else
+					bad = 1;
+			} else {
+				fprintf(stderr, "skytruth: unknown option %s\n", a);
+				usage(stderr);
+				return 2;
+			}
+			if (bad) {
+				fprintf(stderr, "skytruth: %s: bad value '%s'\n", a, v);
+				return 2;
+			}
+		} else if (state_set_pair(&s, a, NULL, err, sizeof(err)) < 0) {
+			fprintf(stderr, "skytruth: %s\n", err);
+			return 2;
+		}
+	}
+	if (state_validate(&s, 0, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skytruth: %s\n", err);
+		return 2;
+	}
+
+	struct pt_sun sun = { .elevation_deg = s.sun.elevation_deg,
+		.azimuth_deg = s.sun.azimuth_deg,
+		.angular_radius_deg = s.sun.angular_radius_deg };
+	for (int ch = 0; ch < 3; ch++)
+		sun.illuminance[ch] = s.sun.illuminance_lx * s.sun.color[ch];
+
+	static const char *const modes[] = { "sky", "single", "ground" };
+	printf("# skytruth: preset %s altitude_km %.9g sun_elevation_deg %.9g "
+	       "sun_azimuth_deg %.9g illuminance %.9g,%.9g,%.9g mode %s error %g seed %llu\n",
+	       s.preset, s.altitude_km, sun.elevation_deg, sun.azimuth_deg,
+	       sun.illuminance[0], sun.illuminance[1], sun.illuminance[2], modes[opt.mode],
+	       opt.rel_error, (unsigned long long)opt.seed);
+	fflush(stdout);
+
+	double t0 = now_s();
+	int r = pt_render(&s.atmo, s.altitude_km, &sun, dirs, n, &opt, res);
+	double elapsed = now_s() - t0;
+	if (r < 0) {
+		fprintf(stderr, "skytruth: path tracing failed: %s\n", strerror(-r));
+		return 1;
+	}
+
+	uint64_t total = 0;
+	printf("# elevation_deg azimuth_deg L_r L_g L_b se_r se_g se_b samples%s\n",
+	       reference ? " ref_r ref_g ref_b" : "");
+	for (size_t i = 0; i < n; i++) {
+		printf("%.6g %.6g %.9g %.9g %.9g %.3g %.3g %.3g %llu", dirs[i].elevation_deg,
+		       dirs[i].azimuth_deg, res[i].radiance[0], res[i].radiance[1],
+		       res[i].radiance[2], res[i].std_error[0], res[i].std_error[1],
+		       res[i].std_error[2], (unsigned long long)res[i].samples);
+		if (reference) {
+			double ref[3];
+			pt_single_scatter_reference(&s.atmo, s.altitude_km, &sun, &dirs[i], ref);
+			printf(" %.9g %.9g %.9g", ref[0], ref[1], ref[2]);
+		}
+		printf("\n");
+		total += res[i].samples;
+	}
+	printf("# time_s %.3f paths %llu (x3 channels) paths_per_s %.0f\n", elapsed,
+	       (unsigned long long)total, elapsed > 0 ? 3.0 * (double)total / elapsed : 0.0);
+	return 0;
+}
