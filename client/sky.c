@@ -689,7 +689,8 @@ static int pump_until(sky_client *c, bool (*cond)(const sky_client *), int timeo
 		}
 		if (pfd.revents & (POLLIN | POLLHUP | POLLERR)) {
 			int r = pump_input(c);
-			if (r < 0)
+			/* "close": the reply came, then the end of the stream */
+			if (r < 0 && !cond(c))
 				return r;
 		}
 	}
