@@ -19,6 +19,7 @@ void main()
 	vec3 dir = normalize(P.cam_fwd.xyz + ndc.x * tan_half * P.cam_right.w * P.cam_right.xyz +
 			     ndc.y * tan_half * P.cam_up.xyz);
 
+	Phases ph_sun = ray_phases(dir, P.sun_dir.xyz), ph_moon = ray_phases(dir, P.moon_dir.xyz);
 	float t0, t1;
 	bool inside = ray_in_shell(h0, dir, t0, t1);
 	float r0 = P.planet.x + h0;
@@ -36,10 +37,11 @@ void main()
 				float t = a + (float(i) + 0.5) * dt, rr;
 				float hs = altitude_along(h0, dir.z, t, rr);
 				vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
-				Medium m = medium(hs);
-				vec3 s = light_source(hs, up, dir, P.sun_dir.xyz, P.sun_illum.rgb, m.scattering);
+				Step st = sample_step(hs, ph_sun, ph_moon);
+				Medium m = st.m;
+				vec3 s = light_source(hs, up, P.sun_dir.xyz, P.sun_illum.rgb, st.phased_sun, m.scattering);
 				if (MOON_LIT)
-					s += light_source(hs, up, dir, P.moon_dir.xyz, P.moon_illum.rgb, m.scattering);
+					s += light_source(hs, up, P.moon_dir.xyz, P.moon_illum.rgb, st.phased_moon, m.scattering);
 				radiance += exp(-tau) * s * segment_weight(m.extinction, dt);
 				tau += m.extinction * dt;
 			}

@@ -147,18 +147,6 @@ Medium medium(float h)
 	return m;
 }
 
-// Scattering weighted by each constituent's phase for the angle cosine mu.
-vec3 phased_scattering(float h, float mu)
-{
-	vec3 s = vec3(0.0);
-	for (int i = 0; i < N_CONST; i++) {
-		int k = phase_kind(i);
-		if (k != 0)
-			s += density(i, h) * P.C[i].scattering.rgb * phase(k, P.C[i].scattering.w, mu);
-	}
-	return s;
-}
-
 // Integral over a segment of length dt of exp(-sigma t): (1 - exp(-sigma dt)) / sigma,
 // computed without cancellation when sigma dt is small and without 0/0 at sigma = 0.
 vec3 segment_weight(vec3 sigma, float dt)
@@ -245,12 +233,55 @@ vec3 multiscatter(float h, float mu_s)
 	return v.rgb;
 }
 
+// The phase of every constituent for one light: constant along a view ray
+// towards a distant light, so it is evaluated once per ray, not per step.
+struct Phases {
+	float p[4];
+};
+
+Phases ray_phases(vec3 view_dir, vec3 light_dir)
+{
+	Phases ph;
+	float mu = dot(view_dir, light_dir);
+	for (int i = 0; i < 4; i++)
+		ph.p[i] = i < N_CONST && phase_kind(i) != 0 ? phase(phase_kind(i), P.C[i].scattering.w, mu) : 0.0;
+	return ph;
+}
+
+// One step of a view ray: the medium and the phase-weighted scattering for
+// the sun and the moon, every density evaluated once.
+struct Step {
+	Medium m;
+	vec3 phased_sun;
+	vec3 phased_moon;
+};
+
+Step sample_step(float h, Phases sun, Phases moon)
+{
+	Step st;
+	st.m.scattering = vec3(0.0);
+	st.m.absorption = vec3(0.0);
+	st.phased_sun = vec3(0.0);
+	st.phased_moon = vec3(0.0);
+	for (int i = 0; i < N_CONST; i++) {
+		float d = density(i, h);
+		vec3 s = d * P.C[i].scattering.rgb;
+		st.m.scattering += s;
+		st.m.absorption += d * P.C[i].absorption.rgb;
+		st.phased_sun += s * sun.p[i];
+		if (MOON_LIT)
+			st.phased_moon += s * moon.p[i];
+	}
+	st.m.extinction = st.m.scattering + st.m.absorption;
+	return st;
+}
+
 // In-scattered radiance source at a point for one light: single scattering
 // through each constituent's phase plus Hillaire's isotropic higher orders.
-vec3 light_source(float h, vec3 up, vec3 view_dir, vec3 light_dir, vec3 illum, vec3 sigma_s)
+vec3 light_source(float h, vec3 up, vec3 light_dir, vec3 illum, vec3 phased, vec3 sigma_s)
 {
 	float mu_l = dot(up, light_dir);
-	vec3 s = phased_scattering(h, dot(view_dir, light_dir)) * transmittance_to_top(h, mu_l);
+	vec3 s = phased * transmittance_to_top(h, mu_l);
 	if (MULTISCATTER_ON)
 		s += sigma_s * multiscatter(h, mu_l);
 	return s * illum;
