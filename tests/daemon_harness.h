@@ -69,7 +69,9 @@ static inline int daemon_start_in(struct daemon *d, const char *dir, const char 
 	const char *argv[64];
 	int n = 0, ns;
 
-	snprintf(d->dir, sizeof(d->dir), "%s", dir);
+	/* dir may be d->dir itself (a restart): snprintf must not overlap. */
+	if (dir != d->dir)
+		snprintf(d->dir, sizeof(d->dir), "%s", dir);
 	snprintf(d->sock, sizeof(d->sock), "%s/control", d->dir);
 	snprintf(d->log, sizeof(d->log), "%s/skyd.log", d->dir);
 	snprintf(notify, sizeof(notify), "%s/notify", d->dir);

@@ -187,9 +187,7 @@ static void test_reconnect(struct daemon *d, sky_client *c)
 	CHECK(ev.type == SKY_EVENT_HANGUP);
 	CHECK(sky_view_begin(c, &v) == 0 && sky_view_end(c, &v));
 	CHECK(sky_request(c, "ping", NULL) < 0);	/* nobody there */
-	char dir[sizeof(d->dir)];
-	snprintf(dir, sizeof(dir), "%s", d->dir);	/* daemon_start_in writes d->dir */
-	CHECK(daemon_start_in(d, dir, small) == 0);
+	CHECK(daemon_start_in(d, d->dir, small) == 0);
 	/* the next request reconnects and subscribes again by itself */
 	int r = sky_request(c, "ping", NULL);
 	if (r != 0)
