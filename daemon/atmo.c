@@ -170,12 +170,11 @@ int atmo_validate(const struct atmo *a, char *err, size_t err_size)
 
 void atmo_vertical_optical_depth(const struct atmo *a, int n, double ret_tau[3])
 {
-	double shell = a->top_radius_km - a->bottom_radius_km, dh = shell / n;
-	double tau[3] = { 0 };
+	double shell = a->top_radius_km - a->bottom_radius_km, tau[3] = { 0 };
 
 	if (n % 2)
-		n++;
-	dh = shell / n;
+		n++;	/* Simpson needs an even count */
+	double dh = shell / n;
 	for (int j = 0; j <= n; j++) {
 		double h = j * dh, w = (j == 0 || j == n) ? 1.0 : (j % 2 ? 4.0 : 2.0);
 		for (int i = 0; i < a->n_constituents; i++) {

@@ -70,7 +70,7 @@ double atmo_density(const struct atmo_profile *p, double altitude_km);
 int atmo_validate(const struct atmo *a, char *err, size_t err_size);
 
 /* Vertical optical depth per channel from the ground to the top, summed over
- * constituents, by adaptive-free composite Simpson with n intervals. */
+ * constituents, by composite Simpson with n intervals. */
 void atmo_vertical_optical_depth(const struct atmo *a, int n, double ret_tau[3]);
 
 #endif

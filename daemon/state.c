@@ -353,7 +353,6 @@ int state_set(struct sky_state *s, const char *key, const char *value,
 		}
 		if (r < 0)
 			return r;
-		/* ground_albedo alone leaves transmittance as it was. */
 	}
 	if (ret_dirty && memcmp(&before, s, sizeof(before)) != 0)
 		*ret_dirty |= dirty;
