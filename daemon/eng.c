@@ -21,12 +21,19 @@
 #include "vkfn.h"
 
 #define MAX_PIPELINES 32	/* cached variants per pass */
-#define N_SPEC 18
+#define N_SPEC 20
+/* Sun angles one multi-scattering invocation shares its rays between. */
+#define MS_SUN_GROUP 4
 
 /* The uniform block of shaders/common.glsl, std140: vec4s only. */
 struct gpu_constituent {
 	float scattering[4], absorption[4], layer0[4], layer0c_1[4], layer1c[4];
 };
+/* The tables later passes look up: transmittance and multi-scattering. */
+#define N_LOOKUPS 2
+/* Bindings: 0 parameters, 1-4 the tables (storage), 5-6 the lookups. */
+#define N_BINDINGS (1 + STATE_N_TABLES + N_LOOKUPS)
+
 struct gpu_params {
 	float planet[4], albedo[4], sun_dir[4], sun_illum[4], moon_dir[4], moon_illum[4];
 	float cam_fwd[4], cam_right[4], cam_up[4], misc[4];
@@ -79,6 +86,12 @@ struct eng {
 	struct gpu_buffer table[STATE_N_TABLES];	/* device memory */
 	struct gpu_buffer readback[STATE_N_TABLES];	/* host memory */
 	size_t table_bytes[STATE_N_TABLES];
+	/* Transmittance and multi-scattering are read by the later passes
+	 * through texel buffers: the sampler's gathers are vectorized, where a
+	 * storage-buffer load with a varying index is a loop over the lanes on
+	 * lavapipe (measured: about half of the sky-view pass). */
+	VkBufferView lookup_view[N_LOOKUPS];
+	VkFormat lookup_format[N_LOOKUPS];
 
 	/* Completion: a waiter thread waits on the fence, then writes the eventfd. */
 	int event_fd;
@@ -437,6 +450,14 @@ static void *waiter_main(void *arg)
 	return NULL;
 }
 
+static VkDescriptorType binding_type(int binding)
+{
+	if (binding == 0)
+		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+	return binding <= STATE_N_TABLES ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
+					 : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+}
+
 static int create_device(struct eng *e, char *err, size_t err_size)
 {
 	VkPhysicalDeviceProperties props;
@@ -484,22 +505,23 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 #undef LOAD_DEVICE
 	e->vk.vkGetDeviceQueue(e->dev, e->queue_family, 0, &e->queue);
 
-	VkDescriptorSetLayoutBinding b[5];
-	for (int i = 0; i < 5; i++)
+	VkDescriptorSetLayoutBinding b[N_BINDINGS];
+	for (int i = 0; i < N_BINDINGS; i++)
 		b[i] = (VkDescriptorSetLayoutBinding){ .binding = (uint32_t)i,
-			.descriptorType = i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER
-						 : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-			.descriptorCount = 1, .stageFlags = VK_SHADER_STAGE_COMPUTE_BIT };
+			.descriptorType = binding_type(i), .descriptorCount = 1,
+			.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT };
 	VkDescriptorSetLayoutCreateInfo li = { .sType =
-		VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO, .bindingCount = 5, .pBindings = b };
+		VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO, .bindingCount = N_BINDINGS,
+		.pBindings = b };
 	VK_TRY(e->vk.vkCreateDescriptorSetLayout(e->dev, &li, NULL, &e->set_layout));
 	VkPipelineLayoutCreateInfo pli = { .sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
-	VkDescriptorPoolSize ps[2] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
-		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 4 } };
+	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
+		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES },
+		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
-		.maxSets = 1, .poolSizeCount = 2, .pPoolSizes = ps };
+		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
 	VK_TRY(e->vk.vkCreateDescriptorPool(e->dev, &dpi, NULL, &e->desc_pool));
 	VkDescriptorSetAllocateInfo dai = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO,
 		.descriptorPool = e->desc_pool, .descriptorSetCount = 1, .pSetLayouts = &e->set_layout };
@@ -580,6 +602,9 @@ void eng_free(struct eng *e)
 	}
 	if (e->dev) {
 		e->vk.vkDeviceWaitIdle(e->dev);
+		for (int i = 0; i < N_LOOKUPS; i++)
+			if (e->lookup_view[i])
+				e->vk.vkDestroyBufferView(e->dev, e->lookup_view[i], NULL);
 		for (int t = 0; t < STATE_N_TABLES; t++) {
 			buffer_free(e, &e->table[t]);
 			buffer_free(e, &e->readback[t]);
@@ -699,6 +724,9 @@ static void fill_params(const struct sky_state *s, struct gpu_params *p, struct 
 		bool scatters = c->scattering_per_km[0] > 0 || c->scattering_per_km[1] > 0 ||
 				c->scattering_per_km[2] > 0;
 		base->v[1 + n] = scatters ? (int32_t)c->phase : 0;
+		/* Profiles without an exponential term (ozone's tent) skip exp(). */
+		if (l0->exp_term != 0.0 || l1->exp_term != 0.0)
+			base->v[18] |= 1 << n;
 		n++;
 	}
 	base->v[0] = n;
@@ -731,6 +759,7 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 	}
 	if (t != STATE_MULTISCATTER)
 		k.v[16] = 0;
+	k.v[19] = t == STATE_MULTISCATTER ? MS_SUN_GROUP : 0;
 	if (t == STATE_MULTISCATTER)
 		k.v[6] = 0;
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
@@ -779,52 +808,73 @@ fail:
 static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret_lost,
 			 char *err, size_t err_size)
 {
+	VkFormat format = s->quality.storage == STATE_F16 ? VK_FORMAT_R16G16B16A16_SFLOAT
+							 : VK_FORMAT_R32G32B32A32_SFLOAT;
 	uint32_t lost = 0;
 	bool rebind = false;
+	int rc = 0;
 
 	for (int t = 0; t < STATE_N_TABLES; t++) {
 		size_t bytes = state_table_bytes(s, (enum state_table)t);
-		if (e->table[t].buf && e->table_bytes[t] == bytes)
+		if (e->table[t].buf && e->table_bytes[t] == bytes &&
+		    (t >= N_LOOKUPS || e->lookup_format[t] == format))
 			continue;
+		if (t < N_LOOKUPS && e->lookup_view[t]) {
+			e->vk.vkDestroyBufferView(e->dev, e->lookup_view[t], NULL);
+			e->lookup_view[t] = VK_NULL_HANDLE;
+		}
 		buffer_free(e, &e->table[t]);
 		buffer_free(e, &e->readback[t]);
 		e->table_bytes[t] = 0;
-		int rc = buffer_new(e, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
-					       VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-				    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->table[t], err, err_size);
+		rc = buffer_new(e, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+					  VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
+					  VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->table[t], err, err_size);
 		if (rc == 0)
 			rc = buffer_new(e, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
 					VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT,
 					VK_MEMORY_PROPERTY_HOST_CACHED_BIT, &e->readback[t], err, err_size);
 		if (rc < 0)
 			return rc;
+		if (t < N_LOOKUPS) {
+			VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
+				.buffer = e->table[t].buf, .format = format, .range = VK_WHOLE_SIZE };
+			VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->lookup_view[t]));
+			e->lookup_format[t] = format;
+		}
 		memset(e->readback[t].map, 0, bytes);
 		e->table_bytes[t] = bytes;
 		lost |= STATE_BIT(t);
 		rebind = true;
 	}
 	if (rebind) {
-		VkDescriptorBufferInfo bi[5] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
-		VkWriteDescriptorSet w[5];
-		for (int i = 0; i < 5; i++) {
-			if (i > 0)
-				bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
+		VkDescriptorBufferInfo bi[1 + STATE_N_TABLES] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
+		VkWriteDescriptorSet w[N_BINDINGS];
+		for (int i = 0; i < N_BINDINGS; i++) {
 			w[i] = (VkWriteDescriptorSet){ .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
 				.dstSet = e->set, .dstBinding = (uint32_t)i, .descriptorCount = 1,
-				.descriptorType = i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER
-							 : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-				.pBufferInfo = &bi[i] };
+				.descriptorType = binding_type(i) };
+			if (i > STATE_N_TABLES) {
+				w[i].pTexelBufferView = &e->lookup_view[i - 1 - STATE_N_TABLES];
+				continue;
+			}
+			if (i > 0)
+				bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
+			w[i].pBufferInfo = &bi[i];
 		}
-		e->vk.vkUpdateDescriptorSets(e->dev, 5, w, 0, NULL);
+		e->vk.vkUpdateDescriptorSets(e->dev, N_BINDINGS, w, 0, NULL);
 	}
 	*ret_lost = lost;
-	return 0;
+fail:
+	return rc;
 }
 
 static void groups(const struct sky_state *s, int t, uint32_t *x, uint32_t *y)
 {
 	const struct state_table_quality *q = &s->quality.t[t];
-	*x = (q->width + 7) / 8;
+	/* A multi-scattering invocation computes MS_SUN_GROUP texels of a row. */
+	uint32_t w = t == STATE_MULTISCATTER ? (q->width + MS_SUN_GROUP - 1) / MS_SUN_GROUP : q->width;
+	*x = (w + 7) / 8;
 	*y = (q->height + 7) / 8;
 }
 
@@ -846,6 +896,12 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 		const struct state_table_quality *q = &s->quality.t[t];
 		uint32_t gx, gy;
 		groups(s, t, &gx, &gy);
+		if (t < N_LOOKUPS && (uint64_t)q->width * q->height > e->limits.maxTexelBufferElements) {
+			set_err(err, err_size, "%s_width: %ux%u texels exceed the device's %u for a lookup table",
+				state_table_names[t], q->width, q->height,
+				e->limits.maxTexelBufferElements);
+			return -EINVAL;
+		}
 		if (gx > e->limits.maxComputeWorkGroupCount[0] ||
 		    gy > e->limits.maxComputeWorkGroupCount[1] || q->width == 0 || q->height == 0) {
 			set_err(err, err_size, "%s_width: %ux%u is beyond the device's limits",

@@ -26,6 +26,7 @@ layout(constant_id = 13) const int OUT_H = 1;
 layout(constant_id = 14) const int OUT_D = 1;
 layout(constant_id = 15) const int STEPS = 1;
 layout(constant_id = 17) const bool MULTISCATTER_ON = true;
+layout(constant_id = 18) const int EXP_MASK = 15;      // bit i: constituent i has an exponential term
 
 struct Constituent {
 	vec4 scattering;	// rgb 1/km, w = g
@@ -53,12 +54,12 @@ layout(std430, binding = 1) buffer TransmittanceBuf { uint d[]; } TB;
 layout(std430, binding = 2) buffer MultiscatterBuf { uint d[]; } MB;
 layout(std430, binding = 3) buffer SkyviewBuf { uint d[]; } SB;
 layout(std430, binding = 4) buffer AerialBuf { uint d[]; } AB;
+// The same transmittance and multi-scattering memory, read through texel
+// buffers: the format converts f16, and the gathers are vectorized.
+layout(binding = 5) uniform samplerBuffer TransmittanceTex;
+layout(binding = 6) uniform samplerBuffer MultiscatterTex;
 
 // Texels are RGBA: four 32-bit words, or two words of packed halves.
-#define LOAD_TEXEL(B, i) (STORAGE_F16 ? \
-	vec4(unpackHalf2x16(B.d[2 * (i)]), unpackHalf2x16(B.d[2 * (i) + 1])) : \
-	uintBitsToFloat(uvec4(B.d[4 * (i)], B.d[4 * (i) + 1], B.d[4 * (i) + 2], B.d[4 * (i) + 3])))
-
 #define STORE_TEXEL(B, i, v) do { \
 	if (STORAGE_F16) { \
 		B.d[2 * (i)] = packHalf2x16((v).xy); \
@@ -79,36 +80,37 @@ float tex_to_unit(float u, int n) { return (u - 0.5 / float(n)) / (1.0 - 1.0 / f
 float rho2(float h) { return h * (2.0 * P.planet.x + h); }
 float horizon_cos(float h) { h = max(h, 0.0); return -safe_sqrt(rho2(h)) / (P.planet.x + h); }
 
-float layer_density(vec4 a, float constant, float h)
+// Layer 0 below its width, layer 1 above: (exp_term, exp_scale_per_km,
+// linear_per_km, constant), so that one exp() serves either layer.
+vec4 layer_at(Constituent c, float h)
 {
-	return clamp(a.y * exp(a.z * h) + a.w * h + constant, 0.0, 1.0);
+	return h < c.layer0.x ? vec4(c.layer0.yzw, c.layer0c_1.x) : vec4(c.layer0c_1.yzw, c.layer1c.x);
 }
 
 float density(int i, float h)
 {
-	Constituent c = P.C[i];
-	return h < c.layer0.x ? layer_density(c.layer0, c.layer0c_1.x, h)
-			      : layer_density(vec4(0.0, c.layer0c_1.yzw), c.layer1c.x, h);
+	vec4 l = layer_at(P.C[i], h);
+	float e = (EXP_MASK & (1 << i)) != 0 ? l.x * exp(l.y * h) : 0.0;
+	return clamp(e + l.z * h + l.w, 0.0, 1.0);
 }
 
 // sinh(x) / x, the exact mean of exp over a step whose exponent changes
-// linearly by 2x: it makes a step over an exponential layer exact.
+// linearly by 2x: it makes a step over an exponential layer exact. One
+// exp(), not sinh()'s two.
 float sinhc(float x)
 {
-	float x2 = x * x;
-	return x2 < 1e-2 ? 1.0 + x2 * (1.0 / 6.0 + x2 / 120.0) : sinh(x) / x;
+	float x2 = x * x, e = exp(x);
+	return x2 < 1e-2 ? 1.0 + x2 * (1.0 / 6.0 + x2 / 120.0) : 0.5 * (e - 1.0 / e) / x;
 }
 
 // Mean density of constituent i over a step from altitude ha to hb, exact for
 // exponential and linear terms when the altitude changes linearly.
 float mean_density(int i, float ha, float hb)
 {
-	Constituent c = P.C[i];
 	float hm = 0.5 * (ha + hb);
-	vec4 l = hm < c.layer0.x ? c.layer0 : vec4(0.0, c.layer0c_1.yzw);
-	float constant = hm < c.layer0.x ? c.layer0c_1.x : c.layer1c.x;
-	float e = l.y * exp(l.z * hm) * sinhc(0.5 * l.z * (hb - ha));
-	return clamp(e + l.w * hm + constant, 0.0, 1.0);
+	vec4 l = layer_at(P.C[i], hm);
+	float e = (EXP_MASK & (1 << i)) != 0 ? l.x * exp(l.y * hm) * sinhc(0.5 * l.y * (hb - ha)) : 0.0;
+	return clamp(e + l.z * hm + l.w, 0.0, 1.0);
 }
 
 int phase_kind(int i) { return i == 0 ? PHASE_0 : i == 1 ? PHASE_1 : i == 2 ? PHASE_2 : PHASE_3; }
@@ -147,13 +149,17 @@ Medium medium(float h)
 	return m;
 }
 
-// Integral over a segment of length dt of exp(-sigma t): (1 - exp(-sigma dt)) / sigma,
-// computed without cancellation when sigma dt is small and without 0/0 at sigma = 0.
-vec3 segment_weight(vec3 sigma, float dt)
+// One step of length dt through extinction sigma: its transmittance
+// exp(-sigma dt) in ret_step_t, and the integral of exp(-sigma t) over it,
+// (1 - exp(-sigma dt)) / sigma, from the same exp(), without cancellation when
+// sigma dt is small and without 0/0 at sigma = 0. Marches carry the product
+// of the steps' transmittances rather than exp() of a running optical depth.
+vec3 step_weight(vec3 sigma, float dt, out vec3 ret_step_t)
 {
 	vec3 x = sigma * dt;
+	ret_step_t = exp(-x);
 	vec3 series = dt * (1.0 - x * (0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0))));
-	vec3 direct = (1.0 - exp(-x)) / max(sigma, vec3(1e-30));
+	vec3 direct = (1.0 - ret_step_t) / max(sigma, vec3(1e-30));
 	return mix(direct, series, lessThan(x, vec3(0.02)));
 }
 
@@ -190,38 +196,58 @@ bool hits_ground(float h, float mu, out float ret_t)
 	return true;
 }
 
-// Bilinear, clamp to edge, on a W x H RGBA table.
-#define BILINEAR(B, W, H, uv, ret) do { \
+// Bilinear, clamp to edge, on a W x H RGBA texel buffer.
+#define BILINEAR(T, W, H, uv, ret) do { \
 	vec2 p_ = clamp(uv, vec2(0.0), vec2(1.0)) * vec2(W, H) - 0.5; \
 	vec2 f_ = fract(p_); ivec2 i_ = ivec2(floor(p_)); \
 	int x0_ = clamp(i_.x, 0, W - 1), x1_ = clamp(i_.x + 1, 0, W - 1); \
 	int y0_ = clamp(i_.y, 0, H - 1), y1_ = clamp(i_.y + 1, 0, H - 1); \
-	vec4 a_ = LOAD_TEXEL(B, y0_ * W + x0_), b_ = LOAD_TEXEL(B, y0_ * W + x1_); \
-	vec4 c_ = LOAD_TEXEL(B, y1_ * W + x0_), d_ = LOAD_TEXEL(B, y1_ * W + x1_); \
+	vec4 a_ = texelFetch(T, y0_ * W + x0_), b_ = texelFetch(T, y0_ * W + x1_); \
+	vec4 c_ = texelFetch(T, y1_ * W + x0_), d_ = texelFetch(T, y1_ * W + x1_); \
 	ret = mix(mix(a_, b_, f_.x), mix(c_, d_, f_.x), f_.y); } while (false)
 
-vec2 transmittance_uv(float h, float mu)
+// What a transmittance lookup at altitude h shares between directions: the
+// texel row, the horizon and the distances that bound the mapping.
+struct TAlt {
+	float h, r, mu_horizon;
+	float v;		// texel coordinate of the altitude
+	float d_min, inv_range;	// x_mu = (d - d_min) * inv_range
+};
+
+TAlt t_alt(float h)
 {
 	float rb = P.planet.x, shell = P.planet.z;
-	h = clamp(h, 0.0, shell);
+	TAlt a;
+	a.h = clamp(h, 0.0, shell);
+	a.r = rb + a.h;
 	float H = sqrt(shell * (2.0 * rb + shell));
-	float rho = safe_sqrt(rho2(h));
-	float d = distance_to_top(h, clamp(mu, -1.0, 1.0));
-	float d_min = shell - h, d_max = rho + H;
-	float x_mu = d_max > d_min ? (d - d_min) / (d_max - d_min) : 0.0;
-	return vec2(unit_to_tex(clamp(x_mu, 0.0, 1.0), T_W), unit_to_tex(clamp(rho / H, 0.0, 1.0), T_H));
+	float rho = safe_sqrt(rho2(a.h));
+	// Below the ground (rounding at a ray's end) nothing is in the way, as
+	// in hits_ground().
+	a.mu_horizon = h < 0.0 ? -2.0 : -rho / a.r;
+	a.v = unit_to_tex(clamp(rho / H, 0.0, 1.0), T_H);
+	a.d_min = shell - a.h;
+	float d_max = rho + H;
+	a.inv_range = d_max > a.d_min ? 1.0 / (d_max - a.d_min) : 0.0;
+	return a;
 }
 
-// Transmittance from altitude h towards cos-zenith mu, to the top of the
-// atmosphere; 0 when the ray hits the ground (the planet's shadow).
+// Transmittance from the altitude of a towards cos-zenith mu, to the top of
+// the atmosphere; 0 when the ray hits the ground (the planet's shadow).
+vec3 transmittance_at(TAlt a, float mu)
+{
+	if (mu < a.mu_horizon)
+		return vec3(0.0);
+	float d = distance_to_top(a.h, clamp(mu, -1.0, 1.0));
+	vec2 uv = vec2(unit_to_tex(clamp((d - a.d_min) * a.inv_range, 0.0, 1.0), T_W), a.v);
+	vec4 t;
+	BILINEAR(TransmittanceTex, T_W, T_H, uv, t);
+	return t.rgb;
+}
+
 vec3 transmittance_to_top(float h, float mu)
 {
-	float t;
-	if (hits_ground(h, mu, t))
-		return vec3(0.0);
-	vec4 v;
-	BILINEAR(TB, T_W, T_H, transmittance_uv(h, mu), v);
-	return v.rgb;
+	return transmittance_at(t_alt(h), mu);
 }
 
 vec3 multiscatter(float h, float mu_s)
@@ -229,7 +255,7 @@ vec3 multiscatter(float h, float mu_s)
 	vec2 uv = vec2(unit_to_tex(clamp(0.5 + 0.5 * mu_s, 0.0, 1.0), M_W),
 		       unit_to_tex(clamp(h / P.planet.z, 0.0, 1.0), M_H));
 	vec4 v;
-	BILINEAR(MB, M_W, M_H, uv, v);
+	BILINEAR(MultiscatterTex, M_W, M_H, uv, v);
 	return v.rgb;
 }
 
@@ -278,12 +304,12 @@ Step sample_step(float h, Phases sun, Phases moon)
 
 // In-scattered radiance source at a point for one light: single scattering
 // through each constituent's phase plus Hillaire's isotropic higher orders.
-vec3 light_source(float h, vec3 up, vec3 light_dir, vec3 illum, vec3 phased, vec3 sigma_s)
+vec3 light_source(TAlt a, vec3 up, vec3 light_dir, vec3 illum, vec3 phased, vec3 sigma_s)
 {
 	float mu_l = dot(up, light_dir);
-	vec3 s = phased * transmittance_to_top(h, mu_l);
+	vec3 s = phased * transmittance_at(a, mu_l);
 	if (MULTISCATTER_ON)
-		s += sigma_s * multiscatter(h, mu_l);
+		s += sigma_s * multiscatter(a.h, mu_l);
 	return s * illum;
 }
 

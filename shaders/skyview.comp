@@ -27,7 +27,7 @@ void main()
 	float az = 2.0 * PI * (float(px.x) + 0.5) / float(OUT_W);
 	vec3 dir = vec3(sin(zenith) * sin(az), sin(zenith) * cos(az), cos(zenith));
 
-	vec3 radiance = vec3(0.0), tau = vec3(0.0);
+	vec3 radiance = vec3(0.0), tr = vec3(1.0);
 	Phases ph_sun = ray_phases(dir, P.sun_dir.xyz), ph_moon = ray_phases(dir, P.moon_dir.xyz);
 	float t0, t1;
 	if (ray_in_shell(h0, dir, t0, t1)) {
@@ -45,13 +45,14 @@ void main()
 			vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
 			Step st = sample_step(hs, ph_sun, ph_moon);
 			Medium m = st.m;
-			vec3 s = light_source(hs, up, P.sun_dir.xyz, P.sun_illum.rgb, st.phased_sun, m.scattering);
+			TAlt ta = t_alt(hs);
+			vec3 s = light_source(ta, up, P.sun_dir.xyz, P.sun_illum.rgb, st.phased_sun, m.scattering);
 			if (MOON_LIT)
-				s += light_source(hs, up, P.moon_dir.xyz, P.moon_illum.rgb, st.phased_moon, m.scattering);
-			radiance += exp(-tau) * s * segment_weight(m.extinction, dt);
-			tau += m.extinction * dt;
+				s += light_source(ta, up, P.moon_dir.xyz, P.moon_illum.rgb, st.phased_moon, m.scattering);
+			vec3 step_t;
+			radiance += tr * s * step_weight(m.extinction, dt, step_t);
+			tr *= step_t;
 		}
 	}
-	vec3 tr = exp(-tau);
 	STORE_TEXEL(SB, px.y * OUT_W + px.x, vec4(radiance, (tr.r + tr.g + tr.b) / 3.0));
 }
