@@ -21,9 +21,11 @@
 #include "vkfn.h"
 
 #define MAX_PIPELINES 32	/* cached variants per pass */
-#define N_SPEC 20
-/* Sun angles one multi-scattering invocation shares its rays between. */
+#define N_SPEC 21
+/* Texels of a row one invocation shares its rays between: sun angles of
+ * multi-scattering, azimuths of sky-view. */
 #define MS_SUN_GROUP 4
+#define SV_AZ_GROUP 8
 
 /* The uniform block of shaders/common.glsl, std140: vec4s only. */
 struct gpu_constituent {
@@ -760,6 +762,7 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 	if (t != STATE_MULTISCATTER)
 		k.v[16] = 0;
 	k.v[19] = t == STATE_MULTISCATTER ? MS_SUN_GROUP : 0;
+	k.v[20] = t == STATE_SKYVIEW ? SV_AZ_GROUP : 0;
 	if (t == STATE_MULTISCATTER)
 		k.v[6] = 0;
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
@@ -872,8 +875,9 @@ fail:
 static void groups(const struct sky_state *s, int t, uint32_t *x, uint32_t *y)
 {
 	const struct state_table_quality *q = &s->quality.t[t];
-	/* A multi-scattering invocation computes MS_SUN_GROUP texels of a row. */
-	uint32_t w = t == STATE_MULTISCATTER ? (q->width + MS_SUN_GROUP - 1) / MS_SUN_GROUP : q->width;
+	/* Multi-scattering and sky-view invocations compute several texels of a row. */
+	uint32_t g = t == STATE_MULTISCATTER ? MS_SUN_GROUP : t == STATE_SKYVIEW ? SV_AZ_GROUP : 1;
+	uint32_t w = (q->width + g - 1) / g;
 	*x = (w + 7) / 8;
 	*y = (q->height + 7) / 8;
 }

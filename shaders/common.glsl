@@ -302,6 +302,37 @@ Step sample_step(float h, Phases sun, Phases moon)
 	return st;
 }
 
+// The scattering of each constituent at a point, for rays that share the
+// point but not the light's phase (the columns of a sky-view row).
+struct Scatter {
+	vec3 s[4];
+};
+
+Medium medium_parts(float h, out Scatter ret)
+{
+	Medium m;
+	m.scattering = vec3(0.0);
+	m.absorption = vec3(0.0);
+	for (int i = 0; i < 4; i++)
+		ret.s[i] = vec3(0.0);
+	for (int i = 0; i < N_CONST; i++) {
+		float d = density(i, h);
+		ret.s[i] = d * P.C[i].scattering.rgb;
+		m.scattering += ret.s[i];
+		m.absorption += d * P.C[i].absorption.rgb;
+	}
+	m.extinction = m.scattering + m.absorption;
+	return m;
+}
+
+vec3 phased(Scatter sc, Phases ph)
+{
+	vec3 r = vec3(0.0);
+	for (int i = 0; i < N_CONST; i++)
+		r += sc.s[i] * ph.p[i];
+	return r;
+}
+
 // In-scattered radiance source at a point for one light: single scattering
 // through each constituent's phase plus Hillaire's isotropic higher orders.
 vec3 light_source(TAlt a, vec3 up, vec3 light_dir, vec3 illum, vec3 phased, vec3 sigma_s)

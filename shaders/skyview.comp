@@ -1,21 +1,27 @@
 // skyview.comp - in-scattered sky radiance around the observer over the full
 // circle of azimuth, non-linear latitude packed at the horizon, quadratic
 // step spacing integrated to the very end of each ray, no sun disk.
+//
+// The rays of a row share their zenith angle, so they cross the same
+// altitudes at the same distances: one invocation marches the medium once
+// for SV_AZ_GROUP columns of a row, and only the lights (phase, direction,
+// transmittance and multi-scattering lookups) are per column.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
+layout(constant_id = 20) const int SV_AZ_GROUP = 8;
 layout(local_size_x = 8, local_size_y = 8) in;
 
 void main()
 {
-	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-	if (px.x >= OUT_W || px.y >= OUT_H)
+	int x0 = int(gl_GlobalInvocationID.x) * SV_AZ_GROUP, py = int(gl_GlobalInvocationID.y);
+	if (x0 >= OUT_W || py >= OUT_H)
 		return;
 
 	float h0 = P.planet.w;
 	float th = acos(clamp(P.misc.x, -1.0, 1.0));
-	float x = clamp(tex_to_unit((float(px.y) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0);
+	float x = clamp(tex_to_unit((float(py) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0);
 	float zenith;
 	if (x < 0.5) {
 		float a = 1.0 - 2.0 * x;
@@ -24,13 +30,21 @@ void main()
 		float a = 2.0 * x - 1.0;
 		zenith = th + (PI - th) * a * a;
 	}
-	float az = 2.0 * PI * (float(px.x) + 0.5) / float(OUT_W);
-	vec3 dir = vec3(sin(zenith) * sin(az), sin(zenith) * cos(az), cos(zenith));
+	float sin_z = sin(zenith), cos_z = cos(zenith);
+	vec3 dir[SV_AZ_GROUP], radiance[SV_AZ_GROUP];
+	Phases ph_sun[SV_AZ_GROUP], ph_moon[SV_AZ_GROUP];
+	for (int j = 0; j < SV_AZ_GROUP; j++) {
+		float az = 2.0 * PI * (float(min(x0 + j, OUT_W - 1)) + 0.5) / float(OUT_W);
+		dir[j] = vec3(sin_z * sin(az), sin_z * cos(az), cos_z);
+		ph_sun[j] = ray_phases(dir[j], P.sun_dir.xyz);
+		if (MOON_LIT)
+			ph_moon[j] = ray_phases(dir[j], P.moon_dir.xyz);
+		radiance[j] = vec3(0.0);
+	}
 
-	vec3 radiance = vec3(0.0), tr = vec3(1.0);
-	Phases ph_sun = ray_phases(dir, P.sun_dir.xyz), ph_moon = ray_phases(dir, P.moon_dir.xyz);
+	vec3 tr = vec3(1.0);
 	float t0, t1;
-	if (ray_in_shell(h0, dir, t0, t1)) {
+	if (ray_in_shell(h0, dir[0], t0, t1)) {
 		float len = t1 - t0;
 		float n_f = ceil(mix(P.misc.y, float(STEPS), clamp(len / 100.0, 0.0, 1.0)));
 		int n = max(int(n_f), 1);
@@ -41,18 +55,27 @@ void main()
 			float next = len * a * a;
 			float dt = next - prev, t = t0 + 0.5 * (prev + next), rr;
 			prev = next;
-			float hs = altitude_along(h0, dir.z, t, rr);
-			vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
-			Step st = sample_step(hs, ph_sun, ph_moon);
-			Medium m = st.m;
+			float hs = altitude_along(h0, cos_z, t, rr);
+			// The local vertical: its horizontal part follows each column.
+			float up_h = t / rr, up_z = (r0 + cos_z * t) / rr;
+			Scatter sc;
+			Medium m = medium_parts(hs, sc);
 			TAlt ta = t_alt(hs);
-			vec3 s = light_source(ta, up, P.sun_dir.xyz, P.sun_illum.rgb, st.phased_sun, m.scattering);
-			if (MOON_LIT)
-				s += light_source(ta, up, P.moon_dir.xyz, P.moon_illum.rgb, st.phased_moon, m.scattering);
-			vec3 step_t;
-			radiance += tr * s * step_weight(m.extinction, dt, step_t);
+			vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
+			for (int j = 0; j < SV_AZ_GROUP; j++) {
+				vec3 up = vec3(dir[j].xy * up_h, up_z);
+				vec3 s = light_source(ta, up, P.sun_dir.xyz, P.sun_illum.rgb,
+						      phased(sc, ph_sun[j]), m.scattering);
+				if (MOON_LIT)
+					s += light_source(ta, up, P.moon_dir.xyz, P.moon_illum.rgb,
+							  phased(sc, ph_moon[j]), m.scattering);
+				radiance[j] += w * s;
+			}
 			tr *= step_t;
 		}
 	}
-	STORE_TEXEL(SB, px.y * OUT_W + px.x, vec4(radiance, (tr.r + tr.g + tr.b) / 3.0));
+	float tr_mean = (tr.r + tr.g + tr.b) / 3.0;
+	for (int j = 0; j < SV_AZ_GROUP; j++)
+		if (x0 + j < OUT_W)
+			STORE_TEXEL(SB, py * OUT_W + x0 + j, vec4(radiance[j], tr_mean));
 }
