@@ -705,7 +705,8 @@ static void fill_params(const struct sky_state *s, struct gpu_params *p, struct 
 	put4(p->cam_right, right[0], right[1], right[2], s->camera.aspect);
 	put4(p->cam_up, up[0], up[1], up[2], s->quality.aerial_range_km);
 	put4(p->misc, skymap_horizon_cos(a->bottom_radius_km, h0), s->quality.skyview_min_steps,
-	     s->quality.aerial_spacing == STATE_SQUARED ? 1.0 : 0.0, 0);
+	     s->quality.aerial_spacing == STATE_SQUARED ? 1.0 : 0.0,
+	     sqrt(shell * (2.0 * a->bottom_radius_km + shell)));
 
 	/* Constituents that are zero everywhere are left out of the shaders. */
 	int n = 0;

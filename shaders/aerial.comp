@@ -9,6 +9,7 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 void main()
 {
+	load_params();
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
 	if (px.x >= OUT_W || px.y >= OUT_H)
 		return;

@@ -36,7 +36,7 @@ struct Constituent {
 	vec4 layer1c;		// constant (layer 1)
 };
 
-layout(std140, binding = 0) uniform Params {
+struct Params {
 	vec4 planet;		// bottom radius, top radius, shell thickness, observer altitude
 	vec4 albedo;		// ground albedo rgb
 	vec4 sun_dir;		// unit, w unused
@@ -46,9 +46,19 @@ layout(std140, binding = 0) uniform Params {
 	vec4 cam_fwd;		// w = tan(vfov / 2)
 	vec4 cam_right;		// w = aspect
 	vec4 cam_up;		// w = aerial range km
-	vec4 misc;		// x horizon cos of the observer, y skyview min steps, z aerial squared (1/0)
+	vec4 misc;		// x horizon cos of the observer, y skyview min steps, z aerial squared (1/0),
+				// w H = sqrt(top^2 - bottom^2), the horizontal distance to the top from the ground
 	Constituent C[4];
-} P;
+};
+layout(std140, binding = 0) uniform ParamsBlock { Params params; };
+
+// A private copy that every main() makes first (load_params()): lavapipe's
+// LLVM passes do no loop-invariant code motion, so each read of the uniform
+// block inside a loop would be a fresh load; the copy lives in registers.
+// The same holds for any loop-invariant expression: hoist it by hand.
+Params P;
+
+void load_params() { P = params; }
 
 layout(std430, binding = 1) buffer TransmittanceBuf { uint d[]; } TB;
 layout(std430, binding = 2) buffer MultiscatterBuf { uint d[]; } MB;
@@ -220,7 +230,7 @@ TAlt t_alt(float h)
 	TAlt a;
 	a.h = clamp(h, 0.0, shell);
 	a.r = rb + a.h;
-	float H = sqrt(shell * (2.0 * rb + shell));
+	float H = P.misc.w;
 	float rho = safe_sqrt(rho2(a.h));
 	// Below the ground (rounding at a ray's end) nothing is in the way, as
 	// in hits_ground().

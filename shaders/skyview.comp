@@ -15,6 +15,7 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 void main()
 {
+	load_params();
 	int x0 = int(gl_GlobalInvocationID.x) * SV_AZ_GROUP, py = int(gl_GlobalInvocationID.y);
 	if (x0 >= OUT_W || py >= OUT_H)
 		return;

@@ -9,12 +9,13 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 void main()
 {
+	load_params();
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
 	if (px.x >= OUT_W || px.y >= OUT_H)
 		return;
 
 	float rb = P.planet.x, shell = P.planet.z;
-	float H = sqrt(shell * (2.0 * rb + shell));
+	float H = P.misc.w;
 	float x_mu = tex_to_unit((float(px.x) + 0.5) / float(OUT_W), OUT_W);
 	float x_r = tex_to_unit((float(px.y) + 0.5) / float(OUT_H), OUT_H);
 	float rho = H * x_r;
@@ -27,13 +28,31 @@ void main()
 	// Each step integrates every layer exactly for a linear change of
 	// altitude (sinh(x) / x); a midpoint rule at 2.5 km steps would read a
 	// 1.2 km scale height 16 % thin.
-	float dt = d / float(STEPS), rr;
+	// Loop invariants by hand: lavapipe's LLVM passes do not hoist them.
+	vec3 ext[4];
+	vec4 lay0[4], lay1[4];
+	float width[4];
+	for (int k = 0; k < N_CONST; k++) {
+		Constituent c = P.C[k];
+		ext[k] = c.scattering.rgb + c.absorption.rgb;
+		lay0[k] = vec4(c.layer0.yzw, c.layer0c_1.x);
+		lay1[k] = vec4(c.layer0c_1.yzw, c.layer1c.x);
+		width[k] = c.layer0.x;
+	}
+	float dt = d / float(STEPS);
+	float excess0 = rho2(h), two_r_mu = 2.0 * r * mu, rb2 = rb * rb;
 	vec3 tau = vec3(0.0);
 	float ha = h;
 	for (int i = 0; i < STEPS; i++) {
-		float hb = altitude_along(h, mu, float(i + 1) * dt, rr);
-		for (int k = 0; k < N_CONST; k++)
-			tau += mean_density(k, ha, hb) * (P.C[k].scattering.rgb + P.C[k].absorption.rgb);
+		float t = float(i + 1) * dt;
+		float excess = excess0 + t * (t + two_r_mu);
+		float hb = excess / (sqrt(rb2 + max(excess, 0.0)) + rb);
+		float hm = 0.5 * (ha + hb);
+		for (int k = 0; k < N_CONST; k++) {
+			vec4 l = hm < width[k] ? lay0[k] : lay1[k];
+			float e = (EXP_MASK & (1 << k)) != 0 ? l.x * exp(l.y * hm) * sinhc(0.5 * l.y * (hb - ha)) : 0.0;
+			tau += clamp(e + l.z * hm + l.w, 0.0, 1.0) * ext[k];
+		}
 		ha = hb;
 	}
 	STORE_TEXEL(TB, px.y * OUT_W + px.x, vec4(exp(-tau * dt), 1.0));
