@@ -216,11 +216,13 @@ bool hits_ground(float h, float mu, out float ret_t)
 	vec4 c_ = texelFetch(T, y1_ * W + x0_), d_ = texelFetch(T, y1_ * W + x1_); \
 	ret = mix(mix(a_, b_, f_.x), mix(c_, d_, f_.x), f_.y); } while (false)
 
-// What a transmittance lookup at altitude h shares between directions: the
-// texel row, the horizon and the distances that bound the mapping.
+// What the lookups at altitude h share between directions: the texel rows
+// of both tables, the horizon and the distances that bound the mapping.
 struct TAlt {
 	float h, r, mu_horizon;
-	float v;		// texel coordinate of the altitude
+	float v;		// transmittance texel coordinate of the altitude
+	float ms_v;		// multi-scattering texel coordinate of the altitude
+	float top_c;		// top^2 - r^2
 	float d_min, inv_range;	// x_mu = (d - d_min) * inv_range
 };
 
@@ -236,6 +238,8 @@ TAlt t_alt(float h)
 	// in hits_ground().
 	a.mu_horizon = h < 0.0 ? -2.0 : -rho / a.r;
 	a.v = unit_to_tex(clamp(rho / H, 0.0, 1.0), T_H);
+	a.ms_v = unit_to_tex(clamp(h / shell, 0.0, 1.0), M_H);
+	a.top_c = (shell - a.h) * (2.0 * rb + shell + a.h);
 	a.d_min = shell - a.h;
 	float d_max = rho + H;
 	a.inv_range = d_max > a.d_min ? 1.0 / (d_max - a.d_min) : 0.0;
@@ -248,7 +252,8 @@ vec3 transmittance_at(TAlt a, float mu)
 {
 	if (mu < a.mu_horizon)
 		return vec3(0.0);
-	float d = distance_to_top(a.h, clamp(mu, -1.0, 1.0));
+	mu = clamp(mu, -1.0, 1.0);
+	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
 	vec2 uv = vec2(unit_to_tex(clamp((d - a.d_min) * a.inv_range, 0.0, 1.0), T_W), a.v);
 	vec4 t;
 	BILINEAR(TransmittanceTex, T_W, T_H, uv, t);
@@ -260,10 +265,9 @@ vec3 transmittance_to_top(float h, float mu)
 	return transmittance_at(t_alt(h), mu);
 }
 
-vec3 multiscatter(float h, float mu_s)
+vec3 multiscatter_at(TAlt a, float mu_s)
 {
-	vec2 uv = vec2(unit_to_tex(clamp(0.5 + 0.5 * mu_s, 0.0, 1.0), M_W),
-		       unit_to_tex(clamp(h / P.planet.z, 0.0, 1.0), M_H));
+	vec2 uv = vec2(unit_to_tex(clamp(0.5 + 0.5 * mu_s, 0.0, 1.0), M_W), a.ms_v);
 	vec4 v;
 	BILINEAR(MultiscatterTex, M_W, M_H, uv, v);
 	return v.rgb;
@@ -350,7 +354,7 @@ vec3 light_source(TAlt a, vec3 up, vec3 light_dir, vec3 illum, vec3 phased, vec3
 	float mu_l = dot(up, light_dir);
 	vec3 s = phased * transmittance_at(a, mu_l);
 	if (MULTISCATTER_ON)
-		s += sigma_s * multiscatter(a.h, mu_l);
+		s += sigma_s * multiscatter_at(a, mu_l);
 	return s * illum;
 }
 
