@@ -47,6 +47,7 @@ layout(std140, binding = 0) uniform Params {
 	vec4 cam_up;		// w = aerial range km
 	vec4 misc;		// x horizon cos of the observer, y skyview min steps, z aerial squared (1/0)
 	Constituent C[4];
+	vec4 night;		// night-sky floor: rgb zenith cd/m2, w horizon gain c (daemon/state.h)
 } P;
 
 layout(std430, binding = 1) buffer TransmittanceBuf { uint d[]; } TB;

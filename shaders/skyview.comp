@@ -53,5 +53,7 @@ void main()
 		}
 	}
 	vec3 tr = exp(-tau);
+	// Night-sky floor: L_z (1 + c (1 - mu)) over the sky, its airlight (1 - T) toward the ground.
+	radiance += P.night.rgb * (1.0 + P.night.w * (1.0 - max(dir.z, 0.0))) * (dir.z > P.misc.x ? vec3(1.0) : 1.0 - tr);
 	STORE_TEXEL(SB, px.y * OUT_W + px.x, vec4(radiance, (tr.r + tr.g + tr.b) / 3.0));
 }
