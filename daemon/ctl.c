@@ -380,6 +380,7 @@ static int commit(struct client *c, const struct sky_state *next_in, uint32_t di
 	if (memcmp(&lit.clock, &srv_state(c->ctl->srv)->clock, sizeof(lit.clock)) != 0) {
 		double mono_s;
 		simclock_read_clocks(NULL, &mono_s);
+		state_clock_rebase(&lit, srv_state(c->ctl->srv), mono_s);
 		if (drive_lights(&lit, mono_s, &dirty, err, sizeof(err)) < 0)
 			return ACK(SKY_ACK_RANGE, "%s", err);
 	}

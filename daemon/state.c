@@ -369,6 +369,19 @@ double state_clock_utc_s(const struct sky_state *s, double mono_s)
 	return c->anchor_utc_s + c->rate * (mono_s - c->anchor_mono_s);
 }
 
+void state_clock_rebase(struct sky_state *next, const struct sky_state *cur, double mono_s)
+{
+	struct state_clock *n = &next->clock;
+	const struct state_clock *c = &cur->clock;
+
+	if (n->rate == c->rate || isnan(c->anchor_utc_s) ||
+	    memcmp(&n->anchor_utc_s, &c->anchor_utc_s, sizeof(double)) ||
+	    n->anchor_mono_s != c->anchor_mono_s)
+		return;
+	n->anchor_utc_s = state_clock_utc_s(cur, mono_s);
+	n->anchor_mono_s = mono_s;
+}
+
 /* A clock that was never set starts at the real time, so that naming only
  * a place shows that place's sky now. */
 static void clock_anchor_now(struct state_clock *c)
@@ -391,7 +404,6 @@ static int set_clock_key(struct sky_state *s, const char *key, const char *v, ui
 	if (strcmp(key, "utc") == 0) {
 		if (strcmp(v, "now") == 0) {
 			clock_anchor_now(c);
-			c->rate = 1.0;
 		} else if (simclock_parse_utc(v, &d) == 0) {
 			simclock_read_clocks(NULL, &mono_s);
 			c->anchor_utc_s = d;
@@ -404,12 +416,9 @@ static int set_clock_key(struct sky_state *s, const char *key, const char *v, ui
 			return ERR("time_rate: '%s' is not a finite number", v);
 		if (fabs(d) > SIMCLOCK_RATE_MAX)
 			return ERR("time_rate: %g is outside [%g, %g]", d, -SIMCLOCK_RATE_MAX, SIMCLOCK_RATE_MAX);
-		/* Re-anchored so the simulated time runs on without a jump. */
-		simclock_read_clocks(NULL, &mono_s);
-		if (!isnan(c->anchor_utc_s)) {
-			c->anchor_utc_s = state_clock_utc_s(s, mono_s);
-			c->anchor_mono_s = mono_s;
-		}
+		/* The rate runs from the anchor; a running clock is re-anchored
+		 * by state_clock_rebase when the change is committed, so that
+		 * utc= and time_rate= in one request mean the same in any order. */
 		c->rate = d;
 	} else if (strcmp(key, "delta_t_s") == 0) {
 		if (strcmp(v, "auto") == 0)

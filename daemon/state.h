@@ -131,6 +131,11 @@ int state_get(const struct sky_state *s, const char *key, char *buf, size_t size
  * ever set. */
 double state_clock_utc_s(const struct sky_state *s, double mono_s);
 
+/* A new time_rate in next against the running clock of cur, with the same
+ * anchor: re-anchors next at mono_s so the simulated time goes on without
+ * a jump. A new utc in next wins: the rate then runs from its anchor. */
+void state_clock_rebase(struct sky_state *next, const struct sky_state *cur, double mono_s);
+
 /* The night floor as the shaders take it: zenith luminance (cd/m2, white)
  * and the horizon gain c of L(mu) = L_zenith (1 + c (1 - mu)), chosen so
  * that the horizontal illuminance pi L_zenith (1 + c / 3) is the state's. */
