@@ -438,7 +438,8 @@ static int set_clock_key(struct sky_state *s, const char *key, const char *v, ui
 	} else {
 		return 1;
 	}
-	if (ret_dirty)
+	/* A rate alone moves nothing until the clock runs on it. */
+	if (ret_dirty && strcmp(key, "time_rate") != 0)
 		*ret_dirty |= LIGHTS;
 	return 0;
 }
