@@ -280,6 +280,23 @@ static void test_moon(struct conn *c)
 	CHECK(get_num(c, "get moon", "elevation_deg") < -30.0);
 }
 
+/* The night-sky floor: the zenith and the horizontal illuminance that
+ * PROTOCOL.md promises, read back from the published tables; 0 turns it off. */
+static void test_night(struct conn *c, struct conn *ev)
+{
+	CHECK(conn_request(c, "set sun_elevation_deg=-40 moon_illuminance_lx=0", reply, sizeof(reply)) == 0);
+	CHECK(conn_wait_generation(ev, reply_u64(reply, "generation")) == 0);
+	double zenith = get_num(c, "sample sky el_deg=90 az_deg=0", "luminance_cd_m2");
+	double ambient = get_num(c, "sample ambient", "illuminance_lx");
+	printf("night floor: zenith %.4g cd/m2, horizontal %.5g lx\n", zenith, ambient);
+	CHECK_NEAR(zenith, 2.0e-4, 2e-6);
+	CHECK_NEAR(ambient, 0.002, 4e-5);
+	CHECK(conn_request(c, "set night_zenith_luminance_cd_m2=0", reply, sizeof(reply)) == 0);
+	CHECK(conn_wait_generation(ev, reply_u64(reply, "generation")) == 0);
+	CHECK(get_num(c, "sample sky el_deg=90 az_deg=0", "luminance_cd_m2") < 1e-9);
+	CHECK(conn_request(c, "set night_zenith_luminance_cd_m2=0.0002", reply, sizeof(reply)) == 0);
+}
+
 int main(void)
 {
 	struct daemon d = { 0 };
@@ -301,6 +318,7 @@ int main(void)
 	test_times(&c);
 	test_invalid(&c);
 	test_moon(&c);
+	test_night(&c, &ev);
 
 	conn_close(&c);
 	conn_close(&ev);
