@@ -120,6 +120,39 @@ static int cmd_set(const struct opts *o, int argc, char **argv)
 	return run_verb(o, "set", argc, argv);
 }
 
+/* sun, moon, times [DATE]: the clock's get sun / get moon / get times. */
+static int cmd_sun(const struct opts *o, int argc, char **argv)
+{
+	if (argc) {
+		fprintf(stderr, "usage: skyctl sun\n");
+		return EXIT_USAGE;
+	}
+	return run_verb(o, "get", 1, (char *[]){ "sun" });
+}
+
+static int cmd_moon(const struct opts *o, int argc, char **argv)
+{
+	if (argc) {
+		fprintf(stderr, "usage: skyctl moon\n");
+		return EXIT_USAGE;
+	}
+	return run_verb(o, "get", 1, (char *[]){ "moon" });
+}
+
+static int cmd_times(const struct opts *o, int argc, char **argv)
+{
+	char date[64];
+
+	if (argc > 1 || (argc == 1 && strchr(argv[0], '='))) {
+		fprintf(stderr, "usage: skyctl times [YYYY-MM-DD]\n");
+		return EXIT_USAGE;
+	}
+	if (!argc)
+		return run_verb(o, "get", 1, (char *[]){ "times" });
+	snprintf(date, sizeof(date), "date=%s", argv[0]);
+	return run_verb(o, "get", 2, (char *[]){ "times", date });
+}
+
 static int cmd_help(const struct opts *o, int argc, char **argv)
 {
 	return run_verb(o, "help", argc, argv);
@@ -464,6 +497,9 @@ static const struct cmd cmds[] = {
 	{ "batch", "batch < lines            apply stdin's key=value lines as one change", cmd_batch },
 	{ "subscribe", "subscribe tables=...     subscribe and print the layout", NULL },
 	{ "sample", "sample sky el_deg=E az_deg=A | sample sun | sample ambient", NULL },
+	{ "sun", "sun                      where the clock's sun is (get sun)", cmd_sun },
+	{ "moon", "moon                     where the clock's moon is, its phase (get moon)", cmd_moon },
+	{ "times", "times [YYYY-MM-DD]       sunrise, sunset, twilights of a day (get times)", cmd_times },
 	{ "ping", "ping                     check that skyd answers", NULL },
 	{ "commands", "commands                 list the daemon's verbs", NULL },
 	{ "help", "help VERB                the daemon's help for a verb", cmd_help },

@@ -15,10 +15,13 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include "astro.h"
+#include "drive.h"
 #include "log.h"
 #include "loop.h"
 #include "proto.h"
 #include "pub.h"
+#include "simclock.h"
 #include "skysample.h"
 #include "srv.h"
 
@@ -73,6 +76,7 @@ struct ctl {
 	struct client *clients;
 	int n_clients;
 	uint64_t next_id;
+	struct drive *drive;		/* the clock; NULL: none */
 };
 
 /* A reply under construction: pairs, then OK or one ACK line. */
@@ -363,16 +367,28 @@ static int apply_pairs(struct sky_state *s, const struct proto_request *req, uin
 	return 0;
 }
 
-static int commit(struct client *c, const struct sky_state *next, uint32_t dirty,
+static int commit(struct client *c, const struct sky_state *next_in, uint32_t dirty,
 		  struct reply *r, char *msg, size_t msg_size)
 {
 	char err[256] = "", names[64];
 	uint64_t generation;
+	struct sky_state lit = *next_in;
+	const struct sky_state *next = &lit;
 
+	/* A new time, place or light mode moves the lights at once, so that
+	 * the reply's generation shows them; astro may refuse the time. */
+	if (memcmp(&lit.clock, &srv_state(c->ctl->srv)->clock, sizeof(lit.clock)) != 0) {
+		double mono_s;
+		simclock_read_clocks(NULL, &mono_s);
+		state_clock_rebase(&lit, srv_state(c->ctl->srv), mono_s);
+		if (drive_lights(&lit, mono_s, &dirty, err, sizeof(err)) < 0)
+			return ACK(SKY_ACK_RANGE, "%s", err);
+	}
 	if (srv_check(c->ctl->srv, next, err, sizeof(err)) < 0)
 		return ACK(SKY_ACK_RANGE, "%s", err);
 	if (srv_change(c->ctl->srv, next, dirty, &generation, err, sizeof(err)) < 0)
 		return ACK(SKY_ACK_ENGINE, "state kept, computation failed: %s", err);
+	drive_changed(c->ctl->drive);
 	format_tables(dirty, names, sizeof(names));
 	reply_add(r, "generation: %llu\ntables: %s\n", (unsigned long long)generation, names);
 	return 0;
@@ -393,12 +409,199 @@ static void emit_pair(void *ctx, const char *key, const char *value)
 	reply_add(ctx, "%s: %s\n", key, value);
 }
 
+/* Sun, moon and times --------------------------------------------------- */
+
+static int parse_number(const char *v, double *ret);
+
+/* The clock's time now, or an ACK when no time was ever set. */
+static int clock_now(const struct sky_state *s, double *ret_utc_s, char *msg, size_t msg_size)
+{
+	double mono_s;
+
+	simclock_read_clocks(NULL, &mono_s);
+	*ret_utc_s = state_clock_utc_s(s, mono_s);
+	if (isnan(*ret_utc_s))
+		return ACK(SKY_ACK_STATE, "utc: no time set (set utc=now or utc=YYYY-MM-DDTHH:MM:SSZ)");
+	return 0;
+}
+
+static void reply_utc(struct reply *r, const char *key, double utc_s)
+{
+	char buf[SIMCLOCK_UTC_TEXT_MAX];
+
+	if (simclock_format_utc(utc_s, buf, sizeof(buf)) < 0)
+		reply_add(r, "%s: %.3f\n", key, utc_s);
+	else
+		reply_add(r, "%s: %s\n", key, buf);
+}
+
+static void reply_direction(struct reply *r, const struct astro_direction *geo,
+			    const struct astro_direction *app)
+{
+	reply_add(r, "zenith_deg: %.6f\nelevation_deg: %.6f\nazimuth_deg: %.6f\n",
+		  geo->zenith_deg, geo->elevation_deg, geo->azimuth_deg);
+	reply_add(r, "apparent_zenith_deg: %.6f\napparent_elevation_deg: %.6f\napparent_azimuth_deg: %.6f\n",
+		  app->zenith_deg, app->elevation_deg, app->azimuth_deg);
+}
+
+static int get_sun(struct client *c, const struct proto_request *req, struct reply *r,
+		   char *msg, size_t msg_size)
+{
+	const struct sky_state *s = srv_state(c->ctl->srv);
+	struct astro_site site;
+	struct astro_options opt;
+	struct astro_sun a;
+	char err[256];
+	double utc_s;
+	int code = clock_now(s, &utc_s, msg, msg_size);
+
+	if (code)
+		return code;
+	if (req->n_args > 1)
+		return ACK(SKY_ACK_SYNTAX, "get sun takes no arguments");
+	drive_site(s, &site, &opt);
+	if (astro_sun(&site, utc_s, &opt, &a, err, sizeof(err)) < 0)
+		return ACK(SKY_ACK_RANGE, "%s", err);
+	reply_utc(r, "utc", utc_s);
+	reply_add(r, "sun_mode: %s\n", s->clock.sun_mode == STATE_CLOCK ? "clock" : "manual");
+	reply_direction(r, &a.geometric, &a.apparent);
+	reply_add(r, "right_ascension_deg: %.6f\ndeclination_deg: %.6f\nhour_angle_deg: %.6f\n",
+		  a.right_ascension_deg, a.declination_deg, a.hour_angle_deg);
+	reply_add(r, "equation_of_time_min: %.6f\ndistance_au: %.9f\nangular_radius_deg: %.6f\n",
+		  a.equation_of_time_min, a.distance_au, a.angular_radius_deg);
+	reply_add(r, "illuminance_lx: %.3f\ndelta_t_s: %.3f\n", a.illuminance_lx, a.delta_t_s);
+	return 0;
+}
+
+static int get_moon(struct client *c, const struct proto_request *req, struct reply *r,
+		    char *msg, size_t msg_size)
+{
+	const struct sky_state *s = srv_state(c->ctl->srv);
+	struct astro_site site;
+	struct astro_options opt;
+	struct astro_moon m;
+	char err[256];
+	double utc_s;
+	int code = clock_now(s, &utc_s, msg, msg_size);
+
+	if (code)
+		return code;
+	if (req->n_args > 1)
+		return ACK(SKY_ACK_SYNTAX, "get moon takes no arguments");
+	drive_site(s, &site, &opt);
+	if (astro_moon(&site, utc_s, &opt, &m, err, sizeof(err)) < 0)
+		return ACK(SKY_ACK_RANGE, "%s", err);
+	reply_utc(r, "utc", utc_s);
+	reply_add(r, "moon_mode: %s\n", s->clock.moon_mode == STATE_CLOCK ? "clock" : "manual");
+	reply_direction(r, &m.geometric, &m.apparent);
+	reply_add(r, "longitude_deg: %.6f\nlatitude_deg: %.6f\n", m.longitude_deg, m.latitude_deg);
+	reply_add(r, "right_ascension_deg: %.6f\ndeclination_deg: %.6f\n", m.right_ascension_deg,
+		  m.declination_deg);
+	reply_add(r, "distance_km: %.3f\ntopocentric_distance_km: %.3f\nangular_radius_deg: %.6f\n",
+		  m.distance_km, m.topocentric_distance_km, m.angular_radius_deg);
+	reply_add(r, "phase_angle_deg: %.6f\nilluminated_fraction: %.6f\nelongation_deg: %.6f\nwaxing: %d\n",
+		  m.phase_angle_deg, m.illuminated_fraction, m.elongation_deg, m.waxing ? 1 : 0);
+	reply_add(r, "illuminance_lx: %.6g\n", m.illuminance_lx);
+	/* What the tables are lit with: the served state's moon. */
+	reply_add(r, "lit: %d\nlit_illuminance_lx: %.6g\n", s->moon.illuminance_lx > 0.0,
+		  s->moon.illuminance_lx);
+	return 0;
+}
+
+static void reply_event(struct reply *r, const char *key, double utc_s, enum astro_day_kind kind,
+			const char *above, const char *below)
+{
+	if (kind == ASTRO_RISES_AND_SETS)
+		reply_utc(r, key, utc_s);
+	else
+		reply_add(r, "%s: none (%s)\n", key, kind == ASTRO_ALWAYS_ABOVE ? above : below);
+}
+
+static void reply_rise_set(struct reply *r, const char *rise, const char *set,
+			   const struct astro_rise_set *rs, const char *above, const char *below)
+{
+	reply_event(r, rise, rs->rise_utc_s, rs->kind, above, below);
+	reply_event(r, set, rs->set_utc_s, rs->kind, above, below);
+}
+
+/* get times [date=YYYY-MM-DD] [utc_offset_min=N]: the local day starts at
+ * local midnight, local = UTC + utc_offset_min; by default the offset of
+ * the longitude's nominal zone (15 degrees an hour) and the simulated date. */
+static int get_times(struct client *c, const struct proto_request *req, struct reply *r,
+		     char *msg, size_t msg_size)
+{
+	const struct sky_state *s = srv_state(c->ctl->srv);
+	struct astro_site site;
+	struct astro_options opt;
+	struct astro_times t;
+	struct astro_date d = { 0 };
+	const char *date = NULL;
+	char err[256], buf[SIMCLOCK_UTC_TEXT_MAX];
+	double off;
+
+	d.utc_offset_min = (int)lround(s->clock.lon_deg / 15.0) * 60;
+	for (int i = 1; i < req->n_args; i++) {
+		const struct proto_arg *a = &req->args[i];
+		if (!a->value)
+			return ACK(SKY_ACK_SYNTAX, "usage: get times [date=YYYY-MM-DD] [utc_offset_min=N]");
+		if (strcmp(a->key, "date") == 0) {
+			date = a->value;
+		} else if (strcmp(a->key, "utc_offset_min") == 0) {
+			if (parse_number(a->value, &off) < 0 || off != floor(off))
+				return ACK(SKY_ACK_ARG, "utc_offset_min: '%s' is not a whole number", a->value);
+			if (fabs(off) > 1080)
+				return ACK(SKY_ACK_RANGE, "utc_offset_min: %g is outside [-1080, 1080]", off);
+			d.utc_offset_min = (int)off;
+		} else {
+			return ACK(SKY_ACK_NO_EXIST, "%s: unknown key (date, utc_offset_min)", a->key);
+		}
+	}
+	if (date) {
+		char tail;
+		if (sscanf(date, "%5d-%2d-%2d%c", &d.year, &d.month, &d.day, &tail) != 3 ||
+		    strlen(date) != 10 || date[0] < '0' || date[0] > '9' || date[4] != '-' || date[7] != '-' ||
+		    !simclock_valid_date(d.year, d.month, d.day))
+			return ACK(SKY_ACK_ARG, "date: '%s' is not a date YYYY-MM-DD", date);
+	} else {
+		double utc_s;
+		int code = clock_now(s, &utc_s, msg, msg_size);
+		if (code)
+			return code;
+		if (simclock_format_utc(utc_s + 60.0 * d.utc_offset_min, buf, sizeof(buf)) < 0 ||
+		    sscanf(buf, "%d-%d-%d", &d.year, &d.month, &d.day) != 3)
+			return ACK(SKY_ACK_RANGE, "utc: outside years 0..9999");
+	}
+	drive_site(s, &site, &opt);
+	if (astro_sun_times(&site, &d, &opt, &t, err, sizeof(err)) < 0)
+		return ACK(SKY_ACK_RANGE, "%s", err);
+	reply_add(r, "date: %04d-%02d-%02d\nutc_offset_min: %d\n", d.year, d.month, d.day,
+		  d.utc_offset_min);
+	reply_utc(r, "transit_utc", t.transit_utc_s);
+	reply_add(r, "transit_elevation_deg: %.6f\n", t.transit_elevation_deg);
+	reply_rise_set(r, "sunrise_utc", "sunset_utc", &t.sunrise_sunset, "polar day", "polar night");
+	reply_rise_set(r, "civil_dawn_utc", "civil_dusk_utc", &t.civil,
+		       "sun never below -6 deg", "sun never above -6 deg");
+	reply_rise_set(r, "nautical_dawn_utc", "nautical_dusk_utc", &t.nautical,
+		       "sun never below -12 deg", "sun never above -12 deg");
+	reply_rise_set(r, "astronomical_dawn_utc", "astronomical_dusk_utc", &t.astronomical,
+		       "sun never below -18 deg", "sun never above -18 deg");
+	return 0;
+}
+
 static int cmd_get(struct client *c, const struct proto_request *req, struct reply *r,
 		   char *msg, size_t msg_size)
 {
 	const struct sky_state *s = srv_state(c->ctl->srv);
 	char buf[256];
 
+	if (req->n_args && !req->args[0].value) {
+		if (strcmp(req->args[0].key, "sun") == 0)
+			return get_sun(c, req, r, msg, msg_size);
+		if (strcmp(req->args[0].key, "moon") == 0)
+			return get_moon(c, req, r, msg, msg_size);
+		if (strcmp(req->args[0].key, "times") == 0)
+			return get_times(c, req, r, msg, msg_size);
+	}
 	if (!req->n_args) {
 		state_foreach(s, emit_pair, r);
 		return 0;
@@ -500,6 +703,16 @@ static int cmd_status(struct client *c, const struct proto_request *req, struct 
 	reply_add(r, "clients: %d\nsubscribers: %d\n", c->ctl->n_clients, subscribers);
 	reply_add(r, "shm_bytes: %llu\n", (unsigned long long)pub_bytes(srv_pub(s)));
 	reply_add(r, "protocol: %s\n", SKY_PROTO_VERSION);
+	if (c->ctl->drive) {
+		struct drive_stats ds;
+		drive_stats(c->ctl->drive, &ds);
+		reply_add(r, "clock_ticks: %llu\nclock_changes: %llu\n", (unsigned long long)ds.ticks,
+			  (unsigned long long)ds.changes);
+		if (ds.next_tick_s < 0)
+			reply_add(r, "clock_next_tick_s: none\n");
+		else
+			reply_add(r, "clock_next_tick_s: %.3f\n", ds.next_tick_s);
+	}
 	return 0;
 }
 
@@ -694,7 +907,9 @@ static int cmd_close(struct client *c, const struct proto_request *req, struct r
 static const struct cmd_entry cmds[] = {
 	{ "set", "set key=value ...", "change the sky; all or nothing; names the generation that shows it",
 	  1, PROTO_MAX_ARGS, cmd_set },
-	{ "get", "get [key ...]", "the current state, every key or the named ones", 0, PROTO_MAX_ARGS, cmd_get },
+	{ "get", "get [key ...] | get sun | get moon | get times [date=YYYY-MM-DD] [utc_offset_min=N]",
+	  "the current state, every key or the named ones; the clock's sun, moon, or the day's rise, set and twilights",
+	  0, PROTO_MAX_ARGS, cmd_get },
 	{ "batch", "batch", "start a batch: set lines until end apply as one change (no reply until end)",
 	  0, 0, cmd_batch },
 	{ "end", "end", "apply the batch as one change", 0, 0, cmd_end },
@@ -1061,6 +1276,11 @@ fail:
 		SET_ERR("control socket: %s", strerror(-r));
 	ctl_free(ctl);
 	return r;
+}
+
+void ctl_set_drive(struct ctl *ctl, struct drive *d)
+{
+	ctl->drive = d;
 }
 
 void ctl_free(struct ctl *ctl)

@@ -18,6 +18,7 @@
 #define CTL_BATCH_MAX 256		/* set lines in one batch */
 
 struct ctl;
+struct drive;
 struct loop;
 struct srv;
 
@@ -34,6 +35,10 @@ int ctl_new(struct loop *l, struct srv *s, const char *path, int listen_fd, char
 	    size_t err_size, struct ctl **ret);
 /* Closes every connection and removes the socket it created. */
 void ctl_free(struct ctl *c);
+
+/* The clock told of every committed change (re-arms its timer), and asked
+ * for its counters in status. d must outlive ctl; NULL: no clock. */
+void ctl_set_drive(struct ctl *ctl, struct drive *d);
 
 /* The srv listener's hooks, to be wired by main. */
 void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_region);

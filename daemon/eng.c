@@ -40,6 +40,7 @@ struct gpu_params {
 	float planet[4], albedo[4], sun_dir[4], sun_illum[4], moon_dir[4], moon_illum[4];
 	float cam_fwd[4], cam_right[4], cam_up[4], misc[4];
 	struct gpu_constituent c[ATMO_MAX_CONSTITUENTS];
+	float night[4];		/* night-sky floor, after the constituents as in common.glsl */
 };
 
 /* Specialization constants, by constant_id. */
@@ -707,6 +708,10 @@ static void fill_params(const struct sky_state *s, struct gpu_params *p, struct 
 	put4(p->misc, skymap_horizon_cos(a->bottom_radius_km, h0), s->quality.skyview_min_steps,
 	     s->quality.aerial_spacing == STATE_SQUARED ? 1.0 : 0.0,
 	     sqrt(shell * (2.0 * a->bottom_radius_km + shell)));
+
+	double night_cd_m2, night_gain;
+	state_night_floor(s, &night_cd_m2, &night_gain);
+	put4(p->night, night_cd_m2, night_cd_m2, night_cd_m2, night_gain);
 
 	/* Constituents that are zero everywhere are left out of the shaders. */
 	int n = 0;

@@ -12,11 +12,13 @@
 
 #include "config.h"
 #include "ctl.h"
+#include "drive.h"
 #include "eng.h"
 #include "log.h"
 #include "loop.h"
 #include "once.h"
 #include "proto.h"
+#include "simclock.h"
 #include "srv.h"
 #include "state.h"
 
@@ -136,6 +138,8 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 	struct eng *eng = NULL;
 	struct srv *srv = NULL;
 	struct ctl *ctl = NULL;
+	struct drive *drive = NULL;
+	struct sky_state lit = *initial;
 	char err[512] = "", path[108];
 	int listen_fd = -1, r;
 
@@ -163,7 +167,15 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 		log_error("initial state: %s", err);
 		goto out;
 	}
-	r = srv_new(loop, eng, initial, &srv);
+	/* A time or place among the initial keys lights the first tables. */
+	double mono_s;
+	simclock_read_clocks(NULL, &mono_s);
+	r = drive_lights(&lit, mono_s, NULL, err, sizeof(err));
+	if (r < 0) {
+		log_error("initial state: %s", err);
+		goto out;
+	}
+	r = srv_new(loop, eng, &lit, &srv);
 	if (r < 0) {
 		log_error("publisher: %s", strerror(-r));
 		goto out;
@@ -185,6 +197,12 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 		goto out;
 	}
 	srv_set_listener(srv, &(struct srv_listener){ ctl_published, ctl_failed }, ctl);
+	r = drive_new(loop, srv, &drive);
+	if (r < 0) {
+		log_error("clock: %s", strerror(-r));
+		goto out;
+	}
+	ctl_set_drive(ctl, drive);
 	log_info("listening on %s, protocol %s", path, SKY_PROTO_VERSION);
 	sd_notify(0, "READY=1");
 	r = loop_run(loop);
@@ -193,6 +211,7 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 	sd_notify(0, "STOPPING=1");
 out:
 	ctl_free(ctl);
+	drive_free(drive);
 	srv_free(srv);
 	eng_free(eng);
 	loop_free(loop);

@@ -28,6 +28,7 @@ struct ctx {
 	double rb, rt, shell, h0;
 	v3 sun, moon, sun_illum, moon_illum;
 	bool moon_lit;
+	double night_cd_m2, night_gain;	/* state_night_floor */
 	const struct model_tables *tab;
 };
 
@@ -320,6 +321,15 @@ static void march(const struct ctx *c, v3 dir, double a, double b, uint32_t n, b
 	}
 }
 
+/* The night-sky floor of a sky-view direction (PROTOCOL.md): the measured
+ * floor over the sky, L_z (1 + c (1 - mu)); toward the ground only the
+ * airlight of the ray, the horizon's floor times (1 - T). */
+static v3 night_sky(const struct ctx *c, double mu, bool sky, v3 tr)
+{
+	double l = c->night_cd_m2 * (1 + c->night_gain * (1 - fmax(mu, 0)));
+	return sky ? v(l, l, l) : scale(v(1 - tr.x, 1 - tr.y, 1 - tr.z), l);
+}
+
 static void compute_skyview(const struct ctx *c, const struct state_table_quality *q, double *out)
 {
 	double mu_h = horizon_cos(c, c->h0);
@@ -335,6 +345,7 @@ static void compute_skyview(const struct ctx *c, const struct state_table_qualit
 				double nf = ceil(lo + (q->steps - lo) * skymap_clamp(len / 100.0, 0, 1));
 				march(c, dir, t0, t1, nf < 1 ? 1 : (uint32_t)nf, true, &rad, &tau);
 			}
+			rad = add(rad, night_sky(c, dir.z, dir.z > mu_h, vexp_neg(tau)));
 			put(out + 4 * (j * q->width + i), rad, mean3(vexp_neg(tau)));
 		}
 }
@@ -362,7 +373,9 @@ static void compute_aerial(const struct ctx *c, const struct state_table_quality
 				prev = depth;
 				if (b > a)
 					march(c, dir, a, b, q->steps, false, &rad, &tau);
-				put(out + 4 * ((k * q->height + j) * q->width + i), rad, mean3(vexp_neg(tau)));
+				v3 tr = vexp_neg(tau);
+				v3 night = scale(v(1 - tr.x, 1 - tr.y, 1 - tr.z), c->night_cd_m2 * (1 + c->night_gain / 3));
+				put(out + 4 * ((k * q->height + j) * q->width + i), add(rad, night), mean3(tr));
 			}
 		}
 }
@@ -391,6 +404,7 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	c.sun_illum = scale(v(s->sun.color[0], s->sun.color[1], s->sun.color[2]), s->sun.illuminance_lx);
 	c.moon_illum = scale(v(s->moon.color[0], s->moon.color[1], s->moon.color[2]), s->moon.illuminance_lx);
 	c.moon_lit = s->moon.illuminance_lx > 0;
+	state_night_floor(s, &c.night_cd_m2, &c.night_gain);
 
 	mask = state_closure(mask);
 	for (int t = 0; t < STATE_N_TABLES; t++) {

@@ -9,9 +9,11 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "drive.h"
 #include "dump.h"
 #include "eng.h"
 #include "skymap.h"
+#include "simclock.h"
 #include "skyproto.h"
 #include "state.h"
 
@@ -183,6 +185,13 @@ int once_main(int argc, char **argv)
 			return 2;
 		}
 	if (state_validate(&s, 0, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		return 2;
+	}
+	/* utc= and a place light the tables as the daemon's clock would. */
+	double mono_s;
+	simclock_read_clocks(NULL, &mono_s);
+	if (drive_lights(&s, mono_s, NULL, err, sizeof(err)) < 0) {
 		fprintf(stderr, "skyd: %s\n", err);
 		return 2;
 	}

@@ -182,10 +182,11 @@ void pub_shm_state(const struct sky_state *s, struct sky_shm_state *ret)
 	struct sky_shm_state o = { 0 };
 	const double deg = SKYMAP_PI / 180.0;
 
-	/* Time and place are not part of the state yet: unknown, not zero. */
-	o.utc_unix_s = NAN;
-	o.latitude_rad = NAN;
-	o.longitude_rad = NAN;
+	/* Time and place only where the clock lit the tables: unknown, not
+	 * zero, when the lights were set as angles. */
+	o.utc_unix_s = s->lights_utc_s;
+	o.latitude_rad = isnan(s->lights_utc_s) ? NAN : s->clock.lat_deg * deg;
+	o.longitude_rad = isnan(s->lights_utc_s) ? NAN : s->clock.lon_deg * deg;
 	o.altitude_km = s->altitude_km;
 	o.bottom_radius_km = s->atmo.bottom_radius_km;
 	o.top_radius_km = s->atmo.top_radius_km;

@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "simclock.h"
+
 const char *const state_table_names[STATE_N_TABLES] = {
 	"transmittance", "multiscatter", "skyview", "aerial",
 };
@@ -80,7 +82,34 @@ static const struct key keys[] = {
 	{ "aerial_range_km", K_DOUBLE, OFF(quality.aerial_range_km), A_BIT, 1e-3, 1e5, 0 },
 	{ "aerial_spacing", K_ENUM, OFF(quality.aerial_spacing), A_BIT, 0, 0, spacing_names },
 	{ "storage", K_ENUM, OFF(quality.storage), STATE_ALL_TABLES, 0, 0, storage_names },
+
+	/* The site and the clock's settings; utc, time_rate, delta_t_s and the
+	 * light modes have their own parsers (set_clock_key). Refraction only
+	 * changes the reported direction, never the tables. */
+	{ "lat_deg", K_DOUBLE, OFF(clock.lat_deg), LIGHTS, -90, 90, 0 },
+	{ "lon_deg", K_DOUBLE, OFF(clock.lon_deg), LIGHTS, -180, 180, 0 },
+	{ "site_elevation_m", K_DOUBLE, OFF(clock.site_elevation_m), LIGHTS, -1000, 1e5, 0 },
+	{ "pressure_mbar", K_DOUBLE, OFF(clock.pressure_mbar), 0, 0, 5000, 0 },
+	{ "temperature_c", K_DOUBLE, OFF(clock.temperature_c), 0, -100, 100, 0 },
+	{ "horizon_refraction_deg", K_DOUBLE, OFF(clock.horizon_refraction_deg), 0, 0, 3, 0 },
+	{ "clock_threshold_deg", K_DOUBLE, OFF(clock.threshold_deg), 0, 1e-4, 180, 0 },
+	{ "clock_cadence_s", K_DOUBLE, OFF(clock.cadence_s), 0, 0, 86400, 0 },
+	{ "night_zenith_luminance_cd_m2", K_DOUBLE, OFF(night.zenith_luminance_cd_m2), LIGHTS, 0, 1e3, 0 },
+	{ "night_illuminance_lx", K_DOUBLE, OFF(night.illuminance_lx), LIGHTS, 0, 1e4, 0 },
 };
+
+/* Keys that hand a light to the clock, or take it back (manual). */
+static const char *const clock_keys[] = {
+	"utc", "lat_deg", "lon_deg", "site_elevation_m", NULL,
+};
+static const char *const sun_manual_keys[] = {
+	"sun_elevation_deg", "sun_azimuth_deg", "sun_illuminance_lx", "sun_angular_radius_deg", NULL,
+};
+static const char *const moon_manual_keys[] = {
+	"moon_elevation_deg", "moon_azimuth_deg", "moon_illuminance_lx", "moon_color",
+	"moon_angular_radius_deg", NULL,
+};
+static const char *const mode_names[] = { "manual", "clock", NULL };
 
 /* Per-constituent keys: "<name>_<suffix>", e.g. mie_g, ozone_absorption_per_km. */
 enum ckey {
@@ -119,7 +148,7 @@ void state_default(struct sky_state *ret)
 	atmo_earth(&s.atmo);
 	s.altitude_km = 0.2;
 	s.sun = (struct state_light){ .elevation_deg = 30.0, .azimuth_deg = 180.0,
-		.illuminance_lx = 128000.0, .color = { 1, 1, 1 },
+		.illuminance_lx = 133800.0, .color = { 1, 1, 1 },
 		.angular_radius_deg = 0.004675 * 180.0 / M_PI };
 	s.moon = (struct state_light){ .elevation_deg = -30.0, .azimuth_deg = 0.0,
 		.illuminance_lx = 0.0, .color = { 1, 1, 1 },
@@ -135,6 +164,13 @@ void state_default(struct sky_state *ret)
 	s.quality.aerial_range_km = 128.0;
 	s.quality.aerial_spacing = STATE_SQUARED;
 	s.quality.storage = STATE_F32;
+	s.clock = (struct state_clock){ .anchor_utc_s = NAN, .anchor_mono_s = 0.0, .rate = 1.0,
+		.lat_deg = 0.0, .lon_deg = 0.0, .site_elevation_m = 0.0,
+		.pressure_mbar = 1013.25, .temperature_c = 15.0, .delta_t_s = NAN,
+		.horizon_refraction_deg = 0.5667, .threshold_deg = 0.1, .cadence_s = 60.0,
+		.sun_mode = STATE_MANUAL, .moon_mode = STATE_MANUAL };
+	s.lights_utc_s = NAN;
+	s.night = (struct state_night){ .zenith_luminance_cd_m2 = 2.0e-4, .illuminance_lx = 0.002 };
 	*ret = s;
 }
 
@@ -316,6 +352,98 @@ static int set_constituent(struct atmo_constituent *c, const char *key, const ch
 	return ERR("%s: unknown key", key);
 }
 
+static int in_list(const char *const *list, const char *key)
+{
+	for (int i = 0; list[i]; i++)
+		if (strcmp(list[i], key) == 0)
+			return 1;
+	return 0;
+}
+
+double state_clock_utc_s(const struct sky_state *s, double mono_s)
+{
+	const struct state_clock *c = &s->clock;
+
+	if (isnan(c->anchor_utc_s))
+		return NAN;
+	return c->anchor_utc_s + c->rate * (mono_s - c->anchor_mono_s);
+}
+
+void state_clock_rebase(struct sky_state *next, const struct sky_state *cur, double mono_s)
+{
+	struct state_clock *n = &next->clock;
+	const struct state_clock *c = &cur->clock;
+
+	if (n->rate == c->rate || isnan(c->anchor_utc_s) ||
+	    memcmp(&n->anchor_utc_s, &c->anchor_utc_s, sizeof(double)) ||
+	    n->anchor_mono_s != c->anchor_mono_s)
+		return;
+	n->anchor_utc_s = state_clock_utc_s(cur, mono_s);
+	n->anchor_mono_s = mono_s;
+}
+
+/* A clock that was never set starts at the real time, so that naming only
+ * a place shows that place's sky now. */
+static void clock_anchor_now(struct state_clock *c)
+{
+	double real_s, mono_s;
+
+	simclock_read_clocks(&real_s, &mono_s);
+	c->anchor_utc_s = real_s;
+	c->anchor_mono_s = mono_s;
+}
+
+/* utc, time_rate, delta_t_s, sun_mode, moon_mode. Returns 1 if key is not
+ * one of them, else 0 or -EINVAL with err. */
+static int set_clock_key(struct sky_state *s, const char *key, const char *v, uint32_t *ret_dirty,
+			 char *err, size_t err_size)
+{
+	struct state_clock *c = &s->clock;
+	double d, mono_s;
+
+	if (strcmp(key, "utc") == 0) {
+		if (strcmp(v, "now") == 0) {
+			clock_anchor_now(c);
+		} else if (simclock_parse_utc(v, &d) == 0) {
+			simclock_read_clocks(NULL, &mono_s);
+			c->anchor_utc_s = d;
+			c->anchor_mono_s = mono_s;
+		} else {
+			return ERR("utc: '%s' is not now or an ISO 8601 UTC time such as 2026-06-21T18:30:00Z (a real date, a zone)", v);
+		}
+	} else if (strcmp(key, "time_rate") == 0) {
+		if (parse_double(v, &d) < 0)
+			return ERR("time_rate: '%s' is not a finite number", v);
+		if (fabs(d) > SIMCLOCK_RATE_MAX)
+			return ERR("time_rate: %g is outside [%g, %g]", d, -SIMCLOCK_RATE_MAX, SIMCLOCK_RATE_MAX);
+		/* The rate runs from the anchor; a running clock is re-anchored
+		 * by state_clock_rebase when the change is committed, so that
+		 * utc= and time_rate= in one request mean the same in any order. */
+		c->rate = d;
+	} else if (strcmp(key, "delta_t_s") == 0) {
+		if (strcmp(v, "auto") == 0)
+			d = NAN;
+		else if (parse_double(v, &d) < 0)
+			return ERR("delta_t_s: '%s' is not auto or a finite number", v);
+		else if (fabs(d) > 1e6)
+			return ERR("delta_t_s: %g is outside [-1e6, 1e6]", d);
+		c->delta_t_s = d;
+	} else if (strcmp(key, "sun_mode") == 0 || strcmp(key, "moon_mode") == 0) {
+		int m = enum_index(mode_names, v);
+		if (m < 0)
+			return ERR("%s: '%s' is not clock or manual", key, v);
+		*(key[0] == 's' ? &c->sun_mode : &c->moon_mode) = (enum state_light_mode)m;
+		if (m == STATE_CLOCK && isnan(c->anchor_utc_s))
+			clock_anchor_now(c);
+	} else {
+		return 1;
+	}
+	/* A rate alone moves nothing until the clock runs on it. */
+	if (ret_dirty && strcmp(key, "time_rate") != 0)
+		*ret_dirty |= LIGHTS;
+	return 0;
+}
+
 static const struct key *find_key(const char *name)
 {
 	for (size_t i = 0; i < sizeof(keys) / sizeof(keys[0]); i++)
@@ -328,10 +456,14 @@ int state_set(struct sky_state *s, const char *key, const char *value,
 	      uint32_t *ret_dirty, char *err, size_t err_size)
 {
 	struct sky_state before = *s;
-	uint32_t dirty;
+	uint32_t dirty = 0;
 	int r;
 
-	if (strcmp(key, "preset") == 0) {
+	r = set_clock_key(s, key, value, &dirty, err, err_size);
+	if (r <= 0) {
+		if (r < 0)
+			return r;
+	} else if (strcmp(key, "preset") == 0) {
 		struct atmo a;
 		if (atmo_preset(value, &a) < 0)
 			return ERR("preset: '%s' is not earth or mars", value);
@@ -353,6 +485,17 @@ int state_set(struct sky_state *s, const char *key, const char *value,
 		}
 		if (r < 0)
 			return r;
+	}
+	/* Naming a time or a place hands both lights to the clock; setting what
+	 * the clock computes for a light takes that light back. */
+	if (in_list(clock_keys, key)) {
+		s->clock.sun_mode = s->clock.moon_mode = STATE_CLOCK;
+		if (isnan(s->clock.anchor_utc_s))
+			clock_anchor_now(&s->clock);
+	} else if (in_list(sun_manual_keys, key)) {
+		s->clock.sun_mode = STATE_MANUAL;
+	} else if (in_list(moon_manual_keys, key)) {
+		s->clock.moon_mode = STATE_MANUAL;
 	}
 	if (ret_dirty && memcmp(&before, s, sizeof(before)) != 0)
 		*ret_dirty |= dirty;
@@ -392,6 +535,10 @@ int state_validate(const struct sky_state *s, uint64_t max_buffer_bytes,
 	int r = atmo_validate(&s->atmo, err, err_size);
 	if (r < 0)
 		return r;
+	if (s->night.zenith_luminance_cd_m2 > 0.0 &&
+	    s->night.illuminance_lx < M_PI * s->night.zenith_luminance_cd_m2)
+		return ERR("night_illuminance_lx: %g is below pi * night_zenith_luminance_cd_m2 = %g (a night sky darker at the horizon than at the zenith)",
+			   s->night.illuminance_lx, M_PI * s->night.zenith_luminance_cd_m2);
 	if (s->quality.skyview_min_steps > s->quality.t[STATE_SKYVIEW].steps)
 		return ERR("skyview_min_steps: must not exceed skyview_steps");
 	for (int t = 0; t < STATE_N_TABLES; t++) {
@@ -447,11 +594,50 @@ static void format_constituent(const struct atmo_constituent *c, size_t which, c
 	}
 }
 
+static const char *const clock_special[] = {
+	"utc", "time_rate", "delta_t_s", "sun_mode", "moon_mode", NULL,
+};
+
+/* Formats one of clock_special; the time is the simulated time now. */
+static void format_clock_key(const struct sky_state *s, const char *key, char *buf, size_t n)
+{
+	if (strcmp(key, "utc") == 0) {
+		double mono_s;
+		simclock_read_clocks(NULL, &mono_s);
+		double utc_s = state_clock_utc_s(s, mono_s);
+		if (isnan(utc_s))
+			snprintf(buf, n, "none");
+		else if (simclock_format_utc(utc_s, buf, n) < 0)
+			snprintf(buf, n, "%.3f", utc_s);	/* outside years 0..9999 */
+	} else if (strcmp(key, "time_rate") == 0) {
+		snprintf(buf, n, "%.9g", s->clock.rate);
+	} else if (strcmp(key, "delta_t_s") == 0) {
+		if (isnan(s->clock.delta_t_s))
+			snprintf(buf, n, "auto");
+		else
+			snprintf(buf, n, "%.9g", s->clock.delta_t_s);
+	} else {
+		snprintf(buf, n, "%s", mode_names[key[0] == 's' ? s->clock.sun_mode : s->clock.moon_mode]);
+	}
+}
+
+void state_night_floor(const struct sky_state *s, double *ret_zenith_cd_m2, double *ret_gain)
+{
+	double lz = s->night.zenith_luminance_cd_m2;
+
+	*ret_zenith_cd_m2 = lz > 0.0 ? lz : 0.0;
+	*ret_gain = lz > 0.0 ? fmax(3.0 * (s->night.illuminance_lx / (M_PI * lz) - 1.0), 0.0) : 0.0;
+}
+
 void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx)
 {
 	char buf[128], name[64];
 
 	fn(ctx, "preset", s->preset);
+	for (int i = 0; clock_special[i]; i++) {
+		format_clock_key(s, clock_special[i], buf, sizeof(buf));
+		fn(ctx, clock_special[i], buf);
+	}
 	for (size_t i = 0; i < sizeof(keys) / sizeof(keys[0]); i++) {
 		format_value(s, &keys[i], buf, sizeof(buf));
 		fn(ctx, keys[i].name, buf);
@@ -468,6 +654,10 @@ int state_get(const struct sky_state *s, const char *key, char *buf, size_t size
 {
 	if (strcmp(key, "preset") == 0) {
 		snprintf(buf, size, "%s", s->preset);
+		return 0;
+	}
+	if (in_list(clock_special, key)) {
+		format_clock_key(s, key, buf, size);
 		return 0;
 	}
 	const struct key *k = find_key(key);

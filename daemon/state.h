@@ -58,6 +58,34 @@ struct state_quality {
 	enum state_storage storage;
 };
 
+/* Who drives a light: the key=value of its angles (manual) or the clock. */
+enum state_light_mode { STATE_MANUAL = 0, STATE_CLOCK = 1 };
+
+/* The simulation clock and the observer's site: where the sun and moon
+ * come from when their mode is STATE_CLOCK (daemon/drive.c computes them).
+ * The simulated time at monotonic time m is
+ * anchor_utc_s + rate * (m - anchor_mono_s). */
+struct state_clock {
+	double anchor_utc_s;		/* POSIX seconds; NAN: no time set yet */
+	double anchor_mono_s;		/* CLOCK_MONOTONIC seconds of the anchor */
+	double rate;			/* time_rate: simulated seconds per real second */
+	double lat_deg, lon_deg;	/* geodetic, north and east positive */
+	double site_elevation_m;	/* above sea level, for SPA's parallax */
+	double pressure_mbar, temperature_c;	/* refraction of the reported direction */
+	double delta_t_s;		/* TT - UT1; NAN: astro_delta_t_s() at the date */
+	double horizon_refraction_deg;	/* SPA's atmos_refract */
+	double threshold_deg;		/* recompute when a light moved this much */
+	double cadence_s;		/* or this much real time passed; 0: never */
+	enum state_light_mode sun_mode, moon_mode;
+};
+
+/* Night-sky floor (airglow, starlight, zodiacal light) added to the
+ * sky-view and aerial tables; see PROTOCOL.md "Night-sky floor". */
+struct state_night {
+	double zenith_luminance_cd_m2;	/* 0 switches the floor off */
+	double illuminance_lx;		/* horizontal, from the whole floor */
+};
+
 struct sky_state {
 	char preset[ATMO_NAME_MAX];
 	struct atmo atmo;
@@ -66,6 +94,10 @@ struct sky_state {
 	struct state_light moon;	/* lit when moon_illuminance_lx > 0 */
 	struct state_camera camera;
 	struct state_quality quality;
+	struct state_clock clock;
+	double lights_utc_s;		/* the simulated time the clock-driven lights
+					 * were computed for; NAN when none is */
+	struct state_night night;
 };
 
 /* Default: Earth, sun at 30 degrees, observer at 0.2 km, reference sizes. */
@@ -94,6 +126,20 @@ void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx);
 
 /* Formats one key's value; -ENOENT if unknown. */
 int state_get(const struct sky_state *s, const char *key, char *buf, size_t size);
+
+/* The simulated time at monotonic time mono_s (seconds); NAN if no time was
+ * ever set. */
+double state_clock_utc_s(const struct sky_state *s, double mono_s);
+
+/* A new time_rate in next against the running clock of cur, with the same
+ * anchor: re-anchors next at mono_s so the simulated time goes on without
+ * a jump. A new utc in next wins: the rate then runs from its anchor. */
+void state_clock_rebase(struct sky_state *next, const struct sky_state *cur, double mono_s);
+
+/* The night floor as the shaders take it: zenith luminance (cd/m2, white)
+ * and the horizon gain c of L(mu) = L_zenith (1 + c (1 - mu)), chosen so
+ * that the horizontal illuminance pi L_zenith (1 + c / 3) is the state's. */
+void state_night_floor(const struct sky_state *s, double *ret_zenith_cd_m2, double *ret_gain);
 
 /* Tables that differ between a and b given what they depend on. */
 uint32_t state_diff(const struct sky_state *a, const struct sky_state *b);

@@ -75,7 +75,7 @@ struct sky_shm_table {
  * directions as unit vectors in the observer's east-north-up frame. */
 struct sky_shm_state {
 	double utc_unix_s;		/* simulation time, NaN when angles were set directly */
-	double latitude_rad, longitude_rad;
+	double latitude_rad, longitude_rad;	/* the clock's site; NaN as utc_unix_s */
 	double altitude_km;		/* observer above the ground */
 	double bottom_radius_km, top_radius_km;
 	double ground_albedo[3];

@@ -49,6 +49,8 @@ void main()
 				tr *= step_t;
 			}
 		}
-		STORE_TEXEL(AB, (k * OUT_H + px.y) * OUT_W + px.x, vec4(radiance, (tr.r + tr.g + tr.b) / 3.0));
+		// Night-sky floor: airlight (1 - T) of a sky of the floor's mean level L_z (1 + c / 3).
+		vec3 night = P.night.rgb * (1.0 + P.night.w / 3.0) * (1.0 - tr);
+		STORE_TEXEL(AB, (k * OUT_H + px.y) * OUT_W + px.x, vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0));
 	}
 }

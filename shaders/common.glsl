@@ -49,6 +49,7 @@ struct Params {
 	vec4 misc;		// x horizon cos of the observer, y skyview min steps, z aerial squared (1/0),
 				// w H = sqrt(top^2 - bottom^2), the horizontal distance to the top from the ground
 	Constituent C[4];
+	vec4 night;		// night-sky floor: rgb zenith cd/m2, w horizon gain c (daemon/state.h)
 };
 layout(std140, binding = 0) uniform ParamsBlock { Params params; };
 

@@ -76,7 +76,10 @@ void main()
 		}
 	}
 	float tr_mean = (tr.r + tr.g + tr.b) / 3.0;
+	// Night-sky floor: L_z (1 + c (1 - mu)) over the sky, its airlight (1 - T) toward the ground.
+	vec3 night = P.night.rgb * (1.0 + P.night.w * (1.0 - max(cos_z, 0.0))) *
+		     (cos_z > P.misc.x ? vec3(1.0) : 1.0 - tr);
 	for (int j = 0; j < SV_AZ_GROUP; j++)
 		if (x0 + j < OUT_W)
-			STORE_TEXEL(SB, py * OUT_W + x0 + j, vec4(radiance[j], tr_mean));
+			STORE_TEXEL(SB, py * OUT_W + x0 + j, vec4(radiance[j] + night, tr_mean));
 }

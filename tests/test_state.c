@@ -87,6 +87,51 @@ static void test_roundtrip(void)
 	CHECK(state_parse_tables("skyview,bogus", &m) < 0);
 }
 
+/* The clock's keys: modes follow what was set, a rate alone invalidates
+ * nothing, a rate change on a running clock keeps the time continuous. */
+static void test_clock_keys(void)
+{
+	struct sky_state s, cur;
+	char err[256], buf[64];
+	uint32_t dirty = 0;
+
+	state_default(&s);
+	CHECK(s.sun.illuminance_lx == 133800.0);
+	CHECK(s.clock.sun_mode == STATE_MANUAL && s.clock.moon_mode == STATE_MANUAL);
+	CHECK(state_get(&s, "utc", buf, sizeof(buf)) == 0 && strcmp(buf, "none") == 0);
+	CHECK(state_set_pair(&s, "utc=2026-06-21T18:30:00Z", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == (STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL)));
+	CHECK(s.clock.sun_mode == STATE_CLOCK && s.clock.moon_mode == STATE_CLOCK);
+	CHECK(fabs(state_clock_utc_s(&s, s.clock.anchor_mono_s) - 1782066600.0) < 1e-6);
+	CHECK(state_set_pair(&s, "moon_elevation_deg=10", NULL, err, sizeof(err)) == 0);
+	CHECK(s.clock.sun_mode == STATE_CLOCK && s.clock.moon_mode == STATE_MANUAL);
+	CHECK(state_set_pair(&s, "moon_mode=clock", NULL, err, sizeof(err)) == 0);
+	CHECK(s.clock.moon_mode == STATE_CLOCK);
+	dirty = 0;
+	cur = s;
+	CHECK(state_set_pair(&s, "time_rate=60", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == 0);
+	state_clock_rebase(&s, &cur, cur.clock.anchor_mono_s + 10.0);
+	CHECK(fabs(state_clock_utc_s(&s, cur.clock.anchor_mono_s + 10.0) - (1782066600.0 + 10.0)) < 1e-6);
+	CHECK(fabs(state_clock_utc_s(&s, cur.clock.anchor_mono_s + 11.0) - (1782066600.0 + 70.0)) < 1e-6);
+	static const char *const bad[] = { "lat_deg=91", "lon_deg=-180.1", "utc=2026-13-01T00:00:00Z",
+					   "utc=2026-06-21 18:30:00Z", "utc=2026-06-21T18:30:00",
+					   "time_rate=2e6", "delta_t_s=x", "sun_mode=on", NULL };
+	for (int i = 0; bad[i]; i++) {
+		struct sky_state before = s;
+		char key[32];
+		snprintf(key, sizeof(key), "%.*s:", (int)strcspn(bad[i], "="), bad[i]);
+		err[0] = 0;
+		CHECK(state_set_pair(&s, bad[i], NULL, err, sizeof(err)) < 0);
+		if (strncmp(err, key, strlen(key)) != 0)
+			FAIL("%s: message '%s' does not start with %s", bad[i], err, key);
+		s = before;
+	}
+	CHECK(state_set_pair(&s, "delta_t_s=auto", NULL, err, sizeof(err)) == 0 && isnan(s.clock.delta_t_s));
+	CHECK(state_set_pair(&s, "night_illuminance_lx=1e-4", NULL, err, sizeof(err)) == 0);
+	CHECK(state_validate(&s, 0, err, sizeof(err)) < 0 && strstr(err, "night_illuminance_lx") == err);
+}
+
 int main(void)
 {
 	test_defaults_are_valid();
@@ -94,5 +139,6 @@ int main(void)
 	test_cross_key_rules();
 	test_invalidation();
 	test_roundtrip();
+	test_clock_keys();
 	return test_report("test_state");
 }

@@ -1,0 +1,213 @@
+/* drive.c - the clock's sun and moon, and the timer that moves them. */
+#include "drive.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "log.h"
+#include "loop.h"
+#include "simclock.h"
+#include "srv.h"
+
+#define LIGHTS (STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL))
+
+/* Ticks never come closer than this: beyond it the engine, not the clock,
+ * bounds how often the sky changes, and srv coalesces anyway. */
+#define DRIVE_MIN_TICK_S 0.01
+/* A clock that moves very slowly is still looked at this often. */
+#define DRIVE_MAX_TICK_S 60.0
+
+struct drive {
+	struct loop *loop;
+	struct srv *srv;
+	struct loop_timer *timer;
+	double ref_sun[3], ref_moon[3];	/* directions as last submitted */
+	int ref_moon_lit;
+	double ref_mono_s;		/* when they were submitted */
+	double armed_mono_s;		/* when the timer fires; -1 disarmed */
+	int warned;			/* astro refused the clock: logged once */
+	uint64_t ticks, changes;
+};
+
+void drive_site(const struct sky_state *s, struct astro_site *ret_site, struct astro_options *ret_opt)
+{
+	const struct state_clock *c = &s->clock;
+
+	*ret_site = (struct astro_site){ .lat_deg = c->lat_deg, .lon_deg = c->lon_deg,
+		.elevation_m = c->site_elevation_m };
+	astro_options_default(ret_opt);
+	ret_opt->delta_t_auto = isnan(c->delta_t_s);
+	ret_opt->delta_t_s = isnan(c->delta_t_s) ? 0.0 : c->delta_t_s;
+	ret_opt->pressure_mbar = c->pressure_mbar;
+	ret_opt->temperature_c = c->temperature_c;
+	ret_opt->horizon_refraction_deg = c->horizon_refraction_deg;
+}
+
+int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *err,
+		 size_t err_size)
+{
+	struct sky_state next = *s;
+	struct astro_site site;
+	struct astro_options opt;
+	double utc_s = state_clock_utc_s(s, mono_s);
+	int sun = s->clock.sun_mode == STATE_CLOCK, moon = s->clock.moon_mode == STATE_CLOCK;
+	int r;
+
+	next.lights_utc_s = NAN;
+	if ((sun || moon) && !isnan(utc_s)) {
+		drive_site(s, &site, &opt);
+		next.lights_utc_s = utc_s;
+	}
+	if (sun && !isnan(utc_s)) {
+		struct astro_sun a;
+		r = astro_sun(&site, utc_s, &opt, &a, err, err_size);
+		if (r < 0)
+			return r;
+		next.sun.elevation_deg = a.geometric.elevation_deg;
+		next.sun.azimuth_deg = a.geometric.azimuth_deg;
+		next.sun.illuminance_lx = a.illuminance_lx;
+		next.sun.angular_radius_deg = a.angular_radius_deg;
+	}
+	if (moon && !isnan(utc_s)) {
+		struct astro_moon m;
+		r = astro_moon(&site, utc_s, &opt, &m, err, err_size);
+		if (r < 0)
+			return r;
+		next.moon.elevation_deg = m.geometric.elevation_deg;
+		next.moon.azimuth_deg = m.geometric.azimuth_deg;
+		next.moon.angular_radius_deg = m.angular_radius_deg;
+		memcpy(next.moon.color, m.color, sizeof(m.color));
+		next.moon.illuminance_lx = m.geometric.elevation_deg > DRIVE_MOON_MIN_ELEVATION_DEG
+					   ? m.illuminance_lx : 0.0;
+	}
+	if (ret_dirty && (memcmp(&next.sun, &s->sun, sizeof(next.sun)) ||
+			  memcmp(&next.moon, &s->moon, sizeof(next.moon)) ||
+			  memcmp(&next.lights_utc_s, &s->lights_utc_s, sizeof(double))))
+		*ret_dirty |= LIGHTS;
+	*s = next;
+	return 0;
+}
+
+static double angle_deg(const double a[3], const double b[3])
+{
+	double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+	return acos(fmax(-1.0, fmin(1.0, d))) * 180.0 / M_PI;
+}
+
+static void take_reference(struct drive *d, const struct sky_state *s, double mono_s)
+{
+	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, d->ref_sun);
+	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, d->ref_moon);
+	d->ref_moon_lit = s->moon.illuminance_lx > 0.0;
+	d->ref_mono_s = mono_s;
+}
+
+/* Half the real time in which the fastest light could cover the threshold,
+ * so that no move overshoots it by more than half; within the cadence. */
+static void arm(struct drive *d, const struct sky_state *s, double mono_s)
+{
+	const struct state_clock *c = &s->clock;
+	double speed_deg_s = DRIVE_MAX_SPEED_DEG_PER_H / 3600.0 * fabs(c->rate);
+
+	d->armed_mono_s = -1.0;
+	if ((c->sun_mode != STATE_CLOCK && c->moon_mode != STATE_CLOCK) || isnan(c->anchor_utc_s) ||
+	    c->rate == 0.0) {
+		loop_timer_arm(d->timer, 0);
+		return;
+	}
+	double delay_s = 0.5 * c->threshold_deg / speed_deg_s;
+	if (c->cadence_s > 0.0)
+		delay_s = fmin(delay_s, fmax(c->cadence_s - (mono_s - d->ref_mono_s), 0.0));
+	delay_s = fmin(fmax(delay_s, DRIVE_MIN_TICK_S), DRIVE_MAX_TICK_S);
+	d->armed_mono_s = mono_s + delay_s;
+	loop_timer_arm(d->timer, (uint64_t)(delay_s * 1e9));
+}
+
+static void tick(void *ctx)
+{
+	struct drive *d = ctx;
+	const struct sky_state *cur = srv_state(d->srv);
+	struct sky_state next = *cur;
+	char err[256] = "";
+	uint32_t dirty = 0;
+	uint64_t generation;
+	double mono_s, sun[3], moon[3];
+
+	d->ticks++;
+	simclock_read_clocks(NULL, &mono_s);
+	if (drive_lights(&next, mono_s, &dirty, err, sizeof(err)) < 0) {
+		/* The clock ran out of astro's years: the lights stay put. */
+		if (!d->warned)
+			log_warning("clock: %s; the lights stay where they are", err);
+		d->warned = 1;
+		d->armed_mono_s = -1.0;
+		return;
+	}
+	d->warned = 0;
+	state_direction(next.sun.elevation_deg, next.sun.azimuth_deg, sun);
+	state_direction(next.moon.elevation_deg, next.moon.azimuth_deg, moon);
+	double moved = fmax(angle_deg(sun, d->ref_sun),
+			    next.moon.illuminance_lx > 0.0 ? angle_deg(moon, d->ref_moon) : 0.0);
+	int lit_changed = (next.moon.illuminance_lx > 0.0) != d->ref_moon_lit;
+	int due = next.clock.cadence_s > 0.0 && mono_s - d->ref_mono_s >= next.clock.cadence_s;
+	if (dirty && (moved >= next.clock.threshold_deg || lit_changed || due)) {
+		if (srv_change(d->srv, &next, dirty, &generation, err, sizeof(err)) < 0)
+			log_warning("clock: computation did not start: %s", err);
+		d->changes++;
+		take_reference(d, &next, mono_s);
+	}
+	arm(d, &next, mono_s);
+}
+
+void drive_changed(struct drive *d)
+{
+	double mono_s;
+
+	if (!d)
+		return;
+	simclock_read_clocks(NULL, &mono_s);
+	take_reference(d, srv_state(d->srv), mono_s);
+	d->warned = 0;
+	arm(d, srv_state(d->srv), mono_s);
+}
+
+void drive_stats(const struct drive *d, struct drive_stats *ret)
+{
+	double mono_s;
+
+	simclock_read_clocks(NULL, &mono_s);
+	ret->ticks = d->ticks;
+	ret->changes = d->changes;
+	ret->next_tick_s = d->armed_mono_s < 0.0 ? -1.0 : fmax(d->armed_mono_s - mono_s, 0.0);
+}
+
+int drive_new(struct loop *l, struct srv *srv, struct drive **ret)
+{
+	struct drive *d = calloc(1, sizeof(*d));
+	int r;
+
+	if (!d)
+		return -ENOMEM;
+	d->loop = l;
+	d->srv = srv;
+	d->armed_mono_s = -1.0;
+	r = loop_timer_add(l, tick, d, &d->timer);
+	if (r < 0) {
+		free(d);
+		return r;
+	}
+	drive_changed(d);
+	*ret = d;
+	return 0;
+}
+
+void drive_free(struct drive *d)
+{
+	if (!d)
+		return;
+	loop_timer_del(d->timer);
+	free(d);
+}

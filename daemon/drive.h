@@ -1,0 +1,64 @@
+/* drive.h - the simulation clock driving the sun and the moon: it turns the
+ * state's time and place into light directions, and a timer on the loop
+ * submits a change whenever a light moved past the threshold or the cadence
+ * elapsed.
+ *
+ * The tables are lit by the geometric (unrefracted) directions; astro's
+ * refracted ones are only reported (ctl's get sun / get moon). Changes go
+ * through srv_change like any request, so they coalesce with the rest:
+ * at most one computation in flight, only the newest state computed.
+ */
+#ifndef SKYD_DRIVE_H
+#define SKYD_DRIVE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "astro.h"
+#include "state.h"
+
+struct loop;
+struct srv;
+struct drive;
+
+/* The moon lights the tables while its geometric elevation is above this:
+ * lower down, its twilight (the sun's twilight scaled by the moon/sun
+ * illuminance ratio, about 2e-6) adds under 1 % of the night-sky floor. */
+#define DRIVE_MOON_MIN_ELEVATION_DEG (-5.0)
+
+/* Upper bound of how fast either light moves across the sky, in degrees
+ * of simulated time per hour: the earth turns 15.04 deg/h; the moon's
+ * own motion is slower and in the other direction. */
+#define DRIVE_MAX_SPEED_DEG_PER_H 15.1
+
+/* The astro inputs of s: its site and options. */
+void drive_site(const struct sky_state *s, struct astro_site *ret_site,
+		struct astro_options *ret_opt);
+
+/* Puts into s the lights whose mode is STATE_CLOCK as they are at monotonic
+ * time mono_s: sun direction, illuminance (133.8 klx / R^2) and angular
+ * radius; moon direction, angular radius, colour and illuminance (0 while
+ * it is below DRIVE_MOON_MIN_ELEVATION_DEG); lights_utc_s. Nothing when no
+ * light is clock-driven or no time is set (lights_utc_s becomes NAN).
+ * ret_dirty, if not NULL, gets the tables this invalidated ORed in.
+ * -EINVAL with err naming the key (utc, lat_deg, ...) when astro refuses
+ * the time or place; s is untouched then. Pure apart from its arguments. */
+int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *err,
+		 size_t err_size);
+
+/* Takes neither loop nor srv; both must outlive the drive. */
+int drive_new(struct loop *l, struct srv *srv, struct drive **ret);
+void drive_free(struct drive *d);
+
+/* The served state was changed by a request: the lights it holds are the
+ * new reference and the timer is re-armed for its clock. */
+void drive_changed(struct drive *d);
+
+struct drive_stats {
+	uint64_t ticks;			/* timer expirations */
+	uint64_t changes;		/* changes submitted to srv */
+	double next_tick_s;		/* real seconds to the next tick; -1 none armed */
+};
+void drive_stats(const struct drive *d, struct drive_stats *ret);
+
+#endif
