@@ -207,22 +207,40 @@ bool hits_ground(float h, float mu, out float ret_t)
 	return true;
 }
 
-// Bilinear, clamp to edge, on a W x H RGBA texel buffer.
-#define BILINEAR(T, W, H, uv, ret) do { \
-	vec2 p_ = clamp(uv, vec2(0.0), vec2(1.0)) * vec2(W, H) - 0.5; \
-	vec2 f_ = fract(p_); ivec2 i_ = ivec2(floor(p_)); \
-	int x0_ = clamp(i_.x, 0, W - 1), x1_ = clamp(i_.x + 1, 0, W - 1); \
-	int y0_ = clamp(i_.y, 0, H - 1), y1_ = clamp(i_.y + 1, 0, H - 1); \
-	vec4 a_ = texelFetch(T, y0_ * W + x0_), b_ = texelFetch(T, y0_ * W + x1_); \
-	vec4 c_ = texelFetch(T, y1_ * W + x0_), d_ = texelFetch(T, y1_ * W + x1_); \
-	ret = mix(mix(a_, b_, f_.x), mix(c_, d_, f_.x), f_.y); } while (false)
+// Bilinear lookups on W x H RGBA texel buffers. With the sub-texel mapping
+// of proto/skymap.h a unit coordinate x sits at texel position x (n - 1), so
+// an axis needs no edge clamp beyond the last texel.
+struct Axis {
+	int i0, i1;
+	float f;
+};
+
+Axis axis(float x, int n)
+{
+	Axis a;
+	float p = clamp(x, 0.0, 1.0) * float(n - 1), fl = floor(p);
+	a.i0 = int(fl);
+	a.i1 = min(a.i0 + 1, n - 1);
+	a.f = p - fl;
+	return a;
+}
+
+// The row axis is the caller's, shared between lookups at one altitude.
+vec4 bilinear(samplerBuffer tex, int w, float x, Axis rows)
+{
+	Axis c = axis(x, w);
+	int r0 = rows.i0 * w, r1 = rows.i1 * w;
+	vec4 a = mix(texelFetch(tex, r0 + c.i0), texelFetch(tex, r0 + c.i1), c.f);
+	vec4 b = mix(texelFetch(tex, r1 + c.i0), texelFetch(tex, r1 + c.i1), c.f);
+	return mix(a, b, rows.f);
+}
 
 // What the lookups at altitude h share between directions: the texel rows
 // of both tables, the horizon and the distances that bound the mapping.
 struct TAlt {
 	float h, r, mu_horizon;
-	float v;		// transmittance texel coordinate of the altitude
-	float ms_v;		// multi-scattering texel coordinate of the altitude
+	Axis t_rows;		// the altitude's rows in the transmittance table
+	Axis ms_rows;		// and in the multi-scattering table
 	float top_c;		// top^2 - r^2
 	float d_min, inv_range;	// x_mu = (d - d_min) * inv_range
 };
@@ -238,8 +256,8 @@ TAlt t_alt(float h)
 	// Below the ground (rounding at a ray's end) nothing is in the way, as
 	// in hits_ground().
 	a.mu_horizon = h < 0.0 ? -2.0 : -rho / a.r;
-	a.v = unit_to_tex(clamp(rho / H, 0.0, 1.0), T_H);
-	a.ms_v = unit_to_tex(clamp(h / shell, 0.0, 1.0), M_H);
+	a.t_rows = axis(rho / H, T_H);
+	a.ms_rows = axis(h / shell, M_H);
 	a.top_c = (shell - a.h) * (2.0 * rb + shell + a.h);
 	a.d_min = shell - a.h;
 	float d_max = rho + H;
@@ -255,10 +273,7 @@ vec3 transmittance_at(TAlt a, float mu)
 		return vec3(0.0);
 	mu = clamp(mu, -1.0, 1.0);
 	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
-	vec2 uv = vec2(unit_to_tex(clamp((d - a.d_min) * a.inv_range, 0.0, 1.0), T_W), a.v);
-	vec4 t;
-	BILINEAR(TransmittanceTex, T_W, T_H, uv, t);
-	return t.rgb;
+	return bilinear(TransmittanceTex, T_W, (d - a.d_min) * a.inv_range, a.t_rows).rgb;
 }
 
 vec3 transmittance_to_top(float h, float mu)
@@ -268,10 +283,7 @@ vec3 transmittance_to_top(float h, float mu)
 
 vec3 multiscatter_at(TAlt a, float mu_s)
 {
-	vec2 uv = vec2(unit_to_tex(clamp(0.5 + 0.5 * mu_s, 0.0, 1.0), M_W), a.ms_v);
-	vec4 v;
-	BILINEAR(MultiscatterTex, M_W, M_H, uv, v);
-	return v.rgb;
+	return bilinear(MultiscatterTex, M_W, 0.5 + 0.5 * mu_s, a.ms_rows).rgb;
 }
 
 // The phase of every constituent for one light: constant along a view ray
