@@ -71,6 +71,7 @@ struct ctl {
 	struct loop_io *listen_io;
 	struct loop_timer *accept_timer;
 	int accept_paused;
+	int accept_warned;		/* said so in the log; quiet until accepting again */
 	char path[sizeof(((struct sockaddr_un *)0)->sun_path)];
 	int created_socket;
 	struct client *clients;
@@ -83,7 +84,7 @@ struct ctl {
 struct reply {
 	char *buf;
 	size_t len, cap;
-	int fd;				/* sent with the reply, not owned */
+	int fd;				/* sent with the reply, owned */
 	int failed;
 };
 
@@ -136,25 +137,30 @@ static void reply_add(struct reply *r, const char *fmt, ...)
 static void client_update_events(struct client *c);
 static void client_drop(struct client *c, const char *why);
 
-/* Queues len bytes (and a dup of fd when >= 0). Returns 0, or -1 when the
- * client was dropped for exceeding its bound or for lack of memory. */
-static int client_queue(struct client *c, const char *data, size_t len, int fd)
+/* Queues len bytes and owned_fd (if >= 0), which it takes in all cases.
+ * Returns 0, or -1 when the client was dropped for exceeding its bound or
+ * for lack of memory. */
+static int client_queue_owned(struct client *c, const char *data, size_t len, int owned_fd)
 {
 	struct chunk *k;
 
 	if (c->out_bytes + len > CTL_OUT_MAX) {
+		if (owned_fd >= 0)
+			close(owned_fd);
 		client_drop(c, "output queue over its bound (the client does not read)");
 		return -1;
 	}
 	k = malloc(sizeof(*k) + len);
 	if (!k) {
+		if (owned_fd >= 0)
+			close(owned_fd);
 		client_drop(c, "out of memory");
 		return -1;
 	}
 	k->next = NULL;
 	k->len = len;
 	k->off = 0;
-	k->fd = fd >= 0 ? fcntl(fd, F_DUPFD_CLOEXEC, 3) : -1;
+	k->fd = owned_fd;
 	memcpy(k->data, data, len);
 	if (c->out_tail)
 		c->out_tail->next = k;
@@ -163,6 +169,25 @@ static int client_queue(struct client *c, const char *data, size_t len, int fd)
 	c->out_tail = k;
 	c->out_bytes += len;
 	return 0;
+}
+
+/* Queues len bytes and a dup of fd (if >= 0). A line that must carry an fd
+ * means nothing without it: when no fd is free the client is dropped (it
+ * reconnects) rather than sent the line alone. Returns 0 or -1 (dropped). */
+static int client_queue(struct client *c, const char *data, size_t len, int fd)
+{
+	int dup = -1;
+
+	if (fd >= 0) {
+		dup = fcntl(fd, F_DUPFD_CLOEXEC, 3);
+		if (dup < 0) {
+			char why[128];
+			snprintf(why, sizeof(why), "no fd to pass the shared memory: %s", strerror(errno));
+			client_drop(c, why);
+			return -1;
+		}
+	}
+	return client_queue_owned(c, data, len, dup);
 }
 
 static void chunk_free(struct chunk *k)
@@ -725,7 +750,7 @@ static int cmd_subscribe(struct client *c, const struct proto_request *req, stru
 			 char *msg, size_t msg_size)
 {
 	uint32_t tables = 0;
-	int events = -1;
+	int events = -1, fd = -1;
 
 	for (int i = 0; i < req->n_args; i++) {
 		const struct proto_arg *a = &req->args[i];
@@ -741,6 +766,13 @@ static int cmd_subscribe(struct client *c, const struct proto_request *req, stru
 		} else {
 			return ACK(SKY_ACK_NO_EXIST, "%s: unknown key (tables, events)", a->key);
 		}
+	}
+	if (tables) {
+		/* Taken before anything changes, so that a refusal changes nothing. */
+		fd = fcntl(pub_fd(srv_pub(c->ctl->srv)), F_DUPFD_CLOEXEC, 3);
+		if (fd < 0)
+			return ACK(SKY_ACK_LIMIT, "no file descriptor free to pass the shared memory (%s); try again",
+				   strerror(errno));
 	}
 	if (events >= 0)
 		c->sub_events = events;
@@ -765,7 +797,7 @@ static int cmd_subscribe(struct client *c, const struct proto_request *req, stru
 			  d->texel_bytes, (unsigned long long)d->offset,
 			  (unsigned long long)d->bytes);
 	}
-	r->fd = pub_fd(p);
+	r->fd = fd;
 	return 0;
 }
 
@@ -972,16 +1004,23 @@ static int handle_line(struct client *c, char *line)
 		return send_ack(c, SKY_ACK_SYNTAX, verb, msg);
 	}
 	code = e->fn(c, &req, &r, msg, sizeof(msg));
+	if (code != 0 && r.fd >= 0) {
+		close(r.fd);
+		r.fd = -1;
+	}
 	if (code < 0) {
 		ret = 0;	/* answers later (batch) */
 	} else if (code > 0) {
 		ret = send_ack(c, code, verb, msg);
 	} else {
 		reply_add(&r, "OK\n");
-		if (r.failed)
+		if (r.failed) {
+			if (r.fd >= 0)
+				close(r.fd);
 			ret = send_ack(c, SKY_ACK_LIMIT, verb, "out of memory");
-		else
-			ret = client_queue(c, r.buf, r.len, r.fd);
+		} else {
+			ret = client_queue_owned(c, r.buf, r.len, r.fd);
+		}
 	}
 	free(r.buf);
 	return ret;
@@ -1099,13 +1138,21 @@ static void accept_ready(void *ctx, uint32_t events)
 		if (fd < 0) {
 			if (errno == EMFILE || errno == ENFILE || errno == ENOBUFS || errno == ENOMEM) {
 				/* Out of fds: stop accepting until a client leaves or
-				 * 100 ms pass, instead of spinning on the ready socket. */
-				log_warning("accept: %s; pausing", strerror(errno));
+				 * 100 ms pass, instead of spinning on the ready socket.
+				 * Said once, not on every retry. */
+				if (!ctl->accept_warned)
+					log_warning("accept: %s; pausing until a client leaves (retrying every 100 ms)",
+						    strerror(errno));
+				ctl->accept_warned = 1;
 				ctl->accept_paused = 1;
 				loop_io_mod(ctl->listen_io, 0);
 				loop_timer_arm(ctl->accept_timer, 100000000u);
 			}
 			return;
+		}
+		if (ctl->accept_warned) {
+			log_info("accepting connections again");
+			ctl->accept_warned = 0;
 		}
 		if (ctl->n_clients >= CTL_MAX_CLIENTS) {
 			static const char line[] = "ACK [52] {} too many clients\n";
