@@ -144,8 +144,8 @@ static const char *vk_result_name(VkResult r)
 	do {                                                                         \
 		VkResult vk_r_ = (call);                                             \
 		if (vk_r_ != VK_SUCCESS) {                                           \
-			set_err(err, err_size, "%s failed: %s (%d) at %s:%d", #call, \
-				vk_result_name(vk_r_), (int)vk_r_, __FILE__, __LINE__);    \
+			set_err(err, err_size, "%s failed: %s (%d) at eng.c:%d", #call,   \
+				vk_result_name(vk_r_), (int)vk_r_, __LINE__);              \
 			rc = vk_r_ == VK_ERROR_OUT_OF_HOST_MEMORY ? -ENOMEM : -EIO;  \
 			goto fail;                                                   \
 		}                                                                    \
