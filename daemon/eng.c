@@ -884,8 +884,10 @@ static void groups(const struct sky_state *s, int t, uint32_t *x, uint32_t *y)
 	/* Multi-scattering and sky-view invocations compute several texels of a row. */
 	uint32_t g = t == STATE_MULTISCATTER ? MS_SUN_GROUP : t == STATE_SKYVIEW ? SV_AZ_GROUP : 1;
 	uint32_t w = (q->width + g - 1) / g;
-	*x = (w + 7) / 8;
-	*y = (q->height + 7) / 8;
+	/* Workgroups are 8 x 8, but 4 x 16 for sky-view (skyview.comp). */
+	uint32_t lx = 8, ly = 8;
+	*x = (w + lx - 1) / lx;
+	*y = (q->height + ly - 1) / ly;
 }
 
 int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err, size_t err_size)

@@ -41,9 +41,9 @@ void main()
 				Step st = sample_step(hs, ph_sun, ph_moon);
 				Medium m = st.m;
 				TAlt ta = t_alt(hs);
-				vec3 s = light_source(ta, up, P.sun_dir.xyz, P.sun_illum.rgb, st.phased_sun, m.scattering);
+				vec3 s = light_source(ta, dot(up, P.sun_dir.xyz), P.sun_illum.rgb, st.phased_sun, m.scattering);
 				if (MOON_LIT)
-					s += light_source(ta, up, P.moon_dir.xyz, P.moon_illum.rgb, st.phased_moon, m.scattering);
+					s += light_source(ta, dot(up, P.moon_dir.xyz), P.moon_illum.rgb, st.phased_moon, m.scattering);
 				vec3 step_t;
 				radiance += tr * s * step_weight(m.extinction, dt, step_t);
 				tr *= step_t;

@@ -362,9 +362,8 @@ vec3 phased(Scatter sc, Phases ph)
 
 // In-scattered radiance source at a point for one light: single scattering
 // through each constituent's phase plus Hillaire's isotropic higher orders.
-vec3 light_source(TAlt a, vec3 up, vec3 light_dir, vec3 illum, vec3 phased, vec3 sigma_s)
+vec3 light_source(TAlt a, float mu_l, vec3 illum, vec3 phased, vec3 sigma_s)
 {
-	float mu_l = dot(up, light_dir);
 	vec3 s = phased * transmittance_at(a, mu_l);
 	if (MULTISCATTER_ON)
 		s += sigma_s * multiscatter_at(a, mu_l);

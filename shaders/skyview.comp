@@ -34,12 +34,20 @@ void main()
 	float sin_z = sin(zenith), cos_z = cos(zenith);
 	vec3 dir[SV_AZ_GROUP], radiance[SV_AZ_GROUP];
 	Phases ph_sun[SV_AZ_GROUP], ph_moon[SV_AZ_GROUP];
+	// The lights' cosine to the local vertical at a step is
+	// up_h * dot(across, light.xy) + up_z * light.z, with across the column's
+	// horizontal unit vector: the dots are per column, up_h and up_z per step.
+	float sun_h[SV_AZ_GROUP], moon_h[SV_AZ_GROUP];
 	for (int j = 0; j < SV_AZ_GROUP; j++) {
 		float az = 2.0 * PI * (float(min(x0 + j, OUT_W - 1)) + 0.5) / float(OUT_W);
-		dir[j] = vec3(sin_z * sin(az), sin_z * cos(az), cos_z);
+		vec2 across = vec2(sin(az), cos(az));
+		dir[j] = vec3(sin_z * across, cos_z);
 		ph_sun[j] = ray_phases(dir[j], P.sun_dir.xyz);
-		if (MOON_LIT)
+		sun_h[j] = dot(across, P.sun_dir.xy);
+		if (MOON_LIT) {
 			ph_moon[j] = ray_phases(dir[j], P.moon_dir.xyz);
+			moon_h[j] = dot(across, P.moon_dir.xy);
+		}
 		radiance[j] = vec3(0.0);
 	}
 
@@ -58,17 +66,17 @@ void main()
 			prev = next;
 			float hs = altitude_along(h0, cos_z, t, rr);
 			// The local vertical: its horizontal part follows each column.
-			float up_h = t / rr, up_z = (r0 + cos_z * t) / rr;
+			float up_h = sin_z * t / rr, up_z = (r0 + cos_z * t) / rr;
+			float sun_z = up_z * P.sun_dir.z, moon_z = up_z * P.moon_dir.z;
 			Scatter sc;
 			Medium m = medium_parts(hs, sc);
 			TAlt ta = t_alt(hs);
 			vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
 			for (int j = 0; j < SV_AZ_GROUP; j++) {
-				vec3 up = vec3(dir[j].xy * up_h, up_z);
-				vec3 s = light_source(ta, up, P.sun_dir.xyz, P.sun_illum.rgb,
+				vec3 s = light_source(ta, up_h * sun_h[j] + sun_z, P.sun_illum.rgb,
 						      phased(sc, ph_sun[j]), m.scattering);
 				if (MOON_LIT)
-					s += light_source(ta, up, P.moon_dir.xyz, P.moon_illum.rgb,
+					s += light_source(ta, up_h * moon_h[j] + moon_z, P.moon_illum.rgb,
 							  phased(sc, ph_moon[j]), m.scattering);
 				radiance[j] += w * s;
 			}
