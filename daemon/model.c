@@ -68,9 +68,16 @@ static double phase(enum atmo_phase kind, double g, double mu)
 	return hg * 1.5 * (1.0 + mu * mu) / (2.0 + g * g);
 }
 
-static double sinhc(double x)
+/* Mean of exp(k h) over [ha, hb], exact for a linear change of altitude.
+ * Written as a difference of two exponentials of real altitudes, never as
+ * exp(k hm) sinh(x) / x: with a 0.1 km scale height over a 100 km step that
+ * product is 0 * inf = NaN. The series keeps the small-step limit exact. */
+static double mean_exp(double k, double ha, double hb)
 {
-	return fabs(x) < 1e-4 ? 1.0 + x * x / 6.0 : sinh(x) / x;
+	double x = 0.5 * k * (hb - ha);
+	if (fabs(x) < 1e-4)
+		return exp(0.5 * k * (ha + hb)) * (1.0 + x * x / 6.0);
+	return (exp(k * hb) - exp(k * ha)) / (2.0 * x);
 }
 
 /* Mean density over a step from ha to hb; see mean_density in common.glsl. */
@@ -78,8 +85,8 @@ static double mean_density(const struct atmo_profile *p, double ha, double hb)
 {
 	double hm = 0.5 * (ha + hb);
 	const struct atmo_layer *l = hm < p->layers[0].width_km ? &p->layers[0] : &p->layers[1];
-	double d = l->exp_term * exp(l->exp_scale_per_km * hm) * sinhc(0.5 * l->exp_scale_per_km * (hb - ha)) +
-		   l->linear_per_km * hm + l->constant;
+	double e = l->exp_term != 0.0 ? l->exp_term * mean_exp(l->exp_scale_per_km, ha, hb) : 0.0;
+	double d = e + l->linear_per_km * hm + l->constant;
 	return d < 0 ? 0 : d > 1 ? 1 : d;
 }
 

@@ -91,12 +91,16 @@ float density(int i, float h)
 			      : layer_density(vec4(0.0, c.layer0c_1.yzw), c.layer1c.x, h);
 }
 
-// sinh(x) / x, the exact mean of exp over a step whose exponent changes
-// linearly by 2x: it makes a step over an exponential layer exact.
-float sinhc(float x)
+// Mean of exp(k h) over [ha, hb], exact when the altitude changes linearly
+// over the step. A difference of two exponentials of real altitudes, never
+// exp(k hm) sinh(x) / x, which is 0 * inf = NaN for a 0.1 km scale height
+// over a 100 km step; the series keeps the short-step limit exact.
+float mean_exp(float k, float ha, float hb)
 {
-	float x2 = x * x;
-	return x2 < 1e-2 ? 1.0 + x2 * (1.0 / 6.0 + x2 / 120.0) : sinh(x) / x;
+	float x = 0.5 * k * (hb - ha);
+	if (abs(x) < 0.1)
+		return exp(0.5 * k * (ha + hb)) * (1.0 + x * x * (1.0 / 6.0 + x * x / 120.0));
+	return (exp(k * hb) - exp(k * ha)) / (2.0 * x);
 }
 
 // Mean density of constituent i over a step from altitude ha to hb, exact for
@@ -107,7 +111,7 @@ float mean_density(int i, float ha, float hb)
 	float hm = 0.5 * (ha + hb);
 	vec4 l = hm < c.layer0.x ? c.layer0 : vec4(0.0, c.layer0c_1.yzw);
 	float constant = hm < c.layer0.x ? c.layer0c_1.x : c.layer1c.x;
-	float e = l.y * exp(l.z * hm) * sinhc(0.5 * l.z * (hb - ha));
+	float e = l.y != 0.0 ? l.y * mean_exp(l.z, ha, hb) : 0.0;
 	return clamp(e + l.w * hm + constant, 0.0, 1.0);
 }
 
