@@ -27,7 +27,9 @@ void main()
 	// Each step integrates every layer exactly for a linear change of
 	// altitude (sinh(x) / x); a midpoint rule at 2.5 km steps would read a
 	// 1.2 km scale height 16 % thin.
-	float dt = d / float(STEPS), rr;
+	// At the top row h rounds above the shell and d_min below 0: a negative
+	// step would make exp(-tau dt) > 1.
+	float dt = max(d, 0.0) / float(STEPS), rr;
 	vec3 tau = vec3(0.0);
 	float ha = h;
 	for (int i = 0; i < STEPS; i++) {
