@@ -69,9 +69,16 @@ static double phase(enum atmo_phase kind, double g, double mu)
 	return hg * 1.5 * (1.0 + mu * mu) / (2.0 + g * g);
 }
 
-static double sinhc(double x)
+/* Mean of exp(k h) over [ha, hb], exact for a linear change of altitude.
+ * Written as a difference of two exponentials of real altitudes, never as
+ * exp(k hm) sinh(x) / x: with a 0.1 km scale height over a 100 km step that
+ * product is 0 * inf = NaN. The series keeps the small-step limit exact. */
+static double mean_exp(double k, double ha, double hb)
 {
-	return fabs(x) < 1e-4 ? 1.0 + x * x / 6.0 : sinh(x) / x;
+	double x = 0.5 * k * (hb - ha);
+	if (fabs(x) < 1e-4)
+		return exp(0.5 * k * (ha + hb)) * (1.0 + x * x / 6.0);
+	return (exp(k * hb) - exp(k * ha)) / (2.0 * x);
 }
 
 /* Mean density over a step from ha to hb; see mean_density in common.glsl. */
@@ -79,8 +86,8 @@ static double mean_density(const struct atmo_profile *p, double ha, double hb)
 {
 	double hm = 0.5 * (ha + hb);
 	const struct atmo_layer *l = hm < p->layers[0].width_km ? &p->layers[0] : &p->layers[1];
-	double d = l->exp_term * exp(l->exp_scale_per_km * hm) * sinhc(0.5 * l->exp_scale_per_km * (hb - ha)) +
-		   l->linear_per_km * hm + l->constant;
+	double e = l->exp_term != 0.0 ? l->exp_term * mean_exp(l->exp_scale_per_km, ha, hb) : 0.0;
+	double d = e + l->linear_per_km * hm + l->constant;
 	return d < 0 ? 0 : d > 1 ? 1 : d;
 }
 
@@ -216,6 +223,27 @@ static void put(double *dst, v3 rgb, double a)
 	dst[3] = a;
 }
 
+/* Optical depth from altitude h along mu to the top, the quadrature of the
+ * transmittance pass: steps of equal length, each layer integrated exactly
+ * for a linear change of altitude over the step. */
+static v3 optical_depth(const struct ctx *c, double h, double mu, uint32_t steps)
+{
+	double d = distance_to_top(c, h, mu), dt = d / steps, rr, ha = h;
+	v3 tau = { 0 };
+	for (uint32_t k = 0; k < steps; k++) {
+		double hb = altitude_along(c, h, mu, (k + 1) * dt, &rr);
+		for (int n = 0; n < c->a->n_constituents; n++) {
+			const struct atmo_constituent *a = &c->a->c[n];
+			tau = add(tau, scale(v(a->scattering_per_km[0] + a->absorption_per_km[0],
+					       a->scattering_per_km[1] + a->absorption_per_km[1],
+					       a->scattering_per_km[2] + a->absorption_per_km[2]),
+					     mean_density(&a->density, ha, hb)));
+		}
+		ha = hb;
+	}
+	return scale(tau, dt);
+}
+
 static void compute_transmittance(const struct ctx *c, const struct state_table_quality *q, double *out)
 {
 	for (uint32_t j = 0; j < q->height; j++)
@@ -223,21 +251,20 @@ static void compute_transmittance(const struct ctx *c, const struct state_table_
 			double h, mu;
 			skymap_transmittance_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						     q->width, q->height, &h, &mu);
-			double d = distance_to_top(c, h, mu), dt = d / q->steps, rr, ha = h;
-			v3 tau = { 0 };
-			for (uint32_t k = 0; k < q->steps; k++) {
-				double hb = altitude_along(c, h, mu, (k + 1) * dt, &rr);
-				for (int n = 0; n < c->a->n_constituents; n++) {
-					const struct atmo_constituent *a = &c->a->c[n];
-					tau = add(tau, scale(v(a->scattering_per_km[0] + a->absorption_per_km[0],
-							       a->scattering_per_km[1] + a->absorption_per_km[1],
-							       a->scattering_per_km[2] + a->absorption_per_km[2]),
-							     mean_density(&a->density, ha, hb)));
-				}
-				ha = hb;
-			}
-			put(out + 4 * (j * q->width + i), vexp_neg(scale(tau, dt)), 1.0);
+			put(out + 4 * (j * q->width + i), vexp_neg(optical_depth(c, h, mu, q->steps)), 1.0);
 		}
+}
+
+void model_optical_depth(const struct atmo *a, double altitude_km, double mu, uint32_t steps,
+			 double ret_tau[3])
+{
+	struct ctx c = { .a = a, .rb = a->bottom_radius_km, .rt = a->top_radius_km };
+	c.shell = c.rt - c.rb;
+	v3 tau = optical_depth(&c, skymap_clamp(altitude_km, 0, c.shell), skymap_clamp(mu, -1, 1),
+			       steps ? steps : 1);
+	ret_tau[0] = tau.x;
+	ret_tau[1] = tau.y;
+	ret_tau[2] = tau.z;
 }
 
 static v3 ms_direction(uint32_t k, uint32_t n)

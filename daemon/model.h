@@ -26,4 +26,10 @@ void model_tables_finish(struct model_tables *m);
  * "high step counts"); sky-view uses its maximum everywhere. */
 void model_refine(const struct sky_state *s, uint32_t factor, struct sky_state *ret);
 
+/* Optical depth per channel from altitude_km along cos-zenith mu to the top
+ * of the atmosphere, by the transmittance pass's quadrature with steps steps
+ * (the ground is not tested: the caller says whether the ray hits it). */
+void model_optical_depth(const struct atmo *a, double altitude_km, double mu, uint32_t steps,
+			 double ret_tau[3]);
+
 #endif

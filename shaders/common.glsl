@@ -105,13 +105,16 @@ float density(int i, float h)
 	return clamp(e + l.z * h + l.w, 0.0, 1.0);
 }
 
-// sinh(x) / x, the exact mean of exp over a step whose exponent changes
-// linearly by 2x: it makes a step over an exponential layer exact. One
-// exp(), not sinh()'s two.
-float sinhc(float x)
+// Mean of exp(k h) over [ha, hb], exact when the altitude changes linearly
+// over the step. A difference of two exponentials of real altitudes, never
+// exp(k hm) sinh(x) / x, which is 0 * inf = NaN for a 0.1 km scale height
+// over a 100 km step; the series keeps the short-step limit exact.
+float mean_exp(float k, float ha, float hb)
 {
-	float x2 = x * x, e = exp(x);
-	return x2 < 1e-2 ? 1.0 + x2 * (1.0 / 6.0 + x2 / 120.0) : 0.5 * (e - 1.0 / e) / x;
+	float x = 0.5 * k * (hb - ha);
+	if (abs(x) < 0.1)
+		return exp(0.5 * k * (ha + hb)) * (1.0 + x * x * (1.0 / 6.0 + x * x / 120.0));
+	return (exp(k * hb) - exp(k * ha)) / (2.0 * x);
 }
 
 // Mean density of constituent i over a step from altitude ha to hb, exact for
@@ -120,7 +123,7 @@ float mean_density(int i, float ha, float hb)
 {
 	float hm = 0.5 * (ha + hb);
 	vec4 l = layer_at(P.C[i], hm);
-	float e = (EXP_MASK & (1 << i)) != 0 ? l.x * exp(l.y * hm) * sinhc(0.5 * l.y * (hb - ha)) : 0.0;
+	float e = (EXP_MASK & (1 << i)) != 0 && l.x != 0.0 ? l.x * mean_exp(l.y, ha, hb) : 0.0;
 	return clamp(e + l.z * hm + l.w, 0.0, 1.0);
 }
 

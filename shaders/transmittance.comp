@@ -26,7 +26,7 @@ void main()
 	float mu = d <= 0.0 ? 1.0 : clamp((H * H - rho * rho - d * d) / (2.0 * r * d), -1.0, 1.0);
 
 	// Each step integrates every layer exactly for a linear change of
-	// altitude (sinh(x) / x); a midpoint rule at 2.5 km steps would read a
+	// altitude (mean_exp); a midpoint rule at 2.5 km steps would read a
 	// 1.2 km scale height 16 % thin.
 	// Loop invariants by hand: lavapipe's LLVM passes do not hoist them.
 	vec3 ext[4];
@@ -39,7 +39,9 @@ void main()
 		lay1[k] = vec4(c.layer0c_1.yzw, c.layer1c.x);
 		width[k] = c.layer0.x;
 	}
-	float dt = d / float(STEPS);
+	// At the top row h rounds above the shell and d_min below 0: a negative
+	// step would make exp(-tau dt) > 1.
+	float dt = max(d, 0.0) / float(STEPS);
 	float excess0 = rho2(h), two_r_mu = 2.0 * r * mu, rb2 = rb * rb;
 	vec3 tau = vec3(0.0);
 	float ha = h;
@@ -50,7 +52,7 @@ void main()
 		float hm = 0.5 * (ha + hb);
 		for (int k = 0; k < N_CONST; k++) {
 			vec4 l = hm < width[k] ? lay0[k] : lay1[k];
-			float e = (EXP_MASK & (1 << k)) != 0 ? l.x * exp(l.y * hm) * sinhc(0.5 * l.y * (hb - ha)) : 0.0;
+			float e = (EXP_MASK & (1 << k)) != 0 && l.x != 0.0 ? l.x * mean_exp(l.y, ha, hb) : 0.0;
 			tau += clamp(e + l.z * hm + l.w, 0.0, 1.0) * ext[k];
 		}
 		ha = hb;

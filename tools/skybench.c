@@ -6,6 +6,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench_stability.h"
 #include "eng.h"
 #include "state.h"
 
@@ -127,13 +128,17 @@ static int perf(int argc, char **argv)
 static void usage(FILE *f)
 {
 	fprintf(f, "usage: skybench perf [--runs N] [--device SEL] [key=value ...]\n"
-		   "  perf   times each table, sky-view + aerial perspective, and the whole set\n");
+		   "  perf   times each table, sky-view + aerial perspective, and the whole set\n"
+		   "       skybench stability --markdown FILE\n"
+		   "  stability  the stiff cases of PHYSICS.md: invariants and precision as markdown\n");
 }
 
 int main(int argc, char **argv)
 {
 	if (argc >= 2 && !strcmp(argv[1], "perf"))
 		return perf(argc - 2, argv + 2);
+	if (argc >= 2 && !strcmp(argv[1], "stability"))
+		return bench_stability(argc - 2, argv + 2);
 	usage(argc >= 2 && !strcmp(argv[1], "--help") ? stdout : stderr);
 	return argc >= 2 && !strcmp(argv[1], "--help") ? 0 : 2;
 }
