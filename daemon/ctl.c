@@ -58,6 +58,9 @@ struct client {
 
 	uint32_t sub_tables;		/* has the region, gets layout: lines */
 	int sub_events;			/* gets changed: and failed: lines */
+	uint32_t sample_tables;		/* demanded by its sample requests, until unsubscribe */
+	const char *line;		/* the request being handled, unparsed */
+	char *deferred;			/* a sample waiting for its table; input waits too */
 	struct batch *batch;
 };
 
@@ -131,6 +134,9 @@ static void reply_add(struct reply *r, const char *fmt, ...)
 
 static void client_update_events(struct client *c);
 static void client_drop(struct client *c, const char *why);
+static void update_demand(struct ctl *ctl);
+static int handle_line(struct client *c, char *line);
+static int process_input(struct client *c);
 
 /* Queues len bytes (and a dup of fd when >= 0). Returns 0, or -1 when the
  * client was dropped for exceeding its bound or for lack of memory. */
@@ -257,12 +263,51 @@ static void client_drop(struct client *c, const char *why)
 		c->next->prev = c->prev;
 	ctl->n_clients--;
 	free(c->batch);
+	free(c->deferred);
 	free(c);
+	update_demand(ctl);
 	/* A freed fd may be what accept was waiting for. */
 	if (ctl->accept_paused) {
 		ctl->accept_paused = 0;
 		loop_timer_arm(ctl->accept_timer, 0);
 		loop_io_mod(ctl->listen_io, EPOLLIN);
+	}
+}
+
+/* Demand ---------------------------------------------------------------- */
+
+/* The tables in use: what connections subscribed to and what they sampled.
+ * srv computes this and its dependencies, nothing else. */
+static void update_demand(struct ctl *ctl)
+{
+	uint32_t demand = 0;
+
+	for (struct client *k = ctl->clients; k; k = k->next)
+		demand |= k->sub_tables | k->sample_tables;
+	srv_set_demand(ctl->srv, demand);
+}
+
+static int send_ack(struct client *c, int code, const char *verb, const char *message);
+
+/* Answers the samples that waited for a table, after a publication (the
+ * table may be there now; if not, the request waits again) or a failure
+ * (ACK, the tables stay as they were). Then the input that queued. */
+static void resume_deferred(struct ctl *ctl, int failed)
+{
+	struct client *c, *next;
+
+	for (c = ctl->clients; c; c = next) {
+		next = c->next;
+		if (!c->deferred)
+			continue;
+		char *line = c->deferred;
+		c->deferred = NULL;
+		int r = failed ? send_ack(c, SKY_ACK_ENGINE, "sample",
+					  "the computation of the table failed; see status")
+			       : handle_line(c, line);
+		free(line);
+		if (r == 0 && !c->deferred)
+			process_input(c);
 	}
 }
 
@@ -307,6 +352,7 @@ void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_regi
 		if (c->out_head)
 			client_flush(c);
 	}
+	resume_deferred(ctl, 0);
 }
 
 void ctl_failed(void *ctx, uint64_t generation, const char *message)
@@ -325,6 +371,7 @@ void ctl_failed(void *ctx, uint64_t generation, const char *message)
 		if (c->sub_events && client_queue(c, line, (size_t)n, -1) == 0)
 			client_flush(c);
 	}
+	resume_deferred(ctl, 1);
 }
 
 /* Verbs ----------------------------------------------------------------- */
@@ -490,6 +537,12 @@ static int cmd_status(struct client *c, const struct proto_request *req, struct 
 	reply_add(r, "tables_computed: %s\n", names);
 	format_tables(st.published_valid, names, sizeof(names));
 	reply_add(r, "tables_valid: %s\n", names);
+	format_tables(st.published_computed, names, sizeof(names));
+	reply_add(r, "last_computed: %s\n", names);
+	format_tables(st.demand, names, sizeof(names));
+	reply_add(r, "demand: %s\n", names);
+	format_tables(st.needed, names, sizeof(names));
+	reply_add(r, "tables_needed: %s\n", names);
 	reply_add(r, "compute_ms: %.3f\n", st.last_total_ms);
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		reply_add(r, "%s_ms: %.3f\n", state_table_names[t], st.table_ms[t]);
@@ -536,6 +589,7 @@ static int cmd_subscribe(struct client *c, const struct proto_request *req, stru
 		return 0;
 	}
 	c->sub_tables = tables;
+	update_demand(c->ctl);
 	struct pub *p = srv_pub(c->ctl->srv);
 	const struct sky_shm_header *h = pub_header(p);
 	reply_add(r, "generation: %llu\n", (unsigned long long)h->generation);
@@ -561,6 +615,8 @@ static int cmd_unsubscribe(struct client *c, const struct proto_request *req, st
 {
 	c->sub_tables = 0;
 	c->sub_events = 0;
+	c->sample_tables = 0;
+	update_demand(c->ctl);
 	return 0;
 }
 
@@ -588,6 +644,20 @@ static void reply_rgb(struct reply *r, const char *key_rgb, const char *key_y, c
 	double y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
 
 	reply_add(r, "%s: %.9g,%.9g,%.9g\n%s: %.9g\n", key_rgb, rgb[0], rgb[1], rgb[2], key_y, y);
+}
+
+/* The table a sample reads is not in the current slot: the connection now
+ * demands it and the request (and the connection's input after it) waits
+ * for the generation that brings it (PROTOCOL.md, "Demand"). */
+static int sample_wait(struct client *c, uint32_t id, char *msg, size_t msg_size)
+{
+	update_demand(c->ctl);
+	if (!(srv_tables_coming(c->ctl->srv) & (1u << id)))
+		return ACK(SKY_ACK_STATE, "no %s table published yet", state_table_names[id]);
+	c->deferred = strdup(c->line);
+	if (!c->deferred)
+		return ACK(SKY_ACK_LIMIT, "out of memory");
+	return -1;
 }
 
 /* Samples the current slot exactly as a client would (skysample.h). The
@@ -629,8 +699,10 @@ static int cmd_sample(struct client *c, const struct proto_request *req, struct 
 			return ACK(SKY_ACK_RANGE, "el_deg: %g is outside [-90, 90]", el);
 		if (az < -360 || az > 720)
 			return ACK(SKY_ACK_RANGE, "az_deg: %g is outside [-360, 720]", az);
-		if (!(slot->valid_tables & (1u << id)) ||
-		    skysample_table_from_slot(h, base, id, &t) < 0)
+		c->sample_tables |= 1u << id;
+		if (!(slot->valid_tables & (1u << id)))
+			return sample_wait(c, id, msg, msg_size);
+		if (skysample_table_from_slot(h, base, id, &t) < 0)
 			return ACK(SKY_ACK_STATE, "no sky-view table published yet");
 		skysample_sky(&t, &slot->state, el * SKYMAP_PI / 180.0, az * SKYMAP_PI / 180.0, rgb);
 		reply_add(r, "generation: %llu\n", (unsigned long long)slot->generation);
@@ -639,7 +711,10 @@ static int cmd_sample(struct client *c, const struct proto_request *req, struct 
 	}
 	if (req->n_args > 1)
 		return ACK(SKY_ACK_SYNTAX, "sample %s takes no arguments", what);
-	if (!(slot->valid_tables & (1u << id)) || skysample_table_from_slot(h, base, id, &t) < 0)
+	c->sample_tables |= 1u << id;
+	if (!(slot->valid_tables & (1u << id)))
+		return sample_wait(c, id, msg, msg_size);
+	if (skysample_table_from_slot(h, base, id, &t) < 0)
 		return ACK(SKY_ACK_STATE, "no %s table published yet", state_table_names[id]);
 	if (id == SKY_TABLE_TRANSMITTANCE)
 		skysample_sun(&t, &slot->state, rgb);
@@ -743,6 +818,9 @@ static int handle_line(struct client *c, char *line)
 			return 0;
 		}
 	}
+	char raw[SKY_PROTO_LINE_MAX];
+	snprintf(raw, sizeof(raw), "%s", line);
+	c->line = raw;
 	int pr = proto_parse_request(line, &req, msg, sizeof(msg));
 	if (pr == -ENODATA)
 		return 0;
@@ -757,8 +835,9 @@ static int handle_line(struct client *c, char *line)
 		return send_ack(c, SKY_ACK_SYNTAX, verb, msg);
 	}
 	code = e->fn(c, &req, &r, msg, sizeof(msg));
+	c->line = NULL;
 	if (code < 0) {
-		ret = 0;	/* answers later (batch) */
+		ret = 0;	/* answers later (batch, a sample waiting for its table) */
 	} else if (code > 0) {
 		ret = send_ack(c, code, verb, msg);
 	} else {
@@ -778,7 +857,7 @@ static int process_input(struct client *c)
 {
 	size_t start = 0;
 
-	while (!c->closing && c->out_bytes < CTL_OUT_HIGH) {
+	while (!c->closing && !c->deferred && c->out_bytes < CTL_OUT_HIGH) {
 		char *nl = memchr(c->in + start, '\n', c->in_len - start);
 		char *line = c->in + start;
 		if (nl) {
@@ -814,7 +893,7 @@ static int process_input(struct client *c)
 			}
 		}
 	}
-	if (c->eof && c->in_len == 0)
+	if (c->eof && c->in_len == 0 && !c->deferred)
 		c->closing = 1;
 	return client_flush(c);
 }

@@ -70,6 +70,7 @@ struct eng {
 	VkShaderModule modules[STATE_N_TABLES];
 	struct pipeline pipes[STATE_N_TABLES][MAX_PIPELINES];
 	int n_pipes[STATE_N_TABLES];
+	uint64_t pipelines_created;
 	VkCommandPool cmd_pool;
 	VkCommandBuffer cmd;
 	VkQueryPool queries;
@@ -624,6 +625,11 @@ uint64_t eng_max_table_bytes(const struct eng *e)
 	return e->limits.maxStorageBufferRange;
 }
 
+uint64_t eng_pipelines_created(const struct eng *e)
+{
+	return e->pipelines_created;
+}
+
 int eng_event_fd(const struct eng *e)
 {
 	return e->event_fd;
@@ -709,8 +715,11 @@ static void fill_params(const struct sky_state *s, struct gpu_params *p, struct 
 	base->v[9] = (int32_t)s->quality.t[STATE_TRANSMITTANCE].height;
 	base->v[10] = (int32_t)s->quality.t[STATE_MULTISCATTER].width;
 	base->v[11] = (int32_t)s->quality.t[STATE_MULTISCATTER].height;
-	base->v[16] = (int32_t)s->quality.multiscatter_dirs;
-	base->v[17] = 1;
+	/* multiscatter_dirs=0 switches the higher orders off: sky-view and
+	 * aerial perspective drop the term, and the multi-scattering table, if
+	 * asked for at all, is computed with the cheapest quadrature. */
+	base->v[16] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
+	base->v[17] = s->quality.multiscatter_dirs != 0;
 }
 
 /* The constants one pass is specialized on: the others are zeroed so that a
@@ -732,7 +741,9 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 	if (t != STATE_MULTISCATTER)
 		k.v[16] = 0;
 	if (t == STATE_MULTISCATTER)
-		k.v[6] = 0;
+		k.v[6] = k.v[17] = 0;	/* the table is the term itself */
+	if (t == STATE_TRANSMITTANCE)
+		k.v[17] = 0;
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
 		k.v[7] = 0;	/* the ground enters through the multiscatter table */
 	return k;
@@ -766,6 +777,7 @@ static int get_pipeline(struct eng *e, int t, const struct spec *key, VkPipeline
 		.layout = e->pipe_layout };
 	VkPipeline p;
 	VK_TRY(e->vk.vkCreateComputePipelines(e->dev, VK_NULL_HANDLE, 1, &ci, NULL, &p));
+	e->pipelines_created++;
 	e->pipes[t][e->n_pipes[t]].key = *key;
 	e->pipes[t][e->n_pipes[t]].pipe = p;
 	e->n_pipes[t]++;
@@ -856,12 +868,10 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 	rc = ensure_tables(e, s, &lost, err, err_size);
 	if (rc < 0)
 		return rc;
-	/* Tables that lost their contents are recomputed with their dependents. */
-	mask |= lost;
-	if (mask & STATE_BIT(STATE_TRANSMITTANCE))
-		mask |= STATE_ALL_TABLES;
-	if (mask & STATE_BIT(STATE_MULTISCATTER))
-		mask |= STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
+	/* Exactly mask: a table the caller did not ask for is neither computed
+	 * nor forced, so demand decides the cost. Only a dependency of mask
+	 * whose buffer was reallocated must come along. */
+	mask |= lost & state_closure(mask);
 
 	fill_params(s, &params, &base);
 	VkPipeline pipes[STATE_N_TABLES] = { 0 };

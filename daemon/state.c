@@ -68,7 +68,7 @@ static const struct key keys[] = {
 	{ "multiscatter_width", K_UINT, QT(1, width), FROM_M, 2, 1024, 0 },
 	{ "multiscatter_height", K_UINT, QT(1, height), FROM_M, 2, 1024, 0 },
 	{ "multiscatter_steps", K_UINT, QT(1, steps), FROM_M, 1, 4096, 0 },
-	{ "multiscatter_dirs", K_UINT, OFF(quality.multiscatter_dirs), FROM_M, 2, 64, 0 },
+	{ "multiscatter_dirs", K_UINT, OFF(quality.multiscatter_dirs), FROM_M, 0, 64, 0 },
 	{ "skyview_width", K_UINT, QT(2, width), S_BIT, 2, 4096, 0 },
 	{ "skyview_height", K_UINT, QT(2, height), S_BIT, 2, 4096, 0 },
 	{ "skyview_steps", K_UINT, QT(2, steps), S_BIT, 1, 4096, 0 },
@@ -232,8 +232,8 @@ static int set_key(struct sky_state *s, const struct key *k, const char *v,
 			return ERR("%s: '%s' is not a whole number", k->name, v);
 		if (u < k->min || u > k->max)
 			return ERR("%s: %llu is outside [%g, %g]", k->name, u, k->min, k->max);
-		if (strcmp(k->name, "multiscatter_dirs") == 0 && u != 2 && u != 64)
-			return ERR("multiscatter_dirs: must be 2 or 64");
+		if (strcmp(k->name, "multiscatter_dirs") == 0 && u != 0 && u != 2 && u != 64)
+			return ERR("multiscatter_dirs: must be 0 (off), 2 or 64");
 		*(uint32_t *)base = (uint32_t)u;
 		return 0;
 	}

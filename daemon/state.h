@@ -51,7 +51,7 @@ struct state_table_quality {
 
 struct state_quality {
 	struct state_table_quality t[STATE_N_TABLES];
-	uint32_t multiscatter_dirs;	/* 2 (up and down) or 64 */
+	uint32_t multiscatter_dirs;	/* 2 (up and down) or 64; 0 switches multi-scattering off */
 	uint32_t skyview_min_steps;
 	double aerial_range_km;
 	enum state_spacing aerial_spacing;

@@ -1,0 +1,268 @@
+/* test_demand.c - skyd computes exactly the tables its clients use: per kind
+ * of scene, the set `status` reports as computed is the expected one and the
+ * published tables are bit-identical to a full recompute of the same state. */
+#include <math.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+
+#include "daemon_harness.h"
+#include "eng.h"
+#include "skyproto.h"
+#include "state.h"
+#include "test.h"
+
+static char reply[1 << 16];
+static struct eng *ref_eng;		/* the full recompute, in this process */
+static struct sky_state mirror;		/* the daemon's state as the test set it */
+static const char *const small[] = { HARNESS_SMALL, NULL };
+
+static void mirror_set(const char *pairs)
+{
+	char buf[512], err[256], *save = NULL;
+
+	snprintf(buf, sizeof(buf), "%s", pairs);
+	for (char *p = strtok_r(buf, " ", &save); p; p = strtok_r(NULL, " ", &save))
+		if (state_set_pair(&mirror, p, NULL, err, sizeof(err)) < 0)
+			FAIL("mirror %s: %s", p, err);
+}
+
+static const char *status_value(struct conn *c, const char *key)
+{
+	static char buf[256];
+
+	if (conn_request(c, "status", reply, sizeof(reply)) != 0 ||
+	    !reply_value(reply, key, buf, sizeof(buf)))
+		return "?";
+	return buf;
+}
+
+/* Sends "set PAIRS", waits for the generation it names, returns it. */
+static uint64_t change(struct conn *c, const char *pairs)
+{
+	char req[600];
+
+	snprintf(req, sizeof(req), "set %s", pairs);
+	if (conn_request(c, req, reply, sizeof(reply)) != 0) {
+		FAIL("%s: %s", req, reply);
+		return 0;
+	}
+	mirror_set(pairs);
+	uint64_t g = reply_u64(reply, "generation");
+	CHECK(conn_wait_generation(c, g) == 0);
+	return g;
+}
+
+/* Waits until status shows generation >= g with nothing in flight. */
+static void settle(struct conn *c, uint64_t g)
+{
+	CHECK(conn_wait_generation(c, g) == 0);
+	for (;;) {
+		if (conn_request(c, "status", reply, sizeof(reply)) != 0)
+			return;
+		if (reply_u64(reply, "computing") == 0 && reply_u64(reply, "pending") == 0)
+			return;
+		/* A computation is in flight: its changed: line ends it. */
+		CHECK(conn_wait_generation(c, c->event_generation + 1) == 0);
+	}
+}
+
+/* The current slot's valid tables are bit-identical to a full recompute of
+ * the mirrored state, and its valid set is expect. */
+static void check_slot(const uint8_t *map, uint32_t expect, const char *what)
+{
+	const struct sky_shm_header *h = (const void *)map;
+	uint32_t cur = __atomic_load_n(&h->current_slot, __ATOMIC_ACQUIRE);
+	const uint8_t *base = map + h->header_bytes + (uint64_t)cur * h->slot_bytes;
+	const struct sky_shm_slot *slot = (const void *)base;
+	struct eng_timing t;
+	char err[256];
+
+	if (slot->valid_tables != expect)
+		FAIL("%s: valid tables 0x%x, expected 0x%x", what, slot->valid_tables, expect);
+	if (eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
+		FAIL("reference: %s", err);
+		return;
+	}
+	for (int i = 0; i < STATE_N_TABLES; i++) {
+		if (!(slot->valid_tables & STATE_BIT(i)))
+			continue;
+		size_t bytes;
+		const void *ref = eng_table(ref_eng, (enum state_table)i, &bytes);
+		if (bytes != h->tables[i].bytes || memcmp(ref, base + h->tables[i].offset, bytes))
+			FAIL("%s: %s differs from a full recompute", what, state_table_names[i]);
+	}
+}
+
+/* Closes c with the close verb and waits for the daemon's end of the
+ * stream: skyd has dropped the client (and its demand) by then. */
+static void hang_up(struct conn *c)
+{
+	char line[1024];
+
+	CHECK(conn_request(c, "close", reply, sizeof(reply)) == 0);
+	while (conn_line(c, line, sizeof(line)) >= 0)
+		;
+	conn_close(c);
+}
+
+#define EXPECT(c, key, value)                                                          \
+	do {                                                                           \
+		const char *v_ = status_value(c, key);                                 \
+		if (strcmp(v_, value))                                                 \
+			FAIL("%s: %s is '%s', expected '%s'", __func__, key, v_, value); \
+	} while (0)
+
+#define T STATE_BIT(STATE_TRANSMITTANCE)
+#define M STATE_BIT(STATE_MULTISCATTER)
+#define S STATE_BIT(STATE_SKYVIEW)
+#define A STATE_BIT(STATE_AERIAL)
+
+int main(void)
+{
+	struct daemon d = { 0 };
+	struct conn ctl, sub, sub2, sampler;
+	char err[256];
+	const uint8_t *map = NULL;
+	struct stat st;
+
+	harness_need_device();
+	if (eng_new(NULL, err, sizeof(err), &ref_eng) < 0) {
+		printf("skipped: %s\n", err);
+		return 77;
+	}
+	state_default(&mirror);
+	for (int i = 0; small[i]; i++)
+		mirror_set(small[i]);
+	if (daemon_start(&d, small) < 0 || conn_open(&ctl, d.sock) < 0) {
+		FAIL("skyd did not start");
+		return test_report("test_demand");
+	}
+	CHECK(conn_request(&ctl, "subscribe events=1", reply, sizeof(reply)) == 0);
+
+	/* No subscriber: the start and a change compute nothing. */
+	EXPECT(&ctl, "last_computed", "none");
+	EXPECT(&ctl, "tables_valid", "none");
+	EXPECT(&ctl, "computations", "0");
+	change(&ctl, "sun_elevation_deg=20");
+	EXPECT(&ctl, "last_computed", "none");
+	EXPECT(&ctl, "tables_needed", "none");
+	EXPECT(&ctl, "computations", "0");
+
+	/* Transmittance only (a view from space): that table alone. */
+	CHECK(conn_open(&sub, d.sock) == 0);
+	CHECK(conn_request(&sub, "subscribe tables=transmittance", reply, sizeof(reply)) == 0);
+	CHECK(sub.n_fds == 1);
+	if (sub.n_fds == 1 && fstat(sub.fds[0], &st) == 0) {
+		map = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_SHARED, sub.fds[0], 0);
+		if (map == MAP_FAILED)
+			map = NULL;
+	}
+	if (!map) {
+		FAIL("no region");
+		goto out;
+	}
+	settle(&ctl, ctl.event_generation + 1);
+	EXPECT(&ctl, "last_computed", "transmittance");
+	EXPECT(&ctl, "tables_needed", "transmittance");
+	check_slot(map, T, "transmittance only");
+
+	/* A time-of-day change leaves transmittance as it was: carried, not
+	 * recomputed. */
+	change(&ctl, "sun_elevation_deg=12 sun_azimuth_deg=200");
+	EXPECT(&ctl, "last_computed", "none");
+	check_slot(map, T, "time of day, transmittance only");
+
+	/* A sky-view dome: the missing dependencies and sky-view. */
+	CHECK(conn_request(&sub, "subscribe tables=skyview", reply, sizeof(reply)) == 0);
+	settle(&ctl, ctl.event_generation + 1);
+	EXPECT(&ctl, "last_computed", "multiscatter,skyview");
+	EXPECT(&ctl, "tables_needed", "transmittance,multiscatter,skyview");
+	check_slot(map, T | M | S, "sky-view dome");
+
+	/* Time of day with sky-view in use: sky-view alone. */
+	change(&ctl, "sun_elevation_deg=5");
+	EXPECT(&ctl, "last_computed", "skyview");
+	check_slot(map, T | M | S, "time of day, sky-view");
+	/* Moon and observer position are the same kind of change. */
+	change(&ctl, "moon_illuminance_lx=0.3 moon_elevation_deg=40");
+	EXPECT(&ctl, "last_computed", "skyview");
+	change(&ctl, "altitude_km=1.5");
+	EXPECT(&ctl, "last_computed", "skyview");
+	check_slot(map, T | M | S, "observer position");
+
+	/* A camera change with no aerial perspective in use: nothing. */
+	change(&ctl, "camera_yaw_deg=90");
+	EXPECT(&ctl, "last_computed", "none");
+	check_slot(map, T | M | S, "camera, no aerial");
+
+	/* A second client asks for aerial perspective: it alone. */
+	CHECK(conn_open(&sub2, d.sock) == 0);
+	CHECK(conn_request(&sub2, "subscribe tables=aerial", reply, sizeof(reply)) == 0);
+	settle(&ctl, ctl.event_generation + 1);
+	EXPECT(&ctl, "last_computed", "aerial");
+	check_slot(map, T | M | S | A, "aerial added");
+
+	/* Camera: aerial only. Time of day: sky-view and aerial. */
+	change(&ctl, "camera_pitch_deg=10 camera_vfov_deg=40");
+	EXPECT(&ctl, "last_computed", "aerial");
+	check_slot(map, T | M | S | A, "camera");
+	change(&ctl, "sun_elevation_deg=25");
+	EXPECT(&ctl, "last_computed", "skyview,aerial");
+	check_slot(map, T | M | S | A, "time of day, full scene");
+
+	/* Weather and atmosphere: everything. */
+	change(&ctl, "mie_scattering_per_km=0.008");
+	EXPECT(&ctl, "last_computed", "transmittance,multiscatter,skyview,aerial");
+	check_slot(map, T | M | S | A, "weather");
+
+	/* A change that leaves every table as it was: no new generation. */
+	CHECK(conn_request(&ctl, "status", reply, sizeof(reply)) == 0);
+	uint64_t gen = reply_u64(reply, "generation"), n = reply_u64(reply, "computations");
+	CHECK(conn_request(&ctl, "set sun_elevation_deg=25 camera_pitch_deg=10", reply, sizeof(reply)) == 0);
+	CHECK(reply_u64(reply, "generation") == gen);
+	CHECK(conn_request(&ctl, "status", reply, sizeof(reply)) == 0);
+	CHECK(reply_u64(reply, "generation") == gen && reply_u64(reply, "computations") == n);
+
+	/* Multi-scattering switched off: sky-view and aerial perspective no
+	 * longer need its table, so it is not computed and leaves the slot. */
+	change(&ctl, "multiscatter_dirs=0");
+	EXPECT(&ctl, "last_computed", "skyview,aerial");
+	EXPECT(&ctl, "tables_needed", "transmittance,skyview,aerial");
+	check_slot(map, T | S | A, "multi-scattering off");
+	change(&ctl, "multiscatter_dirs=2");
+	EXPECT(&ctl, "last_computed", "multiscatter,skyview,aerial");
+	check_slot(map, T | M | S | A, "multi-scattering on");
+
+	/* The aerial client leaves: its table is no longer computed. */
+	hang_up(&sub2);
+	EXPECT(&ctl, "demand", "skyview");
+	change(&ctl, "camera_roll_deg=5 sun_elevation_deg=35");
+	EXPECT(&ctl, "last_computed", "skyview");
+	check_slot(map, T | M | S, "aerial client gone");
+
+	/* A sample of a table nobody computes: it becomes this connection's
+	 * demand and the reply comes with the generation that has it. */
+	CHECK(conn_request(&sub, "unsubscribe", reply, sizeof(reply)) == 0);
+	change(&ctl, "sun_elevation_deg=45");
+	EXPECT(&ctl, "last_computed", "none");
+	CHECK(conn_open(&sampler, d.sock) == 0);
+	CHECK(conn_request(&sampler, "sample sky el_deg=20 az_deg=90", reply, sizeof(reply)) == 0);
+	CHECK(strstr(reply, "luminance_cd_m2: ") != NULL);
+	EXPECT(&ctl, "demand", "skyview");
+	EXPECT(&ctl, "last_computed", "skyview");
+	check_slot(map, T | M | S, "sampled sky-view");
+	/* The sampler's demand lasts while it is connected. */
+	change(&ctl, "sun_elevation_deg=50");
+	EXPECT(&ctl, "last_computed", "skyview");
+	CHECK(conn_request(&sampler, "sample sun", reply, sizeof(reply)) == 0);
+	CHECK(strstr(reply, "illuminance_lx: ") != NULL);
+	hang_up(&sampler);
+	EXPECT(&ctl, "demand", "none");
+
+out:
+	conn_close(&sub);
+	conn_close(&ctl);
+	daemon_cleanup(&d);
+	eng_free(ref_eng);
+	return test_report("test_demand");
+}
