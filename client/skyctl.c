@@ -464,6 +464,8 @@ static const struct cmd cmds[] = {
 	{ "batch", "batch < lines            apply stdin's key=value lines as one change", cmd_batch },
 	{ "subscribe", "subscribe tables=...     subscribe and print the layout", NULL },
 	{ "sample", "sample sky el_deg=E az_deg=A | sample sun | sample ambient", NULL },
+	{ "view", "view list                the camera views (view add|del work too, but a view\n"
+		  "                         lasts only while the connection that added it is open)", NULL },
 	{ "ping", "ping                     check that skyd answers", NULL },
 	{ "commands", "commands                 list the daemon's verbs", NULL },
 	{ "help", "help VERB                the daemon's help for a verb", cmd_help },

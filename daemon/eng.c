@@ -22,6 +22,8 @@
 
 #define MAX_PIPELINES 32	/* cached variants per pass */
 #define N_SPEC 18
+/* The state's camera and STATE_MAX_VIEWS views, 3 vec4 each. */
+#define VIEW_BUFFER_BYTES ((1 + STATE_MAX_VIEWS) * 3 * 4 * sizeof(float))
 
 /* The uniform block of shaders/common.glsl, std140: vec4s only. */
 struct gpu_constituent {
@@ -77,6 +79,7 @@ struct eng {
 	VkFence fence;
 
 	struct gpu_buffer params;
+	struct gpu_buffer views;			/* 3 vec4 per aerial volume */
 	struct gpu_buffer table[STATE_N_TABLES];	/* device memory */
 	struct gpu_buffer readback[STATE_N_TABLES];	/* host memory */
 	size_t table_bytes[STATE_N_TABLES];
@@ -485,20 +488,20 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 #undef LOAD_DEVICE
 	e->vk.vkGetDeviceQueue(e->dev, e->queue_family, 0, &e->queue);
 
-	VkDescriptorSetLayoutBinding b[5];
-	for (int i = 0; i < 5; i++)
+	VkDescriptorSetLayoutBinding b[6];
+	for (int i = 0; i < 6; i++)
 		b[i] = (VkDescriptorSetLayoutBinding){ .binding = (uint32_t)i,
 			.descriptorType = i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER
 						 : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
 			.descriptorCount = 1, .stageFlags = VK_SHADER_STAGE_COMPUTE_BIT };
 	VkDescriptorSetLayoutCreateInfo li = { .sType =
-		VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO, .bindingCount = 5, .pBindings = b };
+		VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO, .bindingCount = 6, .pBindings = b };
 	VK_TRY(e->vk.vkCreateDescriptorSetLayout(e->dev, &li, NULL, &e->set_layout));
 	VkPipelineLayoutCreateInfo pli = { .sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[2] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
-		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 4 } };
+		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 5 } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 2, .pPoolSizes = ps };
 	VK_TRY(e->vk.vkCreateDescriptorPool(e->dev, &dpi, NULL, &e->desc_pool));
@@ -529,6 +532,10 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	rc = buffer_new(e, sizeof(struct gpu_params), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
 			VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT, 0,
 			&e->params, err, err_size);
+	if (rc == 0)
+		rc = buffer_new(e, VIEW_BUFFER_BYTES, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+				VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT,
+				0, &e->views, err, err_size);
 fail:
 	return rc;
 }
@@ -590,6 +597,7 @@ void eng_free(struct eng *e)
 				e->vk.vkDestroyShaderModule(e->dev, e->modules[t], NULL);
 		}
 		buffer_free(e, &e->params);
+		buffer_free(e, &e->views);
 		if (e->fence)
 			e->vk.vkDestroyFence(e->dev, e->fence, NULL);
 		if (e->queries)
@@ -722,6 +730,22 @@ static void fill_params(const struct sky_state *s, struct gpu_params *p, struct 
 	base->v[17] = s->quality.multiscatter_dirs != 0;
 }
 
+/* The cameras of the aerial volumes: the state's, then each view's. */
+static void fill_views(const struct sky_state *s, float *out)
+{
+	double h0 = s->altitude_km > 0.0 ? s->altitude_km : 0.0;
+	double fwd[3], right[3], up[3];
+
+	for (uint32_t i = 0; i <= s->n_views; i++) {
+		const struct state_camera *c = i ? &s->views[i - 1].camera : &s->camera;
+		double h = i && !isnan(s->views[i - 1].altitude_km) ? s->views[i - 1].altitude_km : h0;
+		state_camera_basis(c, fwd, right, up);
+		put4(out + 12 * i, fwd[0], fwd[1], fwd[2], tan(c->vfov_deg * SKYMAP_PI / 360.0));
+		put4(out + 12 * i + 4, right[0], right[1], right[2], c->aspect);
+		put4(out + 12 * i + 8, up[0], up[1], up[2], h > 0.0 ? h : 0.0);
+	}
+}
+
 /* The constants one pass is specialized on: the others are zeroed so that a
  * change that does not concern a pass reuses its cached pipeline. */
 static struct spec pass_spec(const struct spec *base, const struct sky_state *s, int t)
@@ -796,6 +820,8 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 
 	for (int t = 0; t < STATE_N_TABLES; t++) {
 		size_t bytes = state_table_bytes(s, (enum state_table)t);
+		if (t == STATE_AERIAL)
+			bytes *= 1 + s->n_views;
 		if (e->table[t].buf && e->table_bytes[t] == bytes)
 			continue;
 		buffer_free(e, &e->table[t]);
@@ -816,18 +842,20 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 		rebind = true;
 	}
 	if (rebind) {
-		VkDescriptorBufferInfo bi[5] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
-		VkWriteDescriptorSet w[5];
-		for (int i = 0; i < 5; i++) {
-			if (i > 0)
+		VkDescriptorBufferInfo bi[6] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
+		VkWriteDescriptorSet w[6];
+		for (int i = 0; i < 6; i++) {
+			if (i > 0 && i < 5)
 				bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
+			if (i == 5)
+				bi[i] = (VkDescriptorBufferInfo){ e->views.buf, 0, VK_WHOLE_SIZE };
 			w[i] = (VkWriteDescriptorSet){ .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
 				.dstSet = e->set, .dstBinding = (uint32_t)i, .descriptorCount = 1,
 				.descriptorType = i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER
 							 : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
 				.pBufferInfo = &bi[i] };
 		}
-		e->vk.vkUpdateDescriptorSets(e->dev, 5, w, 0, NULL);
+		e->vk.vkUpdateDescriptorSets(e->dev, 6, w, 0, NULL);
 	}
 	*ret_lost = lost;
 	return 0;
@@ -883,6 +911,7 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 				return rc;
 		}
 	memcpy(e->params.map, &params, sizeof(params));
+	fill_views(s, e->views.map);
 
 	VkCommandBufferBeginInfo bi = { .sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
 		.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT };
@@ -902,7 +931,8 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 			e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
 						  2 * t);
 		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[t]);
-		e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
+		/* Every view's volume in one dispatch: z is the view. */
+		e->vk.vkCmdDispatch(e->cmd, gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1);
 		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
 					   &compute_to_compute, 0, NULL, 0, NULL);

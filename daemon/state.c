@@ -111,6 +111,12 @@ static const struct {
 	{ "layer1_constant", C_CONSTANT, 1 },
 };
 
+void state_default_camera(struct state_camera *ret)
+{
+	*ret = (struct state_camera){ .yaw_deg = 180.0, .pitch_deg = 0.0, .roll_deg = 0.0,
+				      .vfov_deg = 60.0, .aspect = 16.0 / 9.0 };
+}
+
 void state_default(struct sky_state *ret)
 {
 	struct sky_state s = { 0 };
@@ -124,8 +130,7 @@ void state_default(struct sky_state *ret)
 	s.moon = (struct state_light){ .elevation_deg = -30.0, .azimuth_deg = 0.0,
 		.illuminance_lx = 0.0, .color = { 1, 1, 1 },
 		.angular_radius_deg = 0.259 };
-	s.camera = (struct state_camera){ .yaw_deg = 180.0, .pitch_deg = 0.0,
-		.roll_deg = 0.0, .vfov_deg = 60.0, .aspect = 16.0 / 9.0 };
+	state_default_camera(&s.camera);
 	s.quality.t[STATE_TRANSMITTANCE] = (struct state_table_quality){ 256, 64, 1, 40 };
 	s.quality.t[STATE_MULTISCATTER] = (struct state_table_quality){ 32, 32, 1, 20 };
 	s.quality.t[STATE_SKYVIEW] = (struct state_table_quality){ 192, 108, 1, 30 };

@@ -88,7 +88,10 @@ static void check_slot(const uint8_t *map, uint32_t expect, const char *what)
 			continue;
 		size_t bytes;
 		const void *ref = eng_table(ref_eng, (enum state_table)i, &bytes);
-		if (bytes != h->tables[i].bytes || memcmp(ref, base + h->tables[i].offset, bytes))
+		/* The engine's aerial table holds the views' volumes after the
+		 * state's own. */
+		if (bytes < h->tables[i].bytes ||
+		    memcmp(ref, base + h->tables[i].offset, h->tables[i].bytes))
 			FAIL("%s: %s differs from a full recompute", what, state_table_names[i]);
 	}
 }
@@ -116,6 +119,136 @@ static void hang_up(struct conn *c)
 #define M STATE_BIT(STATE_MULTISCATTER)
 #define S STATE_BIT(STATE_SKYVIEW)
 #define A STATE_BIT(STATE_AERIAL)
+
+/* Maps the region c received last. */
+static const uint8_t *map_last(struct conn *c)
+{
+	struct stat st;
+
+	if (c->n_fds < 1 || fstat(c->fds[c->n_fds - 1], &st) < 0)
+		return NULL;
+	const uint8_t *m = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_SHARED,
+				c->fds[c->n_fds - 1], 0);
+	return m == MAP_FAILED ? NULL : m;
+}
+
+/* The current slot's view volumes: count, all valid, each bit-identical
+ * to the reference engine's volume for the mirrored views. */
+static void check_views(const uint8_t *map, uint32_t n, const char *what)
+{
+	const struct sky_shm_header *h = (const void *)map;
+	uint32_t cur = __atomic_load_n(&h->current_slot, __ATOMIC_ACQUIRE);
+	const uint8_t *base = map + h->header_bytes + (uint64_t)cur * h->slot_bytes;
+	const struct sky_shm_slot *slot = (const void *)base;
+	uint64_t bytes = h->tables[STATE_AERIAL].bytes;
+	size_t all;
+	const uint8_t *ref = eng_table(ref_eng, STATE_AERIAL, &all);	/* check_slot computed it */
+
+	if (slot->n_views != n || slot->valid_views != (1u << n) - 1) {
+		FAIL("%s: %u views, valid 0x%x; expected %u", what, slot->n_views, slot->valid_views, n);
+		return;
+	}
+	CHECK(all == bytes * (1 + n));
+	for (uint32_t i = 0; i < n && all == bytes * (1 + n); i++) {
+		CHECK(strcmp(slot->views[i].name, mirror.views[i].name) == 0);
+		if (memcmp(base + h->view_offset + i * h->view_stride, ref + (i + 1) * bytes, bytes))
+			FAIL("%s: view %s differs from a full recompute", what, slot->views[i].name);
+	}
+}
+
+static void mirror_view(const char *name, double yaw_deg, double pitch_deg)
+{
+	struct state_view *v = &mirror.views[mirror.n_views++];
+	memset(v, 0, sizeof(*v));
+	snprintf(v->name, sizeof(v->name), "%s", name);
+	v->altitude_km = NAN;
+	state_default_camera(&v->camera);
+	v->camera.yaw_deg = yaw_deg;
+	v->camera.pitch_deg = pitch_deg;
+}
+
+/* Display-wall views: each gets its volume (one dispatch), they go with the
+ * connection that added them. */
+static void test_views(struct conn *ctl, struct daemon *d)
+{
+	struct conn wall, user;
+	char req[256];
+
+	CHECK(conn_open(&user, d->sock) == 0);
+	CHECK(conn_request(&user, "subscribe tables=aerial", reply, sizeof(reply)) == 0);
+	settle(ctl, ctl->event_generation + 1);
+	CHECK(conn_open(&wall, d->sock) == 0);
+	CHECK(conn_request(&wall, "view add", reply, sizeof(reply)) == SKY_ACK_SYNTAX);
+	CHECK(conn_request(&wall, "view add name=a/b", reply, sizeof(reply)) == SKY_ACK_ARG);
+	CHECK(conn_request(&wall, "view add name=w yaw=3", reply, sizeof(reply)) == SKY_ACK_NO_EXIST);
+	CHECK(conn_request(&wall, "view add name=w vfov_deg=200", reply, sizeof(reply)) == SKY_ACK_RANGE);
+	CHECK(conn_request(&wall, "view del name=nobody", reply, sizeof(reply)) == SKY_ACK_NO_EXIST);
+	CHECK(conn_request(&wall, "view turn", reply, sizeof(reply)) == SKY_ACK_NO_EXIST);
+	/* Eight channels of one eye point, 45 degrees apart, as one batch of
+	 * requests: each is a change, coalesced while the engine works. */
+	uint64_t g = 0;
+	for (int i = 0; i < STATE_MAX_VIEWS; i++) {
+		char name[16];
+		snprintf(name, sizeof(name), "wall%d", i);
+		snprintf(req, sizeof(req), "view add name=%s yaw_deg=%d pitch_deg=5", name, 45 * i);
+		CHECK(conn_request(&wall, req, reply, sizeof(reply)) == 0);
+		g = reply_u64(reply, "generation");
+		mirror_view(name, 45 * i, 5);
+	}
+	CHECK(conn_request(&wall, "view add name=ninth", reply, sizeof(reply)) == SKY_ACK_LIMIT);
+	CHECK(conn_request(&user, "view add name=wall0", reply, sizeof(reply)) == SKY_ACK_ARG);
+	settle(ctl, g);
+	EXPECT(ctl, "last_computed", "aerial");
+	EXPECT(ctl, "views", "8");
+	CHECK(strstr(reply, "view: name=wall7 index=7 valid=1") != NULL);
+	CHECK(conn_request(&wall, "view list", reply, sizeof(reply)) == 0);
+	CHECK(strstr(reply, "view: name=wall3 index=3 altitude_km=observer yaw_deg=135 pitch_deg=5") != NULL);
+	/* The first view made a new region with room for the views. */
+	CHECK(conn_request(&user, "subscribe tables=aerial", reply, sizeof(reply)) == 0);
+	const uint8_t *map = map_last(&user);
+	if (!map) {
+		FAIL("no region");
+		goto out;
+	}
+	CHECK(((const struct sky_shm_header *)map)->max_views == SKY_SHM_MAX_VIEWS);
+	check_slot(map, T | M | S | A, "eight views");	/* sky-view carried */
+	check_views(map, 8, "eight views");
+
+	/* A view with the state's camera has the state's volume. */
+	CHECK(conn_request(&wall, "view del name=wall7", reply, sizeof(reply)) == 0);
+	mirror.n_views--;
+	snprintf(req, sizeof(req), "view add name=same yaw_deg=%.17g pitch_deg=%.17g roll_deg=%.17g vfov_deg=%.17g aspect=%.17g",
+		 mirror.camera.yaw_deg, mirror.camera.pitch_deg, mirror.camera.roll_deg,
+		 mirror.camera.vfov_deg, mirror.camera.aspect);
+	CHECK(conn_request(&wall, req, reply, sizeof(reply)) == 0);
+	mirror_view("same", 0, 0);
+	mirror.views[7].camera = mirror.camera;
+	settle(ctl, reply_u64(reply, "generation"));
+	check_slot(map, T | M | S | A, "same camera");
+	check_views(map, 8, "same camera");
+	{
+		const struct sky_shm_header *h = (const void *)map;
+		const uint8_t *base = map + h->header_bytes + (uint64_t)h->current_slot * h->slot_bytes;
+		CHECK(memcmp(base + h->tables[STATE_AERIAL].offset, base + h->view_offset + 7 * h->view_stride,
+			     h->tables[STATE_AERIAL].bytes) == 0);
+	}
+
+	/* A time-of-day change recomputes every view, in one dispatch. */
+	change(ctl, "sun_elevation_deg=8");
+	EXPECT(ctl, "last_computed", "aerial");
+	check_slot(map, T | M | A, "views, time of day");
+	check_views(map, 8, "views, time of day");
+
+	/* The wall's connection closes: its views are dropped. */
+	hang_up(&wall);
+	mirror.n_views = 0;
+	EXPECT(ctl, "views", "0");
+	settle(ctl, ctl->event_generation);
+	check_slot(map, T | M | A, "views dropped");
+	check_views(map, 0, "views dropped");
+out:
+	hang_up(&user);
+}
 
 int main(void)
 {
@@ -258,6 +391,33 @@ int main(void)
 	CHECK(strstr(reply, "illuminance_lx: ") != NULL);
 	hang_up(&sampler);
 	EXPECT(&ctl, "demand", "none");
+
+	test_views(&ctl, &d);
+
+	/* The pipelines of the variants in use are cached: a repeat, or a
+	 * switch back to a variant seen before, builds none. */
+	struct eng_timing t;
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	uint64_t built = eng_pipelines_created(ref_eng);
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_pipelines_created(ref_eng) == built);
+	/* A black ground is a new variant of the multi-scattering pass (the
+	 * term is a specialization constant): one pipeline more, then cached. */
+	char albedo[64];
+	CHECK(state_get(&mirror, "ground_albedo", albedo, sizeof(albedo)) == 0);
+	mirror_set("ground_albedo=0");
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_pipelines_created(ref_eng) == built + 1);
+	built = eng_pipelines_created(ref_eng);
+	char back[96];
+	snprintf(back, sizeof(back), "ground_albedo=%s", albedo);
+	mirror_set(back);
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	mirror_set("ground_albedo=0 multiscatter_dirs=0");
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	mirror_set("multiscatter_dirs=2");
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_pipelines_created(ref_eng) == built);
 
 out:
 	conn_close(&sub);
