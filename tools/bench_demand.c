@@ -18,13 +18,22 @@
 #define S STATE_BIT(STATE_SKYVIEW)
 #define A STATE_BIT(STATE_AERIAL)
 
+/* What a scene is measured against, run by run: on a shared machine the
+ * load drifts, so each run of a scene is paired with a run of its
+ * reference right before it, and the ratio is the median of the pairs. */
+enum ref { REF_FULL, REF_ONE_VIEW, REF_FRAME };
+
 struct bench {
 	struct eng *e;
+	struct eng *ref_e;		/* the references, so that e keeps its buffers */
 	struct sky_state s;
 	int runs;
 	bool markdown;
-	double full_ms;			/* the reference: every table */
-	double one_view_ms;
+};
+
+struct result {
+	uint32_t mask;
+	double med_ms, p90_ms, ratio;	/* ratio: median of scene / reference */
 };
 
 static int cmp_double(const void *a, const void *b)
@@ -48,37 +57,58 @@ static uint32_t change_mask(struct bench *b, const char *const pairs[2], int run
 	return pairs ? dirty & state_closure(demand) : state_closure(demand);
 }
 
-/* Median and 90th percentile of the wall time (submit to completion,
- * read-back included) of runs computations; -errno on an engine error. */
-static int measure(struct bench *b, const char *const pairs[2], uint32_t demand,
-		   uint32_t *ret_mask, double *ret_med, double *ret_p90)
+static double median(double *v, int n)
 {
-	double *ms = calloc((size_t)b->runs, sizeof(double));
+	qsort(v, (size_t)n, sizeof(*v), cmp_double);
+	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* One computation's wall time (submit to completion, read-back included). */
+static int timed(struct eng *e, const struct sky_state *s, uint32_t mask, double *ret_ms)
+{
 	char err[512];
 	struct eng_timing t;
-	uint32_t mask = 0;
 
-	if (!ms)
-		return -ENOMEM;
-	for (int i = 0; i < b->runs; i++) {
-		mask = change_mask(b, pairs, i, demand);
-		ms[i] = 0.0;
-		if (!mask)
-			continue;	/* nothing to compute: the state alone changes */
-		int rc = eng_compute(b->e, &b->s, mask, &t, err, sizeof(err));
-		if (rc < 0) {
-			fprintf(stderr, "skybench: %s\n", err);
-			free(ms);
-			return rc;
-		}
-		ms[i] = t.total_ms;
+	*ret_ms = 0.0;
+	if (!mask)
+		return 0;	/* nothing to compute: the state alone changes */
+	if (eng_compute(e, s, mask, &t, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skybench: %s\n", err);
+		return -EIO;
 	}
-	qsort(ms, (size_t)b->runs, sizeof(*ms), cmp_double);
-	*ret_med = b->runs % 2 ? ms[b->runs / 2] : 0.5 * (ms[b->runs / 2 - 1] + ms[b->runs / 2]);
-	*ret_p90 = ms[b->runs - 1 - b->runs / 10];
-	*ret_mask = mask;
-	free(ms);
+	*ret_ms = t.total_ms;
 	return 0;
+}
+
+/* runs computations of a scene, each after one of its reference. */
+static int measure(struct bench *b, const char *const pairs[2], uint32_t demand, enum ref ref,
+		   struct result *ret)
+{
+	double *ms = calloc((size_t)b->runs, sizeof(double));
+	double *ratio = calloc((size_t)b->runs, sizeof(double));
+	struct sky_state one = b->s;
+	int rc = ms && ratio ? 0 : -ENOMEM;
+
+	one.n_views = 0;
+	for (int i = 0; i < b->runs && rc == 0; i++) {
+		double ref_ms = 1000.0 / 60.0;
+		if (ref == REF_FULL)
+			rc = timed(b->ref_e, &b->s, ALL, &ref_ms);
+		else if (ref == REF_ONE_VIEW)
+			rc = timed(b->ref_e, &one, A, &ref_ms);
+		ret->mask = change_mask(b, pairs, i, demand);
+		if (rc == 0)
+			rc = timed(b->e, &b->s, ret->mask, &ms[i]);
+		ratio[i] = ref_ms > 0.0 ? ms[i] / ref_ms : 0.0;
+	}
+	if (rc == 0) {
+		ret->ratio = median(ratio, b->runs);
+		ret->med_ms = median(ms, b->runs);
+		ret->p90_ms = ms[b->runs - 1 - b->runs / 10];
+	}
+	free(ms);
+	free(ratio);
+	return rc;
 }
 
 static void mask_names(uint32_t mask, char *buf, size_t size)
@@ -94,18 +124,28 @@ static void mask_names(uint32_t mask, char *buf, size_t size)
 		snprintf(buf, size, "none");
 }
 
-static void row(const struct bench *b, const char *scene, uint32_t mask, double med, double p90,
-		double ref_ms, const char *ref_name, const char *goal)
-{
-	char names[80], ratio[32];
+static const char *const ref_names[] = { "full recompute", "one view", "a 60 Hz frame" };
 
-	mask_names(mask, names, sizeof(names));
-	snprintf(ratio, sizeof(ratio), "%.1f %% of %s", 100.0 * med / ref_ms, ref_name);
+/* Measures a scene and prints its row; returns measure's result. */
+static int row(struct bench *b, const char *scene, const char *const pairs[2], uint32_t demand,
+	       enum ref ref, const char *goal)
+{
+	struct result r;
+	char names[80], ratio[48];
+	int rc = measure(b, pairs, demand, ref, &r);
+
+	if (rc < 0)
+		return rc;
+	mask_names(r.mask, names, sizeof(names));
+	snprintf(ratio, sizeof(ratio), "%.1f %% of %s", 100.0 * r.ratio, ref_names[ref]);
 	if (b->markdown)
-		printf("| %s | %s | %.3f | %.3f | %s | %s |\n", scene, names, med, p90, ratio, goal);
-	else
-		printf("%-44s %-40s median %8.3f ms  p90 %8.3f  %-22s %s\n", scene, names, med, p90,
+		printf("| %s | %s | %.3f | %.3f | %s | %s |\n", scene, names, r.med_ms, r.p90_ms,
 		       ratio, goal);
+	else
+		printf("%-44s %-40s median %8.3f ms  p90 %8.3f  %-28s %s\n", scene, names, r.med_ms,
+		       r.p90_ms, ratio, goal);
+	fflush(stdout);
+	return 0;
 }
 
 static void machine(const struct bench *b)
@@ -170,8 +210,6 @@ int bench_demand_main(int argc, char **argv)
 	struct bench b = { .runs = 30 };
 	const char *device = NULL;
 	char err[512];
-	uint32_t mask;
-	double med, p90;
 	int rc;
 
 	state_default(&b.s);
@@ -191,54 +229,56 @@ int bench_demand_main(int argc, char **argv)
 		fprintf(stderr, "skybench: %s\n", b.runs < 2 ? "--runs: must be >= 2" : err);
 		return 2;
 	}
-	if (eng_new(device, err, sizeof(err), &b.e) < 0) {
+	if (eng_new(device, err, sizeof(err), &b.e) < 0 ||
+	    eng_new(device, err, sizeof(err), &b.ref_e) < 0) {
 		fprintf(stderr, "skybench: %s\n", err);
+		eng_free(b.e);
 		return 1;
 	}
 	machine(&b);
-	/* Warm-up: every pipeline of the variants below built, buffers sized. */
-	rc = measure(&b, NULL, ALL, &mask, &med, &p90);
+	/* Warm-up: pipelines built, buffers sized (not printed). */
+	struct result warm;
+	int runs = b.runs;
+	b.runs = 2;
+	rc = measure(&b, NULL, ALL, REF_ONE_VIEW, &warm);
+	b.runs = runs;
 	if (rc == 0)
-		rc = measure(&b, NULL, ALL, &mask, &b.full_ms, &p90);
+		rc = row(&b, "full recompute (weather, every table in use)", weather, ALL, REF_FULL,
+			 "reference");
 	if (rc == 0)
-		row(&b, "full recompute (weather, every table in use)", mask, b.full_ms, p90, b.full_ms,
-		    "full", "reference");
-	if (rc == 0 && (rc = measure(&b, time_of_day, ALL, &mask, &med, &p90)) == 0)
-		row(&b, "time-of-day change, full scene", mask, med, p90, b.full_ms, "full", "<= 35 %");
-	if (rc == 0 && (rc = measure(&b, camera, ALL, &mask, &med, &p90)) == 0)
-		row(&b, "camera change, full scene", mask, med, p90, b.full_ms, "full", "");
-	if (rc == 0 && (rc = measure(&b, weather, T, &mask, &med, &p90)) == 0)
-		row(&b, "transmittance-only scene, weather change", mask, med, p90, b.full_ms, "full",
-		    "<= 5 %");
-	if (rc == 0 && (rc = measure(&b, time_of_day, T, &mask, &med, &p90)) == 0)
-		row(&b, "transmittance-only scene, time of day", mask, med, p90, b.full_ms, "full", "");
-	if (rc == 0 && (rc = measure(&b, weather, S, &mask, &med, &p90)) == 0)
-		row(&b, "sky-view-only dome, weather change", mask, med, p90, b.full_ms, "full", "");
-	if (rc == 0 && (rc = measure(&b, time_of_day, S, &mask, &med, &p90)) == 0)
-		row(&b, "sky-view-only dome, time of day", mask, med, p90, b.full_ms, "full", "");
+		rc = row(&b, "time-of-day change, full scene", time_of_day, ALL, REF_FULL, "<= 35 %");
+	if (rc == 0)
+		rc = row(&b, "camera change, full scene", camera, ALL, REF_FULL, "");
+	if (rc == 0)
+		rc = row(&b, "transmittance-only scene, weather change", weather, T, REF_FULL, "<= 5 %");
+	if (rc == 0)
+		rc = row(&b, "transmittance-only scene, time of day", time_of_day, T, REF_FULL, "");
+	if (rc == 0)
+		rc = row(&b, "sky-view-only dome, weather change", weather, S, REF_FULL, "");
+	if (rc == 0)
+		rc = row(&b, "sky-view-only dome, time of day", time_of_day, S, REF_FULL, "");
 	/* Views: the state's camera is one view; a display wall adds 8 views
 	 * on the same eye point, all in the aerial pass's one dispatch. */
-	if (rc == 0 && (rc = measure(&b, camera, A, &mask, &b.one_view_ms, &p90)) == 0)
-		row(&b, "one view (aerial perspective)", mask, b.one_view_ms, p90, b.one_view_ms,
-		    "one view", "reference");
+	if (rc == 0)
+		rc = row(&b, "one view (aerial perspective), camera change", camera, A, REF_ONE_VIEW,
+			 "reference");
 	if (rc == 0) {
 		add_views(&b.s, 8);
-		rc = measure(&b, NULL, A, &mask, &med, &p90);	/* warm-up: new buffers */
+		b.runs = 2;
+		rc = measure(&b, NULL, A, REF_ONE_VIEW, &warm);	/* new buffers */
+		b.runs = runs;
 	}
-	if (rc == 0 && (rc = measure(&b, camera, A, &mask, &med, &p90)) == 0)
-		row(&b, "display wall: 8 views + the state's camera", mask, med, p90, b.one_view_ms,
-		    "one view", "< 300 %");
-	if (rc == 0) {
+	if (rc == 0)
+		rc = row(&b, "display wall: 8 views + the state's camera", camera, A, REF_ONE_VIEW,
+			 "< 300 %");
+	if (rc == 0)
 		add_views(&b.s, 0);
-		rc = measure(&b, NULL, A, &mask, &med, &p90);
-	}
 	/* A clock animation: one time-of-day step per 60 Hz frame. */
-	if (rc == 0 && (rc = measure(&b, time_of_day, ALL, &mask, &med, &p90)) == 0)
-		row(&b, "clock animation step, full scene", mask, med, p90, 1000.0 / 60.0,
-		    "a 60 Hz frame", "");
-	if (rc == 0 && (rc = measure(&b, time_of_day, S, &mask, &med, &p90)) == 0)
-		row(&b, "clock animation step, sky-view dome", mask, med, p90, 1000.0 / 60.0,
-		    "a 60 Hz frame", "");
+	if (rc == 0)
+		rc = row(&b, "clock animation step, full scene", time_of_day, ALL, REF_FRAME, "");
+	if (rc == 0)
+		rc = row(&b, "clock animation step, sky-view dome", time_of_day, S, REF_FRAME, "");
+	eng_free(b.ref_e);
 	eng_free(b.e);
 	return rc < 0 ? 1 : 0;
 }
