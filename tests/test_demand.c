@@ -8,6 +8,7 @@
 #include "daemon_harness.h"
 #include "eng.h"
 #include "skyproto.h"
+#include "skysample.h"
 #include "state.h"
 #include "test.h"
 
@@ -144,6 +145,9 @@ static void check_views(const uint8_t *map, uint32_t n, const char *what)
 	size_t all;
 	const uint8_t *ref = eng_table(ref_eng, STATE_AERIAL, &all);	/* check_slot computed it */
 
+	struct skysample_table none;
+	CHECK(skysample_check_layout(h, h->total_bytes) == 0);
+	CHECK(skysample_view_from_slot(h, base, "nobody", &none, NULL) == -ENOENT);
 	if (slot->n_views != n || slot->valid_views != (1u << n) - 1) {
 		FAIL("%s: %u views, valid 0x%x; expected %u", what, slot->n_views, slot->valid_views, n);
 		return;
@@ -151,6 +155,11 @@ static void check_views(const uint8_t *map, uint32_t n, const char *what)
 	CHECK(all == bytes * (1 + n));
 	for (uint32_t i = 0; i < n && all == bytes * (1 + n); i++) {
 		CHECK(strcmp(slot->views[i].name, mirror.views[i].name) == 0);
+		/* What libsky's sky_view_aerial_table() finds by name. */
+		struct skysample_table t;
+		const struct sky_shm_view *sv = NULL;
+		CHECK(skysample_view_from_slot(h, base, mirror.views[i].name, &t, &sv) == 0 &&
+		      t.texels == base + h->view_offset + i * h->view_stride && sv == &slot->views[i]);
 		if (memcmp(base + h->view_offset + i * h->view_stride, ref + (i + 1) * bytes, bytes))
 			FAIL("%s: view %s differs from a full recompute", what, slot->views[i].name);
 	}
