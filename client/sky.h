@@ -392,6 +392,25 @@ SKY_EXPORT int sky_sample_sky(const struct sky_view *v, double elevation_deg, do
 SKY_EXPORT int sky_sample_aerial(const struct sky_view *v, double screen_u, double screen_v,
 				 double distance_km, double ret_rgb[3], double *ret_transmittance);
 
+/* Aerial perspective of the camera view called name (registered with the
+ * protocol's `view add`; each has its own volume in the slot), sampled as
+ * sky_sample_aerial() samples the state's camera. -ENOENT if the slot has
+ * no view of that name, -ENODATA if its volume is not valid in this slot
+ * (nobody subscribed to aerial). Since 0.2. */
+SKY_EXPORT int sky_sample_view_aerial(const struct sky_view *v, const char *name, double screen_u,
+				      double screen_v, double distance_km, double ret_rgb[3],
+				      double *ret_transmittance);
+
+/* The aerial volume of the camera view called name, for upload to a GPU
+ * texture: *ret_texels points into the slot (valid as long as the view of
+ * the slot is: until sky_view_end() or while the snapshot buffer lives),
+ * laid out as the aerial table (same format and sizes); *ret_bytes (may be
+ * NULL) its size. The view's camera is in the slot's views[] entry of the
+ * same name (proto/skyproto.h). Errors as sky_sample_view_aerial().
+ * Since 0.2. */
+SKY_EXPORT int sky_view_aerial_table(const struct sky_view *v, const char *name,
+				     const void **ret_texels, size_t *ret_bytes);
+
 /* The sun's transmitted illuminance at the observer (lx per channel, on a
  * surface facing the sun; 0 below the horizon). The same number as the
  * daemon's `sample sun`. Since 0.1. */

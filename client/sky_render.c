@@ -96,6 +96,42 @@ int sky_sample_aerial(const struct sky_view *v, double screen_u, double screen_v
 	return 0;
 }
 
+int sky_view_aerial_table(const struct sky_view *v, const char *name, const void **ret_texels,
+			  size_t *ret_bytes)
+{
+	struct skysample_table t;
+	if (!v || !v->header || !v->slot_base || !name || !ret_texels)
+		return -EINVAL;
+	int r = skysample_view_from_slot(v->header, v->slot_base, name, &t, NULL);
+	if (r < 0)
+		return r;
+	*ret_texels = t.texels;
+	if (ret_bytes)
+		*ret_bytes = (size_t)t.width * t.height * t.depth *
+			     (t.format == SKY_FORMAT_RGBA16F ? 8 : 16);
+	return 0;
+}
+
+int sky_sample_view_aerial(const struct sky_view *v, const char *name, double screen_u,
+			   double screen_v, double distance_km, double ret_rgb[3],
+			   double *ret_transmittance)
+{
+	struct skysample_table t;
+	if (!v || !v->header || !v->slot_base || !name || !ret_rgb || !isfinite(screen_u) ||
+	    !isfinite(screen_v) || !isfinite(distance_km) || distance_km < 0.0)
+		return -EINVAL;
+	int r = skysample_view_from_slot(v->header, v->slot_base, name, &t, NULL);
+	if (r < 0)
+		return r;
+	double rgb[3], tr;
+	skysample_aerial(&t, &v->slot->state, screen_u, screen_v, distance_km, rgb, &tr);
+	for (int c = 0; c < 3; c++)
+		ret_rgb[c] = rgb[c];
+	if (ret_transmittance)
+		*ret_transmittance = tr;
+	return 0;
+}
+
 int sky_sample_sun(const struct sky_view *v, double ret_lx[3])
 {
 	struct skysample_table t;

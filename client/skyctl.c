@@ -500,6 +500,8 @@ static const struct cmd cmds[] = {
 	{ "sun", "sun                      where the clock's sun is (get sun)", cmd_sun },
 	{ "moon", "moon                     where the clock's moon is, its phase (get moon)", cmd_moon },
 	{ "times", "times [YYYY-MM-DD]       sunrise, sunset, twilights of a day (get times)", cmd_times },
+	{ "view", "view list                the camera views (view add|del work too, but a view\n"
+		  "                         lasts only while the connection that added it is open)", NULL },
 	{ "ping", "ping                     check that skyd answers", NULL },
 	{ "commands", "commands                 list the daemon's verbs", NULL },
 	{ "help", "help VERB                the daemon's help for a verb", cmd_help },

@@ -61,6 +61,9 @@ struct client {
 
 	uint32_t sub_tables;		/* has the region, gets layout: lines */
 	int sub_events;			/* gets changed: and failed: lines */
+	uint32_t sample_tables;		/* demanded by its sample requests, until unsubscribe */
+	const char *line;		/* the request being handled, unparsed */
+	char *deferred;			/* a sample waiting for its table; input waits too */
 	struct batch *batch;
 };
 
@@ -78,6 +81,7 @@ struct ctl {
 	int n_clients;
 	uint64_t next_id;
 	struct drive *drive;		/* the clock; NULL: none */
+	int finishing;
 };
 
 /* A reply under construction: pairs, then OK or one ACK line. */
@@ -136,6 +140,10 @@ static void reply_add(struct reply *r, const char *fmt, ...)
 
 static void client_update_events(struct client *c);
 static void client_drop(struct client *c, const char *why);
+static void update_demand(struct ctl *ctl);
+static void views_drop_owner(struct ctl *ctl, uint64_t owner);
+static int handle_line(struct client *c, char *line);
+static int process_input(struct client *c);
 
 /* Queues len bytes and owned_fd (if >= 0), which it takes in all cases.
  * Returns 0, or -1 when the client was dropped for exceeding its bound or
@@ -285,13 +293,56 @@ static void client_drop(struct client *c, const char *why)
 	if (c->next)
 		c->next->prev = c->prev;
 	ctl->n_clients--;
+	uint64_t id = c->id;
 	free(c->batch);
+	free(c->deferred);
 	free(c);
+	if (!ctl->finishing) {
+		update_demand(ctl);
+		views_drop_owner(ctl, id);
+	}
 	/* A freed fd may be what accept was waiting for. */
 	if (ctl->accept_paused) {
 		ctl->accept_paused = 0;
 		loop_timer_arm(ctl->accept_timer, 0);
 		loop_io_mod(ctl->listen_io, EPOLLIN);
+	}
+}
+
+/* Demand ---------------------------------------------------------------- */
+
+/* The tables in use: what connections subscribed to and what they sampled.
+ * srv computes this and its dependencies, nothing else. */
+static void update_demand(struct ctl *ctl)
+{
+	uint32_t demand = 0;
+
+	for (struct client *k = ctl->clients; k; k = k->next)
+		demand |= k->sub_tables | k->sample_tables;
+	srv_set_demand(ctl->srv, demand);
+}
+
+static int send_ack(struct client *c, int code, const char *verb, const char *message);
+
+/* Answers the samples that waited for a table, after a publication (the
+ * table may be there now; if not, the request waits again) or a failure
+ * (ACK, the tables stay as they were). Then the input that queued. */
+static void resume_deferred(struct ctl *ctl, int failed)
+{
+	struct client *c, *next;
+
+	for (c = ctl->clients; c; c = next) {
+		next = c->next;
+		if (!c->deferred)
+			continue;
+		char *line = c->deferred;
+		c->deferred = NULL;
+		int r = failed ? send_ack(c, SKY_ACK_ENGINE, "sample",
+					  "the computation of the table failed; see status")
+			       : handle_line(c, line);
+		free(line);
+		if (r == 0 && !c->deferred)
+			process_input(c);
 	}
 }
 
@@ -336,6 +387,7 @@ void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_regi
 		if (c->out_head)
 			client_flush(c);
 	}
+	resume_deferred(ctl, 0);
 }
 
 void ctl_failed(void *ctx, uint64_t generation, const char *message)
@@ -354,6 +406,7 @@ void ctl_failed(void *ctx, uint64_t generation, const char *message)
 		if (c->sub_events && client_queue(c, line, (size_t)n, -1) == 0)
 			client_flush(c);
 	}
+	resume_deferred(ctl, 1);
 }
 
 /* Verbs ----------------------------------------------------------------- */
@@ -718,6 +771,17 @@ static int cmd_status(struct client *c, const struct proto_request *req, struct 
 	reply_add(r, "tables_computed: %s\n", names);
 	format_tables(st.published_valid, names, sizeof(names));
 	reply_add(r, "tables_valid: %s\n", names);
+	format_tables(st.published_computed, names, sizeof(names));
+	reply_add(r, "last_computed: %s\n", names);
+	format_tables(st.demand, names, sizeof(names));
+	reply_add(r, "demand: %s\n", names);
+	format_tables(st.needed, names, sizeof(names));
+	reply_add(r, "tables_needed: %s\n", names);
+	const struct sky_shm_slot *cur = pub_current(srv_pub(s), NULL);
+	reply_add(r, "views: %u\n", srv_state(s)->n_views);
+	for (uint32_t i = 0; i < cur->n_views && i < SKY_SHM_MAX_VIEWS; i++)
+		reply_add(r, "view: name=%.*s index=%u valid=%d\n", (int)SKY_SHM_VIEW_NAME_MAX,
+			  cur->views[i].name, i, !!(cur->valid_views & (1u << i)));
 	reply_add(r, "compute_ms: %.3f\n", st.last_total_ms);
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		reply_add(r, "%s_ms: %.3f\n", state_table_names[t], st.table_ms[t]);
@@ -781,6 +845,7 @@ static int cmd_subscribe(struct client *c, const struct proto_request *req, stru
 		return 0;
 	}
 	c->sub_tables = tables;
+	update_demand(c->ctl);
 	struct pub *p = srv_pub(c->ctl->srv);
 	const struct sky_shm_header *h = pub_header(p);
 	reply_add(r, "generation: %llu\n", (unsigned long long)h->generation);
@@ -806,6 +871,8 @@ static int cmd_unsubscribe(struct client *c, const struct proto_request *req, st
 {
 	c->sub_tables = 0;
 	c->sub_events = 0;
+	c->sample_tables = 0;
+	update_demand(c->ctl);
 	return 0;
 }
 
@@ -833,6 +900,20 @@ static void reply_rgb(struct reply *r, const char *key_rgb, const char *key_y, c
 	double y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
 
 	reply_add(r, "%s: %.9g,%.9g,%.9g\n%s: %.9g\n", key_rgb, rgb[0], rgb[1], rgb[2], key_y, y);
+}
+
+/* The table a sample reads is not in the current slot: the connection now
+ * demands it and the request (and the connection's input after it) waits
+ * for the generation that brings it (PROTOCOL.md, "Demand"). */
+static int sample_wait(struct client *c, uint32_t id, char *msg, size_t msg_size)
+{
+	update_demand(c->ctl);
+	if (!(srv_tables_coming(c->ctl->srv) & (1u << id)))
+		return ACK(SKY_ACK_STATE, "no %s table published yet", state_table_names[id]);
+	c->deferred = strdup(c->line);
+	if (!c->deferred)
+		return ACK(SKY_ACK_LIMIT, "out of memory");
+	return -1;
 }
 
 /* Samples the current slot exactly as a client would (skysample.h). The
@@ -874,8 +955,10 @@ static int cmd_sample(struct client *c, const struct proto_request *req, struct 
 			return ACK(SKY_ACK_RANGE, "el_deg: %g is outside [-90, 90]", el);
 		if (az < -360 || az > 720)
 			return ACK(SKY_ACK_RANGE, "az_deg: %g is outside [-360, 720]", az);
-		if (!(slot->valid_tables & (1u << id)) ||
-		    skysample_table_from_slot(h, base, id, &t) < 0)
+		c->sample_tables |= 1u << id;
+		if (!(slot->valid_tables & (1u << id)))
+			return sample_wait(c, id, msg, msg_size);
+		if (skysample_table_from_slot(h, base, id, &t) < 0)
 			return ACK(SKY_ACK_STATE, "no sky-view table published yet");
 		skysample_sky(&t, &slot->state, el * SKYMAP_PI / 180.0, az * SKYMAP_PI / 180.0, rgb);
 		reply_add(r, "generation: %llu\n", (unsigned long long)slot->generation);
@@ -884,7 +967,10 @@ static int cmd_sample(struct client *c, const struct proto_request *req, struct 
 	}
 	if (req->n_args > 1)
 		return ACK(SKY_ACK_SYNTAX, "sample %s takes no arguments", what);
-	if (!(slot->valid_tables & (1u << id)) || skysample_table_from_slot(h, base, id, &t) < 0)
+	c->sample_tables |= 1u << id;
+	if (!(slot->valid_tables & (1u << id)))
+		return sample_wait(c, id, msg, msg_size);
+	if (skysample_table_from_slot(h, base, id, &t) < 0)
 		return ACK(SKY_ACK_STATE, "no %s table published yet", state_table_names[id]);
 	if (id == SKY_TABLE_TRANSMITTANCE)
 		skysample_sun(&t, &slot->state, rgb);
@@ -893,6 +979,146 @@ static int cmd_sample(struct client *c, const struct proto_request *req, struct 
 	reply_add(r, "generation: %llu\n", (unsigned long long)slot->generation);
 	reply_rgb(r, "illuminance_rgb_lx", "illuminance_lx", rgb);
 	return 0;
+}
+
+/* Views ----------------------------------------------------------------- */
+
+static int view_find(const struct sky_state *s, const char *name)
+{
+	for (uint32_t i = 0; i < s->n_views; i++)
+		if (strcmp(s->views[i].name, name) == 0)
+			return (int)i;
+	return -1;
+}
+
+static void view_remove(struct sky_state *s, uint32_t i)
+{
+	memmove(&s->views[i], &s->views[i + 1], (s->n_views - i - 1) * sizeof(s->views[0]));
+	s->n_views--;
+	memset(&s->views[s->n_views], 0, sizeof(s->views[0]));
+}
+
+/* Views belong to the connection that added them and go with it: a view
+ * nobody uses any more is dropped. */
+static void views_drop_owner(struct ctl *ctl, uint64_t owner)
+{
+	struct sky_state next = *srv_state(ctl->srv);
+	char err[256];
+	uint64_t generation;
+	int changed = 0;
+
+	for (uint32_t i = next.n_views; i-- > 0;)
+		if (next.views[i].owner == owner) {
+			view_remove(&next, i);
+			changed = 1;
+		}
+	if (changed && srv_change(ctl->srv, &next, STATE_BIT(STATE_AERIAL), &generation, err,
+				  sizeof(err)) < 0)
+		log_error("dropping the views of client %llu: %s", (unsigned long long)owner, err);
+}
+
+static const struct {
+	const char *key;
+	size_t offset;			/* in struct state_view */
+	double min, max;
+} view_keys[] = {
+	{ "altitude_km", offsetof(struct state_view, altitude_km), -1e300, 1e7 },
+	{ "yaw_deg", offsetof(struct state_view, camera.yaw_deg), -360, 720 },
+	{ "pitch_deg", offsetof(struct state_view, camera.pitch_deg), -90, 90 },
+	{ "roll_deg", offsetof(struct state_view, camera.roll_deg), -180, 180 },
+	{ "vfov_deg", offsetof(struct state_view, camera.vfov_deg), 0.1, 179 },
+	{ "aspect", offsetof(struct state_view, camera.aspect), 0.01, 100 },
+};
+
+static int parse_number(const char *v, double *ret);
+
+static int view_add(struct client *c, const struct proto_request *req, struct reply *r,
+		    char *msg, size_t msg_size)
+{
+	struct sky_state next = *srv_state(c->ctl->srv);
+	struct state_view v = { .altitude_km = NAN, .owner = c->id };
+	const char *name = proto_arg_value(req->args, req->n_args, "name");
+
+	state_default_camera(&v.camera);
+	if (!name)
+		return ACK(SKY_ACK_SYNTAX, "usage: view add name=NAME [altitude_km=H] [yaw_deg=] [pitch_deg=] [roll_deg=] [vfov_deg=] [aspect=]");
+	size_t n = strlen(name);
+	if (n == 0 || n >= STATE_VIEW_NAME_MAX || strspn(name, "abcdefghijklmnopqrstuvwxyz"
+		"ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-.") != n)
+		return ACK(SKY_ACK_ARG, "name: '%s' is not 1 to %d letters, digits, '_', '-' or '.'",
+			   name, STATE_VIEW_NAME_MAX - 1);
+	snprintf(v.name, sizeof(v.name), "%s", name);
+	for (int i = 1; i < req->n_args; i++) {
+		const struct proto_arg *a = &req->args[i];
+		size_t k;
+		double d;
+		if (!a->value)
+			return ACK(SKY_ACK_SYNTAX, "'%s': key=value expected", a->key);
+		if (strcmp(a->key, "name") == 0)
+			continue;
+		for (k = 0; k < sizeof(view_keys) / sizeof(view_keys[0]); k++)
+			if (strcmp(view_keys[k].key, a->key) == 0)
+				break;
+		if (k == sizeof(view_keys) / sizeof(view_keys[0]))
+			return ACK(SKY_ACK_NO_EXIST, "%s: unknown key (name, altitude_km, yaw_deg, pitch_deg, roll_deg, vfov_deg, aspect)", a->key);
+		if (parse_number(a->value, &d) < 0)
+			return ACK(SKY_ACK_ARG, "%s: '%s' is not a finite number", a->key, a->value);
+		if (d < view_keys[k].min || d > view_keys[k].max)
+			return ACK(SKY_ACK_RANGE, "%s: %g is outside [%g, %g]", a->key, d,
+				   view_keys[k].min, view_keys[k].max);
+		*(double *)((char *)&v + view_keys[k].offset) = d;
+	}
+	int i = view_find(&next, v.name);
+	if (i >= 0 && next.views[i].owner != c->id)
+		return ACK(SKY_ACK_ARG, "name: view '%s' belongs to another connection", v.name);
+	if (i < 0 && next.n_views == STATE_MAX_VIEWS)
+		return ACK(SKY_ACK_LIMIT, "%d views already (SKY_SHM_MAX_VIEWS)", STATE_MAX_VIEWS);
+	if (i < 0)
+		i = (int)next.n_views++;
+	int same = memcmp(&next.views[i], &v, sizeof(v)) == 0;
+	next.views[i] = v;
+	return commit(c, &next, same ? 0 : STATE_BIT(STATE_AERIAL), r, msg, msg_size);
+}
+
+static int cmd_view(struct client *c, const struct proto_request *req, struct reply *r,
+		    char *msg, size_t msg_size)
+{
+	const char *what = req->args[0].key;
+	const struct sky_state *s = srv_state(c->ctl->srv);
+
+	if (req->args[0].value)
+		return ACK(SKY_ACK_SYNTAX, "usage: view add|del|list ...");
+	if (strcmp(what, "add") == 0)
+		return view_add(c, req, r, msg, msg_size);
+	if (strcmp(what, "del") == 0) {
+		const char *name = proto_arg_value(req->args, req->n_args, "name");
+		if (!name || req->n_args != 2)
+			return ACK(SKY_ACK_SYNTAX, "usage: view del name=NAME");
+		int i = view_find(s, name);
+		if (i < 0)
+			return ACK(SKY_ACK_NO_EXIST, "name: no view '%s'", name);
+		struct sky_state next = *s;
+		view_remove(&next, (uint32_t)i);
+		return commit(c, &next, STATE_BIT(STATE_AERIAL), r, msg, msg_size);
+	}
+	if (strcmp(what, "list") == 0) {
+		if (req->n_args != 1)
+			return ACK(SKY_ACK_SYNTAX, "usage: view list");
+		for (uint32_t i = 0; i < s->n_views; i++) {
+			const struct state_view *v = &s->views[i];
+			char alt[32];
+			if (isnan(v->altitude_km))
+				snprintf(alt, sizeof(alt), "observer");
+			else
+				snprintf(alt, sizeof(alt), "%.9g", v->altitude_km);
+			reply_add(r, "view: name=%s index=%u altitude_km=%s yaw_deg=%.9g pitch_deg=%.9g roll_deg=%.9g vfov_deg=%.9g aspect=%.9g mine=%d\n",
+				  v->name, i, alt, v->camera.yaw_deg, v->camera.pitch_deg,
+				  v->camera.roll_deg, v->camera.vfov_deg, v->camera.aspect,
+				  v->owner == c->id);
+		}
+		return 0;
+	}
+	return ACK(SKY_ACK_NO_EXIST, "%s: not add, del or list", what);
 }
 
 static int cmd_commands(struct client *c, const struct proto_request *req, struct reply *r,
@@ -953,6 +1179,9 @@ static const struct cmd_entry cmds[] = {
 	{ "sample", "sample sky el_deg=E az_deg=A | sample sun | sample ambient",
 	  "sky radiance in a direction (no sun disk), the sun's illuminance at the observer, or the horizontal sky irradiance, from the published tables",
 	  1, 3, cmd_sample },
+	{ "view", "view add name=NAME [altitude_km=H] [yaw_deg=] [pitch_deg=] [roll_deg=] [vfov_deg=] [aspect=] | view del name=NAME | view list",
+	  "cameras with their own aerial-perspective volume; a view lasts while the connection that added it is open",
+	  1, 8, cmd_view },
 	{ "commands", "commands", "list the verbs", 0, 0, cmd_commands },
 	{ "help", "help [VERB]", "usage of a verb", 0, 1, cmd_help },
 	{ "ping", "ping", "answer OK", 0, 0, cmd_ping },
@@ -990,6 +1219,9 @@ static int handle_line(struct client *c, char *line)
 			return 0;
 		}
 	}
+	char raw[SKY_PROTO_LINE_MAX];
+	snprintf(raw, sizeof(raw), "%s", line);
+	c->line = raw;
 	int pr = proto_parse_request(line, &req, msg, sizeof(msg));
 	if (pr == -ENODATA)
 		return 0;
@@ -1008,8 +1240,9 @@ static int handle_line(struct client *c, char *line)
 		close(r.fd);
 		r.fd = -1;
 	}
+	c->line = NULL;
 	if (code < 0) {
-		ret = 0;	/* answers later (batch) */
+		ret = 0;	/* answers later (batch, a sample waiting for its table) */
 	} else if (code > 0) {
 		ret = send_ack(c, code, verb, msg);
 	} else {
@@ -1032,7 +1265,7 @@ static int process_input(struct client *c)
 {
 	size_t start = 0;
 
-	while (!c->closing && c->out_bytes < CTL_OUT_HIGH) {
+	while (!c->closing && !c->deferred && c->out_bytes < CTL_OUT_HIGH) {
 		char *nl = memchr(c->in + start, '\n', c->in_len - start);
 		char *line = c->in + start;
 		if (nl) {
@@ -1068,7 +1301,7 @@ static int process_input(struct client *c)
 			}
 		}
 	}
-	if (c->eof && c->in_len == 0)
+	if (c->eof && c->in_len == 0 && !c->deferred)
 		c->closing = 1;
 	return client_flush(c);
 }
@@ -1334,6 +1567,7 @@ void ctl_free(struct ctl *ctl)
 {
 	if (!ctl)
 		return;
+	ctl->finishing = 1;	/* no demand or view changes on the way out */
 	while (ctl->clients)
 		client_drop(ctl->clients, NULL);
 	loop_io_del(ctl->listen_io);

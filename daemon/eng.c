@@ -26,6 +26,8 @@
  * multi-scattering, azimuths of sky-view. */
 #define MS_SUN_GROUP 4
 #define SV_AZ_GROUP 8
+/* The state's camera and STATE_MAX_VIEWS views, 3 vec4 each. */
+#define VIEW_BUFFER_BYTES ((1 + STATE_MAX_VIEWS) * 3 * 4 * sizeof(float))
 
 /* The uniform block of shaders/common.glsl, std140: vec4s only. */
 struct gpu_constituent {
@@ -33,8 +35,10 @@ struct gpu_constituent {
 };
 /* The tables later passes look up: transmittance and multi-scattering. */
 #define N_LOOKUPS 2
-/* Bindings: 0 parameters, 1-4 the tables (storage), 5-6 the lookups. */
-#define N_BINDINGS (1 + STATE_N_TABLES + N_LOOKUPS)
+/* Bindings: 0 parameters, 1-4 the tables (storage), 5-6 the lookups,
+ * 7 the cameras of the aerial volumes (storage). */
+#define N_BINDINGS (1 + STATE_N_TABLES + N_LOOKUPS + 1)
+#define VIEWS_BINDING (N_BINDINGS - 1)
 
 struct gpu_params {
 	float planet[4], albedo[4], sun_dir[4], sun_illum[4], moon_dir[4], moon_illum[4];
@@ -80,12 +84,14 @@ struct eng {
 	VkShaderModule modules[STATE_N_TABLES];
 	struct pipeline pipes[STATE_N_TABLES][MAX_PIPELINES];
 	int n_pipes[STATE_N_TABLES];
+	uint64_t pipelines_created;
 	VkCommandPool cmd_pool;
 	VkCommandBuffer cmd;
 	VkQueryPool queries;
 	VkFence fence;
 
 	struct gpu_buffer params;
+	struct gpu_buffer views;			/* 3 vec4 per aerial volume */
 	struct gpu_buffer table[STATE_N_TABLES];	/* device memory */
 	struct gpu_buffer readback[STATE_N_TABLES];	/* host memory */
 	size_t table_bytes[STATE_N_TABLES];
@@ -457,8 +463,9 @@ static VkDescriptorType binding_type(int binding)
 {
 	if (binding == 0)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-	return binding <= STATE_N_TABLES ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
-					 : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+	return binding <= STATE_N_TABLES || binding == VIEWS_BINDING
+		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
+		       : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 }
 
 static int create_device(struct eng *e, char *err, size_t err_size)
@@ -521,7 +528,7 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
-		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES },
+		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 1 },
 		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
@@ -553,6 +560,10 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	rc = buffer_new(e, sizeof(struct gpu_params), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
 			VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT, 0,
 			&e->params, err, err_size);
+	if (rc == 0)
+		rc = buffer_new(e, VIEW_BUFFER_BYTES, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+				VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT,
+				0, &e->views, err, err_size);
 fail:
 	return rc;
 }
@@ -617,6 +628,7 @@ void eng_free(struct eng *e)
 				e->vk.vkDestroyShaderModule(e->dev, e->modules[t], NULL);
 		}
 		buffer_free(e, &e->params);
+		buffer_free(e, &e->views);
 		if (e->fence)
 			e->vk.vkDestroyFence(e->dev, e->fence, NULL);
 		if (e->queries)
@@ -650,6 +662,11 @@ const struct eng_device *eng_device(const struct eng *e)
 uint64_t eng_max_table_bytes(const struct eng *e)
 {
 	return e->limits.maxStorageBufferRange;
+}
+
+uint64_t eng_pipelines_created(const struct eng *e)
+{
+	return e->pipelines_created;
 }
 
 int eng_event_fd(const struct eng *e)
@@ -745,8 +762,27 @@ static void fill_params(const struct sky_state *s, struct gpu_params *p, struct 
 	base->v[9] = (int32_t)s->quality.t[STATE_TRANSMITTANCE].height;
 	base->v[10] = (int32_t)s->quality.t[STATE_MULTISCATTER].width;
 	base->v[11] = (int32_t)s->quality.t[STATE_MULTISCATTER].height;
-	base->v[16] = (int32_t)s->quality.multiscatter_dirs;
-	base->v[17] = 1;
+	/* multiscatter_dirs=0 switches the higher orders off: sky-view and
+	 * aerial perspective drop the term, and the multi-scattering table, if
+	 * asked for at all, is computed with the cheapest quadrature. */
+	base->v[16] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
+	base->v[17] = s->quality.multiscatter_dirs != 0;
+}
+
+/* The cameras of the aerial volumes: the state's, then each view's. */
+static void fill_views(const struct sky_state *s, float *out)
+{
+	double h0 = s->altitude_km > 0.0 ? s->altitude_km : 0.0;
+	double fwd[3], right[3], up[3];
+
+	for (uint32_t i = 0; i <= s->n_views; i++) {
+		const struct state_camera *c = i ? &s->views[i - 1].camera : &s->camera;
+		double h = i && !isnan(s->views[i - 1].altitude_km) ? s->views[i - 1].altitude_km : h0;
+		state_camera_basis(c, fwd, right, up);
+		put4(out + 12 * i, fwd[0], fwd[1], fwd[2], tan(c->vfov_deg * SKYMAP_PI / 360.0));
+		put4(out + 12 * i + 4, right[0], right[1], right[2], c->aspect);
+		put4(out + 12 * i + 8, up[0], up[1], up[2], h > 0.0 ? h : 0.0);
+	}
 }
 
 /* The constants one pass is specialized on: the others are zeroed so that a
@@ -770,7 +806,9 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 	k.v[19] = t == STATE_MULTISCATTER ? MS_SUN_GROUP : 0;
 	k.v[20] = t == STATE_SKYVIEW ? SV_AZ_GROUP : 0;
 	if (t == STATE_MULTISCATTER)
-		k.v[6] = 0;
+		k.v[6] = k.v[17] = 0;	/* the table is the term itself */
+	if (t == STATE_TRANSMITTANCE)
+		k.v[17] = 0;
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
 		k.v[7] = 0;	/* the ground enters through the multiscatter table */
 	return k;
@@ -804,6 +842,7 @@ static int get_pipeline(struct eng *e, int t, const struct spec *key, VkPipeline
 		.layout = e->pipe_layout };
 	VkPipeline p;
 	VK_TRY(e->vk.vkCreateComputePipelines(e->dev, VK_NULL_HANDLE, 1, &ci, NULL, &p));
+	e->pipelines_created++;
 	e->pipes[t][e->n_pipes[t]].key = *key;
 	e->pipes[t][e->n_pipes[t]].pipe = p;
 	e->n_pipes[t]++;
@@ -825,6 +864,8 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 
 	for (int t = 0; t < STATE_N_TABLES; t++) {
 		size_t bytes = state_table_bytes(s, (enum state_table)t);
+		if (t == STATE_AERIAL)
+			bytes *= 1 + s->n_views;
 		if (e->table[t].buf && e->table_bytes[t] == bytes &&
 		    (t >= N_LOOKUPS || e->lookup_format[t] == format))
 			continue;
@@ -857,17 +898,19 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 		rebind = true;
 	}
 	if (rebind) {
-		VkDescriptorBufferInfo bi[1 + STATE_N_TABLES] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
+		VkDescriptorBufferInfo bi[N_BINDINGS] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
 		VkWriteDescriptorSet w[N_BINDINGS];
 		for (int i = 0; i < N_BINDINGS; i++) {
 			w[i] = (VkWriteDescriptorSet){ .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
 				.dstSet = e->set, .dstBinding = (uint32_t)i, .descriptorCount = 1,
 				.descriptorType = binding_type(i) };
-			if (i > STATE_N_TABLES) {
+			if (i > STATE_N_TABLES && i != VIEWS_BINDING) {
 				w[i].pTexelBufferView = &e->lookup_view[i - 1 - STATE_N_TABLES];
 				continue;
 			}
-			if (i > 0)
+			if (i == VIEWS_BINDING)
+				bi[i] = (VkDescriptorBufferInfo){ e->views.buf, 0, VK_WHOLE_SIZE };
+			else if (i > 0)
 				bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
 			w[i].pBufferInfo = &bi[i];
 		}
@@ -924,12 +967,10 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 	rc = ensure_tables(e, s, &lost, err, err_size);
 	if (rc < 0)
 		return rc;
-	/* Tables that lost their contents are recomputed with their dependents. */
-	mask |= lost;
-	if (mask & STATE_BIT(STATE_TRANSMITTANCE))
-		mask |= STATE_ALL_TABLES;
-	if (mask & STATE_BIT(STATE_MULTISCATTER))
-		mask |= STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
+	/* Exactly mask: a table the caller did not ask for is neither computed
+	 * nor forced, so demand decides the cost. Only a dependency of mask
+	 * whose buffer was reallocated must come along. */
+	mask |= lost & state_closure(mask);
 
 	fill_params(s, &params, &base);
 	VkPipeline pipes[STATE_N_TABLES] = { 0 };
@@ -941,6 +982,7 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 				return rc;
 		}
 	memcpy(e->params.map, &params, sizeof(params));
+	fill_views(s, e->views.map);
 
 	VkCommandBufferBeginInfo bi = { .sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
 		.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT };
@@ -960,7 +1002,8 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 			e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
 						  2 * t);
 		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[t]);
-		e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
+		/* Every view's volume in one dispatch: z is the view. */
+		e->vk.vkCmdDispatch(e->cmd, gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1);
 		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
 					   &compute_to_compute, 0, NULL, 0, NULL);

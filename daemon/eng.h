@@ -55,13 +55,18 @@ const struct eng_device *eng_device(const struct eng *e);
 uint64_t eng_max_table_bytes(const struct eng *e);
 
 /* Starts computing the tables in mask for state s (already validated). The
- * caller passes exactly what must be recomputed; the engine keeps the other
- * tables from earlier computations, so they must be valid for s. A size or
- * storage change makes the engine reallocate and forces every table that
- * changed shape. Returns 0, -EBUSY while a computation is in flight,
+ * caller passes exactly what must be recomputed and nothing else is: the
+ * engine keeps the other tables from earlier computations, so the
+ * dependencies of mask that are not in it must be valid for s. A size or
+ * storage change reallocates; a reallocated dependency of mask is computed
+ * too, a reallocated table outside mask's closure is left zeroed. Returns 0, -EBUSY while a computation is in flight,
  * -EINVAL on a bad state, or -EIO on a device error (err says which). */
 int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err,
 	       size_t err_size);
+/* Compute pipelines created since eng_new: one per specialization variant
+ * of a pass, cached (up to 32 per pass), so a repeat adds none. */
+uint64_t eng_pipelines_created(const struct eng *e);
+
 /* An eventfd that becomes readable when the submitted work has finished. */
 int eng_event_fd(const struct eng *e);
 /* Non-blocking: 0 and the timing once finished, -EAGAIN before. */

@@ -186,7 +186,8 @@ static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, v
 {
 	double mu_l = dot(up, light);
 	v3 s = mul(phased_scattering(c, h, dot(dir, light)), transmittance_to_top(c, h, mu_l));
-	s = add(s, mul(sigma_s, multiscatter(c, h, mu_l)));
+	if (c->s->quality.multiscatter_dirs)	/* 0: higher orders switched off */
+		s = add(s, mul(sigma_s, multiscatter(c, h, mu_l)));
 	return mul(s, illum);
 }
 
@@ -450,7 +451,8 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	if (m.t[0])
 		compute_transmittance(&c, &s->quality.t[0], m.t[0]);
 	if (m.t[1])
-		compute_multiscatter(&c, &s->quality.t[1], s->quality.multiscatter_dirs, m.t[1]);
+		compute_multiscatter(&c, &s->quality.t[1],
+				     s->quality.multiscatter_dirs ? s->quality.multiscatter_dirs : 2, m.t[1]);
 	if (m.t[2])
 		compute_skyview(&c, &s->quality.t[2], m.t[2]);
 	if (m.t[3])

@@ -29,7 +29,18 @@ struct pub {
 	uint32_t next_slot;
 	struct state_table_quality shape[STATE_N_TABLES];
 	enum state_storage storage;
+	uint32_t max_views;
 };
+
+_Static_assert(STATE_MAX_VIEWS == SKY_SHM_MAX_VIEWS, "one bound on views");
+_Static_assert(STATE_VIEW_NAME_MAX == SKY_SHM_VIEW_NAME_MAX, "one bound on view names");
+
+/* A region holds view volumes only once some view exists: a scene without
+ * views pays nothing for them. */
+static uint32_t views_capacity(const struct sky_state *s)
+{
+	return s->n_views ? SKY_SHM_MAX_VIEWS : 0;
+}
 
 static uint8_t *slot_base(const struct pub *p, uint32_t i)
 {
@@ -44,7 +55,7 @@ int pub_same_layout(const struct pub *p, const struct sky_state *s)
 		if (a->width != b->width || a->height != b->height || da != db)
 			return 0;
 	}
-	return p->storage == s->quality.storage;
+	return p->storage == s->quality.storage && p->max_views >= s->n_views;
 }
 
 static void fill_header(struct sky_shm_header *h, const struct sky_state *s)
@@ -70,6 +81,10 @@ static void fill_header(struct sky_shm_header *h, const struct sky_state *s)
 		d->bytes = state_table_bytes(s, (enum state_table)t);
 		off = ALIGN_UP(off + d->bytes, 64);
 	}
+	h->max_views = views_capacity(s);
+	h->view_offset = off;
+	h->view_stride = ALIGN_UP(h->tables[STATE_AERIAL].bytes, 64);
+	off += h->view_stride * h->max_views;
 	/* Page-sized slots let a client map one slot alone. */
 	h->slot_bytes = ALIGN_UP(off, 4096);
 	h->total_bytes = h->header_bytes + h->slot_bytes * h->n_slots;
@@ -114,6 +129,7 @@ int pub_new(const struct sky_state *s, uint64_t generation, struct pub **ret)
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		p->shape[t] = s->quality.t[t];
 	p->storage = s->quality.storage;
+	p->max_views = h.max_views;
 	/* Even an empty slot checks out: seq even means checksum valid. */
 	for (uint32_t i = 0; i < PUB_SLOTS; i++) {
 		struct sky_shm_slot *slot = (struct sky_shm_slot *)slot_base(p, i);
@@ -230,6 +246,13 @@ uint64_t pub_checksum(const struct sky_shm_header *h, const struct sky_shm_slot 
 		if (slot->valid_tables & (1u << t))
 			c = sky_shm_checksum_words(c, base + h->tables[t].offset,
 						   h->tables[t].bytes / 8);
+	if (!slot->n_views || slot->n_views > SKY_SHM_MAX_VIEWS)
+		return c;
+	c = sky_shm_checksum_words(c, slot->views, slot->n_views * sizeof(slot->views[0]) / 8);
+	for (uint32_t i = 0; i < slot->n_views && i < h->max_views; i++)
+		if (slot->valid_views & (1u << i))
+			c = sky_shm_checksum_words(c, base + h->view_offset + i * h->view_stride,
+						   h->tables[STATE_AERIAL].bytes / 8);
 	return c;
 }
 
@@ -237,6 +260,39 @@ static void futex_wake_all(uint32_t *word)
 {
 	/* Shared (not PRIVATE): the waiters are other processes. */
 	syscall(SYS_futex, word, FUTEX_WAKE, INT_MAX, NULL, NULL, 0);
+}
+
+/* The slot's view directory and, with aerial perspective valid, each view's
+ * volume: they follow the state's own volume in the engine's aerial table. */
+static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *slot,
+			  uint8_t *base, const struct sky_state *s, uint32_t valid,
+			  const void *aerial)
+{
+	const double deg = SKYMAP_PI / 180.0;
+	uint32_t n = s->n_views < h->max_views ? s->n_views : h->max_views;
+
+	memset(slot->views, 0, sizeof(slot->views));
+	slot->n_views = n;
+	slot->valid_views = 0;
+	for (uint32_t i = 0; i < n; i++) {
+		const struct state_view *v = &s->views[i];
+		struct sky_shm_view *o = &slot->views[i];
+		double f[3], r[3], u[3];
+		snprintf(o->name, sizeof(o->name), "%s", v->name);
+		o->altitude_km = isnan(v->altitude_km) ? s->altitude_km : v->altitude_km;
+		state_camera_basis(&v->camera, f, r, u);
+		memcpy(o->camera_forward, f, sizeof(f));
+		memcpy(o->camera_right, r, sizeof(r));
+		memcpy(o->camera_up, u, sizeof(u));
+		o->camera_vfov_rad = v->camera.vfov_deg * deg;
+		o->camera_aspect = v->camera.aspect;
+		if ((valid & STATE_BIT(STATE_AERIAL)) && aerial) {
+			uint64_t bytes = h->tables[STATE_AERIAL].bytes;
+			memcpy(base + h->view_offset + i * h->view_stride,
+			       (const uint8_t *)aerial + (i + 1) * bytes, bytes);
+			slot->valid_views |= 1u << i;
+		}
+	}
 }
 
 void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
@@ -261,6 +317,7 @@ void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
 			memcpy(base + h->tables[t].offset, tables[t], h->tables[t].bytes);
 			slot->valid_tables |= STATE_BIT(t);
 		}
+	publish_views(h, slot, base, s, valid, tables[STATE_AERIAL]);
 	slot->checksum = pub_checksum(h, slot, base);
 	atomic_store_explicit(seq, s0 + 2, memory_order_release);
 

@@ -32,6 +32,7 @@ struct srv {
 	uint64_t in_flight_generation;
 
 	uint32_t eng_valid;		/* engine tables that match computing_state */
+	uint32_t demand;		/* tables clients asked for (srv_set_demand) */
 	uint64_t generation;		/* published */
 	struct srv_status st;
 };
@@ -58,11 +59,32 @@ void srv_status(const struct srv *s, struct srv_status *ret)
 	ret->computing = s->in_flight;
 	ret->pending = s->pending;
 	ret->published_valid = pub_current(s->pub, NULL)->valid_tables;
+	ret->demand = s->demand;
+	ret->needed = srv_tables_needed(s);
+}
+
+/* The demand and what it depends on. With multi-scattering switched off
+ * (multiscatter_dirs=0) sky-view and aerial perspective do not read the
+ * multi-scattering table, so only an explicit demand computes it. */
+static uint32_t demand_closure(const struct sky_state *st, uint32_t demand)
+{
+	uint32_t c = state_closure(demand);
+
+	if (st->quality.multiscatter_dirs == 0 && !(demand & STATE_BIT(STATE_MULTISCATTER)))
+		c &= ~STATE_BIT(STATE_MULTISCATTER);
+	return c;
 }
 
 uint32_t srv_tables_needed(const struct srv *s)
 {
-	return STATE_ALL_TABLES;
+	return demand_closure(&s->state, s->demand);
+}
+
+uint32_t srv_tables_coming(const struct srv *s)
+{
+	uint32_t c = s->in_flight ? s->in_flight_mask : 0;
+
+	return c | (s->dirty & srv_tables_needed(s));
 }
 
 int srv_check(const struct srv *s, const struct sky_state *next, char *err, size_t err_size)
@@ -122,6 +144,7 @@ static void publish(struct srv *s, uint32_t computed)
 							  : NULL;
 	pub_publish(s->pub, &s->computing_state, s->eng_valid, tables, generation);
 	s->generation = generation;
+	s->st.published_computed = computed;
 	s->st.last_error[0] = 0;
 	log_debug("generation %llu published", (unsigned long long)generation);
 	if (s->listener.published)
@@ -140,7 +163,7 @@ static void kick(struct srv *s)
 	s->computing_state = s->state;
 	s->pending = 0;
 	s->eng_valid &= ~s->dirty;
-	mask = s->dirty & state_closure(srv_tables_needed(s));
+	mask = s->dirty & srv_tables_needed(s);
 	s->dirty &= ~mask;
 	s->in_flight_generation = s->generation + 1;
 	s->in_flight_mask = mask;
@@ -210,6 +233,17 @@ int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	else			/* in flight now, or published at once */
 		*ret_generation = s->in_flight ? s->in_flight_generation : s->generation;
 	return 0;
+}
+
+void srv_set_demand(struct srv *s, uint32_t tables)
+{
+	s->demand = tables & STATE_ALL_TABLES;
+	/* A table asked for that is not current: compute it (and only the
+	 * missing part of its closure), with the state as it is. */
+	if (s->dirty & srv_tables_needed(s)) {
+		s->pending = 1;
+		kick(s);
+	}
 }
 
 void srv_set_listener(struct srv *s, const struct srv_listener *listener, void *ctx)

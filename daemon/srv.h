@@ -37,6 +37,9 @@ struct srv_status {
 	double last_total_ms;
 	double table_ms[STATE_N_TABLES];/* the last time each table was computed; -1 never */
 	uint32_t published_valid;	/* tables valid in the current slot */
+	uint32_t published_computed;	/* tables computed for the current slot (others carried) */
+	uint32_t demand;		/* srv_set_demand's tables */
+	uint32_t needed;		/* demand with its dependencies */
 	uint64_t computations, failures;
 	char last_error[256];		/* "" when the last computation succeeded */
 };
@@ -66,8 +69,18 @@ int srv_check(const struct srv *s, const struct sky_state *next, char *err, size
 int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	       uint64_t *ret_generation, char *err, size_t err_size);
 
-/* The tables some client needs. Every table for now; the hook where
- * demand-driven computation (the union of subscriptions) will plug in. */
+/* The tables some client needs: the demand and its dependencies under the
+ * newest state. Only these are ever computed; a change to any other table
+ * only marks it stale (it leaves the published slots until asked for). */
 uint32_t srv_tables_needed(const struct srv *s);
+
+/* Sets the demand (STATE_BIT mask, the union of what clients use); 0 at
+ * start. Needed tables that are not current are computed at once, with
+ * the state as it is: a later generation carries them. */
+void srv_set_demand(struct srv *s, uint32_t tables);
+
+/* Needed tables that are in flight or will be computed next: a table not
+ * valid in the current slot that is here will come in a later generation. */
+uint32_t srv_tables_coming(const struct srv *s);
 
 #endif

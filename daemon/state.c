@@ -70,7 +70,7 @@ static const struct key keys[] = {
 	{ "multiscatter_width", K_UINT, QT(1, width), FROM_M, 2, 1024, 0 },
 	{ "multiscatter_height", K_UINT, QT(1, height), FROM_M, 2, 1024, 0 },
 	{ "multiscatter_steps", K_UINT, QT(1, steps), FROM_M, 1, 4096, 0 },
-	{ "multiscatter_dirs", K_UINT, OFF(quality.multiscatter_dirs), FROM_M, 2, 64, 0 },
+	{ "multiscatter_dirs", K_UINT, OFF(quality.multiscatter_dirs), FROM_M, 0, 64, 0 },
 	{ "skyview_width", K_UINT, QT(2, width), S_BIT, 2, 4096, 0 },
 	{ "skyview_height", K_UINT, QT(2, height), S_BIT, 2, 4096, 0 },
 	{ "skyview_steps", K_UINT, QT(2, steps), S_BIT, 1, 4096, 0 },
@@ -140,6 +140,12 @@ static const struct {
 	{ "layer1_constant", C_CONSTANT, 1 },
 };
 
+void state_default_camera(struct state_camera *ret)
+{
+	*ret = (struct state_camera){ .yaw_deg = 180.0, .pitch_deg = 0.0, .roll_deg = 0.0,
+				      .vfov_deg = 60.0, .aspect = 16.0 / 9.0 };
+}
+
 void state_default(struct sky_state *ret)
 {
 	struct sky_state s = { 0 };
@@ -153,8 +159,7 @@ void state_default(struct sky_state *ret)
 	s.moon = (struct state_light){ .elevation_deg = -30.0, .azimuth_deg = 0.0,
 		.illuminance_lx = 0.0, .color = { 1, 1, 1 },
 		.angular_radius_deg = 0.259 };
-	s.camera = (struct state_camera){ .yaw_deg = 180.0, .pitch_deg = 0.0,
-		.roll_deg = 0.0, .vfov_deg = 60.0, .aspect = 16.0 / 9.0 };
+	state_default_camera(&s.camera);
 	s.quality.t[STATE_TRANSMITTANCE] = (struct state_table_quality){ 256, 64, 1, 40 };
 	s.quality.t[STATE_MULTISCATTER] = (struct state_table_quality){ 32, 32, 1, 20 };
 	s.quality.t[STATE_SKYVIEW] = (struct state_table_quality){ 192, 108, 1, 30 };
@@ -268,8 +273,8 @@ static int set_key(struct sky_state *s, const struct key *k, const char *v,
 			return ERR("%s: '%s' is not a whole number", k->name, v);
 		if (u < k->min || u > k->max)
 			return ERR("%s: %llu is outside [%g, %g]", k->name, u, k->min, k->max);
-		if (strcmp(k->name, "multiscatter_dirs") == 0 && u != 2 && u != 64)
-			return ERR("multiscatter_dirs: must be 2 or 64");
+		if (strcmp(k->name, "multiscatter_dirs") == 0 && u != 0 && u != 2 && u != 64)
+			return ERR("multiscatter_dirs: must be 0 (off), 2 or 64");
 		*(uint32_t *)base = (uint32_t)u;
 		return 0;
 	}

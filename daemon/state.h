@@ -43,6 +43,18 @@ struct state_camera {
 	double aspect;			/* width / height */
 };
 
+/* Views: cameras that each get their own aerial-perspective volume (proto
+ * SKY_SHM_MAX_VIEWS of them at most), added and removed with the view verb. */
+#define STATE_MAX_VIEWS 8
+#define STATE_VIEW_NAME_MAX 32
+
+struct state_view {
+	char name[STATE_VIEW_NAME_MAX];
+	double altitude_km;		/* NAN: the observer's altitude_km */
+	struct state_camera camera;
+	uint64_t owner;			/* the connection that added it */
+};
+
 /* Size and quadrature of one table. depth is 1 except for aerial perspective. */
 struct state_table_quality {
 	uint32_t width, height, depth;
@@ -51,7 +63,7 @@ struct state_table_quality {
 
 struct state_quality {
 	struct state_table_quality t[STATE_N_TABLES];
-	uint32_t multiscatter_dirs;	/* 2 (up and down) or 64 */
+	uint32_t multiscatter_dirs;	/* 2 (up and down) or 64; 0 switches multi-scattering off */
 	uint32_t skyview_min_steps;
 	double aerial_range_km;
 	enum state_spacing aerial_spacing;
@@ -98,7 +110,12 @@ struct sky_state {
 	double lights_utc_s;		/* the simulated time the clock-driven lights
 					 * were computed for; NAN when none is */
 	struct state_night night;
+	uint32_t n_views;		/* views[0 .. n_views) in use, in the order added */
+	struct state_view views[STATE_MAX_VIEWS];
 };
+
+/* The default camera (and a new view's): south, level, 60 degrees, 16:9. */
+void state_default_camera(struct state_camera *ret);
 
 /* Default: Earth, sun at 30 degrees, observer at 0.2 km, reference sizes. */
 void state_default(struct sky_state *ret);

@@ -11,7 +11,7 @@
 #include <stdint.h>
 
 /* Text protocol: greeting "OK skyd <SKY_PROTO_VERSION>". */
-#define SKY_PROTO_VERSION "2"
+#define SKY_PROTO_VERSION "3"
 #define SKY_PROTO_LINE_MAX 4096		/* bytes per request line, newline included */
 
 /* ACK codes: "ACK [code] {verb} message". */
@@ -46,9 +46,12 @@ enum sky_ack {
  * control socket with a "layout:" line (PROTOCOL.md).
  */
 #define SKY_SHM_MAGIC 0x31594b53u	/* "SKY1" little-endian */
-#define SKY_SHM_LAYOUT_VERSION 2u
+#define SKY_SHM_LAYOUT_VERSION 3u
 #define SKY_SHM_MAX_TABLES 4u
 #define SKY_SHM_MIN_SLOTS 3u
+/* Views (`view add`): at most this many, each with its own aerial volume. */
+#define SKY_SHM_MAX_VIEWS 8u
+#define SKY_SHM_VIEW_NAME_MAX 32u
 
 enum sky_shm_table_id {
 	SKY_TABLE_TRANSMITTANCE = 0,
@@ -93,6 +96,16 @@ struct sky_shm_state {
 	double reserved[16];
 };
 
+/* One view: a camera with its own aerial-perspective volume, of the aerial
+ * table's format and size, at header view_offset + index * view_stride in
+ * the slot. Directions as in sky_shm_state. */
+struct sky_shm_view {
+	char name[SKY_SHM_VIEW_NAME_MAX];	/* NUL-terminated */
+	double altitude_km;		/* the view's eye above the ground */
+	double camera_forward[3], camera_right[3], camera_up[3];
+	double camera_vfov_rad, camera_aspect;
+};
+
 struct sky_shm_slot {
 	uint32_t seq;			/* odd while written, even when stable (atomic) */
 	uint32_t valid_tables;		/* bit (1 << sky_shm_table_id) per valid table */
@@ -100,6 +113,9 @@ struct sky_shm_slot {
 	int64_t apply_time_ns;		/* CLOCK_REALTIME at which it becomes current; 0 now */
 	uint64_t checksum;		/* of the state and the valid tables, sky_shm_checksum_words */
 	struct sky_shm_state state;
+	uint32_t n_views;		/* views[0 .. n_views) describe this slot's views */
+	uint32_t valid_views;		/* bit i: view i's volume is valid */
+	struct sky_shm_view views[SKY_SHM_MAX_VIEWS];
 };
 
 struct sky_shm_header {
@@ -116,11 +132,18 @@ struct sky_shm_header {
 	uint32_t superseded;		/* 1: never written again; a new region comes on the socket */
 	uint32_t reserved0;
 	struct sky_shm_table tables[SKY_SHM_MAX_TABLES];
+	/* View volumes: max_views of them (0 until a view is first added, then
+	 * SKY_SHM_MAX_VIEWS: a new region), view_stride bytes apart. */
+	uint32_t max_views;
+	uint32_t reserved1;
+	uint64_t view_offset;		/* from the start of a slot */
+	uint64_t view_stride;
 };
 
 /* The slot checksum (PROTOCOL.md, "Checksum"): FNV-1a 64 over 64-bit
  * native-endian words, first the slot's state, then every valid table in id
- * order. words counts 8-byte words; start a checksum with SKY_SHM_CHECKSUM_SEED. */
+ * order, then, when n_views > 0, views[0 .. n_views) and each valid view's
+ * volume in index order. words counts 8-byte words; start a checksum with SKY_SHM_CHECKSUM_SEED. */
 #define SKY_SHM_CHECKSUM_SEED 0xcbf29ce484222325ull
 static inline uint64_t sky_shm_checksum_words(uint64_t h, const void *data, uint64_t words)
 {

@@ -166,7 +166,50 @@ static inline int skysample_check_layout(const struct sky_shm_header *hdr, uint6
 		    d->offset % 8)
 			return -EPROTO;
 	}
+	if (hdr->max_views > SKY_SHM_MAX_VIEWS)
+		return -EPROTO;
+	if (hdr->max_views) {
+		const struct sky_shm_table *a = NULL;
+		for (uint32_t n = 0; n < hdr->n_tables; n++)
+			if (hdr->tables[n].id == SKY_TABLE_AERIAL)
+				a = &hdr->tables[n];
+		if (!a || hdr->view_stride < a->bytes || hdr->view_offset % 8 ||
+		    hdr->view_offset < sizeof(struct sky_shm_slot) ||
+		    hdr->view_offset > hdr->slot_bytes ||
+		    hdr->view_stride * hdr->max_views > hdr->slot_bytes - hdr->view_offset)
+			return -EPROTO;
+	}
 	return 0;
+}
+
+/* Finds the view called name in a slot at slot_base (layout checked) and
+ * points ret at its aerial volume; ret_view (may be NULL) gets its entry.
+ * -ENOENT if the slot has no such view, -ENODATA if its volume is not
+ * valid in this slot. */
+static inline int skysample_view_from_slot(const struct sky_shm_header *hdr,
+					   const void *slot_base, const char *name,
+					   struct skysample_table *ret,
+					   const struct sky_shm_view **ret_view)
+{
+	const struct sky_shm_slot *slot = (const struct sky_shm_slot *)slot_base;
+	struct skysample_table aerial;
+
+	if (skysample_table_from_slot(hdr, slot_base, SKY_TABLE_AERIAL, &aerial) < 0)
+		return -ENOENT;
+	for (uint32_t i = 0; i < slot->n_views && i < hdr->max_views; i++) {
+		const struct sky_shm_view *v = &slot->views[i];
+		if (__builtin_strncmp(v->name, name, SKY_SHM_VIEW_NAME_MAX) != 0)
+			continue;
+		if (!(slot->valid_views & (1u << i)))
+			return -ENODATA;
+		*ret = aerial;
+		ret->texels = (const unsigned char *)slot_base + hdr->view_offset +
+			      i * hdr->view_stride;
+		if (ret_view)
+			*ret_view = v;
+		return 0;
+	}
+	return -ENOENT;
 }
 
 /* The slot checksum of skyproto.h over a slot (or a copy of one) at
@@ -185,6 +228,18 @@ static inline uint64_t skysample_slot_checksum(const struct sky_shm_header *hdr,
 				c = sky_shm_checksum_words(c, (const unsigned char *)slot_base +
 							      hdr->tables[n].offset,
 							   hdr->tables[n].bytes / 8);
+	}
+	if (!slot->n_views || slot->n_views > SKY_SHM_MAX_VIEWS)
+		return c;
+	c = sky_shm_checksum_words(c, slot->views, slot->n_views * sizeof(slot->views[0]) / 8);
+	for (uint32_t i = 0; i < slot->n_views && i < hdr->max_views; i++) {
+		struct skysample_table t;
+		if ((slot->valid_views & (1u << i)) &&
+		    skysample_table_from_slot(hdr, slot_base, SKY_TABLE_AERIAL, &t) == 0)
+			c = sky_shm_checksum_words(c, (const unsigned char *)slot_base +
+						      hdr->view_offset + i * hdr->view_stride,
+						   (uint64_t)t.width * t.height * t.depth *
+						   (t.format == SKY_FORMAT_RGBA16F ? 8 : 16) / 8);
 	}
 	return c;
 }

@@ -1,11 +1,17 @@
-// aerial.comp - aerial perspective for one camera: per froxel column, one
-// march through all slices; slice k holds the integral from the camera to
-// the slice's far edge (see proto/skymap.h).
+// aerial.comp - aerial perspective for each camera (view) in one dispatch:
+// per froxel column, one march through all slices; slice k holds the
+// integral from the camera to the slice's far edge (see proto/skymap.h).
+// gl_GlobalInvocationID.z is the view: 0 the state's camera, then the
+// registered views, each volume after the other in the output.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
+
+// Per view, three vec4: forward (w = tan(vfov / 2)), right (w = aspect),
+// up (w = the view's altitude in km).
+layout(std430, binding = 7) readonly buffer ViewBuf { vec4 v[]; } VB;
 
 void main()
 {
@@ -14,11 +20,13 @@ void main()
 	if (px.x >= OUT_W || px.y >= OUT_H)
 		return;
 
-	float h0 = P.planet.w, range = P.cam_up.w;
+	int view = int(gl_GlobalInvocationID.z);
+	vec4 fwd = VB.v[3 * view], right = VB.v[3 * view + 1], cup = VB.v[3 * view + 2];
+	float h0 = cup.w, range = P.cam_up.w;
 	vec2 ndc = (vec2(px) + 0.5) / vec2(OUT_W, OUT_H) * 2.0 - 1.0;
-	float tan_half = P.cam_fwd.w;
-	vec3 dir = normalize(P.cam_fwd.xyz + ndc.x * tan_half * P.cam_right.w * P.cam_right.xyz +
-			     ndc.y * tan_half * P.cam_up.xyz);
+	float tan_half = fwd.w;
+	vec3 dir = normalize(fwd.xyz + ndc.x * tan_half * right.w * right.xyz +
+			     ndc.y * tan_half * cup.xyz);
 
 	Phases ph_sun = ray_phases(dir, P.sun_dir.xyz), ph_moon = ray_phases(dir, P.moon_dir.xyz);
 	float t0, t1;
@@ -51,6 +59,7 @@ void main()
 		}
 		// Night-sky floor: airlight (1 - T) of a sky of the floor's mean level L_z (1 + c / 3).
 		vec3 night = P.night.rgb * (1.0 + P.night.w / 3.0) * (1.0 - tr);
-		STORE_TEXEL(AB, (k * OUT_H + px.y) * OUT_W + px.x, vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0));
+		STORE_TEXEL(AB, ((view * OUT_D + k) * OUT_H + px.y) * OUT_W + px.x,
+			    vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0));
 	}
 }

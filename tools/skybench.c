@@ -7,6 +7,7 @@
 #include <time.h>
 
 #include "bench_stability.h"
+#include "bench_demand.h"
 #include "eng.h"
 #include "state.h"
 
@@ -130,7 +131,10 @@ static void usage(FILE *f)
 	fprintf(f, "usage: skybench perf [--runs N] [--device SEL] [key=value ...]\n"
 		   "  perf   times each table, sky-view + aerial perspective, and the whole set\n"
 		   "       skybench stability --markdown FILE\n"
-		   "  stability  the stiff cases of PHYSICS.md: invariants and precision as markdown\n");
+		   "  stability  the stiff cases of PHYSICS.md: invariants and precision as markdown\n"
+		   "       skybench demand [--runs N] [--markdown] [key=value ...]\n"
+		   "  demand [--runs N] [--markdown] [key=value ...]: each kind of scene with only the\n"
+		   "         tables it needs against a full recompute (docs/performance.md)\n");
 }
 
 int main(int argc, char **argv)
@@ -139,6 +143,8 @@ int main(int argc, char **argv)
 		return perf(argc - 2, argv + 2);
 	if (argc >= 2 && !strcmp(argv[1], "stability"))
 		return bench_stability(argc - 2, argv + 2);
+	if (argc >= 2 && !strcmp(argv[1], "demand"))
+		return bench_demand_main(argc - 2, argv + 2);
 	usage(argc >= 2 && !strcmp(argv[1], "--help") ? stdout : stderr);
 	return argc >= 2 && !strcmp(argv[1], "--help") ? 0 : 2;
 }

@@ -1,0 +1,437 @@
+/* test_demand.c - skyd computes exactly the tables its clients use: per kind
+ * of scene, the set `status` reports as computed is the expected one and the
+ * published tables are bit-identical to a full recompute of the same state. */
+#include <math.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+
+#include "daemon_harness.h"
+#include "eng.h"
+#include "skyproto.h"
+#include "skysample.h"
+#include "state.h"
+#include "test.h"
+
+static char reply[1 << 16];
+static struct eng *ref_eng;		/* the full recompute, in this process */
+static struct sky_state mirror;		/* the daemon's state as the test set it */
+static const char *const small[] = { HARNESS_SMALL, NULL };
+
+static void mirror_set(const char *pairs)
+{
+	char buf[512], err[256], *save = NULL;
+
+	snprintf(buf, sizeof(buf), "%s", pairs);
+	for (char *p = strtok_r(buf, " ", &save); p; p = strtok_r(NULL, " ", &save))
+		if (state_set_pair(&mirror, p, NULL, err, sizeof(err)) < 0)
+			FAIL("mirror %s: %s", p, err);
+}
+
+static const char *status_value(struct conn *c, const char *key)
+{
+	static char buf[256];
+
+	if (conn_request(c, "status", reply, sizeof(reply)) != 0 ||
+	    !reply_value(reply, key, buf, sizeof(buf)))
+		return "?";
+	return buf;
+}
+
+/* Sends "set PAIRS", waits for the generation it names, returns it. */
+static uint64_t change(struct conn *c, const char *pairs)
+{
+	char req[600];
+
+	snprintf(req, sizeof(req), "set %s", pairs);
+	if (conn_request(c, req, reply, sizeof(reply)) != 0) {
+		FAIL("%s: %s", req, reply);
+		return 0;
+	}
+	mirror_set(pairs);
+	uint64_t g = reply_u64(reply, "generation");
+	CHECK(conn_wait_generation(c, g) == 0);
+	return g;
+}
+
+/* Waits until status shows generation >= g with nothing in flight. */
+static void settle(struct conn *c, uint64_t g)
+{
+	CHECK(conn_wait_generation(c, g) == 0);
+	for (;;) {
+		if (conn_request(c, "status", reply, sizeof(reply)) != 0)
+			return;
+		if (reply_u64(reply, "computing") == 0 && reply_u64(reply, "pending") == 0)
+			return;
+		/* A computation is in flight: its changed: line ends it. */
+		CHECK(conn_wait_generation(c, c->event_generation + 1) == 0);
+	}
+}
+
+/* The current slot's valid tables are bit-identical to a full recompute of
+ * the mirrored state, and its valid set is expect. */
+static void check_slot(const uint8_t *map, uint32_t expect, const char *what)
+{
+	const struct sky_shm_header *h = (const void *)map;
+	uint32_t cur = __atomic_load_n(&h->current_slot, __ATOMIC_ACQUIRE);
+	const uint8_t *base = map + h->header_bytes + (uint64_t)cur * h->slot_bytes;
+	const struct sky_shm_slot *slot = (const void *)base;
+	struct eng_timing t;
+	char err[256];
+
+	if (slot->valid_tables != expect)
+		FAIL("%s: valid tables 0x%x, expected 0x%x", what, slot->valid_tables, expect);
+	if (eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
+		FAIL("reference: %s", err);
+		return;
+	}
+	for (int i = 0; i < STATE_N_TABLES; i++) {
+		if (!(slot->valid_tables & STATE_BIT(i)))
+			continue;
+		size_t bytes;
+		const void *ref = eng_table(ref_eng, (enum state_table)i, &bytes);
+		/* The engine's aerial table holds the views' volumes after the
+		 * state's own. */
+		if (bytes < h->tables[i].bytes ||
+		    memcmp(ref, base + h->tables[i].offset, h->tables[i].bytes))
+			FAIL("%s: %s differs from a full recompute", what, state_table_names[i]);
+	}
+}
+
+/* Closes c with the close verb and waits for the daemon's end of the
+ * stream: skyd has dropped the client (and its demand) by then. */
+static void hang_up(struct conn *c)
+{
+	char line[1024];
+
+	CHECK(conn_request(c, "close", reply, sizeof(reply)) == 0);
+	while (conn_line(c, line, sizeof(line)) >= 0)
+		;
+	conn_close(c);
+}
+
+#define EXPECT(c, key, value)                                                          \
+	do {                                                                           \
+		const char *v_ = status_value(c, key);                                 \
+		if (strcmp(v_, value))                                                 \
+			FAIL("%s: %s is '%s', expected '%s'", __func__, key, v_, value); \
+	} while (0)
+
+#define T STATE_BIT(STATE_TRANSMITTANCE)
+#define M STATE_BIT(STATE_MULTISCATTER)
+#define S STATE_BIT(STATE_SKYVIEW)
+#define A STATE_BIT(STATE_AERIAL)
+
+/* Maps the region c received last. */
+static const uint8_t *map_last(struct conn *c)
+{
+	struct stat st;
+
+	if (c->n_fds < 1 || fstat(c->fds[c->n_fds - 1], &st) < 0)
+		return NULL;
+	const uint8_t *m = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_SHARED,
+				c->fds[c->n_fds - 1], 0);
+	return m == MAP_FAILED ? NULL : m;
+}
+
+/* The current slot's view volumes: count, all valid, each bit-identical
+ * to the reference engine's volume for the mirrored views. */
+static void check_views(const uint8_t *map, uint32_t n, const char *what)
+{
+	const struct sky_shm_header *h = (const void *)map;
+	uint32_t cur = __atomic_load_n(&h->current_slot, __ATOMIC_ACQUIRE);
+	const uint8_t *base = map + h->header_bytes + (uint64_t)cur * h->slot_bytes;
+	const struct sky_shm_slot *slot = (const void *)base;
+	uint64_t bytes = h->tables[STATE_AERIAL].bytes;
+	size_t all;
+	const uint8_t *ref = eng_table(ref_eng, STATE_AERIAL, &all);	/* check_slot computed it */
+
+	struct skysample_table none;
+	CHECK(skysample_check_layout(h, h->total_bytes) == 0);
+	CHECK(skysample_view_from_slot(h, base, "nobody", &none, NULL) == -ENOENT);
+	if (slot->n_views != n || slot->valid_views != (1u << n) - 1) {
+		FAIL("%s: %u views, valid 0x%x; expected %u", what, slot->n_views, slot->valid_views, n);
+		return;
+	}
+	CHECK(all == bytes * (1 + n));
+	for (uint32_t i = 0; i < n && all == bytes * (1 + n); i++) {
+		CHECK(strcmp(slot->views[i].name, mirror.views[i].name) == 0);
+		/* What libsky's sky_view_aerial_table() finds by name. */
+		struct skysample_table t;
+		const struct sky_shm_view *sv = NULL;
+		CHECK(skysample_view_from_slot(h, base, mirror.views[i].name, &t, &sv) == 0 &&
+		      t.texels == base + h->view_offset + i * h->view_stride && sv == &slot->views[i]);
+		if (memcmp(base + h->view_offset + i * h->view_stride, ref + (i + 1) * bytes, bytes))
+			FAIL("%s: view %s differs from a full recompute", what, slot->views[i].name);
+	}
+}
+
+static void mirror_view(const char *name, double yaw_deg, double pitch_deg)
+{
+	struct state_view *v = &mirror.views[mirror.n_views++];
+	memset(v, 0, sizeof(*v));
+	snprintf(v->name, sizeof(v->name), "%s", name);
+	v->altitude_km = NAN;
+	state_default_camera(&v->camera);
+	v->camera.yaw_deg = yaw_deg;
+	v->camera.pitch_deg = pitch_deg;
+}
+
+/* Display-wall views: each gets its volume (one dispatch), they go with the
+ * connection that added them. */
+static void test_views(struct conn *ctl, struct daemon *d)
+{
+	struct conn wall, user;
+	char req[256];
+
+	CHECK(conn_open(&user, d->sock) == 0);
+	CHECK(conn_request(&user, "subscribe tables=aerial", reply, sizeof(reply)) == 0);
+	settle(ctl, ctl->event_generation + 1);
+	CHECK(conn_open(&wall, d->sock) == 0);
+	CHECK(conn_request(&wall, "view add", reply, sizeof(reply)) == SKY_ACK_SYNTAX);
+	CHECK(conn_request(&wall, "view add name=a/b", reply, sizeof(reply)) == SKY_ACK_ARG);
+	CHECK(conn_request(&wall, "view add name=w yaw=3", reply, sizeof(reply)) == SKY_ACK_NO_EXIST);
+	CHECK(conn_request(&wall, "view add name=w vfov_deg=200", reply, sizeof(reply)) == SKY_ACK_RANGE);
+	CHECK(conn_request(&wall, "view del name=nobody", reply, sizeof(reply)) == SKY_ACK_NO_EXIST);
+	CHECK(conn_request(&wall, "view turn", reply, sizeof(reply)) == SKY_ACK_NO_EXIST);
+	/* Eight channels of one eye point, 45 degrees apart, as one batch of
+	 * requests: each is a change, coalesced while the engine works. */
+	uint64_t g = 0;
+	for (int i = 0; i < STATE_MAX_VIEWS; i++) {
+		char name[16];
+		snprintf(name, sizeof(name), "wall%d", i);
+		snprintf(req, sizeof(req), "view add name=%s yaw_deg=%d pitch_deg=5", name, 45 * i);
+		CHECK(conn_request(&wall, req, reply, sizeof(reply)) == 0);
+		g = reply_u64(reply, "generation");
+		mirror_view(name, 45 * i, 5);
+	}
+	CHECK(conn_request(&wall, "view add name=ninth", reply, sizeof(reply)) == SKY_ACK_LIMIT);
+	CHECK(conn_request(&user, "view add name=wall0", reply, sizeof(reply)) == SKY_ACK_ARG);
+	settle(ctl, g);
+	EXPECT(ctl, "last_computed", "aerial");
+	EXPECT(ctl, "views", "8");
+	CHECK(strstr(reply, "view: name=wall7 index=7 valid=1") != NULL);
+	CHECK(conn_request(&wall, "view list", reply, sizeof(reply)) == 0);
+	CHECK(strstr(reply, "view: name=wall3 index=3 altitude_km=observer yaw_deg=135 pitch_deg=5") != NULL);
+	/* The first view made a new region with room for the views. */
+	CHECK(conn_request(&user, "subscribe tables=aerial", reply, sizeof(reply)) == 0);
+	const uint8_t *map = map_last(&user);
+	if (!map) {
+		FAIL("no region");
+		goto out;
+	}
+	CHECK(((const struct sky_shm_header *)map)->max_views == SKY_SHM_MAX_VIEWS);
+	check_slot(map, T | M | S | A, "eight views");	/* sky-view carried */
+	check_views(map, 8, "eight views");
+
+	/* A view with the state's camera has the state's volume. */
+	CHECK(conn_request(&wall, "view del name=wall7", reply, sizeof(reply)) == 0);
+	mirror.n_views--;
+	snprintf(req, sizeof(req), "view add name=same yaw_deg=%.17g pitch_deg=%.17g roll_deg=%.17g vfov_deg=%.17g aspect=%.17g",
+		 mirror.camera.yaw_deg, mirror.camera.pitch_deg, mirror.camera.roll_deg,
+		 mirror.camera.vfov_deg, mirror.camera.aspect);
+	CHECK(conn_request(&wall, req, reply, sizeof(reply)) == 0);
+	mirror_view("same", 0, 0);
+	mirror.views[7].camera = mirror.camera;
+	settle(ctl, reply_u64(reply, "generation"));
+	check_slot(map, T | M | S | A, "same camera");
+	check_views(map, 8, "same camera");
+	{
+		const struct sky_shm_header *h = (const void *)map;
+		const uint8_t *base = map + h->header_bytes + (uint64_t)h->current_slot * h->slot_bytes;
+		CHECK(memcmp(base + h->tables[STATE_AERIAL].offset, base + h->view_offset + 7 * h->view_stride,
+			     h->tables[STATE_AERIAL].bytes) == 0);
+	}
+
+	/* A time-of-day change recomputes every view, in one dispatch. */
+	change(ctl, "sun_elevation_deg=8");
+	EXPECT(ctl, "last_computed", "aerial");
+	check_slot(map, T | M | A, "views, time of day");
+	check_views(map, 8, "views, time of day");
+
+	/* The wall's connection closes: its views are dropped. */
+	hang_up(&wall);
+	mirror.n_views = 0;
+	EXPECT(ctl, "views", "0");
+	settle(ctl, ctl->event_generation);
+	check_slot(map, T | M | A, "views dropped");
+	check_views(map, 0, "views dropped");
+out:
+	hang_up(&user);
+}
+
+int main(void)
+{
+	struct daemon d = { 0 };
+	struct conn ctl, sub, sub2, sampler;
+	char err[256];
+	const uint8_t *map = NULL;
+	struct stat st;
+
+	harness_need_device();
+	if (eng_new(NULL, err, sizeof(err), &ref_eng) < 0) {
+		printf("skipped: %s\n", err);
+		return 77;
+	}
+	state_default(&mirror);
+	for (int i = 0; small[i]; i++)
+		mirror_set(small[i]);
+	if (daemon_start(&d, small) < 0 || conn_open(&ctl, d.sock) < 0) {
+		FAIL("skyd did not start");
+		return test_report("test_demand");
+	}
+	CHECK(conn_request(&ctl, "subscribe events=1", reply, sizeof(reply)) == 0);
+
+	/* No subscriber: the start and a change compute nothing. */
+	EXPECT(&ctl, "last_computed", "none");
+	EXPECT(&ctl, "tables_valid", "none");
+	EXPECT(&ctl, "computations", "0");
+	change(&ctl, "sun_elevation_deg=20");
+	EXPECT(&ctl, "last_computed", "none");
+	EXPECT(&ctl, "tables_needed", "none");
+	EXPECT(&ctl, "computations", "0");
+
+	/* Transmittance only (a view from space): that table alone. */
+	CHECK(conn_open(&sub, d.sock) == 0);
+	CHECK(conn_request(&sub, "subscribe tables=transmittance", reply, sizeof(reply)) == 0);
+	CHECK(sub.n_fds == 1);
+	if (sub.n_fds == 1 && fstat(sub.fds[0], &st) == 0) {
+		map = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_SHARED, sub.fds[0], 0);
+		if (map == MAP_FAILED)
+			map = NULL;
+	}
+	if (!map) {
+		FAIL("no region");
+		goto out;
+	}
+	settle(&ctl, ctl.event_generation + 1);
+	EXPECT(&ctl, "last_computed", "transmittance");
+	EXPECT(&ctl, "tables_needed", "transmittance");
+	check_slot(map, T, "transmittance only");
+
+	/* A time-of-day change leaves transmittance as it was: carried, not
+	 * recomputed. */
+	change(&ctl, "sun_elevation_deg=12 sun_azimuth_deg=200");
+	EXPECT(&ctl, "last_computed", "none");
+	check_slot(map, T, "time of day, transmittance only");
+
+	/* A sky-view dome: the missing dependencies and sky-view. */
+	CHECK(conn_request(&sub, "subscribe tables=skyview", reply, sizeof(reply)) == 0);
+	settle(&ctl, ctl.event_generation + 1);
+	EXPECT(&ctl, "last_computed", "multiscatter,skyview");
+	EXPECT(&ctl, "tables_needed", "transmittance,multiscatter,skyview");
+	check_slot(map, T | M | S, "sky-view dome");
+
+	/* Time of day with sky-view in use: sky-view alone. */
+	change(&ctl, "sun_elevation_deg=5");
+	EXPECT(&ctl, "last_computed", "skyview");
+	check_slot(map, T | M | S, "time of day, sky-view");
+	/* Moon and observer position are the same kind of change. */
+	change(&ctl, "moon_illuminance_lx=0.3 moon_elevation_deg=40");
+	EXPECT(&ctl, "last_computed", "skyview");
+	change(&ctl, "altitude_km=1.5");
+	EXPECT(&ctl, "last_computed", "skyview");
+	check_slot(map, T | M | S, "observer position");
+
+	/* A camera change with no aerial perspective in use: nothing. */
+	change(&ctl, "camera_yaw_deg=90");
+	EXPECT(&ctl, "last_computed", "none");
+	check_slot(map, T | M | S, "camera, no aerial");
+
+	/* A second client asks for aerial perspective: it alone. */
+	CHECK(conn_open(&sub2, d.sock) == 0);
+	CHECK(conn_request(&sub2, "subscribe tables=aerial", reply, sizeof(reply)) == 0);
+	settle(&ctl, ctl.event_generation + 1);
+	EXPECT(&ctl, "last_computed", "aerial");
+	check_slot(map, T | M | S | A, "aerial added");
+
+	/* Camera: aerial only. Time of day: sky-view and aerial. */
+	change(&ctl, "camera_pitch_deg=10 camera_vfov_deg=40");
+	EXPECT(&ctl, "last_computed", "aerial");
+	check_slot(map, T | M | S | A, "camera");
+	change(&ctl, "sun_elevation_deg=25");
+	EXPECT(&ctl, "last_computed", "skyview,aerial");
+	check_slot(map, T | M | S | A, "time of day, full scene");
+
+	/* Weather and atmosphere: everything. */
+	change(&ctl, "mie_scattering_per_km=0.008");
+	EXPECT(&ctl, "last_computed", "transmittance,multiscatter,skyview,aerial");
+	check_slot(map, T | M | S | A, "weather");
+
+	/* A change that leaves every table as it was: no new generation. */
+	CHECK(conn_request(&ctl, "status", reply, sizeof(reply)) == 0);
+	uint64_t gen = reply_u64(reply, "generation"), n = reply_u64(reply, "computations");
+	CHECK(conn_request(&ctl, "set sun_elevation_deg=25 camera_pitch_deg=10", reply, sizeof(reply)) == 0);
+	CHECK(reply_u64(reply, "generation") == gen);
+	CHECK(conn_request(&ctl, "status", reply, sizeof(reply)) == 0);
+	CHECK(reply_u64(reply, "generation") == gen && reply_u64(reply, "computations") == n);
+
+	/* Multi-scattering switched off: sky-view and aerial perspective no
+	 * longer need its table, so it is not computed and leaves the slot. */
+	change(&ctl, "multiscatter_dirs=0");
+	EXPECT(&ctl, "last_computed", "skyview,aerial");
+	EXPECT(&ctl, "tables_needed", "transmittance,skyview,aerial");
+	check_slot(map, T | S | A, "multi-scattering off");
+	change(&ctl, "multiscatter_dirs=2");
+	EXPECT(&ctl, "last_computed", "multiscatter,skyview,aerial");
+	check_slot(map, T | M | S | A, "multi-scattering on");
+
+	/* The aerial client leaves: its table is no longer computed. */
+	hang_up(&sub2);
+	EXPECT(&ctl, "demand", "skyview");
+	change(&ctl, "camera_roll_deg=5 sun_elevation_deg=35");
+	EXPECT(&ctl, "last_computed", "skyview");
+	check_slot(map, T | M | S, "aerial client gone");
+
+	/* A sample of a table nobody computes: it becomes this connection's
+	 * demand and the reply comes with the generation that has it. */
+	CHECK(conn_request(&sub, "unsubscribe", reply, sizeof(reply)) == 0);
+	change(&ctl, "sun_elevation_deg=45");
+	EXPECT(&ctl, "last_computed", "none");
+	CHECK(conn_open(&sampler, d.sock) == 0);
+	CHECK(conn_request(&sampler, "sample sky el_deg=20 az_deg=90", reply, sizeof(reply)) == 0);
+	CHECK(strstr(reply, "luminance_cd_m2: ") != NULL);
+	EXPECT(&ctl, "demand", "skyview");
+	EXPECT(&ctl, "last_computed", "skyview");
+	check_slot(map, T | M | S, "sampled sky-view");
+	/* The sampler's demand lasts while it is connected. */
+	change(&ctl, "sun_elevation_deg=50");
+	EXPECT(&ctl, "last_computed", "skyview");
+	CHECK(conn_request(&sampler, "sample sun", reply, sizeof(reply)) == 0);
+	CHECK(strstr(reply, "illuminance_lx: ") != NULL);
+	hang_up(&sampler);
+	EXPECT(&ctl, "demand", "none");
+
+	test_views(&ctl, &d);
+
+	/* The pipelines of the variants in use are cached: a repeat, or a
+	 * switch back to a variant seen before, builds none. */
+	struct eng_timing t;
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	uint64_t built = eng_pipelines_created(ref_eng);
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_pipelines_created(ref_eng) == built);
+	/* A black ground is a new variant of the multi-scattering pass (the
+	 * term is a specialization constant): one pipeline more, then cached. */
+	char albedo[64];
+	CHECK(state_get(&mirror, "ground_albedo", albedo, sizeof(albedo)) == 0);
+	mirror_set("ground_albedo=0");
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_pipelines_created(ref_eng) == built + 1);
+	built = eng_pipelines_created(ref_eng);
+	char back[96];
+	snprintf(back, sizeof(back), "ground_albedo=%s", albedo);
+	mirror_set(back);
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	mirror_set("ground_albedo=0 multiscatter_dirs=0");
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	mirror_set("multiscatter_dirs=2");
+	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_pipelines_created(ref_eng) == built);
+
+out:
+	conn_close(&sub);
+	conn_close(&ctl);
+	daemon_cleanup(&d);
+	eng_free(ref_eng);
+	return test_report("test_demand");
+}

@@ -1,0 +1,284 @@
+/* bench_demand.c - `skybench demand`: the cost of each kind of scene with the
+ * tables it needs and the ones a change invalidates, against a full
+ * recompute, on the real engine. */
+#include "bench_demand.h"
+
+#include <errno.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/utsname.h>
+
+#include "eng.h"
+#include "state.h"
+
+#define ALL STATE_ALL_TABLES
+#define T STATE_BIT(STATE_TRANSMITTANCE)
+#define S STATE_BIT(STATE_SKYVIEW)
+#define A STATE_BIT(STATE_AERIAL)
+
+/* What a scene is measured against, run by run: on a shared machine the
+ * load drifts, so each run of a scene is paired with a run of its
+ * reference right before it, and the ratio is the median of the pairs. */
+enum ref { REF_FULL, REF_ONE_VIEW, REF_FRAME };
+
+struct bench {
+	struct eng *e;
+	struct eng *ref_e;		/* the references, so that e keeps its buffers */
+	struct sky_state s;
+	int runs;
+	bool markdown;
+};
+
+struct result {
+	uint32_t mask;
+	double med_ms, p90_ms, ratio;	/* ratio: median of scene / reference */
+};
+
+static int cmp_double(const void *a, const void *b)
+{
+	double x = *(const double *)a, y = *(const double *)b;
+	return x < y ? -1 : x > y;
+}
+
+/* What the daemon computes for a change of pairs (alternating between two
+ * values so that every run is a real change) under demand: the tables the
+ * keys invalidate (state_set's declaration) within demand's closure. */
+static uint32_t change_mask(struct bench *b, const char *const pairs[2], int run, uint32_t demand)
+{
+	uint32_t dirty = 0;
+	char err[256];
+
+	if (pairs && state_set_pair(&b->s, pairs[run % 2], &dirty, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skybench: %s\n", err);
+		exit(2);
+	}
+	return pairs ? dirty & state_closure(demand) : state_closure(demand);
+}
+
+static double median(double *v, int n)
+{
+	qsort(v, (size_t)n, sizeof(*v), cmp_double);
+	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* One computation's wall time (submit to completion, read-back included). */
+static int timed(struct eng *e, const struct sky_state *s, uint32_t mask, double *ret_ms)
+{
+	char err[512];
+	struct eng_timing t;
+
+	*ret_ms = 0.0;
+	if (!mask)
+		return 0;	/* nothing to compute: the state alone changes */
+	if (eng_compute(e, s, mask, &t, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skybench: %s\n", err);
+		return -EIO;
+	}
+	*ret_ms = t.total_ms;
+	return 0;
+}
+
+/* runs computations of a scene, each after one of its reference. */
+static int measure(struct bench *b, const char *const pairs[2], uint32_t demand, enum ref ref,
+		   struct result *ret)
+{
+	double *ms = calloc((size_t)b->runs, sizeof(double));
+	double *ratio = calloc((size_t)b->runs, sizeof(double));
+	struct sky_state one = b->s;
+	int rc = ms && ratio ? 0 : -ENOMEM;
+
+	one.n_views = 0;
+	for (int i = 0; i < b->runs && rc == 0; i++) {
+		double ref_ms = 1000.0 / 60.0;
+		if (ref == REF_FULL)
+			rc = timed(b->ref_e, &b->s, ALL, &ref_ms);
+		else if (ref == REF_ONE_VIEW)
+			rc = timed(b->ref_e, &one, A, &ref_ms);
+		ret->mask = change_mask(b, pairs, i, demand);
+		if (rc == 0)
+			rc = timed(b->e, &b->s, ret->mask, &ms[i]);
+		ratio[i] = ref_ms > 0.0 ? ms[i] / ref_ms : 0.0;
+	}
+	if (rc == 0) {
+		ret->ratio = median(ratio, b->runs);
+		ret->med_ms = median(ms, b->runs);
+		ret->p90_ms = ms[b->runs - 1 - b->runs / 10];
+	}
+	free(ms);
+	free(ratio);
+	return rc;
+}
+
+static void mask_names(uint32_t mask, char *buf, size_t size)
+{
+	size_t o = 0;
+
+	buf[0] = 0;
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		if (mask & STATE_BIT(t))
+			o += (size_t)snprintf(buf + o, o < size ? size - o : 0, "%s%s", o ? "," : "",
+					      state_table_names[t]);
+	if (!o)
+		snprintf(buf, size, "none");
+}
+
+static const char *const ref_names[] = { "full recompute", "one view", "a 60 Hz frame" };
+
+/* Measures a scene and prints its row; returns measure's result. */
+static int row(struct bench *b, const char *scene, const char *const pairs[2], uint32_t demand,
+	       enum ref ref, const char *goal)
+{
+	struct result r;
+	char names[80], ratio[48];
+	int rc = measure(b, pairs, demand, ref, &r);
+
+	if (rc < 0)
+		return rc;
+	mask_names(r.mask, names, sizeof(names));
+	snprintf(ratio, sizeof(ratio), "%.1f %% of %s", 100.0 * r.ratio, ref_names[ref]);
+	if (b->markdown)
+		printf("| %s | %s | %.3f | %.3f | %s | %s |\n", scene, names, r.med_ms, r.p90_ms,
+		       ratio, goal);
+	else
+		printf("%-44s %-40s median %8.3f ms  p90 %8.3f  %-28s %s\n", scene, names, r.med_ms,
+		       r.p90_ms, ratio, goal);
+	fflush(stdout);
+	return 0;
+}
+
+static void machine(const struct bench *b)
+{
+	struct utsname u;
+	char cpu[256] = "unknown CPU", line[512], load[128] = "?";
+	int ncpu = 0;
+	FILE *f = fopen("/proc/cpuinfo", "re");
+
+	while (f && fgets(line, sizeof(line), f)) {
+		if (!strncmp(line, "model name", 10) && strchr(line, ':')) {
+			snprintf(cpu, sizeof(cpu), "%s", strchr(line, ':') + 2);
+			cpu[strcspn(cpu, "\n")] = 0;
+		}
+		if (!strncmp(line, "processor", 9))
+			ncpu++;
+	}
+	if (f)
+		fclose(f);
+	f = fopen("/proc/loadavg", "re");
+	if (f && fgets(load, sizeof(load), f))
+		load[strcspn(load, "\n")] = 0;
+	if (f)
+		fclose(f);
+	uname(&u);
+	const struct eng_device *d = eng_device(b->e);
+	const struct state_quality *q = &b->s.quality;
+	printf("%sMachine: %s, %s %s, %d CPUs (%s); load average at start: %s\n\n",
+	       b->markdown ? "" : "# ", u.nodename, u.sysname, u.release, ncpu, cpu, load);
+	printf("%sDevice: %s [%s], %s\n\n", b->markdown ? "" : "# ", d->name, d->type_name, d->driver);
+	printf("%sTables: transmittance %ux%u (%u steps), multi-scattering %ux%u (%u steps x %u "
+	       "directions), sky-view %ux%u (%u steps), aerial %ux%ux%u (%u steps), %s; "
+	       "%d runs per scene, wall time from submission to completion with read-back.\n\n",
+	       b->markdown ? "" : "# ", q->t[0].width, q->t[0].height, q->t[0].steps, q->t[1].width,
+	       q->t[1].height, q->t[1].steps, q->multiscatter_dirs, q->t[2].width, q->t[2].height,
+	       q->t[2].steps, q->t[3].width, q->t[3].height, q->t[3].depth, q->t[3].steps,
+	       q->storage == STATE_F16 ? "f16" : "f32", b->runs);
+	if (b->markdown)
+		printf("| scene | tables computed | median ms | p90 ms | against | goal |\n"
+		       "| --- | --- | ---: | ---: | --- | --- |\n");
+}
+
+static void add_views(struct sky_state *s, uint32_t n)
+{
+	s->n_views = n;
+	for (uint32_t i = 0; i < n; i++) {
+		struct state_view *v = &s->views[i];
+		memset(v, 0, sizeof(*v));
+		snprintf(v->name, sizeof(v->name), "wall%u", i);
+		v->altitude_km = __builtin_nan("");
+		state_default_camera(&v->camera);
+		v->camera.yaw_deg = 45.0 * i;
+		v->camera.vfov_deg = 45.0;
+	}
+}
+
+int bench_demand_main(int argc, char **argv)
+{
+	static const char *const time_of_day[2] = { "sun_elevation_deg=20", "sun_elevation_deg=20.25" };
+	static const char *const weather[2] = { "mie_scattering_per_km=0.004", "mie_scattering_per_km=0.0041" };
+	static const char *const camera[2] = { "camera_yaw_deg=170", "camera_yaw_deg=171" };
+	struct bench b = { .runs = 30 };
+	const char *device = NULL;
+	char err[512];
+	int rc;
+
+	state_default(&b.s);
+	for (int i = 0; i < argc; i++) {
+		if (!strcmp(argv[i], "--runs") && i + 1 < argc)
+			b.runs = atoi(argv[++i]);
+		else if (!strcmp(argv[i], "--device") && i + 1 < argc)
+			device = argv[++i];
+		else if (!strcmp(argv[i], "--markdown"))
+			b.markdown = true;
+		else if (state_set_pair(&b.s, argv[i], NULL, err, sizeof(err)) < 0) {
+			fprintf(stderr, "skybench: %s\n", err);
+			return 2;
+		}
+	}
+	if (b.runs < 2 || state_validate(&b.s, 0, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skybench: %s\n", b.runs < 2 ? "--runs: must be >= 2" : err);
+		return 2;
+	}
+	if (eng_new(device, err, sizeof(err), &b.e) < 0 ||
+	    eng_new(device, err, sizeof(err), &b.ref_e) < 0) {
+		fprintf(stderr, "skybench: %s\n", err);
+		eng_free(b.e);
+		return 1;
+	}
+	machine(&b);
+	/* Warm-up: pipelines built, buffers sized (not printed). */
+	struct result warm;
+	int runs = b.runs;
+	b.runs = 2;
+	rc = measure(&b, NULL, ALL, REF_ONE_VIEW, &warm);
+	b.runs = runs;
+	if (rc == 0)
+		rc = row(&b, "full recompute (weather, every table in use)", weather, ALL, REF_FULL,
+			 "reference");
+	if (rc == 0)
+		rc = row(&b, "time-of-day change, full scene", time_of_day, ALL, REF_FULL, "<= 35 %");
+	if (rc == 0)
+		rc = row(&b, "camera change, full scene", camera, ALL, REF_FULL, "");
+	if (rc == 0)
+		rc = row(&b, "transmittance-only scene, weather change", weather, T, REF_FULL, "<= 5 %");
+	if (rc == 0)
+		rc = row(&b, "transmittance-only scene, time of day", time_of_day, T, REF_FULL, "");
+	if (rc == 0)
+		rc = row(&b, "sky-view-only dome, weather change", weather, S, REF_FULL, "");
+	if (rc == 0)
+		rc = row(&b, "sky-view-only dome, time of day", time_of_day, S, REF_FULL, "");
+	/* Views: the state's camera is one view; a display wall adds 8 views
+	 * on the same eye point, all in the aerial pass's one dispatch. */
+	if (rc == 0)
+		rc = row(&b, "one view (aerial perspective), camera change", camera, A, REF_ONE_VIEW,
+			 "reference");
+	if (rc == 0) {
+		add_views(&b.s, 8);
+		b.runs = 2;
+		rc = measure(&b, NULL, A, REF_ONE_VIEW, &warm);	/* new buffers */
+		b.runs = runs;
+	}
+	if (rc == 0)
+		rc = row(&b, "display wall: 8 views + the state's camera", camera, A, REF_ONE_VIEW,
+			 "< 300 %");
+	if (rc == 0)
+		add_views(&b.s, 0);
+	/* A clock animation: one time-of-day step per 60 Hz frame. */
+	if (rc == 0)
+		rc = row(&b, "clock animation step, full scene", time_of_day, ALL, REF_FRAME, "");
+	if (rc == 0)
+		rc = row(&b, "clock animation step, sky-view dome", time_of_day, S, REF_FRAME, "");
+	eng_free(b.ref_e);
+	eng_free(b.e);
+	return rc < 0 ? 1 : 0;
+}
