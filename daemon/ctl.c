@@ -465,7 +465,7 @@ static int commit(struct client *c, const struct sky_state *next_in, uint32_t di
 	if (srv_check(c->ctl->srv, next, err, sizeof(err)) < 0)
 		return ACK(SKY_ACK_RANGE, "%s", err);
 	if (srv_change(c->ctl->srv, next, dirty, &generation, err, sizeof(err)) < 0)
-		return ACK(SKY_ACK_ENGINE, "state kept, computation failed: %s", err);
+		return ACK(SKY_ACK_ENGINE, "state unchanged, computation failed: %s", err);
 	drive_changed(c->ctl->drive);
 	format_tables(dirty, names, sizeof(names));
 	reply_add(r, "generation: %llu\ntables: %s\n", (unsigned long long)generation, names);

@@ -214,20 +214,38 @@ int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	       uint64_t *ret_generation, char *err, size_t err_size)
 {
 	uint64_t failures = s->st.failures;
+	uint32_t prev_dirty = s->dirty;
+	int prev_pending = s->pending;
+	struct sky_state *prev = malloc(sizeof(*prev));
 
+	if (!prev)
+		return -ENOMEM;
+	*prev = s->state;
 	s->state = *next;
 	s->dirty |= dirty;
 	if (!dirty && !s->pending) {
 		/* Nothing new: visible with what is in flight, or already. */
 		*ret_generation = s->in_flight ? s->in_flight_generation : s->generation;
+		free(prev);
 		return 0;
 	}
 	s->pending = 1;
 	kick(s);
 	if (s->st.failures != failures) {
+		/* The computation could not start (a table the device cannot
+		 * allocate): the request is refused whole, the state goes back.
+		 * The engine may have released tables on the way, so everything
+		 * it holds is recomputed before it is published again; the last
+		 * good tables stay published meanwhile. */
+		s->state = *prev;
+		s->dirty = prev_dirty | STATE_ALL_TABLES;
+		s->eng_valid = 0;
+		s->pending = prev_pending;
+		free(prev);
 		snprintf(err, err_size, "%s", s->st.last_error);
 		return -EIO;
 	}
+	free(prev);
 	if (s->pending)		/* behind the computation in flight */
 		*ret_generation = s->in_flight_generation + 1;
 	else			/* in flight now, or published at once */
