@@ -788,6 +788,7 @@ static int cmd_status(struct client *c, const struct proto_request *req, struct 
 	reply_add(r, "computations: %llu\nfailures: %llu\n", (unsigned long long)st.computations,
 		  (unsigned long long)st.failures);
 	reply_add(r, "last_error: %s\n", st.last_error[0] ? st.last_error : "none");
+	reply_add(r, "storage_warning: %s\n", st.storage_warning[0] ? st.storage_warning : "none");
 	reply_add(r, "device: %s\ndevice_type: %s\n", d->name, d->type_name);
 	reply_add(r, "clients: %d\nsubscribers: %d\n", c->ctl->n_clients, subscribers);
 	reply_add(r, "shm_bytes: %llu\n", (unsigned long long)pub_bytes(srv_pub(s)));

@@ -664,6 +664,37 @@ uint64_t eng_max_table_bytes(const struct eng *e)
 	return e->limits.maxStorageBufferRange;
 }
 
+void eng_f16_range(const struct eng *e, const struct sky_state *s, uint32_t mask,
+		   struct eng_f16_range *ret)
+{
+	memset(ret, 0, sizeof(*ret));
+	if (s->quality.storage != STATE_F16)
+		return;
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		size_t bytes;
+		const uint16_t *h = eng_table(e, (enum state_table)t, &bytes);
+		if (!(mask & STATE_BIT(t)) || !h)
+			continue;
+		for (size_t i = 0; i < bytes / 8; i++) {
+			for (int c = 0; c < 3; c++) {
+				uint16_t exponent = (h[4 * i + c] >> 10) & 0x1f;
+				uint16_t mantissa = h[4 * i + c] & 0x3ff;
+				if (exponent == 0x1f)
+					ret->overflow++;
+				else if (exponent == 0 && mantissa != 0 && t >= STATE_SKYVIEW)
+					ret->subnormal++;
+			}
+		}
+		if (t >= STATE_SKYVIEW)
+			ret->radiance_values += 3 * (bytes / 8);
+	}
+}
+
+int eng_f16_broken(const struct eng_f16_range *r)
+{
+	return r->overflow > 0 || r->subnormal * 100 > r->radiance_values;
+}
+
 uint64_t eng_pipelines_created(const struct eng *e)
 {
 	return e->pipelines_created;

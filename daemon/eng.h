@@ -63,6 +63,23 @@ uint64_t eng_max_table_bytes(const struct eng *e);
  * -EINVAL on a bad state, or -EIO on a device error (err says which). */
 int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err,
 	       size_t err_size);
+/* Where float16 storage breaks, in the tables of mask as last computed:
+ * RGB values that overflowed the half range (infinite or NaN: above 65504),
+ * and sky radiance (sky-view and aerial perspective) that fell into the
+ * half's subnormals (below 6.1e-5 cd/m2, fewer than 11 significant bits:
+ * deep twilight). Transmittance that small is a sun already gone, so only
+ * its overflow counts. All 0 for float32 storage. */
+struct eng_f16_range {
+	uint64_t overflow;		/* values, every table */
+	uint64_t subnormal;		/* radiance values of sky-view and aerial */
+	uint64_t radiance_values;	/* RGB values of sky-view and aerial examined */
+};
+/* Whether r says float16 storage broke: any overflow, or more than 1 % of
+ * the radiance values subnormal. */
+int eng_f16_broken(const struct eng_f16_range *r);
+void eng_f16_range(const struct eng *e, const struct sky_state *s, uint32_t mask,
+		   struct eng_f16_range *ret);
+
 /* Compute pipelines created since eng_new: one per specialization variant
  * of a pass, cached (up to 32 per pass), so a repeat adds none. */
 uint64_t eng_pipelines_created(const struct eng *e);

@@ -221,6 +221,14 @@ int once_main(int argc, char **argv)
 	}
 	printf("skyd: %s: tables in %.2f ms (transmittance %.2f, multiscatter %.2f, skyview %.2f, aerial %.2f)\n",
 	       eng_device(e)->name, t.total_ms, t.table_ms[0], t.table_ms[1], t.table_ms[2], t.table_ms[3]);
+	struct eng_f16_range range;
+	eng_f16_range(e, &s, STATE_ALL_TABLES, &range);
+	if (eng_f16_broken(&range))
+		fprintf(stderr, "skyd: warning: storage=f16 breaks here: %llu values overflowed the "
+				"half range (above 65504), %llu of %llu sky radiance values fell below "
+				"6.1e-5 (subnormal, low precision); use storage=f32\n",
+			(unsigned long long)range.overflow, (unsigned long long)range.subnormal,
+			(unsigned long long)range.radiance_values);
 	if (dump_dir) {
 		rc = dump_tables(dump_dir, &s, e, &t, err, sizeof(err));
 		if (rc < 0) {

@@ -151,6 +151,26 @@ static void publish(struct srv *s, uint32_t computed)
 		s->listener.published(s->ctx, generation, computed, new_region);
 }
 
+/* Float16 storage can overflow (a bright sky, Mars) or lose its precision
+ * in subnormals (deep twilight): said in status and the log, not refused,
+ * since where it breaks depends on the sky, not on a key. */
+static void check_storage(struct srv *s, uint32_t computed)
+{
+	struct eng_f16_range r;
+
+	eng_f16_range(s->eng, &s->computing_state, computed, &r);
+	if (!eng_f16_broken(&r)) {
+		s->st.storage_warning[0] = 0;
+		return;
+	}
+	snprintf(s->st.storage_warning, sizeof(s->st.storage_warning),
+		 "storage=f16 breaks: %llu values above 65504, %llu of %llu sky radiance values "
+		 "subnormal; use storage=f32",
+		 (unsigned long long)r.overflow, (unsigned long long)r.subnormal,
+		 (unsigned long long)r.radiance_values);
+	log_warning("%s", s->st.storage_warning);
+}
+
 /* Starts computing the newest state if nothing is in flight. */
 static void kick(struct srv *s)
 {
@@ -205,6 +225,7 @@ static void eng_ready(void *ctx, uint32_t events)
 		for (int t = 0; t < STATE_N_TABLES; t++)
 			if (s->st.last_computed & STATE_BIT(t))
 				s->st.table_ms[t] = timing.table_ms[t];
+		check_storage(s, s->st.last_computed);
 		publish(s, s->in_flight_mask);
 	}
 	kick(s);

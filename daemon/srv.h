@@ -42,6 +42,7 @@ struct srv_status {
 	uint32_t needed;		/* demand with its dependencies */
 	uint64_t computations, failures;
 	char last_error[256];		/* "" when the last computation succeeded */
+	char storage_warning[192];	/* float16 broke in the last computation; "" when not */
 };
 
 /* Takes neither loop nor engine; both must outlive the srv. The first

@@ -186,6 +186,27 @@ static void test_f16_storage(void)
 	/* 0x3c00 is 1.0 in binary16: the alpha of every transmittance texel. */
 	CHECK(h[3] == 0x3c00);
 	CHECK(h[0] > 0x3b00 && h[0] < 0x3c00);	/* zenith transmittance ~0.94 */
+
+	/* Where half floats break: not on the default Earth; Mars' sky-view
+	 * overflows 65504 at 133.8 klx, deep twilight goes subnormal. */
+	struct eng_f16_range r;
+	eng_f16_range(eng, &s, STATE_ALL_TABLES, &r);
+	CHECK(r.overflow == 0 && !eng_f16_broken(&r));
+	CHECK(r.radiance_values == 3 * (192 * 108 + 32 * 32 * 32));
+	set(&s, "preset=mars");
+	if (compute(&s, &t) < 0)
+		return;
+	eng_f16_range(eng, &s, STATE_ALL_TABLES, &r);
+	CHECK(r.overflow > 0 && eng_f16_broken(&r));
+	state_default(&s);
+	set(&s, "storage=f16");
+	set(&s, "sun_elevation_deg=-18");
+	if (compute(&s, &t) < 0)
+		return;
+	eng_f16_range(eng, &s, STATE_ALL_TABLES, &r);
+	CHECK(r.overflow == 0 && eng_f16_broken(&r));
+	printf("f16 at -18 degrees: %llu of %llu radiance values subnormal\n",
+	       (unsigned long long)r.subnormal, (unsigned long long)r.radiance_values);
 }
 
 int main(void)
