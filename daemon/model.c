@@ -81,10 +81,35 @@ static double mean_exp(double k, double ha, double hb)
 	return (exp(k * hb) - exp(k * ha)) / (2.0 * x);
 }
 
-/* Mean density over a step from ha to hb; see mean_density in common.glsl. */
+/* See clamped_linear_integral and mean_linear_density in common.glsl. */
+static double clamped_linear_integral(double a, double c, double x, double y)
+{
+	if (fabs(a) < 1e-12)
+		return (c < 0 ? 0 : c > 1 ? 1 : c) * (y - x);
+	double ux = a * x + c, uy = a * y + c;
+	double gx = ux <= 0 ? 0 : ux >= 1 ? ux - 0.5 : 0.5 * ux * ux;
+	double gy = uy <= 0 ? 0 : uy >= 1 ? uy - 0.5 : 0.5 * uy * uy;
+	return (gy - gx) / a;
+}
+
+/* Mean density over a step from ha to hb, exact where the altitude changes
+ * linearly: exponential layers through mean_exp, a profile of linear layers
+ * only (ozone's tent) split at the layer boundary and the clamps. */
 static double mean_density(const struct atmo_profile *p, double ha, double hb)
 {
 	double hm = 0.5 * (ha + hb);
+	const struct atmo_layer *l0 = &p->layers[0], *l1 = &p->layers[1];
+	if (l0->exp_term == 0.0 && l1->exp_term == 0.0) {
+		double lo = ha < hb ? ha : hb, hi = ha < hb ? hb : ha, w = l0->width_km;
+		if (hi - lo < 1e-9) {
+			const struct atmo_layer *l = lo < w ? l0 : l1;
+			double d = l->linear_per_km * lo + l->constant;
+			return d < 0 ? 0 : d > 1 ? 1 : d;
+		}
+		double m = w < lo ? lo : w > hi ? hi : w;
+		return (clamped_linear_integral(l0->linear_per_km, l0->constant, lo, m) +
+			clamped_linear_integral(l1->linear_per_km, l1->constant, m, hi)) / (hi - lo);
+	}
 	const struct atmo_layer *l = hm < p->layers[0].width_km ? &p->layers[0] : &p->layers[1];
 	double e = l->exp_term != 0.0 ? l->exp_term * mean_exp(l->exp_scale_per_km, ha, hb) : 0.0;
 	double d = e + l->linear_per_km * hm + l->constant;

@@ -117,14 +117,33 @@ float mean_exp(float k, float ha, float hb)
 	return (exp(k * hb) - exp(k * ha)) / (2.0 * x);
 }
 
-// Mean density of constituent i over a step from altitude ha to hb, exact for
-// exponential and linear terms when the altitude changes linearly.
-float mean_density(int i, float ha, float hb)
+// Integral over h from x to y of clamp(a h + c, 0, 1): G(u) = 0, u^2 / 2,
+// u - 1/2 below 0, on [0, 1], above 1 is its antiderivative in u = a h + c.
+float clamped_linear_integral(float a, float c, float x, float y)
 {
-	float hm = 0.5 * (ha + hb);
-	vec4 l = layer_at(P.C[i], hm);
-	float e = (EXP_MASK & (1 << i)) != 0 && l.x != 0.0 ? l.x * mean_exp(l.y, ha, hb) : 0.0;
-	return clamp(e + l.z * hm + l.w, 0.0, 1.0);
+	if (abs(a) < 1e-12)
+		return clamp(c, 0.0, 1.0) * (y - x);
+	float ux = a * x + c, uy = a * y + c;
+	float gx = ux <= 0.0 ? 0.0 : ux >= 1.0 ? ux - 0.5 : 0.5 * ux * ux;
+	float gy = uy <= 0.0 ? 0.0 : uy >= 1.0 ? uy - 0.5 : 0.5 * uy * uy;
+	return (gy - gx) / a;
+}
+
+// Mean over [ha, hb] of a profile without exponential terms (ozone's tent):
+// exact for the clamped piecewise-linear profile, split at the layer
+// boundary w, where a midpoint rule would put a step's whole density on
+// one side of the kink (transmittance rows then rose with path length).
+// l0, l1: (exp_term, exp_scale, linear, constant) of the two layers.
+float mean_linear_density(vec4 l0, vec4 l1, float w, float ha, float hb)
+{
+	float lo = min(ha, hb), hi = max(ha, hb);
+	if (hi - lo < 1e-6) {
+		vec4 l = lo < w ? l0 : l1;
+		return clamp(l.z * lo + l.w, 0.0, 1.0);
+	}
+	float m = clamp(w, lo, hi);
+	return (clamped_linear_integral(l0.z, l0.w, lo, m) +
+		clamped_linear_integral(l1.z, l1.w, m, hi)) / (hi - lo);
 }
 
 int phase_kind(int i) { return i == 0 ? PHASE_0 : i == 1 ? PHASE_1 : i == 2 ? PHASE_2 : PHASE_3; }

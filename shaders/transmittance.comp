@@ -51,9 +51,15 @@ void main()
 		float hb = excess / (sqrt(rb2 + max(excess, 0.0)) + rb);
 		float hm = 0.5 * (ha + hb);
 		for (int k = 0; k < N_CONST; k++) {
-			vec4 l = hm < width[k] ? lay0[k] : lay1[k];
-			float e = (EXP_MASK & (1 << k)) != 0 && l.x != 0.0 ? l.x * mean_exp(l.y, ha, hb) : 0.0;
-			tau += clamp(e + l.z * hm + l.w, 0.0, 1.0) * ext[k];
+			float d;
+			if ((EXP_MASK & (1 << k)) != 0) {
+				vec4 l = hm < width[k] ? lay0[k] : lay1[k];
+				float e = l.x != 0.0 ? l.x * mean_exp(l.y, ha, hb) : 0.0;
+				d = clamp(e + l.z * hm + l.w, 0.0, 1.0);
+			} else {
+				d = mean_linear_density(lay0[k], lay1[k], width[k], ha, hb);
+			}
+			tau += d * ext[k];
 		}
 		ha = hb;
 	}

@@ -28,8 +28,9 @@ static void report(const char *name, const struct stab_result *r)
 			continue;
 		const struct stab_known *k = stab_find_known(name, i, false);
 		if (k) {
-			printf("known: %s: %s: %llu of %llu (%s)\n", name, stab_invariant_names[i],
-			       (unsigned long long)r->fails[i], (unsigned long long)r->samples[i], k->why);
+			printf("known: %s: %s: %llu of %llu (%s); first: %s\n", name, stab_invariant_names[i],
+			       (unsigned long long)r->fails[i], (unsigned long long)r->samples[i], k->why,
+			       r->first);
 			continue;
 		}
 		FAIL("%s: %s: %llu of %llu violated; first violation of the case: %s", name,
