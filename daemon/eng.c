@@ -743,8 +743,8 @@ static void fill_params(const struct sky_state *s, struct gpu_params *p, struct 
 	put4(p->albedo, a->ground_albedo[0], a->ground_albedo[1], a->ground_albedo[2], 0);
 	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, sun);
 	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, moon);
-	put4(p->sun_dir, sun[0], sun[1], sun[2], 0);
-	put4(p->moon_dir, moon[0], moon[1], moon[2], 0);
+	put4(p->sun_dir, sun[0], sun[1], sun[2], s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
+	put4(p->moon_dir, moon[0], moon[1], moon[2], s->moon.angular_radius_deg * SKYMAP_PI / 180.0);
 	put4(p->sun_illum, s->sun.illuminance_lx * s->sun.color[0],
 	     s->sun.illuminance_lx * s->sun.color[1], s->sun.illuminance_lx * s->sun.color[2], 0);
 	put4(p->moon_illum, s->moon.illuminance_lx * s->moon.color[0],

@@ -199,6 +199,28 @@ static v3 transmittance_to_top(const struct ctx *c, double h, double mu)
 	return bilinear(m->t[0], m->w[0], m->h[0], u, vv);
 }
 
+/* See light_transmittance in common.glsl: the light is a disk of angular
+ * radius radius_rad that the horizon covers gradually. */
+static v3 light_transmittance(const struct ctx *c, double h, double mu, double radius_rad)
+{
+	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h, r = c->rb + hc;
+	double mu_h = h < 0 ? -2.0 : skymap_horizon_cos(c->rb, hc);
+	double e = c->rb / r * radius_rad, x = mu - mu_h, visible;
+	if (e > 0) {
+		double k = (x + e) / (2.0 * e);
+		k = k < 0 ? 0 : k > 1 ? 1 : k;
+		visible = k * k * (3.0 - 2.0 * k);
+	} else {
+		visible = x < 0 ? 0 : 1;
+	}
+	if (visible <= 0)
+		return v(0, 0, 0);
+	double u, vv;
+	const struct model_tables *m = c->tab;
+	skymap_transmittance_uv(c->rb, c->rt, hc, mu < -1 ? -1 : mu > 1 ? 1 : mu, m->w[0], m->h[0], &u, &vv);
+	return scale(bilinear(m->t[0], m->w[0], m->h[0], u, vv), visible);
+}
+
 static v3 multiscatter(const struct ctx *c, double h, double mu_s)
 {
 	double u, vv;
@@ -207,10 +229,12 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s)
 	return bilinear(m->t[1], m->w[1], m->h[1], u, vv);
 }
 
-static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, v3 illum, v3 sigma_s)
+static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, double radius_deg,
+			v3 illum, v3 sigma_s)
 {
 	double mu_l = dot(up, light);
-	v3 s = mul(phased_scattering(c, h, dot(dir, light)), transmittance_to_top(c, h, mu_l));
+	v3 s = mul(phased_scattering(c, h, dot(dir, light)),
+		   light_transmittance(c, h, mu_l, radius_deg * SKYMAP_PI / 180.0));
 	if (c->s->quality.multiscatter_dirs)	/* 0: higher orders switched off */
 		s = add(s, mul(sigma_s, multiscatter(c, h, mu_l)));
 	return mul(s, illum);
@@ -328,8 +352,9 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 					struct medium m = medium(c, hs);
 					v3 w = mul(vexp_neg(tau), segment_weight(m.extinction, dt));
 					v3 p = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
-					l2 = add(l2, mul(mul(w, m.scattering), scale(transmittance_to_top(c, hs, dot(p, sun)),
-										      1.0 / (4.0 * SKYMAP_PI))));
+					v3 t_sun = light_transmittance(c, hs, dot(p, sun),
+								       c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
+					l2 = add(l2, mul(mul(w, m.scattering), scale(t_sun, 1.0 / (4.0 * SKYMAP_PI))));
 					f = add(f, mul(w, m.scattering));
 					absorbed = add(absorbed, mul(w, m.absorption));
 					tau = add(tau, scale(m.extinction, dt));
@@ -366,9 +391,10 @@ static void march(const struct ctx *c, v3 dir, double a, double b, uint32_t n, b
 		double hs = altitude_along(c, c->h0, dir.z, t, &rr);
 		v3 up = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
 		struct medium m = medium(c, hs);
-		v3 s = light_source(c, hs, up, dir, c->sun, c->sun_illum, m.scattering);
+		v3 s = light_source(c, hs, up, dir, c->sun, c->s->sun.angular_radius_deg, c->sun_illum, m.scattering);
 		if (c->moon_lit)
-			s = add(s, light_source(c, hs, up, dir, c->moon, c->moon_illum, m.scattering));
+			s = add(s, light_source(c, hs, up, dir, c->moon, c->s->moon.angular_radius_deg, c->moon_illum,
+						m.scattering));
 		*radiance = add(*radiance, mul(mul(vexp_neg(*tau), s), segment_weight(m.extinction, dt)));
 		*tau = add(*tau, scale(m.extinction, dt));
 	}

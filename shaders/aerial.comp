@@ -29,9 +29,9 @@ void main()
 			     ndc.y * tan_half * cup.xyz);
 
 	Phases ph_sun = ray_phases(dir, P.sun_dir.xyz), ph_moon = ray_phases(dir, P.moon_dir.xyz);
-	float t0, t1;
-	bool inside = ray_in_shell(h0, dir, t0, t1);
-	float r0 = P.planet.x + h0;
+	Entry en;
+	bool inside = ray_in_shell(h0, dir, en);
+	float t0 = en.t0, t1 = en.t0 + en.len;
 	vec3 radiance = vec3(0.0), tr = vec3(1.0);
 	float prev_depth = 0.0;
 	for (int k = 0; k < OUT_D; k++) {
@@ -44,14 +44,16 @@ void main()
 			float dt = (b - a) / float(STEPS);
 			for (int i = 0; i < STEPS; i++) {
 				float t = a + (float(i) + 0.5) * dt, rr;
-				float hs = altitude_along(h0, dir.z, t, rr);
-				vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
+				float hs = altitude_along(en.h, en.mu, t - t0, rr);
+				vec3 up = vec3(dir.xy * t, en.ez + dir.z * (t - t0)) / rr;
 				Step st = sample_step(hs, ph_sun, ph_moon);
 				Medium m = st.m;
 				TAlt ta = t_alt(hs);
-				vec3 s = light_source(ta, dot(up, P.sun_dir.xyz), P.sun_illum.rgb, st.phased_sun, m.scattering);
+				vec3 s = light_source(ta, dot(up, P.sun_dir.xyz), P.sun_dir.w, P.sun_illum.rgb,
+						      st.phased_sun, m.scattering);
 				if (MOON_LIT)
-					s += light_source(ta, dot(up, P.moon_dir.xyz), P.moon_illum.rgb, st.phased_moon, m.scattering);
+					s += light_source(ta, dot(up, P.moon_dir.xyz), P.moon_dir.w, P.moon_illum.rgb,
+							  st.phased_moon, m.scattering);
 				vec3 step_t;
 				radiance += tr * s * step_weight(m.extinction, dt, step_t);
 				tr *= step_t;

@@ -39,7 +39,7 @@ struct Constituent {
 struct Params {
 	vec4 planet;		// bottom radius, top radius, shell thickness, observer altitude
 	vec4 albedo;		// ground albedo rgb
-	vec4 sun_dir;		// unit, w unused
+	vec4 sun_dir;		// unit, w = angular radius (radians)
 	vec4 sun_illum;		// lx per channel at the top of the atmosphere
 	vec4 moon_dir;
 	vec4 moon_illum;
@@ -289,13 +289,33 @@ TAlt t_alt(float h)
 
 // Transmittance from the altitude of a towards cos-zenith mu, to the top of
 // the atmosphere; 0 when the ray hits the ground (the planet's shadow).
-vec3 transmittance_at(TAlt a, float mu)
+// Transmittance to the top of the atmosphere along mu, whether or not the
+// planet is in the way.
+vec3 transmittance_lookup(TAlt a, float mu)
 {
-	if (mu < a.mu_horizon)
-		return vec3(0.0);
 	mu = clamp(mu, -1.0, 1.0);
 	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
 	return bilinear(TransmittanceTex, T_W, (d - a.d_min) * a.inv_range, a.t_rows).rgb;
+}
+
+// Transmittance from the altitude of a towards cos-zenith mu, to the top of
+// the atmosphere; 0 when the ray hits the ground (the planet's shadow).
+vec3 transmittance_at(TAlt a, float mu)
+{
+	return mu < a.mu_horizon ? vec3(0.0) : transmittance_lookup(a, mu);
+}
+
+// The light that reaches a point from a sun or moon of angular radius
+// radius_rad: a disk, not a point, so the planet's shadow covers it
+// gradually as its centre crosses the horizon (the fraction above it as in
+// Bruneton 2017: a smoothstep over the radius, in cosine units at the
+// horizon). A point light would switch each sample of a march on or off
+// and the sky would brighten in steps as the sun sets.
+vec3 light_transmittance(TAlt a, float mu, float radius_rad)
+{
+	float e = P.planet.x / a.r * radius_rad, x = mu - a.mu_horizon;
+	float visible = e > 0.0 ? smoothstep(-e, e, x) : (x < 0.0 ? 0.0 : 1.0);
+	return visible > 0.0 ? visible * transmittance_lookup(a, mu) : vec3(0.0);
 }
 
 vec3 transmittance_to_top(float h, float mu)
@@ -384,9 +404,9 @@ vec3 phased(Scatter sc, Phases ph)
 
 // In-scattered radiance source at a point for one light: single scattering
 // through each constituent's phase plus Hillaire's isotropic higher orders.
-vec3 light_source(TAlt a, float mu_l, vec3 illum, vec3 phased, vec3 sigma_s)
+vec3 light_source(TAlt a, float mu_l, float radius_rad, vec3 illum, vec3 phased, vec3 sigma_s)
 {
-	vec3 s = phased * transmittance_at(a, mu_l);
+	vec3 s = phased * light_transmittance(a, mu_l, radius_rad);
 	if (MULTISCATTER_ON)
 		s += sigma_s * multiscatter_at(a, mu_l);
 	return s * illum;
@@ -398,37 +418,43 @@ struct March {
 };
 
 // The part of a ray from the observer (altitude h0, direction dir in ENU)
-// inside the shell and above the ground: [t0, t1]; false if none.
-bool ray_in_shell(float h0, vec3 dir, out float t0, out float t1)
+// inside the shell and above the ground, from distance t0 for len, and the
+// point where it starts: marches go from there, so that an observer far out
+// in space (h0 = 1e6 km: r^2 ~ 1e12 km^2, an ulp of 6e4) does not cancel
+// r^2 mu^2 against r^2 - rt^2 at every step. False if the ray misses.
+struct Entry {
+	float t0, len;
+	float h, mu;	// altitude and cos-zenith of the ray where it starts
+	float ez;	// the start's coordinate along the observer's vertical, from the centre
+};
+
+bool ray_in_shell(float h0, vec3 dir, out Entry en)
 {
 	float rb = P.planet.x, shell = P.planet.z, mu = dir.z;
 	float r = rb + h0;
-	t0 = 0.0;
-	t1 = 0.0;
-	if (h0 > shell) {
-		// From space: enter the top sphere, if the ray reaches it.
-		float c = (h0 - shell) * (2.0 * rb + h0 + shell);	// r^2 - rt^2 > 0
-		float disc = r * r * mu * mu - c;
-		if (mu >= 0.0 || disc <= 0.0)
-			return false;
-		float s = sqrt(disc);
-		t0 = -r * mu - s;
-		t1 = -r * mu + s;
-	} else {
-		t1 = distance_to_top(max(h0, 0.0), mu);
-	}
+	en.t0 = 0.0;
+	en.len = 0.0;
+	en.h = max(h0, 0.0);
+	en.mu = mu;
+	en.ez = r;
 	float tg;
-	float hh = max(h0, 0.0);
 	if (h0 <= shell) {
-		if (hits_ground(hh, mu, tg))
-			t1 = tg;
-	} else {
-		// Ground hit from space, solved at the entry point.
-		float ra;
-		float he = altitude_along(h0, mu, t0, ra);
-		float mue = (r * mu + t0) / ra;
-		if (hits_ground(he, mue, tg))
-			t1 = t0 + tg;
+		en.len = hits_ground(en.h, mu, tg) ? tg : distance_to_top(en.h, mu);
+		return en.len > 0.0;
 	}
-	return t1 > t0;
+	// From space: enter the top sphere, if the ray reaches it. With the
+	// ray's sine from dir.xy, rt^2 - (r sin)^2 factors without cancelling.
+	float rt = rb + shell, sin_z = length(dir.xy);
+	float disc = (rt - r * sin_z) * (rt + r * sin_z);
+	if (mu >= 0.0 || disc <= 0.0)
+		return false;
+	// t0 = -r mu - sq cancels where the ray enters close by; the product of
+	// the two roots is r^2 - rt^2, which has no cancellation.
+	float sq = sqrt(disc);
+	en.t0 = (h0 - shell) * (2.0 * rb + h0 + shell) / (-r * mu + sq);
+	en.h = shell;
+	en.mu = -sq / rt;
+	en.ez = r * sin_z * sin_z - mu * sq;	// r + mu t0
+	en.len = hits_ground(shell, en.mu, tg) ? tg : 2.0 * sq;
+	return en.len > 0.0;
 }

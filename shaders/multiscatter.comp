@@ -71,7 +71,7 @@ void main()
 			TAlt a = t_alt(hs);
 			vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
 			for (int j = 0; j < MS_SUN_GROUP; j++)
-				l2[j] += ws * transmittance_at(a, dot(up, sun[j]));
+				l2[j] += ws * light_transmittance(a, dot(up, sun[j]), P.sun_dir.w);
 			f += w * m.scattering;
 			absorbed += w * m.absorption;
 			tr *= step_t;

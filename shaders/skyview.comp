@@ -52,31 +52,30 @@ void main()
 	}
 
 	vec3 tr = vec3(1.0);
-	float t0, t1;
-	if (ray_in_shell(h0, dir[0], t0, t1)) {
-		float len = t1 - t0;
+	Entry en;
+	if (ray_in_shell(h0, dir[0], en)) {
+		float len = en.len;
 		float n_f = ceil(mix(P.misc.y, float(STEPS), clamp(len / 100.0, 0.0, 1.0)));
 		int n = max(int(n_f), 1);
-		float r0 = P.planet.x + h0;
 		float prev = 0.0;
 		for (int i = 0; i < n; i++) {
 			float a = float(i + 1) / float(n);
 			float next = len * a * a;
-			float dt = next - prev, t = t0 + 0.5 * (prev + next), rr;
+			float dt = next - prev, t = 0.5 * (prev + next), rr;
 			prev = next;
-			float hs = altitude_along(h0, cos_z, t, rr);
+			float hs = altitude_along(en.h, en.mu, t, rr);
 			// The local vertical: its horizontal part follows each column.
-			float up_h = sin_z * t / rr, up_z = (r0 + cos_z * t) / rr;
+			float up_h = sin_z * (en.t0 + t) / rr, up_z = (en.ez + cos_z * t) / rr;
 			float sun_z = up_z * P.sun_dir.z, moon_z = up_z * P.moon_dir.z;
 			Scatter sc;
 			Medium m = medium_parts(hs, sc);
 			TAlt ta = t_alt(hs);
 			vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
 			for (int j = 0; j < SV_AZ_GROUP; j++) {
-				vec3 s = light_source(ta, up_h * sun_h[j] + sun_z, P.sun_illum.rgb,
+				vec3 s = light_source(ta, up_h * sun_h[j] + sun_z, P.sun_dir.w, P.sun_illum.rgb,
 						      phased(sc, ph_sun[j]), m.scattering);
 				if (MOON_LIT)
-					s += light_source(ta, up_h * moon_h[j] + moon_z, P.moon_illum.rgb,
+					s += light_source(ta, up_h * moon_h[j] + moon_z, P.moon_dir.w, P.moon_illum.rgb,
 							  phased(sc, ph_moon[j]), m.scattering);
 				radiance[j] += w * s;
 			}

@@ -192,16 +192,17 @@ static void test_failed_recompute(struct daemon *d)
 	      !strcmp(buf, "transmittance,multiscatter,skyview,aerial"));
 	CHECK(conn_request(&ctl, "get aerial_depth", reply, sizeof(reply)) == 0);
 	CHECK(!strcmp(reply, depth_before));
-	/* And the daemon goes on: a change that fits computes and publishes. */
-	CHECK(conn_request(&ctl, "set sun_elevation_deg=12", reply, sizeof(reply)) == 0);
-	CHECK(conn_wait_generation(&sub, reply_u64(reply, "generation")) == 0);
-	good = reply_u64(reply, "generation");
 	/* Samples still come from the last good tables. */
 	CHECK(conn_request(&ctl, "sample sun", reply, sizeof(reply)) == 0);
 	CHECK(reply_u64(reply, "generation") == good);
 
-	/* Memory back: the next change computes, status clears the error. */
+	/* Memory back: a change that fits computes and publishes (the state it
+	 * starts from is the one before the refused request), status clears
+	 * the error. */
 	CHECK(set_soft_limit(d->pid, RLIMIT_AS, RLIM_INFINITY) == 0);
+	CHECK(conn_request(&ctl, "set sun_elevation_deg=12", reply, sizeof(reply)) == 0);
+	CHECK(conn_wait_generation(&sub, reply_u64(reply, "generation")) == 0);
+	good = reply_u64(reply, "generation");
 	CHECK(conn_request(&ctl, "set aerial_width=8 aerial_height=8 aerial_depth=4", reply, sizeof(reply)) == 0);
 	uint64_t next = reply_u64(reply, "generation");
 	/* Visible at once or with a new generation; either way it applied. */
