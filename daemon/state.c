@@ -111,6 +111,47 @@ static const struct {
 	{ "layer1_constant", C_CONSTANT, 1 },
 };
 
+/* The quality presets behind the key quality=low|medium|high|ultra. medium
+ * is the reference of PHYSICS.md and the default; low halves it, high
+ * raises steps by half, ultra doubles sizes and steps (about 8 times the
+ * work of medium: more would take seconds on lavapipe). Their cost and
+ * error are measured by `skybench accuracy`. */
+struct quality_preset {
+	const char *name;
+	struct state_quality q;
+};
+
+static const struct quality_preset quality_presets[] = {
+	{ "low", { { { 128, 32, 1, 20 }, { 16, 16, 1, 10 }, { 96, 54, 1, 16 }, { 16, 16, 16, 1 } },
+		   2, 4, 128.0, STATE_SQUARED, STATE_F16 } },
+	{ "medium", { { { 256, 64, 1, 40 }, { 32, 32, 1, 20 }, { 192, 108, 1, 30 }, { 32, 32, 32, 1 } },
+		      64, 4, 128.0, STATE_SQUARED, STATE_F32 } },
+	{ "high", { { { 256, 64, 1, 60 }, { 32, 32, 1, 30 }, { 256, 144, 1, 45 }, { 48, 48, 32, 2 } },
+		    64, 6, 128.0, STATE_SQUARED, STATE_F32 } },
+	{ "ultra", { { { 512, 128, 1, 80 }, { 64, 64, 1, 40 }, { 384, 216, 1, 60 }, { 64, 64, 64, 2 } },
+		     64, 8, 128.0, STATE_SQUARED, STATE_F32 } },
+};
+#define N_QUALITY_PRESETS (sizeof(quality_presets) / sizeof(quality_presets[0]))
+
+static int set_quality(struct sky_state *s, const char *v)
+{
+	for (size_t i = 0; i < N_QUALITY_PRESETS; i++)
+		if (strcmp(quality_presets[i].name, v) == 0) {
+			s->quality = quality_presets[i].q;
+			return 0;
+		}
+	return -EINVAL;
+}
+
+/* The preset the quality settings equal, or "custom". */
+static const char *quality_name(const struct sky_state *s)
+{
+	for (size_t i = 0; i < N_QUALITY_PRESETS; i++)
+		if (memcmp(&quality_presets[i].q, &s->quality, sizeof(s->quality)) == 0)
+			return quality_presets[i].name;
+	return "custom";
+}
+
 void state_default(struct sky_state *ret)
 {
 	struct sky_state s = { 0 };
@@ -126,15 +167,7 @@ void state_default(struct sky_state *ret)
 		.angular_radius_deg = 0.259 };
 	s.camera = (struct state_camera){ .yaw_deg = 180.0, .pitch_deg = 0.0,
 		.roll_deg = 0.0, .vfov_deg = 60.0, .aspect = 16.0 / 9.0 };
-	s.quality.t[STATE_TRANSMITTANCE] = (struct state_table_quality){ 256, 64, 1, 40 };
-	s.quality.t[STATE_MULTISCATTER] = (struct state_table_quality){ 32, 32, 1, 20 };
-	s.quality.t[STATE_SKYVIEW] = (struct state_table_quality){ 192, 108, 1, 30 };
-	s.quality.t[STATE_AERIAL] = (struct state_table_quality){ 32, 32, 32, 1 };
-	s.quality.multiscatter_dirs = 64;
-	s.quality.skyview_min_steps = 4;
-	s.quality.aerial_range_km = 128.0;
-	s.quality.aerial_spacing = STATE_SQUARED;
-	s.quality.storage = STATE_F32;
+	set_quality(&s, "medium");
 	*ret = s;
 }
 
@@ -331,7 +364,11 @@ int state_set(struct sky_state *s, const char *key, const char *value,
 	uint32_t dirty;
 	int r;
 
-	if (strcmp(key, "preset") == 0) {
+	if (strcmp(key, "quality") == 0) {
+		if (set_quality(s, value) < 0)
+			return ERR("quality: '%s' is not low, medium, high or ultra", value);
+		dirty = STATE_ALL_TABLES;
+	} else if (strcmp(key, "preset") == 0) {
 		struct atmo a;
 		if (atmo_preset(value, &a) < 0)
 			return ERR("preset: '%s' is not earth or mars", value);
@@ -468,6 +505,10 @@ int state_get(const struct sky_state *s, const char *key, char *buf, size_t size
 {
 	if (strcmp(key, "preset") == 0) {
 		snprintf(buf, size, "%s", s->preset);
+		return 0;
+	}
+	if (strcmp(key, "quality") == 0) {
+		snprintf(buf, size, "%s", quality_name(s));
 		return 0;
 	}
 	const struct key *k = find_key(key);
