@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bench_accuracy.h"
 #include "eng.h"
 #include "state.h"
 
@@ -107,13 +108,17 @@ static int perf(int argc, char **argv)
 static void usage(FILE *f)
 {
 	fprintf(f, "usage: skybench perf [--runs N] [--device SEL] [key=value ...]\n"
-		   "  perf   times each table, sky-view + aerial perspective, and the whole set\n");
+		   "  perf   times each table, sky-view + aerial perspective, and the whole set\n"
+		   "usage: skybench accuracy [options]   (skybench accuracy --help)\n"
+		   "  accuracy  error of the sky tables against the path tracer, against run time\n");
 }
 
 int main(int argc, char **argv)
 {
 	if (argc >= 2 && !strcmp(argv[1], "perf"))
 		return perf(argc - 2, argv + 2);
+	if (argc >= 2 && !strcmp(argv[1], "accuracy"))
+		return bench_accuracy_main(argc - 2, argv + 2);
 	usage(argc >= 2 && !strcmp(argv[1], "--help") ? stdout : stderr);
 	return argc >= 2 && !strcmp(argv[1], "--help") ? 0 : 2;
 }
