@@ -12,7 +12,8 @@
 #define SKYD_BENCH_ACCURACY_H
 
 /* argv[0] is the first argument after "accuracy". Returns the exit status:
- * 0, 1 on a failure or a missed --limits entry, 2 on a usage error. */
+ * 0, 1 on a failure or an exceeded --limits entry, 2 on a usage error, 77
+ * when no Vulkan device opens (ctest's skip). */
 int bench_accuracy_main(int argc, char **argv);
 
 #endif
