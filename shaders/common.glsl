@@ -226,8 +226,12 @@ vec3 transmittance_to_top(float h, float mu)
 
 vec3 multiscatter(float h, float mu_s)
 {
-	vec2 uv = vec2(unit_to_tex(clamp(0.5 + 0.5 * mu_s, 0.0, 1.0), M_W),
-		       unit_to_tex(clamp(h / P.planet.z, 0.0, 1.0), M_H));
+	// skymap.h: u packs texels around the horizon of the altitude.
+	h = clamp(h, 0.0, P.planet.z);
+	float mh = horizon_cos(h), d = clamp(mu_s, -1.0, 1.0) - mh;
+	float sn = clamp(d < 0.0 ? d / (1.0 + mh) : d / (1.0 - mh), -1.0, 1.0);
+	vec2 uv = vec2(unit_to_tex(0.5 + 0.5 * sign(sn) * sqrt(abs(sn)), M_W),
+		       unit_to_tex(h / P.planet.z, M_H));
 	vec4 v;
 	BILINEAR(MB, M_W, M_H, uv, v);
 	return v.rgb;

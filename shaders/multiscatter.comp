@@ -16,8 +16,11 @@ void main()
 	if (px.x >= OUT_W || px.y >= OUT_H)
 		return;
 
-	float mu_s = clamp(2.0 * tex_to_unit((float(px.x) + 0.5) / float(OUT_W), OUT_W) - 1.0, -1.0, 1.0);
 	float h = clamp(tex_to_unit((float(px.y) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0) * P.planet.z;
+	// skymap.h: u packs texels around the horizon of the altitude.
+	float a_mu = 2.0 * tex_to_unit((float(px.x) + 0.5) / float(OUT_W), OUT_W) - 1.0;
+	float sn = a_mu * abs(a_mu), mh = horizon_cos(h);
+	float mu_s = clamp(mh + sn * (sn < 0.0 ? 1.0 + mh : 1.0 - mh), -1.0, 1.0);
 	vec3 sun = vec3(safe_sqrt(1.0 - mu_s * mu_s), 0.0, mu_s);
 	const float uniform_phase = 1.0 / (4.0 * PI);
 	float r0 = P.planet.x + h;
