@@ -55,6 +55,8 @@ static const struct config configs[] = {
 	{ "Tsteps80", { "transmittance_steps=80" }, false },
 	{ "M16x16", { "multiscatter_width=16", "multiscatter_height=16" }, false },
 	{ "M64x64", { "multiscatter_width=64", "multiscatter_height=64" }, false },
+	{ "M64x32", { "multiscatter_width=64" }, false },
+	{ "M32x64", { "multiscatter_height=64" }, false },
 	{ "Msteps10", { "multiscatter_steps=10" }, false },
 	{ "Msteps40", { "multiscatter_steps=40" }, false },
 	{ "Mdirs2", { "multiscatter_dirs=2" }, false },
@@ -77,7 +79,7 @@ static const double dir_elevations[] = { 0.5, 1, 1.5, 2, 2.5, 3, 4, 6, 9, 13, 20
 #define SUN_AZIMUTH_DEG 180.0
 
 struct opts {
-	const char *out, *cache, *cache_ro, *device, *limits;
+	const char *out, *cache, *cache_ro, *device, *limits, *only;
 	int runs, threads, fisheye_n, image_px;
 	double day_error, twilight_error, fisheye_error;
 	uint64_t max_samples;
@@ -889,11 +891,13 @@ static void usage(FILE *f)
 		"usage: skybench accuracy [--out DIR] [--cache DIR] [--cache-ro DIR] [--device SEL]\n"
 		"         [--runs N] [--threads N] [--day-error REL] [--twilight-error REL]\n"
 		"         [--max-samples N] [--fisheye-n N] [--fisheye-error REL] [--no-images]\n"
-		"         [--presets-only] [--reduced] [--limits FILE]\n"
+		"         [--presets-only] [--reduced] [--configs A,B] [--limits FILE]\n"
 		"  --out DIR        where the CSV, Markdown, plot and images go (accuracy-out)\n"
 		"  --cache DIR      ground-truth cache, read and written (OUT/gt-cache)\n"
 		"  --cache-ro DIR   a cache read first and never written (e.g. committed truth)\n"
 		"  --reduced        the CI matrix: three scenes, default preset only\n"
+		"  --configs A,B    only these configurations besides medium (low, high, ultra,\n"
+		"                   T128x32, Mdirs2, S384x216, f16, ...: see accuracy.md)\n"
 		"  --limits FILE    exit 1 when the default preset's largest per-scene mean\n"
 		"                   relative error in a category exceeds the file's limit\n"
 		"exit status: 0, 1 on a failure or an exceeded limit, 2 on a usage error,\n"
@@ -912,6 +916,23 @@ static int parse_num(const char *s, double *ret)
 		return -EINVAL;
 	*ret = d;
 	return 0;
+}
+
+/* Whether configuration c runs on scene sc: the default preset always; with
+ * --configs, the named ones on every scene; otherwise the presets on every
+ * scene and the sweeps on the scenes marked for them. */
+static bool runs_on(const struct opts *o, size_t c, const struct scene *sc)
+{
+	if (c == DEFAULT_CONFIG)
+		return true;
+	if (o->only) {
+		size_t n = strlen(configs[c].name);
+		for (const char *p = o->only; *p; p += strcspn(p, ","), p += *p == ',')
+			if (strcspn(p, ",") == n && !strncmp(p, configs[c].name, n))
+				return true;
+		return false;
+	}
+	return !o->reduced && (configs[c].preset || (!o->presets_only && sc->sweep));
 }
 
 int bench_accuracy_main(int argc, char **argv)
@@ -936,10 +957,11 @@ int bench_accuracy_main(int argc, char **argv)
 		} else if (!strcmp(a, "--no-images")) {
 			o.no_images = true;
 		} else if (v && (!strcmp(a, "--out") || !strcmp(a, "--cache") || !strcmp(a, "--cache-ro") ||
-				 !strcmp(a, "--device") || !strcmp(a, "--limits"))) {
+				 !strcmp(a, "--device") || !strcmp(a, "--limits") || !strcmp(a, "--configs"))) {
 			const char **dst = !strcmp(a, "--out") ? &o.out : !strcmp(a, "--cache") ? &o.cache :
 					   !strcmp(a, "--cache-ro") ? &o.cache_ro :
-					   !strcmp(a, "--device") ? &o.device : &o.limits;
+					   !strcmp(a, "--device") ? &o.device :
+					   !strcmp(a, "--configs") ? &o.only : &o.limits;
 			*dst = v;
 			len = strlen(cmdline);
 			snprintf(cmdline + len, sizeof(cmdline) - len, " %s", v);
@@ -1018,13 +1040,11 @@ int bench_accuracy_main(int argc, char **argv)
 	size_t todo = 0, done = 0;
 	for (size_t c = 0; c < N_CONFIGS; c++)
 		for (size_t i = 0; i < n_sc; i++)
-			todo += (c == DEFAULT_CONFIG || (!o.reduced && (configs[c].preset ||
-				 (!o.presets_only && sc[i].sweep))));
+			todo += runs_on(&o, c, &sc[i]);
 	double t1 = now_s();
 	for (size_t c = 0; c < N_CONFIGS && rc == 0; c++)
 		for (size_t i = 0; i < n_sc && rc == 0; i++) {
-			if (!(c == DEFAULT_CONFIG || (!o.reduced && (configs[c].preset ||
-			      (!o.presets_only && sc[i].sweep)))))
+			if (!runs_on(&o, c, &sc[i]))
 				continue;
 			char what[96];
 			if (!FITS(what, "%s %s", configs[c].name, sc[i].name))
