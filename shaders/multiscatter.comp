@@ -56,16 +56,20 @@ void main()
 			absorbed += w * m.absorption;
 			tau += m.extinction * dt;
 		}
-		vec3 t_ray = exp(-tau);
+		vec3 t_ray = exp(-tau), returned = vec3(0.0);
 		if (ground && !GROUND_BLACK) {
 			// Lambertian ground lit by the sun: albedo / pi times the cosine.
 			vec3 n = vec3(dir.xy * t_end, r0 + dir.z * t_end) / P.planet.x;
 			float mu_g = dot(n, sun);
 			l2 += t_ray * transmittance_to_top(0.0, mu_g) * max(mu_g, 0.0) * P.albedo.rgb / PI;
+			// Under the isotropic field psi the Lambertian ground sends back
+			// albedo times psi: a transfer like scattering, so every order
+			// bounces off the ground, not only the second.
+			returned = t_ray * P.albedo.rgb;
 		}
 		sum_l2 += l2;
-		sum_f += f;
-		sum_escape += t_ray + absorbed;
+		sum_f += f + returned;
+		sum_escape += t_ray - returned + absorbed;
 	}
 	vec3 l2 = sum_l2 / float(MS_DIRS), f = sum_f / float(MS_DIRS);
 	vec3 escape = sum_escape / float(MS_DIRS);
