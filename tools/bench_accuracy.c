@@ -79,7 +79,7 @@ static const double dir_elevations[] = { 0.5, 1, 1.5, 2, 2.5, 3, 4, 6, 9, 13, 20
 #define SUN_AZIMUTH_DEG 180.0
 
 struct opts {
-	const char *out, *cache, *cache_ro, *device, *limits, *only;
+	const char *out, *cache, *cache_ro, *device, *limits, *only, *scene_filter;
 	int runs, threads, fisheye_n, image_px;
 	double day_error, twilight_error, fisheye_error;
 	uint64_t max_samples;
@@ -891,11 +891,13 @@ static void usage(FILE *f)
 		"usage: skybench accuracy [--out DIR] [--cache DIR] [--cache-ro DIR] [--device SEL]\n"
 		"         [--runs N] [--threads N] [--day-error REL] [--twilight-error REL]\n"
 		"         [--max-samples N] [--fisheye-n N] [--fisheye-error REL] [--no-images]\n"
-		"         [--presets-only] [--reduced] [--configs A,B] [--limits FILE]\n"
+		"         [--presets-only] [--reduced] [--scenes TEXT] [--configs A,B]\n"
+		"         [--limits FILE]\n"
 		"  --out DIR        where the CSV, Markdown, plot and images go (accuracy-out)\n"
 		"  --cache DIR      ground-truth cache, read and written (OUT/gt-cache)\n"
 		"  --cache-ro DIR   a cache read first and never written (e.g. committed truth)\n"
 		"  --reduced        the CI matrix: three scenes, default preset only\n"
+		"  --scenes TEXT    only the scenes whose name contains TEXT\n"
 		"  --configs A,B    only these configurations besides medium (low, high, ultra,\n"
 		"                   T128x32, Mdirs2, S384x216, f16, ...: see accuracy.md)\n"
 		"  --limits FILE    exit 1 when the default preset's largest per-scene mean\n"
@@ -957,11 +959,13 @@ int bench_accuracy_main(int argc, char **argv)
 		} else if (!strcmp(a, "--no-images")) {
 			o.no_images = true;
 		} else if (v && (!strcmp(a, "--out") || !strcmp(a, "--cache") || !strcmp(a, "--cache-ro") ||
-				 !strcmp(a, "--device") || !strcmp(a, "--limits") || !strcmp(a, "--configs"))) {
+				 !strcmp(a, "--device") || !strcmp(a, "--limits") || !strcmp(a, "--configs") ||
+				 !strcmp(a, "--scenes"))) {
 			const char **dst = !strcmp(a, "--out") ? &o.out : !strcmp(a, "--cache") ? &o.cache :
 					   !strcmp(a, "--cache-ro") ? &o.cache_ro :
 					   !strcmp(a, "--device") ? &o.device :
-					   !strcmp(a, "--configs") ? &o.only : &o.limits;
+					   !strcmp(a, "--configs") ? &o.only :
+					   !strcmp(a, "--scenes") ? &o.scene_filter : &o.limits;
 			*dst = v;
 			len = strlen(cmdline);
 			snprintf(cmdline + len, sizeof(cmdline) - len, " %s", v);
@@ -1005,6 +1009,13 @@ int bench_accuracy_main(int argc, char **argv)
 
 	static struct scene sc[64];
 	size_t n_sc = build_scenes(sc, 64, o.reduced);
+	if (o.scene_filter) {
+		size_t m = 0;
+		for (size_t i = 0; i < n_sc; i++)
+			if (strstr(sc[i].name, o.scene_filter))
+				sc[m++] = sc[i];
+		n_sc = m;
+	}
 	static struct gt gts[64];
 	double t0 = now_s();
 	int rc = 0;
