@@ -443,7 +443,10 @@ static void measure(const struct eng *e, const struct sky_state *s, const struct
 		double rgb[3];
 		table_radiance(e, s, g->dir[i].elevation_deg, g->dir[i].azimuth_deg, rgb);
 		double y = luminance(rgb), w = g->weight[i];
-		double rel = g->lum[i] > 0 ? (y - g->lum[i]) / g->lum[i] : (y > 0 ? INFINITY : 0);
+		/* A table value that is not finite (f16 overflows above 65504) is
+		 * an infinite error, never a NaN that would vanish from the means. */
+		double rel = !isfinite(y) ? INFINITY
+			     : g->lum[i] > 0 ? (y - g->lum[i]) / g->lum[i] : (y > 0 ? INFINITY : 0);
 		enum category c = category(sc, g->dir[i].elevation_deg);
 		struct stats *st = &res->cat[c];
 		es[c][n[c]++] = (struct err_sample){ fabs(rel), w };
