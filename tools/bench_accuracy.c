@@ -667,14 +667,15 @@ struct summary {
 	int n_scenes;
 };
 
-static void summarize(const struct result *r, size_t n_sc, size_t cfg, struct summary *ret)
+static void summarize(const struct scene *sc, const struct result *r, size_t n_sc, size_t cfg,
+		      bool sweep_scenes_only, struct summary *ret)
 {
 	struct summary s = { 0 };
 	int cnt[N_CAT] = { 0 };
 	double wall = 0, sum_all = 0;
 	for (size_t i = 0; i < n_sc; i++) {
 		const struct result *x = &r[cfg * n_sc + i];
-		if (!x->done)
+		if (!x->done || (sweep_scenes_only && !sc[i].sweep))
 			continue;
 		s.n_scenes++;
 		s.time_ms += x->time_ms;
@@ -761,20 +762,26 @@ static int write_md(const struct opts *o, const struct scene *sc, size_t n_sc,
 		   "views >= 3 deg; horizon: sun >= 2 deg, views < 3 deg; twilight: sun < 2 deg, "
 		   "all views. Time: engine wall time of transmittance + multi-scattering + "
 		   "sky-view, mean over scenes of the median of %d runs.\n\n", o->runs);
-	fprintf(f, "| config | scenes | time ms | day mean (max) | day p95 | horizon mean (max) | "
-		   "horizon p95 | twilight mean (max) | twilight p95 |\n"
-		   "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
-	for (size_t c = 0; c < N_CONFIGS; c++) {
-		struct summary s;
-		summarize(r, n_sc, c, &s);
-		if (!s.n_scenes)
-			continue;
-		fprintf(f, "| %s | %d | %.1f |", configs[c].name, s.n_scenes, s.time_ms);
-		for (int k = 0; k < N_CAT; k++) {
-			fprintf(f, " %.1f (%.1f) |", 100 * s.mean[k], 100 * s.max_mean[k]);
-			pct(f, s.p95[k]);
+	for (int pass = 0; pass < 2; pass++) {
+		fprintf(f, pass ? "\nThe presets over every scene of the matrix:\n\n"
+				: "Every configuration over the same scenes (those the sweeps run on):\n\n");
+		fprintf(f, "| config | scenes | time ms | day mean (max) | day p95 | horizon mean (max) | "
+			   "horizon p95 | twilight mean (max) | twilight p95 |\n"
+			   "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+		for (size_t c = 0; c < N_CONFIGS; c++) {
+			struct summary s;
+			if (pass && !configs[c].preset)
+				continue;
+			summarize(sc, r, n_sc, c, !pass, &s);
+			if (!s.n_scenes)
+				continue;
+			fprintf(f, "| %s | %d | %.1f |", configs[c].name, s.n_scenes, s.time_ms);
+			for (int k = 0; k < N_CAT; k++) {
+				fprintf(f, " %.1f (%.1f) |", 100 * s.mean[k], 100 * s.max_mean[k]);
+				pct(f, s.p95[k]);
+			}
+			fputc('\n', f);
 		}
-		fputc('\n', f);
 	}
 	fprintf(f, "\nDefault preset (medium), per scene: mean / p95 / bias (mean signed) "
 		   "relative error in %%, luminance RMSE in cd/m2, the worst direction "
@@ -800,12 +807,13 @@ static int write_md(const struct opts *o, const struct scene *sc, size_t n_sc,
 	return fclose(f) ? -errno : 0;
 }
 
-static int write_plot(const struct opts *o, size_t n_sc, const struct result *r, const char *device)
+static int write_plot(const struct opts *o, const struct scene *sc, size_t n_sc,
+		      const struct result *r, const char *device)
 {
 	char path[4096];
 	struct summary s[N_CONFIGS];
 	for (size_t c = 0; c < N_CONFIGS; c++)
-		summarize(r, n_sc, c, &s[c]);
+		summarize(sc, r, n_sc, c, !o->reduced && !o->only, &s[c]);
 	if (!FITS(path, "%s/errtime.dat", o->out))
 		return -ENAMETOOLONG;
 	FILE *f = fopen(path, "we");
@@ -837,7 +845,7 @@ static int write_plot(const struct opts *o, size_t n_sc, const struct result *r,
 		   "set xlabel 'engine time, transmittance + multi-scattering + sky-view (ms, %s)'\n"
 		   "set ylabel 'mean relative error of luminance'\n"
 		   "set grid\nset key top right\n"
-		   "set title 'skybench accuracy: error against run time (Pareto front: line)'\n"
+		   "set title 'skybench accuracy: error against run time over the sweep scenes (Pareto front: line)'\n"
 		   "plot \"< awk '$7==1' errtime.dat | sort -g -k2\" using 2:3 with lines lw 2 lc rgb 'black' title 'Pareto front (all views)', \\\n"
 		   "     'errtime.dat' using 2:3 with points pt 7 ps 1.2 lc rgb 'black' title 'all views', \\\n"
 		   "     '' using 2:3:1 with labels offset 1,0.6 font ',8' notitle, \\\n"
@@ -857,13 +865,14 @@ static int write_plot(const struct opts *o, size_t n_sc, const struct result *r,
 
 /* --limits FILE: lines "category max_mean_rel" for the default preset's
  * largest per-scene mean; returns the number of limits exceeded, or -errno. */
-static int check_limits(const char *file, size_t n_sc, const struct result *r)
+static int check_limits(const char *file, const struct scene *sc, size_t n_sc,
+			const struct result *r)
 {
 	FILE *f = fopen(file, "re");
 	if (!f)
 		return -errno;
 	struct summary s;
-	summarize(r, n_sc, DEFAULT_CONFIG, &s);
+	summarize(sc, r, n_sc, DEFAULT_CONFIG, false, &s);
 	char line[256], cat[64];
 	double lim;
 	int bad = 0;
@@ -1096,10 +1105,10 @@ int bench_accuracy_main(int argc, char **argv)
 			fprintf(stderr, "skybench: cannot write the report in '%s'\n", o.out);
 			status = 1;
 		}
-		if (!o.no_images && write_plot(&o, n_sc, res, dv->name) < 0)
+		if (!o.no_images && write_plot(&o, sc, n_sc, res, dv->name) < 0)
 			status = 1;
 		struct summary s;
-		summarize(res, n_sc, DEFAULT_CONFIG, &s);
+		summarize(sc, res, n_sc, DEFAULT_CONFIG, false, &s);
 		printf("device: %s\n", device);
 		printf("default preset over %d scenes: day %.2f %% (max %.2f), horizon %.2f %% (max %.2f), "
 		       "twilight %.2f %% (max %.2f); tables %.1f ms; truth %.0f s, total %.0f s\n",
@@ -1108,7 +1117,7 @@ int bench_accuracy_main(int argc, char **argv)
 		       total_s);
 		printf("report: %s/accuracy.md, %s/accuracy.csv\n", o.out, o.out);
 		if (o.limits) {
-			int bad = check_limits(o.limits, n_sc, res);
+			int bad = check_limits(o.limits, sc, n_sc, res);
 			if (bad < 0) {
 				fprintf(stderr, "skybench: '%s': %s\n", o.limits, strerror(-bad));
 				status = 1;
