@@ -824,9 +824,9 @@ static int write_plot(const struct opts *o, const struct scene *sc, size_t n_sc,
 		if (!s[c].n_scenes)
 			continue;
 		/* Pareto-optimal: no other config is both faster and more accurate. */
-		bool front = true;
+		bool front = isfinite(s[c].all);
 		for (size_t d = 0; d < N_CONFIGS; d++)
-			if (d != c && s[d].n_scenes && s[d].time_ms <= s[c].time_ms &&
+			if (d != c && s[d].n_scenes && isfinite(s[d].all) && s[d].time_ms <= s[c].time_ms &&
 			    s[d].all <= s[c].all && (s[d].time_ms < s[c].time_ms || s[d].all < s[c].all))
 				front = false;
 		fprintf(f, "%s %.4f %.6f %.6f %.6f %.6f %d\n", configs[c].name, s[c].time_ms, s[c].all,
