@@ -83,7 +83,7 @@ struct opts {
 	int runs, threads, fisheye_n, image_px;
 	double day_error, twilight_error, fisheye_error;
 	uint64_t max_samples;
-	bool reduced, presets_only, no_images;
+	bool reduced, presets_only, no_images, list_truth;
 };
 
 struct gt {
@@ -230,31 +230,56 @@ static uint64_t fnv(uint64_t h, const char *s)
 	return h;
 }
 
-struct hash_ctx {
-	uint64_t h;
-};
-
-static void hash_key(void *ctx, const char *key, const char *value)
+static uint64_t fnv_double(uint64_t h, double d)
 {
-	struct hash_ctx *c = ctx;
-	/* Only what the truth depends on: not sizes, steps, storage or camera. */
-	static const char *const skip[] = { "transmittance_", "multiscatter_", "skyview_", "aerial_",
-					    "storage", "camera_", "moon_" };
-	for (size_t i = 0; i < sizeof(skip) / sizeof(skip[0]); i++)
-		if (!strncmp(key, skip[i], strlen(skip[i])))
-			return;
-	c->h = fnv(c->h, key);
-	c->h = fnv(c->h, "=");
-	c->h = fnv(c->h, value);
-	c->h = fnv(c->h, ";");
+	char buf[40];
+	snprintf(buf, sizeof(buf), "%.17g;", d);
+	return fnv(h, buf);
+}
+
+/* Only what the truth depends on - the atmosphere, the observer's altitude
+ * and the sun - so that keys added to the state later leave the cache (and
+ * the committed truth of the CI test) valid. */
+static uint64_t hash_scene(uint64_t h, const struct sky_state *s)
+{
+	const struct atmo *a = &s->atmo;
+	h = fnv_double(h, a->bottom_radius_km);
+	h = fnv_double(h, a->top_radius_km);
+	for (int c = 0; c < 3; c++)
+		h = fnv_double(h, a->ground_albedo[c]);
+	h = fnv_double(h, a->n_constituents);
+	for (int i = 0; i < a->n_constituents; i++) {
+		const struct atmo_constituent *k = &a->c[i];
+		for (int c = 0; c < 3; c++) {
+			h = fnv_double(h, k->scattering_per_km[c]);
+			h = fnv_double(h, k->absorption_per_km[c]);
+		}
+		h = fnv_double(h, k->phase);
+		h = fnv_double(h, k->g);
+		for (int l = 0; l < 2; l++) {
+			const struct atmo_layer *y = &k->density.layers[l];
+			h = fnv_double(h, y->width_km);
+			h = fnv_double(h, y->exp_term);
+			h = fnv_double(h, y->exp_scale_per_km);
+			h = fnv_double(h, y->linear_per_km);
+			h = fnv_double(h, y->constant);
+		}
+	}
+	h = fnv_double(h, s->altitude_km);
+	h = fnv_double(h, s->sun.elevation_deg);
+	h = fnv_double(h, s->sun.azimuth_deg);
+	h = fnv_double(h, s->sun.angular_radius_deg);
+	for (int c = 0; c < 3; c++)
+		h = fnv_double(h, s->sun.illuminance_lx * s->sun.color[c]);
+	return h;
 }
 
 static uint64_t gt_hash(const struct sky_state *s, const struct pt_options *po, const struct gt *g)
 {
-	struct hash_ctx c = { 0xcbf29ce484222325ull };
+	struct { uint64_t h; } c = { 0xcbf29ce484222325ull };
 	char buf[128];
 	c.h = fnv(c.h, GT_VERSION);
-	state_foreach(s, hash_key, &c);
+	c.h = hash_scene(c.h, s);
 	snprintf(buf, sizeof(buf), "err=%.9g;min=%llu;max=%llu;batch=%u;seed=%llu;n=%zu;", po->rel_error,
 		 (unsigned long long)po->min_samples, (unsigned long long)po->max_samples, po->batch,
 		 (unsigned long long)po->seed, g->n);
@@ -363,6 +388,10 @@ static int ground_truth(const struct opts *o, const struct scene *sc, double rel
 	po.max_samples = o->max_samples;
 	po.threads = o->threads;
 	uint64_t h = gt_hash(&s, &po, g);
+	if (o->list_truth) {
+		printf("%s %s gt-%016llx.txt\n", sc->name, kind, (unsigned long long)h);
+		return 0;
+	}
 	if (o->cache_ro) {
 		if (FITS(path, "%s/gt-%016llx.txt", o->cache_ro, (unsigned long long)h) &&
 		    gt_read(path, g) == 0)
@@ -908,6 +937,7 @@ static void usage(FILE *f)
 		"  --out DIR        where the CSV, Markdown, plot and images go (accuracy-out)\n"
 		"  --cache DIR      ground-truth cache, read and written (OUT/gt-cache)\n"
 		"  --cache-ro DIR   a cache read first and never written (e.g. committed truth)\n"
+		"  --list-truth     print each scene's ground-truth cache file name and exit\n"
 		"  --reduced        the CI matrix: three scenes, default preset only\n"
 		"  --scenes TEXT    only the scenes whose name contains TEXT\n"
 		"  --configs A,B    only these configurations besides medium (low, high, ultra,\n"
@@ -968,6 +998,8 @@ int bench_accuracy_main(int argc, char **argv)
 			o.reduced = true;
 		} else if (!strcmp(a, "--presets-only")) {
 			o.presets_only = true;
+		} else if (!strcmp(a, "--list-truth")) {
+			o.list_truth = true;
 		} else if (!strcmp(a, "--no-images")) {
 			o.no_images = true;
 		} else if (v && (!strcmp(a, "--out") || !strcmp(a, "--cache") || !strcmp(a, "--cache-ro") ||
@@ -1041,6 +1073,8 @@ int bench_accuracy_main(int argc, char **argv)
 	}
 	if (rc < 0)
 		return 1;
+	if (o.list_truth)
+		return 0;
 	progress("truth", n_sc, n_sc, "", t0);
 	double gt_s = now_s() - t0;
 
