@@ -359,17 +359,19 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 					absorbed = add(absorbed, mul(w, m.absorption));
 					tau = add(tau, scale(m.extinction, dt));
 				}
-				v3 t_ray = vexp_neg(tau);
+				v3 t_ray = vexp_neg(tau), returned = { 0 };
 				if (ground) {
 					v3 n = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb, (r0 + dir.z * t_end) / c->rb);
 					double mu_g = dot(n, sun);
 					v3 g = mul(t_ray, transmittance_to_top(c, 0.0, mu_g));
 					l2 = add(l2, scale(mul(g, v(albedo[0], albedo[1], albedo[2])),
 							   (mu_g > 0 ? mu_g : 0) / SKYMAP_PI));
+					/* Every order bounces off the ground (see multiscatter.comp). */
+					returned = mul(t_ray, v(albedo[0], albedo[1], albedo[2]));
 				}
 				sl = add(sl, l2);
-				sf = add(sf, f);
-				se = add(se, add(t_ray, absorbed));
+				sf = add(sf, add(f, returned));
+				se = add(se, add(add(t_ray, scale(returned, -1.0)), absorbed));
 			}
 			sl = scale(sl, 1.0 / dirs);
 			sf = scale(sf, 1.0 / dirs);

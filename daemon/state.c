@@ -146,6 +146,47 @@ void state_default_camera(struct state_camera *ret)
 				      .vfov_deg = 60.0, .aspect = 16.0 / 9.0 };
 }
 
+/* The quality presets behind the key quality=low|medium|high|ultra. medium
+ * is the reference of PHYSICS.md and the default; low halves it, high
+ * raises steps by half, ultra doubles sizes and steps (about 8 times the
+ * work of medium: more would take seconds on lavapipe). Their cost and
+ * error are measured by `skybench accuracy`. */
+struct quality_preset {
+	const char *name;
+	struct state_quality q;
+};
+
+static const struct quality_preset quality_presets[] = {
+	{ "low", { { { 128, 32, 1, 20 }, { 16, 16, 1, 10 }, { 96, 54, 1, 16 }, { 16, 16, 16, 1 } },
+		   2, 4, 128.0, STATE_SQUARED, STATE_F16 } },
+	{ "medium", { { { 256, 64, 1, 40 }, { 32, 32, 1, 20 }, { 192, 108, 1, 30 }, { 32, 32, 32, 1 } },
+		      64, 4, 128.0, STATE_SQUARED, STATE_F32 } },
+	{ "high", { { { 256, 64, 1, 60 }, { 32, 32, 1, 30 }, { 256, 144, 1, 45 }, { 48, 48, 32, 2 } },
+		    64, 6, 128.0, STATE_SQUARED, STATE_F32 } },
+	{ "ultra", { { { 512, 128, 1, 80 }, { 64, 64, 1, 40 }, { 384, 216, 1, 60 }, { 64, 64, 64, 2 } },
+		     64, 8, 128.0, STATE_SQUARED, STATE_F32 } },
+};
+#define N_QUALITY_PRESETS (sizeof(quality_presets) / sizeof(quality_presets[0]))
+
+static int set_quality(struct sky_state *s, const char *v)
+{
+	for (size_t i = 0; i < N_QUALITY_PRESETS; i++)
+		if (strcmp(quality_presets[i].name, v) == 0) {
+			s->quality = quality_presets[i].q;
+			return 0;
+		}
+	return -EINVAL;
+}
+
+/* The preset the quality settings equal, or "custom". */
+static const char *quality_name(const struct sky_state *s)
+{
+	for (size_t i = 0; i < N_QUALITY_PRESETS; i++)
+		if (memcmp(&quality_presets[i].q, &s->quality, sizeof(s->quality)) == 0)
+			return quality_presets[i].name;
+	return "custom";
+}
+
 void state_default(struct sky_state *ret)
 {
 	struct sky_state s = { 0 };
@@ -160,15 +201,7 @@ void state_default(struct sky_state *ret)
 		.illuminance_lx = 0.0, .color = { 1, 1, 1 },
 		.angular_radius_deg = 0.259 };
 	state_default_camera(&s.camera);
-	s.quality.t[STATE_TRANSMITTANCE] = (struct state_table_quality){ 256, 64, 1, 40 };
-	s.quality.t[STATE_MULTISCATTER] = (struct state_table_quality){ 32, 32, 1, 20 };
-	s.quality.t[STATE_SKYVIEW] = (struct state_table_quality){ 192, 108, 1, 30 };
-	s.quality.t[STATE_AERIAL] = (struct state_table_quality){ 32, 32, 32, 1 };
-	s.quality.multiscatter_dirs = 64;
-	s.quality.skyview_min_steps = 4;
-	s.quality.aerial_range_km = 128.0;
-	s.quality.aerial_spacing = STATE_SQUARED;
-	s.quality.storage = STATE_F32;
+	set_quality(&s, "medium");
 	s.clock = (struct state_clock){ .anchor_utc_s = NAN, .anchor_mono_s = 0.0, .rate = 1.0,
 		.lat_deg = 0.0, .lon_deg = 0.0, .site_elevation_m = 0.0,
 		.pressure_mbar = 1013.25, .temperature_c = 15.0, .delta_t_s = NAN,
@@ -468,6 +501,10 @@ int state_set(struct sky_state *s, const char *key, const char *value,
 	if (r <= 0) {
 		if (r < 0)
 			return r;
+	} else if (strcmp(key, "quality") == 0) {
+		if (set_quality(s, value) < 0)
+			return ERR("quality: '%s' is not low, medium, high or ultra", value);
+		dirty = STATE_ALL_TABLES;
 	} else if (strcmp(key, "preset") == 0) {
 		struct atmo a;
 		if (atmo_preset(value, &a) < 0)
@@ -663,6 +700,10 @@ int state_get(const struct sky_state *s, const char *key, char *buf, size_t size
 	}
 	if (in_list(clock_special, key)) {
 		format_clock_key(s, key, buf, size);
+		return 0;
+	}
+	if (strcmp(key, "quality") == 0) {
+		snprintf(buf, size, "%s", quality_name(s));
 		return 0;
 	}
 	const struct key *k = find_key(key);

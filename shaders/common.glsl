@@ -262,7 +262,9 @@ vec4 bilinear(samplerBuffer tex, int w, float x, Axis rows)
 struct TAlt {
 	float h, r, mu_horizon;
 	Axis t_rows;		// the altitude's rows in the transmittance table
-	Axis ms_rows;		// and in the multi-scattering table
+	Axis ms_rows;		// and in the multi-scattering table,
+	float ms_horizon;	// whose u packs texels around this horizon cosine
+	float ms_below, ms_above;	// 1 / (1 + mu_horizon), 1 / (1 - mu_horizon)
 	float top_c;		// top^2 - r^2
 	float d_min, inv_range;	// x_mu = (d - d_min) * inv_range
 };
@@ -280,6 +282,9 @@ TAlt t_alt(float h)
 	a.mu_horizon = h < 0.0 ? -2.0 : -rho / a.r;
 	a.t_rows = axis(rho / H, T_H);
 	a.ms_rows = axis(h / shell, M_H);
+	a.ms_horizon = -rho / a.r;
+	a.ms_below = 1.0 / (1.0 + a.ms_horizon);
+	a.ms_above = 1.0 / (1.0 - a.ms_horizon);
 	a.top_c = (shell - a.h) * (2.0 * rb + shell + a.h);
 	a.d_min = shell - a.h;
 	float d_max = rho + H;
@@ -287,8 +292,6 @@ TAlt t_alt(float h)
 	return a;
 }
 
-// Transmittance from the altitude of a towards cos-zenith mu, to the top of
-// the atmosphere; 0 when the ray hits the ground (the planet's shadow).
 // Transmittance to the top of the atmosphere along mu, whether or not the
 // planet is in the way.
 vec3 transmittance_lookup(TAlt a, float mu)
@@ -325,7 +328,10 @@ vec3 transmittance_to_top(float h, float mu)
 
 vec3 multiscatter_at(TAlt a, float mu_s)
 {
-	return bilinear(MultiscatterTex, M_W, 0.5 + 0.5 * mu_s, a.ms_rows).rgb;
+	// skymap.h: u packs texels around the horizon of the altitude.
+	float d = clamp(mu_s, -1.0, 1.0) - a.ms_horizon;
+	float sn = clamp(d * (d < 0.0 ? a.ms_below : a.ms_above), -1.0, 1.0);
+	return bilinear(MultiscatterTex, M_W, 0.5 + 0.5 * sign(sn) * sqrt(abs(sn)), a.ms_rows).rgb;
 }
 
 // The phase of every constituent for one light: constant along a view ray

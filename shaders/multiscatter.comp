@@ -24,10 +24,14 @@ void main()
 		return;
 
 	float h = clamp(tex_to_unit((float(py) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0) * P.planet.z;
+	// skymap.h: u packs texels around the horizon of the altitude.
+	float mh = horizon_cos(h);
 	vec3 sun[MS_SUN_GROUP];
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		int px = min(x0 + j, OUT_W - 1);
-		float mu_s = clamp(2.0 * tex_to_unit((float(px) + 0.5) / float(OUT_W), OUT_W) - 1.0, -1.0, 1.0);
+		float a_mu = 2.0 * tex_to_unit((float(px) + 0.5) / float(OUT_W), OUT_W) - 1.0;
+		float sn = a_mu * abs(a_mu);
+		float mu_s = clamp(mh + sn * (sn < 0.0 ? 1.0 + mh : 1.0 - mh), -1.0, 1.0);
 		sun[j] = vec3(safe_sqrt(1.0 - mu_s * mu_s), 0.0, mu_s);
 	}
 	const float uniform_phase = 1.0 / (4.0 * PI);
@@ -76,6 +80,7 @@ void main()
 			absorbed += w * m.absorption;
 			tr *= step_t;
 		}
+		vec3 returned = vec3(0.0);
 		if (ground && !GROUND_BLACK) {
 			// Lambertian ground lit by the sun: albedo / pi times the cosine.
 			vec3 n = vec3(dir.xy * t_end, r0 + dir.z * t_end) / P.planet.x;
@@ -84,11 +89,15 @@ void main()
 				float mu_g = dot(n, sun[j]);
 				l2[j] += tr * transmittance_at(a, mu_g) * max(mu_g, 0.0) * P.albedo.rgb / PI;
 			}
+			// Under the isotropic field psi the Lambertian ground sends back
+			// albedo times psi: a transfer like scattering, so every order
+			// bounces off the ground, not only the second.
+			returned = tr * P.albedo.rgb;
 		}
 		for (int j = 0; j < MS_SUN_GROUP; j++)
 			sum_l2[j] += l2[j];
-		sum_f += f;
-		sum_escape += tr + absorbed;
+		sum_f += f + returned;
+		sum_escape += tr - returned + absorbed;
 	}
 	float norm = dir_weight / float(MS_DIRS);
 	vec3 f = sum_f * norm, escape = sum_escape * norm;

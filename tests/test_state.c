@@ -132,6 +132,27 @@ static void test_clock_keys(void)
 	CHECK(state_validate(&s, 0, err, sizeof(err)) < 0 && strstr(err, "night_illuminance_lx") == err);
 }
 
+static void test_quality_presets(void)
+{
+	struct sky_state s, d;
+	char err[256], buf[32];
+	uint32_t dirty = 0;
+	state_default(&s);
+	d = s;
+	CHECK(state_get(&s, "quality", buf, sizeof(buf)) == 0 && strcmp(buf, "medium") == 0);
+	CHECK(state_set_pair(&s, "quality=low", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == STATE_ALL_TABLES);
+	CHECK(s.quality.storage == STATE_F16 && s.quality.multiscatter_dirs == 2);
+	CHECK(state_get(&s, "quality", buf, sizeof(buf)) == 0 && strcmp(buf, "low") == 0);
+	CHECK(state_set_pair(&s, "skyview_steps=17", NULL, err, sizeof(err)) == 0);
+	CHECK(state_get(&s, "quality", buf, sizeof(buf)) == 0 && strcmp(buf, "custom") == 0);
+	CHECK(state_set_pair(&s, "quality=ultra", NULL, err, sizeof(err)) == 0);
+	CHECK(state_validate(&s, 0, err, sizeof(err)) == 0);
+	CHECK(state_set_pair(&s, "quality=medium", NULL, err, sizeof(err)) == 0);
+	CHECK(memcmp(&s.quality, &d.quality, sizeof(s.quality)) == 0);
+	CHECK(state_set_pair(&s, "quality=best", NULL, err, sizeof(err)) < 0 && strstr(err, "quality"));
+}
+
 int main(void)
 {
 	test_defaults_are_valid();
@@ -140,5 +161,6 @@ int main(void)
 	test_invalidation();
 	test_roundtrip();
 	test_clock_keys();
+	test_quality_presets();
 	return test_report("test_state");
 }

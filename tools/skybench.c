@@ -8,6 +8,7 @@
 
 #include "bench_stability.h"
 #include "bench_demand.h"
+#include "bench_accuracy.h"
 #include "eng.h"
 #include "state.h"
 
@@ -134,7 +135,9 @@ static void usage(FILE *f)
 		   "  stability  the stiff cases of PHYSICS.md: invariants and precision as markdown\n"
 		   "       skybench demand [--runs N] [--markdown] [key=value ...]\n"
 		   "  demand [--runs N] [--markdown] [key=value ...]: each kind of scene with only the\n"
-		   "         tables it needs against a full recompute (docs/performance.md)\n");
+		   "         tables it needs against a full recompute (docs/performance.md)\n"
+		   "       skybench accuracy [options]   (skybench accuracy --help)\n"
+		   "  accuracy  error of the sky tables against the path tracer, against run time\n");
 }
 
 int main(int argc, char **argv)
@@ -145,6 +148,8 @@ int main(int argc, char **argv)
 		return bench_stability(argc - 2, argv + 2);
 	if (argc >= 2 && !strcmp(argv[1], "demand"))
 		return bench_demand_main(argc - 2, argv + 2);
+	if (argc >= 2 && !strcmp(argv[1], "accuracy"))
+		return bench_accuracy_main(argc - 2, argv + 2);
 	usage(argc >= 2 && !strcmp(argv[1], "--help") ? stdout : stderr);
 	return argc >= 2 && !strcmp(argv[1], "--help") ? 0 : 2;
 }

@@ -307,9 +307,14 @@ const struct stab_known stab_known[] = {
 	  "the step (it was the midpoint, a rise of 1.3 %), but near the tangent point the altitude "
 	  "is quadratic, so a row of the table still rises by up to 0.11 % (0.32159 -> 0.32194, "
 	  "row 1, column 62)" },
+	{ "thin x0.01", STAB_HORIZON, "model",
+	  "the planet's shadow sweeps the samples of a view ray as the sun sets; with the sun a "
+	  "disk of 0.27 degree radius the edge is spread over about two 0.25 degree steps, which "
+	  "took the worst jump from 25x to 10x its neighbours (one of 864 row steps, at the "
+	  "horizon of the samples some 9 km up, sun 2.75 -> 3 degrees)" },
 	{ "planet 10 km, shell 100 km", STAB_HORIZON, "model",
 	  "the planet's shadow sweeps the samples of a view ray: the sun is a disk whose shadow "
-	  "edge is spread over its 0.27 degree radius (which made thin x0.01 continuous), but on a "
+	  "edge is spread over its 0.27 degree radius, but on a "
 	  "10 km planet the horizon dips by degrees within the 100 km shell, so a sample still "
 	  "turns from shadow to light within one 0.25 degree step of the sun (jump up to 20x)" },
 	{ "observer 1e6 km", STAB_N_INVARIANTS, "f32",
