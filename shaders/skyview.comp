@@ -16,9 +16,14 @@ layout(local_size_x = 8, local_size_y = 8) in;
 void main()
 {
 	load_params();
-	int x0 = int(gl_GlobalInvocationID.x) * SV_AZ_GROUP, py = int(gl_GlobalInvocationID.y);
-	if (x0 >= OUT_W || py >= OUT_H)
+	int x0 = int(gl_GlobalInvocationID.x) * SV_AZ_GROUP, gy = int(gl_GlobalInvocationID.y);
+	if (x0 >= OUT_W || gy >= OUT_H)
 		return;
+	// Rows below the horizon end on the ground after a few steps, rows above
+	// take all of them. lavapipe hands each thread a contiguous share of the
+	// workgroups, so invocation rows interleave the table's rows from both
+	// ends: every workgroup gets half of each, every thread the same work.
+	int py = (gy & 1) == 0 ? gy >> 1 : OUT_H - 1 - (gy >> 1);
 
 	float h0 = P.planet.w;
 	float th = acos(clamp(P.misc.x, -1.0, 1.0));
