@@ -19,6 +19,10 @@ void main()
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
 	if (px.x >= OUT_W || px.y >= OUT_H)
 		return;
+	// Rows that look at the ground end early: interleave the volume's rows
+	// from both ends so that lavapipe's contiguous shares of workgroups
+	// carry the same work (as in skyview.comp).
+	px.y = (px.y & 1) == 0 ? px.y >> 1 : OUT_H - 1 - (px.y >> 1);
 
 	int view = int(gl_GlobalInvocationID.z);
 	vec4 fwd = VB.v[3 * view], right = VB.v[3 * view + 1], cup = VB.v[3 * view + 2];
