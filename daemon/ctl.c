@@ -348,19 +348,6 @@ static void resume_deferred(struct ctl *ctl, int failed)
 
 /* Events ---------------------------------------------------------------- */
 
-static void format_tables(uint32_t mask, char *buf, size_t size)
-{
-	size_t o = 0;
-
-	buf[0] = 0;
-	for (int t = 0; t < STATE_N_TABLES; t++)
-		if (mask & STATE_BIT(t))
-			o += (size_t)snprintf(buf + o, o < size ? size - o : 0, "%s%s", o ? "," : "",
-					      state_table_names[t]);
-	if (!o)
-		snprintf(buf, size, "none");
-}
-
 void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_region)
 {
 	struct ctl *ctl = ctx;
@@ -368,7 +355,7 @@ void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_regi
 	struct client *c, *next;
 	char names[64], line[160];
 
-	format_tables(tables, names, sizeof(names));
+	state_format_tables(tables, names, sizeof(names));
 	for (c = ctl->clients; c; c = next) {
 		next = c->next;
 		if (new_region && c->sub_tables) {
@@ -467,7 +454,7 @@ static int commit(struct client *c, const struct sky_state *next_in, uint32_t di
 	if (srv_change(c->ctl->srv, next, dirty, &generation, err, sizeof(err)) < 0)
 		return ACK(SKY_ACK_ENGINE, "state unchanged, computation failed: %s", err);
 	drive_changed(c->ctl->drive);
-	format_tables(dirty, names, sizeof(names));
+	state_format_tables(dirty, names, sizeof(names));
 	reply_add(r, "generation: %llu\ntables: %s\n", (unsigned long long)generation, names);
 	return 0;
 }
@@ -503,6 +490,23 @@ static int clock_now(const struct sky_state *s, double *ret_utc_s, char *msg, si
 	return 0;
 }
 
+/* What `get sun` and `get moon` share: no arguments, the clock's time now
+ * and the observer's site. */
+static int light_request(const struct client *c, const struct proto_request *req,
+			 const char *verb, double *ret_utc_s, struct astro_site *ret_site,
+			 struct astro_options *ret_opt, char *msg, size_t msg_size)
+{
+	const struct sky_state *s = srv_state(c->ctl->srv);
+	int code = clock_now(s, ret_utc_s, msg, msg_size);
+
+	if (code)
+		return code;
+	if (req->n_args > 1)
+		return ACK(SKY_ACK_SYNTAX, "get %s takes no arguments", verb);
+	drive_site(s, ret_site, ret_opt);
+	return 0;
+}
+
 static void reply_utc(struct reply *r, const char *key, double utc_s)
 {
 	char buf[SIMCLOCK_UTC_TEXT_MAX];
@@ -531,13 +535,10 @@ static int get_sun(struct client *c, const struct proto_request *req, struct rep
 	struct astro_sun a;
 	char err[256];
 	double utc_s;
-	int code = clock_now(s, &utc_s, msg, msg_size);
+	int code = light_request(c, req, "sun", &utc_s, &site, &opt, msg, msg_size);
 
 	if (code)
 		return code;
-	if (req->n_args > 1)
-		return ACK(SKY_ACK_SYNTAX, "get sun takes no arguments");
-	drive_site(s, &site, &opt);
 	if (astro_sun(&site, utc_s, &opt, &a, err, sizeof(err)) < 0)
 		return ACK(SKY_ACK_RANGE, "%s", err);
 	reply_utc(r, "utc", utc_s);
@@ -560,13 +561,10 @@ static int get_moon(struct client *c, const struct proto_request *req, struct re
 	struct astro_moon m;
 	char err[256];
 	double utc_s;
-	int code = clock_now(s, &utc_s, msg, msg_size);
+	int code = light_request(c, req, "moon", &utc_s, &site, &opt, msg, msg_size);
 
 	if (code)
 		return code;
-	if (req->n_args > 1)
-		return ACK(SKY_ACK_SYNTAX, "get moon takes no arguments");
-	drive_site(s, &site, &opt);
 	if (astro_moon(&site, utc_s, &opt, &m, err, sizeof(err)) < 0)
 		return ACK(SKY_ACK_RANGE, "%s", err);
 	reply_utc(r, "utc", utc_s);
@@ -767,15 +765,15 @@ static int cmd_status(struct client *c, const struct proto_request *req, struct 
 		subscribers += k->sub_tables || k->sub_events;
 	reply_add(r, "generation: %llu\n", (unsigned long long)st.generation);
 	reply_add(r, "computing: %d\npending: %d\n", st.computing, st.pending);
-	format_tables(st.last_computed, names, sizeof(names));
+	state_format_tables(st.last_computed, names, sizeof(names));
 	reply_add(r, "tables_computed: %s\n", names);
-	format_tables(st.published_valid, names, sizeof(names));
+	state_format_tables(st.published_valid, names, sizeof(names));
 	reply_add(r, "tables_valid: %s\n", names);
-	format_tables(st.published_computed, names, sizeof(names));
+	state_format_tables(st.published_computed, names, sizeof(names));
 	reply_add(r, "last_computed: %s\n", names);
-	format_tables(st.demand, names, sizeof(names));
+	state_format_tables(st.demand, names, sizeof(names));
 	reply_add(r, "demand: %s\n", names);
-	format_tables(st.needed, names, sizeof(names));
+	state_format_tables(st.needed, names, sizeof(names));
 	reply_add(r, "tables_needed: %s\n", names);
 	const struct sky_shm_slot *cur = pub_current(srv_pub(s), NULL);
 	reply_add(r, "views: %u\n", srv_state(s)->n_views);

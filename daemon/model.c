@@ -468,6 +468,28 @@ void model_tables_finish(struct model_tables *m)
 	memset(m, 0, sizeof(*m));
 }
 
+int model_tables_new(const struct sky_state *s, uint32_t mask, struct model_tables *ret)
+{
+	struct model_tables m = { 0 };
+
+	mask = state_closure(mask);
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		const struct state_table_quality *q = &s->quality.t[t];
+		m.w[t] = q->width;
+		m.h[t] = q->height;
+		m.d[t] = t == STATE_AERIAL ? q->depth : 1;
+		if (!(mask & STATE_BIT(t)))
+			continue;
+		m.t[t] = calloc((size_t)m.w[t] * m.h[t] * m.d[t] * 4, sizeof(double));
+		if (!m.t[t]) {
+			model_tables_finish(&m);
+			return -ENOMEM;
+		}
+	}
+	*ret = m;
+	return 0;
+}
+
 int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables *ret)
 {
 	struct model_tables m = { 0 };
@@ -487,20 +509,9 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	c.moon_lit = s->moon.illuminance_lx > 0;
 	state_night_floor(s, &c.night_cd_m2, &c.night_gain);
 
-	mask = state_closure(mask);
-	for (int t = 0; t < STATE_N_TABLES; t++) {
-		const struct state_table_quality *q = &s->quality.t[t];
-		m.w[t] = q->width;
-		m.h[t] = q->height;
-		m.d[t] = t == STATE_AERIAL ? q->depth : 1;
-		if (!(mask & STATE_BIT(t)))
-			continue;
-		m.t[t] = calloc((size_t)m.w[t] * m.h[t] * m.d[t] * 4, sizeof(double));
-		if (!m.t[t]) {
-			model_tables_finish(&m);
-			return -ENOMEM;
-		}
-	}
+	int rc = model_tables_new(s, mask, &m);
+	if (rc < 0)
+		return rc;
 	if (m.t[0])
 		compute_transmittance(&c, &s->quality.t[0], m.t[0]);
 	if (m.t[1])

@@ -21,6 +21,10 @@ struct model_tables {
  * counts of s. Returns 0 or -ENOMEM; free with model_tables_finish. */
 int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables *ret);
 void model_tables_finish(struct model_tables *m);
+/* Sizes every table of s and allocates the ones in mask's closure, zeroed
+ * (what model_compute fills; also for tables read back from the engine).
+ * Returns 0 or -ENOMEM. */
+int model_tables_new(const struct sky_state *s, uint32_t mask, struct model_tables *ret);
 
 /* A copy of s with every step count multiplied by factor (the oracle's
  * "high step counts"); sky-view uses its maximum everywhere. */

@@ -754,6 +754,19 @@ int state_parse_tables(const char *list, uint32_t *ret_mask)
 	return 0;
 }
 
+void state_format_tables(uint32_t mask, char *buf, size_t size)
+{
+	size_t o = 0;
+
+	buf[0] = 0;
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		if (mask & STATE_BIT(t))
+			o += (size_t)snprintf(buf + o, o < size ? size - o : 0, "%s%s", o ? "," : "",
+					      state_table_names[t]);
+	if (!o)
+		snprintf(buf, size, "none");
+}
+
 uint32_t state_closure(uint32_t mask)
 {
 	if (mask & (S_BIT | A_BIT))

@@ -175,6 +175,8 @@ size_t state_table_bytes(const struct sky_state *s, enum state_table t);
 extern const char *const state_table_names[STATE_N_TABLES];
 /* Table mask from a comma list ("skyview,aerial", "all"); -EINVAL if unknown. */
 int state_parse_tables(const char *list, uint32_t *ret_mask);
+/* The inverse: "transmittance,skyview", or "none" for 0. */
+void state_format_tables(uint32_t mask, char *buf, size_t size);
 /* The tables t depends on, t included. */
 uint32_t state_closure(uint32_t mask);
 

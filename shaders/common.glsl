@@ -83,8 +83,8 @@ layout(binding = 6) uniform samplerBuffer MultiscatterTex;
 
 float safe_sqrt(float x) { return sqrt(max(x, 0.0)); }
 
-// The exact unit <-> sub-texel pair of proto/skymap.h.
-float unit_to_tex(float x, int n) { return 0.5 / float(n) + x * (1.0 - 1.0 / float(n)); }
+// A texel centre's unit coordinate: the inverse of proto/skymap.h's
+// unit_to_tex (lookups go the other way through axis()).
 float tex_to_unit(float u, int n) { return (u - 0.5 / float(n)) / (1.0 - 1.0 / float(n)); }
 
 // r^2 - Rb^2 as h (2 Rb + h): exact at small altitudes.
@@ -321,11 +321,6 @@ vec3 light_transmittance(TAlt a, float mu, float radius_rad)
 	return visible > 0.0 ? visible * transmittance_lookup(a, mu) : vec3(0.0);
 }
 
-vec3 transmittance_to_top(float h, float mu)
-{
-	return transmittance_at(t_alt(h), mu);
-}
-
 vec3 multiscatter_at(TAlt a, float mu_s)
 {
 	// skymap.h: u packs texels around the horizon of the altitude.
@@ -417,11 +412,6 @@ vec3 light_source(TAlt a, float mu_l, float radius_rad, vec3 illum, vec3 phased,
 		s += sigma_s * multiscatter_at(a, mu_l);
 	return s * illum;
 }
-
-struct March {
-	vec3 radiance;
-	vec3 optical_depth;
-};
 
 // The part of a ray from the observer (altitude h0, direction dir in ENU)
 // inside the shell and above the ground, from distance t0 for len, and the

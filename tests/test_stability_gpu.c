@@ -9,6 +9,7 @@
 
 #include "eng.h"
 #include "stab.h"
+#include "stab_report.h"
 #include "test.h"
 #include "vk_or_skip.h"
 
@@ -17,31 +18,6 @@
 #define MIN_PSNR_DB 60.0
 
 static struct eng *eng;
-
-static double now_s(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return t.tv_sec + t.tv_nsec * 1e-9;
-}
-
-static void report(const char *name, const struct stab_result *r)
-{
-	test_checks++;
-	for (int i = 0; i < STAB_N_INVARIANTS; i++) {
-		if (!r->fails[i])
-			continue;
-		const struct stab_known *k = stab_find_known(name, i, true);
-		if (k) {
-			printf("known: %s: %s: %llu of %llu (%s)\n", name, stab_invariant_names[i],
-			       (unsigned long long)r->fails[i], (unsigned long long)r->samples[i], k->why);
-			continue;
-		}
-		FAIL("%s: %s: %llu of %llu violated; first violation of the case: %s", name,
-		     stab_invariant_names[i], (unsigned long long)r->fails[i],
-		     (unsigned long long)r->samples[i], r->first);
-	}
-}
 
 static int find_case(const char *name)
 {
@@ -84,7 +60,7 @@ static void test_named(void)
 		printf("\n");
 		model_tables_finish(&gpu);
 		model_tables_finish(&ref);
-		report(name, &r);
+		stab_report(name, &r, true);
 	}
 }
 
@@ -121,7 +97,7 @@ static void test_horizon(void)
 		if (stab_horizon(names[i], stab_engine, eng, &s, &r, err, sizeof(err)) < 0)
 			FAIL("%s: %s", names[i], err);
 		printf("horizon %-24s largest step / neighbour %.2f\n", names[i], r.max_jump_ratio);
-		report(names[i], &r);
+		stab_report(names[i], &r, true);
 	}
 }
 
@@ -131,7 +107,7 @@ static void test_sweep(void)
 	struct stab_result total = { 0 };
 	struct stab_tol tol = stab_tol_f32;
 	char err[512], name[64];
-	double t0 = now_s();
+	double t0 = stab_now_s();
 
 	tol.ray_t = 0;	/* the model's quadrature: test_stability_model */
 	for (int i = 0; i < SWEEP_CASES; i++) {
@@ -148,11 +124,11 @@ static void test_sweep(void)
 		model_tables_finish(&m);
 	}
 	printf("sweep: %d random atmospheres on the engine (seed %#x), %.1f s\n", SWEEP_CASES, SWEEP_SEED,
-	       now_s() - t0);
+	       stab_now_s() - t0);
 	for (int k = 0; k < STAB_N_INVARIANTS; k++)
 		printf("  %-24s %llu of %llu failed\n", stab_invariant_names[k],
 		       (unsigned long long)total.fails[k], (unsigned long long)total.samples[k]);
-	report("gpu sweep", &total);
+	stab_report("gpu sweep", &total, true);
 }
 
 int main(void)

@@ -8,36 +8,11 @@
 #include <time.h>
 
 #include "stab.h"
+#include "stab_report.h"
 #include "test.h"
 
 #define SWEEP_CASES 10000
 #define SWEEP_SEED 0x5eed0006u
-
-static double now_s(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return t.tv_sec + t.tv_nsec * 1e-9;
-}
-
-static void report(const char *name, const struct stab_result *r)
-{
-	test_checks++;
-	for (int i = 0; i < STAB_N_INVARIANTS; i++) {
-		if (!r->fails[i])
-			continue;
-		const struct stab_known *k = stab_find_known(name, i, false);
-		if (k) {
-			printf("known: %s: %s: %llu of %llu (%s); first: %s\n", name, stab_invariant_names[i],
-			       (unsigned long long)r->fails[i], (unsigned long long)r->samples[i], k->why,
-			       r->first);
-			continue;
-		}
-		FAIL("%s: %s: %llu of %llu violated; first violation of the case: %s", name,
-		     stab_invariant_names[i], (unsigned long long)r->fails[i],
-		     (unsigned long long)r->samples[i], r->first);
-	}
-}
 
 static void test_named(void)
 {
@@ -64,7 +39,7 @@ static void test_named(void)
 		printf("%-32s psi max %-10.3g L max %-10.3g T ray drop %-9.2e asym %-9.2e jump ratio %.2f\n",
 		       stab_cases[c].name, r.max_psi, r.max_radiance, r.max_t_ray_drop, r.max_asym,
 		       r.max_jump_ratio);
-		report(stab_cases[c].name, &r);
+		stab_report(stab_cases[c].name, &r, false);
 	}
 }
 
@@ -73,7 +48,7 @@ static void test_sweep(void)
 	uint64_t seed = SWEEP_SEED;
 	struct stab_result total = { 0 };
 	char err[256], name[64];
-	double t0 = now_s();
+	double t0 = stab_now_s();
 	int refused = 0;
 
 	for (int i = 0; i < SWEEP_CASES; i++) {
@@ -101,12 +76,12 @@ static void test_sweep(void)
 		total.max_psi = fmax(total.max_psi, r.max_psi);
 	}
 	printf("sweep: %d random atmospheres (seed %#x), %d refused by validation, %.1f s, psi max %.3g\n",
-	       SWEEP_CASES, SWEEP_SEED, refused, now_s() - t0, total.max_psi);
+	       SWEEP_CASES, SWEEP_SEED, refused, stab_now_s() - t0, total.max_psi);
 	for (int k = 0; k < STAB_N_INVARIANTS; k++)
 		printf("  %-24s %llu of %llu failed\n", stab_invariant_names[k],
 		       (unsigned long long)total.fails[k], (unsigned long long)total.samples[k]);
 	CHECK(refused == 0);
-	report("sweep", &total);
+	stab_report("sweep", &total, false);
 }
 
 int main(void)

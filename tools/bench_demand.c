@@ -111,19 +111,6 @@ static int measure(struct bench *b, const char *const pairs[2], uint32_t demand,
 	return rc;
 }
 
-static void mask_names(uint32_t mask, char *buf, size_t size)
-{
-	size_t o = 0;
-
-	buf[0] = 0;
-	for (int t = 0; t < STATE_N_TABLES; t++)
-		if (mask & STATE_BIT(t))
-			o += (size_t)snprintf(buf + o, o < size ? size - o : 0, "%s%s", o ? "," : "",
-					      state_table_names[t]);
-	if (!o)
-		snprintf(buf, size, "none");
-}
-
 static const char *const ref_names[] = { "full recompute", "one view", "a 60 Hz frame" };
 
 /* Measures a scene and prints its row; returns measure's result. */
@@ -136,7 +123,7 @@ static int row(struct bench *b, const char *scene, const char *const pairs[2], u
 
 	if (rc < 0)
 		return rc;
-	mask_names(r.mask, names, sizeof(names));
+	state_format_tables(r.mask, names, sizeof(names));
 	snprintf(ratio, sizeof(ratio), "%.1f %% of %s", 100.0 * r.ratio, ref_names[ref]);
 	if (b->markdown)
 		printf("| %s | %s | %.3f | %.3f | %s | %s |\n", scene, names, r.med_ms, r.p90_ms,

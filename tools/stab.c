@@ -358,25 +358,18 @@ int stab_engine(void *ctx, const struct sky_state *s, uint32_t mask, struct mode
 {
 	struct eng *e = ctx;
 	struct eng_timing timing;
-	struct model_tables m = { 0 };
+	struct model_tables m;
 	int rc = eng_compute(e, s, mask, &timing, err, err_size);
 	if (rc < 0)
 		return rc;
-	mask = state_closure(mask);
+	if (model_tables_new(s, mask, &m) < 0) {
+		snprintf(err, err_size, "out of memory");
+		return -ENOMEM;
+	}
 	for (int t = 0; t < STATE_N_TABLES; t++) {
-		const struct state_table_quality *q = &s->quality.t[t];
-		m.w[t] = q->width;
-		m.h[t] = q->height;
-		m.d[t] = t == STATE_AERIAL ? q->depth : 1;
-		if (!(mask & STATE_BIT(t)))
+		if (!m.t[t])
 			continue;
 		size_t n = (size_t)m.w[t] * m.h[t] * m.d[t] * 4;
-		m.t[t] = malloc(n * sizeof(double));
-		if (!m.t[t]) {
-			model_tables_finish(&m);
-			snprintf(err, err_size, "out of memory");
-			return -ENOMEM;
-		}
 		const void *src = eng_table(e, (enum state_table)t, NULL);
 		for (size_t i = 0; i < n; i++)
 			m.t[t][i] = s->quality.storage == STATE_F16 ? half_to_double(((const uint16_t *)src)[i])
