@@ -21,13 +21,16 @@
 #include "vkfn.h"
 
 #define MAX_PIPELINES 32	/* cached variants per pass */
-#define N_SPEC 21
+#define N_SPEC 22
 /* Texels of a row one invocation shares its rays between: sun angles of
  * multi-scattering, azimuths of sky-view. */
 #define MS_SUN_GROUP 4
 #define SV_AZ_GROUP 8
-/* The state's camera and STATE_MAX_VIEWS views, 3 vec4 each. */
-#define VIEW_BUFFER_BYTES ((1 + STATE_MAX_VIEWS) * 3 * 4 * sizeof(float))
+/* The aerial volumes: the state's camera and STATE_MAX_VIEWS views. The
+ * views buffer holds a header vec4, 4 vec4 per group of volumes, 1 per
+ * volume (aerial.comp). */
+#define N_VOLUMES (1 + STATE_MAX_VIEWS)
+#define VIEW_BUFFER_BYTES ((1 + 4 * N_VOLUMES + N_VOLUMES) * 4 * sizeof(float))
 
 /* The uniform block of shaders/common.glsl, std140: vec4s only. */
 struct gpu_constituent {
@@ -800,20 +803,72 @@ static void fill_params(const struct sky_state *s, struct gpu_params *p, struct 
 	base->v[17] = s->quality.multiscatter_dirs != 0;
 }
 
-/* The cameras of the aerial volumes: the state's, then each view's. */
-static void fill_views(const struct sky_state *s, float *out)
+/* The camera and altitude of aerial volume i: the state's, then each view's. */
+static void volume_camera(const struct sky_state *s, uint32_t i, struct state_camera *ret_c,
+			  double *ret_altitude_km)
 {
-	double h0 = s->altitude_km > 0.0 ? s->altitude_km : 0.0;
-	double fwd[3], right[3], up[3];
+	double h = i && !isnan(s->views[i - 1].altitude_km) ? s->views[i - 1].altitude_km
+							     : s->altitude_km;
+	*ret_c = i ? s->views[i - 1].camera : s->camera;
+	*ret_altitude_km = h > 0.0 ? h : 0.0;
+}
 
-	for (uint32_t i = 0; i <= s->n_views; i++) {
-		const struct state_camera *c = i ? &s->views[i - 1].camera : &s->camera;
-		double h = i && !isnan(s->views[i - 1].altitude_km) ? s->views[i - 1].altitude_km : h0;
-		state_camera_basis(c, fwd, right, up);
-		put4(out + 12 * i, fwd[0], fwd[1], fwd[2], tan(c->vfov_deg * SKYMAP_PI / 360.0));
-		put4(out + 12 * i + 4, right[0], right[1], right[2], c->aspect);
-		put4(out + 12 * i + 8, up[0], up[1], up[2], h > 0.0 ? h : 0.0);
+/* Groups the aerial volumes whose froxel columns share their elevation
+ * profile: the same altitude, pitch, roll, vfov and aspect, any yaw. Each
+ * group's rays are marched once (aerial.comp); the grouping is exact
+ * (equal doubles), so a volume's texels do not depend on the others.
+ * Fills the views buffer when out is not NULL; returns the size of the
+ * largest group. */
+static int fill_views(const struct sky_state *s, float *out)
+{
+	uint32_t n = 1 + s->n_views, group_of[N_VOLUMES], n_groups = 0, count[N_VOLUMES] = { 0 };
+	uint32_t lead[N_VOLUMES];	/* each group's first volume */
+	int largest = 0;
+
+	for (uint32_t i = 0; i < n; i++) {
+		struct state_camera c, d;
+		double h, hd;
+		volume_camera(s, i, &c, &h);
+		uint32_t g;
+		for (g = 0; g < n_groups; g++) {
+			volume_camera(s, lead[g], &d, &hd);
+			if (h == hd && c.pitch_deg == d.pitch_deg && c.roll_deg == d.roll_deg &&
+			    c.vfov_deg == d.vfov_deg && c.aspect == d.aspect)
+				break;
+		}
+		if (g == n_groups)
+			lead[n_groups++] = i;
+		group_of[i] = g;
+		if ((int)++count[g] > largest)
+			largest = (int)count[g];
 	}
+	if (!out)
+		return largest;
+
+	uint32_t members_at = 1 + 4 * n_groups, next = 0;
+	put4(out, n_groups, members_at, 0, 0);
+	for (uint32_t g = 0; g < n_groups; g++) {
+		struct state_camera c;
+		double h, fwd[3], right[3], up[3];
+		volume_camera(s, lead[g], &c, &h);
+		c.yaw_deg = 0.0;
+		state_camera_basis(&c, fwd, right, up);
+		float *o = out + 4 * (1 + 4 * g);
+		put4(o, fwd[0], fwd[1], fwd[2], tan(c.vfov_deg * SKYMAP_PI / 360.0));
+		put4(o + 4, right[0], right[1], right[2], c.aspect);
+		put4(o + 8, up[0], up[1], up[2], h);
+		put4(o + 12, count[g], next, 0, 0);
+		/* Members in volume order; yaw turns east into south (state_camera_basis). */
+		for (uint32_t i = 0; i < n; i++) {
+			if (group_of[i] != g)
+				continue;
+			struct state_camera vc;
+			volume_camera(s, i, &vc, &h);
+			double yaw = vc.yaw_deg * SKYMAP_PI / 180.0;
+			put4(out + 4 * (members_at + next++), cos(yaw), sin(yaw), i, 0);
+		}
+	}
+	return largest;
 }
 
 /* The constants one pass is specialized on: the others are zeroed so that a
@@ -836,6 +891,7 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 		k.v[16] = 0;
 	k.v[19] = t == STATE_MULTISCATTER ? MS_SUN_GROUP : 0;
 	k.v[20] = t == STATE_SKYVIEW ? SV_AZ_GROUP : 0;
+	k.v[21] = t == STATE_AERIAL ? fill_views(s, NULL) : 0;
 	if (t == STATE_MULTISCATTER)
 		k.v[6] = k.v[17] = 0;	/* the table is the term itself */
 	if (t == STATE_TRANSMITTANCE)
@@ -1033,8 +1089,8 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 			e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
 						  2 * t);
 		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[t]);
-		/* Every view's volume in one dispatch: z is the view. */
-		e->vk.vkCmdDispatch(e->cmd, gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1);
+		/* Every view's volume in one dispatch (aerial.comp loops over the groups). */
+		e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
 		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
 					   &compute_to_compute, 0, NULL, 0, NULL);
