@@ -817,15 +817,14 @@ static void volume_camera(const struct sky_state *s, uint32_t i, struct state_ca
  * profile: the same altitude, pitch, roll, vfov and aspect, any yaw. Each
  * group's rays are marched once (aerial.comp); the grouping is exact
  * (equal doubles), so a volume's texels do not depend on the others.
- * Fills the views buffer when out is not NULL; returns the size of the
- * largest group. */
-static int fill_views(const struct sky_state *s, float *out)
+ * Returns the number of groups, each volume's group in ret_group_of, the
+ * size of each group in ret_count. */
+static uint32_t view_groups(const struct sky_state *s, uint32_t ret_group_of[N_VOLUMES],
+			    uint32_t ret_count[N_VOLUMES])
 {
-	uint32_t n = 1 + s->n_views, group_of[N_VOLUMES], n_groups = 0, count[N_VOLUMES] = { 0 };
-	uint32_t lead[N_VOLUMES];	/* each group's first volume */
-	int largest = 0;
+	uint32_t lead[N_VOLUMES], n_groups = 0;	/* lead: each group's first volume */
 
-	for (uint32_t i = 0; i < n; i++) {
+	for (uint32_t i = 0; i < 1 + s->n_views; i++) {
 		struct state_camera c, d;
 		double h, hd;
 		volume_camera(s, i, &c, &h);
@@ -836,39 +835,45 @@ static int fill_views(const struct sky_state *s, float *out)
 			    c.vfov_deg == d.vfov_deg && c.aspect == d.aspect)
 				break;
 		}
-		if (g == n_groups)
+		if (g == n_groups) {
 			lead[n_groups++] = i;
-		group_of[i] = g;
-		if ((int)++count[g] > largest)
-			largest = (int)count[g];
+			ret_count[g] = 0;
+		}
+		ret_group_of[i] = g;
+		ret_count[g]++;
 	}
-	if (!out)
-		return largest;
+	return n_groups;
+}
 
+/* The views buffer of aerial.comp: per group its camera at yaw 0, per
+ * volume its yaw, grouped. */
+static void fill_views(const struct sky_state *s, float *out)
+{
+	uint32_t group_of[N_VOLUMES], count[N_VOLUMES];
+	uint32_t n = 1 + s->n_views, n_groups = view_groups(s, group_of, count);
 	uint32_t members_at = 1 + 4 * n_groups, next = 0;
+
 	put4(out, n_groups, members_at, 0, 0);
 	for (uint32_t g = 0; g < n_groups; g++) {
-		struct state_camera c;
-		double h, fwd[3], right[3], up[3];
-		volume_camera(s, lead[g], &c, &h);
-		c.yaw_deg = 0.0;
-		state_camera_basis(&c, fwd, right, up);
 		float *o = out + 4 * (1 + 4 * g);
-		put4(o, fwd[0], fwd[1], fwd[2], tan(c.vfov_deg * SKYMAP_PI / 360.0));
-		put4(o + 4, right[0], right[1], right[2], c.aspect);
-		put4(o + 8, up[0], up[1], up[2], h);
 		put4(o + 12, count[g], next, 0, 0);
-		/* Members in volume order; yaw turns east into south (state_camera_basis). */
+		/* Members in volume order; a yaw turns the group's east into its
+		 * south (state_camera_basis). */
 		for (uint32_t i = 0; i < n; i++) {
+			struct state_camera c;
+			double h, fwd[3], right[3], up[3];
 			if (group_of[i] != g)
 				continue;
-			struct state_camera vc;
-			volume_camera(s, i, &vc, &h);
-			double yaw = vc.yaw_deg * SKYMAP_PI / 180.0;
+			volume_camera(s, i, &c, &h);
+			double yaw = c.yaw_deg * SKYMAP_PI / 180.0;
 			put4(out + 4 * (members_at + next++), cos(yaw), sin(yaw), i, 0);
+			c.yaw_deg = 0.0;
+			state_camera_basis(&c, fwd, right, up);
+			put4(o, fwd[0], fwd[1], fwd[2], tan(c.vfov_deg * SKYMAP_PI / 360.0));
+			put4(o + 4, right[0], right[1], right[2], c.aspect);
+			put4(o + 8, up[0], up[1], up[2], h);
 		}
 	}
-	return largest;
 }
 
 /* The constants one pass is specialized on: the others are zeroed so that a
@@ -891,7 +896,6 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 		k.v[16] = 0;
 	k.v[19] = t == STATE_MULTISCATTER ? MS_SUN_GROUP : 0;
 	k.v[20] = t == STATE_SKYVIEW ? SV_AZ_GROUP : 0;
-	k.v[21] = t == STATE_AERIAL ? fill_views(s, NULL) : 0;
 	if (t == STATE_MULTISCATTER)
 		k.v[6] = k.v[17] = 0;	/* the table is the term itself */
 	if (t == STATE_TRANSMITTANCE)
@@ -907,7 +911,14 @@ static int get_pipeline(struct eng *e, int t, const struct spec *key, VkPipeline
 	int rc = 0;
 	for (int i = 0; i < e->n_pipes[t]; i++)
 		if (!memcmp(&e->pipes[t][i].key, key, sizeof(*key))) {
-			*ret = e->pipes[t][i].pipe;
+			/* Least recently used goes first: the aerial pass takes a
+			 * pipeline per group of views, none of which an eviction
+			 * in the same submission may destroy. */
+			struct pipeline hit = e->pipes[t][i];
+			memmove(&e->pipes[t][i], &e->pipes[t][i + 1],
+				sizeof(hit) * (size_t)(e->n_pipes[t] - i - 1));
+			e->pipes[t][e->n_pipes[t] - 1] = hit;
+			*ret = hit.pipe;
 			return 0;
 		}
 	if (e->n_pipes[t] == MAX_PIPELINES) {
@@ -926,7 +937,9 @@ static int get_pipeline(struct eng *e, int t, const struct spec *key, VkPipeline
 		.stage = { .sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
 			   .stage = VK_SHADER_STAGE_COMPUTE_BIT, .module = e->modules[t],
 			   .pName = "main", .pSpecializationInfo = &si },
-		.layout = e->pipe_layout };
+		.layout = e->pipe_layout,
+		/* aerial.comp: a dispatch per group of views, z its index. */
+		.flags = t == STATE_AERIAL ? VK_PIPELINE_CREATE_DISPATCH_BASE_BIT : 0 };
 	VkPipeline p;
 	VK_TRY(e->vk.vkCreateComputePipelines(e->dev, VK_NULL_HANDLE, 1, &ci, NULL, &p));
 	e->pipelines_created++;
@@ -1060,11 +1073,18 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 	mask |= lost & state_closure(mask);
 
 	fill_params(s, &params, &base);
-	VkPipeline pipes[STATE_N_TABLES] = { 0 };
+	VkPipeline pipes[STATE_N_TABLES] = { 0 }, group_pipes[N_VOLUMES] = { 0 };
+	uint32_t group_of[N_VOLUMES], group_size[N_VOLUMES], n_groups = view_groups(s, group_of, group_size);
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if (mask & STATE_BIT(t)) {
 			struct spec k = pass_spec(&base, s, t);
-			rc = get_pipeline(e, t, &k, &pipes[t], err, err_size);
+			if (t != STATE_AERIAL)
+				rc = get_pipeline(e, t, &k, &pipes[t], err, err_size);
+			for (uint32_t g = 0; t == STATE_AERIAL && g < n_groups && rc == 0; g++) {
+				/* The aerial pass is compiled for each group's size. */
+				k.v[21] = (int32_t)group_size[g];
+				rc = get_pipeline(e, t, &k, &group_pipes[g], err, err_size);
+			}
 			if (rc < 0)
 				return rc;
 		}
@@ -1088,9 +1108,16 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 		if (e->timestamps)
 			e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
 						  2 * t);
-		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[t]);
-		/* Every view's volume in one dispatch (aerial.comp loops over the groups). */
-		e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
+		if (t == STATE_AERIAL) {
+			/* A dispatch per group of views; they write disjoint volumes. */
+			for (uint32_t g = 0; g < n_groups; g++) {
+				e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, group_pipes[g]);
+				e->vk.vkCmdDispatchBase(e->cmd, 0, 0, g, gx, gy, 1);
+			}
+		} else {
+			e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[t]);
+			e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
+		}
 		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
 					   &compute_to_compute, 0, NULL, 0, NULL);

@@ -7,24 +7,41 @@
 // Views that differ only by yaw (a display wall's channels on one eye
 // point) see the same elevation profile in a froxel column: their rays
 // cross the same altitudes at the same distances. eng.c groups them; one
-// invocation marches a column once per group (medium, view transmittance)
-// and only the lights (phase, direction, transmittance and
-// multi-scattering lookups) are per view, as in skyview.comp.
+// invocation marches a column once for its group (medium, view
+// transmittance) and only the lights (phase, direction, transmittance and
+// multi-scattering lookups) are per view, as in skyview.comp. A group is
+// one dispatch, gl_WorkGroupID.z its index (vkCmdDispatchBase), compiled
+// for its size: lavapipe runs both sides of a branch, so a loop over fewer
+// views than the arrays hold would still pay for all of them.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
-// The most views in one group: the per-view state lives in arrays of this
-// size, indexed only by unrolled loops, so it stays in registers.
+// The views in the group: the per-view state lives in arrays of this size,
+// indexed only by unrolled loops, so it stays in registers.
 layout(constant_id = 21) const int AP_GROUP = 1;
 layout(local_size_x = 8, local_size_y = 8) in;
 
 // v[0]: x the number of groups, y where the members start. Group g at
 // 1 + 4 g: forward (w = tan(vfov / 2)), right (w = aspect), up (w = the
-// altitude in km) of its camera at yaw 0, then (members, first member).
+// altitude in km) of its camera at yaw 0, then (members, first member),
+// members = AP_GROUP.
 // Member m at y + m: (cos yaw, sin yaw, volume): the yaw turns the
 // group's ray about the vertical.
 layout(std430, binding = 7) readonly buffer ViewBuf { vec4 v[]; } VB;
+
+// The aerial table again, a texel per element: lavapipe stores a vector in
+// one loop over the lanes, where STORE_TEXEL's four words take four.
+layout(std430, binding = 4) writeonly buffer AerialTexels { uvec4 d[]; } AT;
+layout(std430, binding = 4) writeonly buffer AerialHalves { uvec2 d[]; } AH;
+
+void store_texel(int i, vec4 v)
+{
+	if (STORAGE_F16)
+		AH.d[i] = uvec2(packHalf2x16(v.xy), packHalf2x16(v.zw));
+	else
+		AT.d[i] = floatBitsToUint(v);
+}
 
 void main()
 {
@@ -41,83 +58,72 @@ void main()
 	bool squared = P.misc.z > 0.5;
 	// Night-sky floor: airlight (1 - T) of a sky of the floor's mean level L_z (1 + c / 3).
 	vec3 night_level = P.night.rgb * (1.0 + P.night.w / 3.0);
-	vec4 head = VB.v[0];
-	int n_groups = int(head.x), members_at = int(head.y);
+	int g = int(gl_WorkGroupID.z), members_at = int(VB.v[0].y);
+	vec4 fwd = VB.v[1 + 4 * g], right = VB.v[2 + 4 * g], cup = VB.v[3 + 4 * g];
+	vec4 gm = VB.v[4 + 4 * g];
+	int first = members_at + int(gm.y);
+	float h0 = cup.w, tan_half = fwd.w;
+	vec3 dir0 = normalize(fwd.xyz + ndc.x * tan_half * right.w * right.xyz +
+			      ndc.y * tan_half * cup.xyz);
 
-	// Every invocation does every group: the work per workgroup stays equal
-	// however unequal the groups are.
-	for (int g = 0; g < n_groups; g++) {
-		vec4 fwd = VB.v[1 + 4 * g], right = VB.v[2 + 4 * g], cup = VB.v[3 + 4 * g];
-		vec4 gm = VB.v[4 + 4 * g];
-		int n = int(gm.x), first = members_at + int(gm.y);
-		float h0 = cup.w, tan_half = fwd.w;
-		vec3 dir0 = normalize(fwd.xyz + ndc.x * tan_half * right.w * right.xyz +
-				      ndc.y * tan_half * cup.xyz);
-
-		// The lights' cosine to the local vertical at a step is
-		// up_h * dot(dir.xy, light.xy) + up_z * light.z: the dots are per
-		// view, up_h and up_z per step.
-		vec3 radiance[AP_GROUP];
-		float sun_h[AP_GROUP], moon_h[AP_GROUP];
-		Phases ph_sun[AP_GROUP], ph_moon[AP_GROUP];
-		int volume[AP_GROUP];
-		for (int j = 0; j < AP_GROUP; j++) {
-			vec4 mb = VB.v[first + min(j, n - 1)];
-			vec3 dir = vec3(mb.x * dir0.x + mb.y * dir0.y, mb.x * dir0.y - mb.y * dir0.x, dir0.z);
-			volume[j] = int(mb.z);
-			ph_sun[j] = ray_phases(dir, P.sun_dir.xyz);
-			sun_h[j] = dot(dir.xy, P.sun_dir.xy);
-			if (MOON_LIT) {
-				ph_moon[j] = ray_phases(dir, P.moon_dir.xyz);
-				moon_h[j] = dot(dir.xy, P.moon_dir.xy);
-			}
-			radiance[j] = vec3(0.0);
+	// The lights' cosine to the local vertical at a step is
+	// up_h * dot(dir.xy, light.xy) + up_z * light.z: the dots are per
+	// view, up_h and up_z per step.
+	vec3 radiance[AP_GROUP];
+	float sun_h[AP_GROUP], moon_h[AP_GROUP];
+	Phases ph_sun[AP_GROUP], ph_moon[AP_GROUP];
+	int volume[AP_GROUP];
+	for (int j = 0; j < AP_GROUP; j++) {
+		vec4 mb = VB.v[first + j];
+		vec3 dir = vec3(mb.x * dir0.x + mb.y * dir0.y, mb.x * dir0.y - mb.y * dir0.x, dir0.z);
+		volume[j] = int(mb.z);
+		ph_sun[j] = ray_phases(dir, P.sun_dir.xyz);
+		sun_h[j] = dot(dir.xy, P.sun_dir.xy);
+		if (MOON_LIT) {
+			ph_moon[j] = ray_phases(dir, P.moon_dir.xyz);
+			moon_h[j] = dot(dir.xy, P.moon_dir.xy);
 		}
+		radiance[j] = vec3(0.0);
+	}
 
-		Entry en;
-		bool inside = ray_in_shell(h0, dir0, en);
-		float t0 = en.t0, t1 = en.t0 + en.len;
-		vec3 tr = vec3(1.0);
-		float prev_depth = 0.0;
-		for (int k = 0; k < OUT_D; k++) {
-			float xk = float(k + 1) / float(OUT_D);
-			float depth = range * (squared ? xk * xk : xk);
-			// The part of this slice inside the atmosphere and above the ground.
-			float a = max(prev_depth, t0), b = inside ? min(depth, t1) : a;
-			prev_depth = depth;
-			if (b > a) {
-				float dt = (b - a) / float(STEPS);
-				for (int i = 0; i < STEPS; i++) {
-					float t = a + (float(i) + 0.5) * dt, rr;
-					float hs = altitude_along(en.h, en.mu, t - t0, rr);
-					float up_h = t / rr, up_z = (en.ez + dir0.z * (t - t0)) / rr;
-					float sun_z = up_z * P.sun_dir.z, moon_z = up_z * P.moon_dir.z;
-					Scatter sc;
-					Medium m = medium_parts(hs, sc);
-					TAlt ta = t_alt(hs);
-					vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
-					for (int j = 0; j < AP_GROUP; j++) {
-						if (j >= n)
-							break;
-						vec3 s = light_source(ta, up_h * sun_h[j] + sun_z, P.sun_dir.w,
-								      P.sun_illum.rgb, phased(sc, ph_sun[j]),
-								      m.scattering);
-						if (MOON_LIT)
-							s += light_source(ta, up_h * moon_h[j] + moon_z, P.moon_dir.w,
-									  P.moon_illum.rgb, phased(sc, ph_moon[j]),
-									  m.scattering);
-						radiance[j] += w * s;
-					}
-					tr *= step_t;
+	Entry en;
+	bool inside = ray_in_shell(h0, dir0, en);
+	float t0 = en.t0, t1 = en.t0 + en.len;
+	vec3 tr = vec3(1.0);
+	float prev_depth = 0.0;
+	for (int k = 0; k < OUT_D; k++) {
+		float xk = float(k + 1) / float(OUT_D);
+		float depth = range * (squared ? xk * xk : xk);
+		// The part of this slice inside the atmosphere and above the ground.
+		float a = max(prev_depth, t0), b = inside ? min(depth, t1) : a;
+		prev_depth = depth;
+		if (b > a) {
+			float dt = (b - a) / float(STEPS);
+			for (int i = 0; i < STEPS; i++) {
+				float t = a + (float(i) + 0.5) * dt, rr;
+				float hs = altitude_along(en.h, en.mu, t - t0, rr);
+				float up_h = t / rr, up_z = (en.ez + dir0.z * (t - t0)) / rr;
+				float sun_z = up_z * P.sun_dir.z, moon_z = up_z * P.moon_dir.z;
+				Scatter sc;
+				Medium m = medium_parts(hs, sc);
+				TAlt ta = t_alt(hs);
+				vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
+				for (int j = 0; j < AP_GROUP; j++) {
+					vec3 s = light_source(ta, up_h * sun_h[j] + sun_z, P.sun_dir.w,
+							      P.sun_illum.rgb, phased(sc, ph_sun[j]),
+							      m.scattering);
+					if (MOON_LIT)
+						s += light_source(ta, up_h * moon_h[j] + moon_z, P.moon_dir.w,
+								  P.moon_illum.rgb, phased(sc, ph_moon[j]),
+								  m.scattering);
+					radiance[j] += w * s;
 				}
-			}
-			vec4 texel_rest = vec4(night_level * (1.0 - tr), (tr.r + tr.g + tr.b) / 3.0);
-			for (int j = 0; j < AP_GROUP; j++) {
-				if (j >= n)
-					break;
-				STORE_TEXEL(AB, ((volume[j] * OUT_D + k) * OUT_H + px.y) * OUT_W + px.x,
-					    texel_rest + vec4(radiance[j], 0.0));
+				tr *= step_t;
 			}
 		}
+		vec4 texel_rest = vec4(night_level * (1.0 - tr), (tr.r + tr.g + tr.b) / 3.0);
+		for (int j = 0; j < AP_GROUP; j++)
+			store_texel(((volume[j] * OUT_D + k) * OUT_H + px.y) * OUT_W + px.x,
+				    texel_rest + vec4(radiance[j], 0.0));
 	}
 }
