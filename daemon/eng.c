@@ -30,6 +30,7 @@
  * views buffer holds a header vec4, 4 vec4 per group of volumes, 1 per
  * volume (aerial.comp). */
 #define N_VOLUMES (1 + STATE_MAX_VIEWS)
+#define AP_MAX_GROUP 8		/* views aerial.comp marches together */
 #define VIEW_BUFFER_BYTES ((1 + 4 * N_VOLUMES + N_VOLUMES) * 4 * sizeof(float))
 
 /* The uniform block of shaders/common.glsl, std140: vec4s only. */
@@ -831,7 +832,7 @@ static uint32_t view_groups(const struct sky_state *s, uint32_t ret_group_of[N_V
 		uint32_t g;
 		for (g = 0; g < n_groups; g++) {
 			volume_camera(s, lead[g], &d, &hd);
-			if (h == hd && c.pitch_deg == d.pitch_deg && c.roll_deg == d.roll_deg &&
+			if (ret_count[g] < AP_MAX_GROUP && h == hd && c.pitch_deg == d.pitch_deg && c.roll_deg == d.roll_deg &&
 			    c.vfov_deg == d.vfov_deg && c.aspect == d.aspect)
 				break;
 		}

@@ -17,8 +17,10 @@
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
-// The views in the group: the per-view state lives in arrays of this size,
-// indexed only by unrolled loops, so it stays in registers.
+// The views in the group, at most 8. Their state lives in variables of
+// their own, spelled out by VIEW_EACH: with arrays indexed in loops, a
+// group of 4 already cost 3 times a group of 2 on lavapipe (the arrays
+// left the registers).
 layout(constant_id = 21) const int AP_GROUP = 1;
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -42,6 +44,52 @@ void store_texel(int i, vec4 v)
 	else
 		AT.d[i] = floatBitsToUint(v);
 }
+
+// A view's lights along the group's ray: the phase and the horizontal
+// part of each light's cosine (dot(dir.xy, light.xy)) for its direction.
+struct ViewLight {
+	Phases sun, moon;
+	float sun_h, moon_h;
+	int volume;
+};
+
+ViewLight view_light(vec4 member, vec3 dir0)
+{
+	ViewLight v;
+	vec3 dir = vec3(member.x * dir0.x + member.y * dir0.y, member.x * dir0.y - member.y * dir0.x,
+			dir0.z);
+	v.volume = int(member.z);
+	v.sun = ray_phases(dir, P.sun_dir.xyz);
+	v.sun_h = dot(dir.xy, P.sun_dir.xy);
+	v.moon_h = 0.0;
+	if (MOON_LIT) {
+		v.moon = ray_phases(dir, P.moon_dir.xyz);
+		v.moon_h = dot(dir.xy, P.moon_dir.xy);
+	}
+	return v;
+}
+
+// The in-scattered light of one step for a view: up_h, sun_z and moon_z
+// are the step's, shared by the group.
+vec3 view_source(ViewLight v, TAlt ta, Scatter sc, vec3 sigma_s, float up_h, float sun_z,
+		 float moon_z)
+{
+	vec3 s = light_source(ta, up_h * v.sun_h + sun_z, P.sun_dir.w, P.sun_illum.rgb,
+			      phased(sc, v.sun), sigma_s);
+	if (MOON_LIT)
+		s += light_source(ta, up_h * v.moon_h + moon_z, P.moon_dir.w, P.moon_illum.rgb,
+				  phased(sc, v.moon), sigma_s);
+	return s;
+}
+
+#define VIEW_EACH(X) X(0) X(1) X(2) X(3) X(4) X(5) X(6) X(7)
+#define VIEW_DECLARE(j) ViewLight vl##j; vec3 rad##j = vec3(0.0);
+#define VIEW_INIT(j) if (AP_GROUP > j) vl##j = view_light(VB.v[first + j], dir0);
+#define VIEW_STEP(j) if (AP_GROUP > j) \
+	rad##j += w * view_source(vl##j, ta, sc, m.scattering, up_h, sun_z, moon_z);
+#define VIEW_STORE(j) if (AP_GROUP > j) \
+	store_texel(((vl##j.volume * OUT_D + k) * OUT_H + px.y) * OUT_W + px.x, \
+		    texel_rest + vec4(rad##j, 0.0));
 
 void main()
 {
@@ -69,22 +117,8 @@ void main()
 	// The lights' cosine to the local vertical at a step is
 	// up_h * dot(dir.xy, light.xy) + up_z * light.z: the dots are per
 	// view, up_h and up_z per step.
-	vec3 radiance[AP_GROUP];
-	float sun_h[AP_GROUP], moon_h[AP_GROUP];
-	Phases ph_sun[AP_GROUP], ph_moon[AP_GROUP];
-	int volume[AP_GROUP];
-	for (int j = 0; j < AP_GROUP; j++) {
-		vec4 mb = VB.v[first + j];
-		vec3 dir = vec3(mb.x * dir0.x + mb.y * dir0.y, mb.x * dir0.y - mb.y * dir0.x, dir0.z);
-		volume[j] = int(mb.z);
-		ph_sun[j] = ray_phases(dir, P.sun_dir.xyz);
-		sun_h[j] = dot(dir.xy, P.sun_dir.xy);
-		if (MOON_LIT) {
-			ph_moon[j] = ray_phases(dir, P.moon_dir.xyz);
-			moon_h[j] = dot(dir.xy, P.moon_dir.xy);
-		}
-		radiance[j] = vec3(0.0);
-	}
+	VIEW_EACH(VIEW_DECLARE)
+	VIEW_EACH(VIEW_INIT)
 
 	Entry en;
 	bool inside = ray_in_shell(h0, dir0, en);
@@ -108,22 +142,11 @@ void main()
 				Medium m = medium_parts(hs, sc);
 				TAlt ta = t_alt(hs);
 				vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
-				for (int j = 0; j < AP_GROUP; j++) {
-					vec3 s = light_source(ta, up_h * sun_h[j] + sun_z, P.sun_dir.w,
-							      P.sun_illum.rgb, phased(sc, ph_sun[j]),
-							      m.scattering);
-					if (MOON_LIT)
-						s += light_source(ta, up_h * moon_h[j] + moon_z, P.moon_dir.w,
-								  P.moon_illum.rgb, phased(sc, ph_moon[j]),
-								  m.scattering);
-					radiance[j] += w * s;
-				}
+				VIEW_EACH(VIEW_STEP)
 				tr *= step_t;
 			}
 		}
 		vec4 texel_rest = vec4(night_level * (1.0 - tr), (tr.r + tr.g + tr.b) / 3.0);
-		for (int j = 0; j < AP_GROUP; j++)
-			store_texel(((volume[j] * OUT_D + k) * OUT_H + px.y) * OUT_W + px.x,
-				    texel_rest + vec4(radiance[j], 0.0));
+		VIEW_EACH(VIEW_STORE)
 	}
 }
