@@ -82,13 +82,17 @@ vec3 view_source(ViewLight v, TAlt ta, Scatter sc, vec3 sigma_s, float up_h, flo
 	return s;
 }
 
+// Texels between volumes in device memory: AP_PAD_TEXELS in eng.c.
+const int AP_PAD_TEXELS = 37;
+const int VOLUME_TEXELS = OUT_D * OUT_H * OUT_W + AP_PAD_TEXELS;
+
 #define VIEW_EACH(X) X(0) X(1) X(2) X(3) X(4) X(5) X(6) X(7)
 #define VIEW_DECLARE(j) ViewLight vl##j; vec3 rad##j = vec3(0.0);
 #define VIEW_INIT(j) if (AP_GROUP > j) vl##j = view_light(VB.v[first + j], dir0);
 #define VIEW_STEP(j) if (AP_GROUP > j) \
 	rad##j += w * view_source(vl##j, ta, sc, m.scattering, up_h, sun_z, moon_z);
 #define VIEW_STORE(j) if (AP_GROUP > j) \
-	store_texel(((vl##j.volume * OUT_D + k) * OUT_H + px.y) * OUT_W + px.x, \
+	store_texel(vl##j.volume * VOLUME_TEXELS + (k * OUT_H + px.y) * OUT_W + px.x, \
 		    texel_rest + vec4(rad##j, 0.0));
 
 void main()
