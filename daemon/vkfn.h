@@ -58,6 +58,7 @@
 	X(vkCmdBindPipeline)                 \
 	X(vkCmdBindDescriptorSets)           \
 	X(vkCmdDispatch)                     \
+	X(vkCmdDispatchBase)                 \
 	X(vkCmdPipelineBarrier)              \
 	X(vkCmdCopyBuffer)                   \
 	X(vkCmdWriteTimestamp)               \
