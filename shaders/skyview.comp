@@ -62,26 +62,51 @@ void main()
 		float len = en.len;
 		float n_f = ceil(mix(P.misc.y, float(STEPS), clamp(len / 100.0, 0.0, 1.0)));
 		int n = max(int(n_f), 1);
+		// Each light's height over the local horizon (cosine units) at the
+		// ends of the steps: the visible part of the disk is averaged over
+		// each step (disk_visible_mean), not sampled at its midpoint.
+		float sun_x[SV_AZ_GROUP], moon_x[SV_AZ_GROUP];
+		{
+			float rr, hb = altitude_along(en.h, en.mu, 0.0, rr);
+			float up_h = sin_z * en.t0 / rr, up_z = en.ez / rr, mu_h = horizon_cos(hb);
+			for (int j = 0; j < SV_AZ_GROUP; j++) {
+				sun_x[j] = up_h * sun_h[j] + up_z * P.sun_dir.z - mu_h;
+				if (MOON_LIT)
+					moon_x[j] = up_h * moon_h[j] + up_z * P.moon_dir.z - mu_h;
+			}
+		}
 		float prev = 0.0;
 		for (int i = 0; i < n; i++) {
 			float a = float(i + 1) / float(n);
 			float next = len * a * a;
-			float dt = next - prev, t = 0.5 * (prev + next), rr;
+			float dt = next - prev, t = 0.5 * (prev + next), rr, rb_;
 			prev = next;
 			float hs = altitude_along(en.h, en.mu, t, rr);
 			// The local vertical: its horizontal part follows each column.
 			float up_h = sin_z * (en.t0 + t) / rr, up_z = (en.ez + cos_z * t) / rr;
 			float sun_z = up_z * P.sun_dir.z, moon_z = up_z * P.moon_dir.z;
+			// ... and at the step's far end.
+			float hb = altitude_along(en.h, en.mu, next, rb_);
+			float bup_h = sin_z * (en.t0 + next) / rb_, bup_z = (en.ez + cos_z * next) / rb_;
+			float mu_hb = horizon_cos(hb), bsun_z = bup_z * P.sun_dir.z, bmoon_z = bup_z * P.moon_dir.z;
 			Scatter sc;
 			Medium m = medium_parts(hs, sc);
 			TAlt ta = t_alt(hs);
+			float e_sun = P.planet.x / ta.r * P.sun_dir.w, e_moon = P.planet.x / ta.r * P.moon_dir.w;
 			vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
 			for (int j = 0; j < SV_AZ_GROUP; j++) {
-				vec3 s = light_source(ta, up_h * sun_h[j] + sun_z, P.sun_dir.w, P.sun_illum.rgb,
-						      phased(sc, ph_sun[j]), m.scattering);
-				if (MOON_LIT)
-					s += light_source(ta, up_h * moon_h[j] + moon_z, P.moon_dir.w, P.moon_illum.rgb,
-							  phased(sc, ph_moon[j]), m.scattering);
+				float xb = bup_h * sun_h[j] + bsun_z - mu_hb;
+				float vis = disk_visible_mean(sun_x[j], xb, e_sun);
+				sun_x[j] = xb;
+				vec3 s = light_source_lit(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb,
+							  phased(sc, ph_sun[j]), m.scattering);
+				if (MOON_LIT) {
+					xb = bup_h * moon_h[j] + bmoon_z - mu_hb;
+					vis = disk_visible_mean(moon_x[j], xb, e_moon);
+					moon_x[j] = xb;
+					s += light_source_lit(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb,
+							      phased(sc, ph_moon[j]), m.scattering);
+				}
 				radiance[j] += w * s;
 			}
 			tr *= step_t;
