@@ -480,22 +480,48 @@ static v3 night_sky(const struct ctx *c, double mu, bool sky, v3 tr)
 	return sky ? v(l, l, l) : scale(v(1 - tr.x, 1 - tr.y, 1 - tr.z), l);
 }
 
+/* The direction of a sky-view texel as skyview.comp computes it: the
+ * mapping of skymap_skyview_inverse, evaluated from the horizon's angle
+ * from the nadir and, for rays that point down, the ray's own; ret_sky
+ * says whether the row is above the horizon. */
+static v3 skyview_direction(const struct ctx *c, double u, double vv, uint32_t h, bool *ret_sky)
+{
+	double beta = atan2(c->rb, sqrt(rho2(c, c->h0))), th = SKYMAP_PI - beta;
+	double x = skymap_clamp(skymap_tex_to_unit(vv, h), 0.0, 1.0), sin_z, cos_z;
+	*ret_sky = x < 0.5;
+	if (*ret_sky) {
+		double a = 1.0 - 2.0 * x, zenith = th * (1.0 - a * a);
+		if (zenith <= 0.5 * SKYMAP_PI) {
+			sin_z = sin(zenith);
+			cos_z = cos(zenith);
+		} else {
+			double nadir = beta + th * a * a;
+			sin_z = sin(nadir);
+			cos_z = -cos(nadir);
+		}
+	} else {
+		double a = 2.0 * x - 1.0, nadir = beta * (1.0 - a * a);
+		sin_z = sin(nadir);
+		cos_z = -cos(nadir);
+	}
+	double az = 2.0 * SKYMAP_PI * u;
+	return v(sin_z * sin(az), sin_z * cos(az), cos_z);
+}
+
 static void compute_skyview(const struct ctx *c, const struct state_table_quality *q, double *out)
 {
-	double mu_h = horizon_cos(c, c->h0);
 	for (uint32_t j = 0; j < q->height; j++)
 		for (uint32_t i = 0; i < q->width; i++) {
-			double zen, az, t0, t1;
-			skymap_skyview_inverse(mu_h, (i + 0.5) / q->width, (j + 0.5) / q->height, q->height,
-					       &zen, &az);
-			v3 dir = v(sin(zen) * sin(az), sin(zen) * cos(az), cos(zen));
+			double t0, t1;
+			bool sky;
+			v3 dir = skyview_direction(c, (i + 0.5) / q->width, (j + 0.5) / q->height, q->height, &sky);
 			v3 rad = { 0 }, tau = { 0 };
 			if (ray_in_shell(c, c->h0, dir, &t0, &t1)) {
 				double len = t1 - t0, lo = c->s->quality.skyview_min_steps;
 				double nf = ceil(lo + (q->steps - lo) * skymap_clamp(len / 100.0, 0, 1));
 				march(c, dir, t0, t1, nf < 1 ? 1 : (uint32_t)nf, true, true, &rad, &tau);
 			}
-			rad = add(rad, night_sky(c, dir.z, dir.z > mu_h, vexp_neg(tau)));
+			rad = add(rad, night_sky(c, dir.z, sky, vexp_neg(tau)));
 			put(out + 4 * (j * q->width + i), rad, mean3(vexp_neg(tau)));
 		}
 }

@@ -26,17 +26,30 @@ void main()
 	int py = (gy & 1) == 0 ? gy >> 1 : OUT_H - 1 - (gy >> 1);
 
 	float h0 = P.planet.w;
-	float th = acos(clamp(P.misc.x, -1.0, 1.0));
+	// The row's direction from angles that keep their bits: the horizon's
+	// angle from the nadir, beta = atan(Rb / rho), rather than acos of its
+	// cosine, and the angle from the nadir for rays that point down. From
+	// 1e6 km the planet spans 0.36 degree around the nadir, where acos(mu_h)
+	// lost 5e-6 rad (5 km at the limb) and a zenith angle near pi 2e-7.
+	float beta = atan(P.planet.x, safe_sqrt(rho2(max(h0, 0.0)))), th = PI - beta;
 	float x = clamp(tex_to_unit((float(py) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0);
-	float zenith;
-	if (x < 0.5) {
-		float a = 1.0 - 2.0 * x;
-		zenith = th * (1.0 - a * a);
+	bool sky = x < 0.5;
+	float sin_z, cos_z;
+	if (sky) {
+		float a = 1.0 - 2.0 * x, zenith = th * (1.0 - a * a);
+		if (zenith <= 0.5 * PI) {
+			sin_z = sin(zenith);
+			cos_z = cos(zenith);
+		} else {
+			float nadir = beta + th * a * a;
+			sin_z = sin(nadir);
+			cos_z = -cos(nadir);
+		}
 	} else {
-		float a = 2.0 * x - 1.0;
-		zenith = th + (PI - th) * a * a;
+		float a = 2.0 * x - 1.0, nadir = beta * (1.0 - a * a);
+		sin_z = sin(nadir);
+		cos_z = -cos(nadir);
 	}
-	float sin_z = sin(zenith), cos_z = cos(zenith);
 	vec3 dir[SV_AZ_GROUP], radiance[SV_AZ_GROUP];
 	Phases ph_sun[SV_AZ_GROUP], ph_moon[SV_AZ_GROUP];
 	// The lights' cosine to the local vertical at a step is
@@ -115,7 +128,7 @@ void main()
 	float tr_mean = (tr.r + tr.g + tr.b) / 3.0;
 	// Night-sky floor: L_z (1 + c (1 - mu)) over the sky, its airlight (1 - T) toward the ground.
 	vec3 night = P.night.rgb * (1.0 + P.night.w * (1.0 - max(cos_z, 0.0))) *
-		     (cos_z > P.misc.x ? vec3(1.0) : 1.0 - tr);
+		     (sky ? vec3(1.0) : 1.0 - tr);
 	for (int j = 0; j < SV_AZ_GROUP; j++)
 		if (x0 + j < OUT_W)
 			STORE_TEXEL(SB, py * OUT_W + x0 + j, vec4(radiance[j] + night, tr_mean));

@@ -307,11 +307,6 @@ const struct stab_known stab_known[] = {
 	  "the step (it was the midpoint, a rise of 1.3 %), but near the tangent point the altitude "
 	  "is quadratic, so a row of the table still rises by up to 0.11 % (0.32159 -> 0.32194, "
 	  "row 1, column 62)" },
-	{ "observer 1e6 km", STAB_N_INVARIANTS, "f32",
-	  "from 1e6 km the march starts at the entry point (t0 = c / (-r mu + s), entry cosine "
-	  "-s / rt, rt^2 - (r sin)^2 factored), which took sky-view from 36 to 52 dB; what is left "
-	  "is the float32 direction itself: the Earth spans 0.4 degree from there, so a cosine "
-	  "near -1 keeps few significant bits" },
 };
 const size_t stab_n_known = sizeof(stab_known) / sizeof(stab_known[0]);
 
