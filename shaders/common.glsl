@@ -332,25 +332,20 @@ vec3 light_transmittance(TAlt a, float mu, float radius_rad)
 // V = smoothstep(-e, e, x) and k = (x / e + 1) / 2, the integral of
 // 3 k^2 - 2 k^3 over [k_lo, k_hi] is (k_hi - k_lo) G with
 // G = k_hi^2 + k_hi k_lo + k_lo^2 - (k_hi + k_lo) (k_hi^2 + k_lo^2) / 2,
-// factored so that a short step does not cancel; G(k, k) = V.
-float disk_visible_mean(float xa, float xb, float e)
+// factored so that a short step does not cancel; G(k, k) = V. half_inv_e
+// is 0.5 / e, shared by the columns of a step; for a point light (e = 0)
+// pass 1e30: k is then 0 or 1 and G the step function.
+float disk_visible_mean(float xa, float xb, float e, float half_inv_e)
 {
-	float lo = min(xa, xb), hi = max(xa, xb);
-	if (lo >= e)
-		return 1.0;
-	if (hi <= -e)
-		return 0.0;
-	// Shares of the step inside the penumbra and fully lit.
-	float inside = 1.0, above = 0.0;
-	if (hi > lo) {
-		inside = max(min(hi, e) - max(lo, -e), 0.0) / (hi - lo);
-		above = max(hi - max(lo, e), 0.0) / (hi - lo);
-	}
-	if (!(e > 0.0))
-		return above;
-	float kl = 0.5 + 0.5 * clamp(lo / e, -1.0, 1.0), kh = 0.5 + 0.5 * clamp(hi / e, -1.0, 1.0);
+	// Branch-free: lavapipe runs both sides of a branch for its lanes. The
+	// step's parts fully lit (above) and in the penumbra (inside), the
+	// latter weighted by G; a step of zero length is G itself, the
+	// smoothstep at the point.
+	float lo = min(xa, xb), hi = max(xa, xb), d = hi - lo;
+	float above = max(hi, e) - max(lo, e), inside = clamp(hi, -e, e) - clamp(lo, -e, e);
+	float kl = clamp(0.5 + lo * half_inv_e, 0.0, 1.0), kh = clamp(0.5 + hi * half_inv_e, 0.0, 1.0);
 	float g = kh * kh + kh * kl + kl * kl - 0.5 * (kh + kl) * (kh * kh + kl * kl);
-	return inside * g + above;
+	return d > 0.0 ? (inside * g + above) / d : g;
 }
 
 vec3 multiscatter_at(TAlt a, float mu_s)

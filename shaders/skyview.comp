@@ -13,6 +13,31 @@
 layout(constant_id = 20) const int SV_AZ_GROUP = 8;
 layout(local_size_x = 8, local_size_y = 8) in;
 
+// The local vertical (its horizontal part along the row's columns, up_h,
+// and its vertical part, up_z) and the horizon's cosine at distance t along
+// a row's rays: what a light's height over the horizon needs at the end of
+// a march step.
+struct StepEnd {
+	float up_h, up_z, mu_h;
+};
+
+StepEnd step_end(Entry en, float sin_z, float cos_z, float t)
+{
+	float rr, h = altitude_along(en.h, en.mu, t, rr), inv = 1.0 / rr;
+	StepEnd e;
+	e.up_h = sin_z * (en.t0 + t) * inv;
+	e.up_z = (en.ez + cos_z * t) * inv;
+	e.mu_h = -safe_sqrt(rho2(max(h, 0.0))) * inv;	// horizon_cos(h): r = rb + h
+	return e;
+}
+
+// A light's height over the horizon (mu_l - mu_horizon) in a column whose
+// horizontal unit vector has dot light_h with the light's direction.
+float over_horizon(StepEnd e, float light_h, float light_z)
+{
+	return e.up_h * light_h + e.up_z * light_z - e.mu_h;
+}
+
 void main()
 {
 	load_params();
@@ -75,53 +100,41 @@ void main()
 		float len = en.len;
 		float n_f = ceil(mix(P.misc.y, float(STEPS), clamp(len / 100.0, 0.0, 1.0)));
 		int n = max(int(n_f), 1);
-		// Each light's height over the local horizon (cosine units) at the
-		// ends of the steps: the visible part of the disk is averaged over
-		// each step (disk_visible_mean), not sampled at its midpoint.
-		float sun_x[SV_AZ_GROUP], moon_x[SV_AZ_GROUP];
-		{
-			float rr, hb = altitude_along(en.h, en.mu, 0.0, rr);
-			float up_h = sin_z * en.t0 / rr, up_z = en.ez / rr, mu_h = horizon_cos(hb);
-			for (int j = 0; j < SV_AZ_GROUP; j++) {
-				sun_x[j] = up_h * sun_h[j] + up_z * P.sun_dir.z - mu_h;
-				if (MOON_LIT)
-					moon_x[j] = up_h * moon_h[j] + up_z * P.moon_dir.z - mu_h;
-			}
-		}
+		// The visible part of each light's disk is averaged over each step
+		// (disk_visible_mean) from the light's height over the local horizon
+		// at the step's two ends.
+		StepEnd ea = step_end(en, sin_z, cos_z, 0.0);
 		float prev = 0.0;
 		for (int i = 0; i < n; i++) {
 			float a = float(i + 1) / float(n);
 			float next = len * a * a;
-			float dt = next - prev, t = 0.5 * (prev + next), rr, rb_;
+			float dt = next - prev, t = 0.5 * (prev + next), rr;
 			prev = next;
 			float hs = altitude_along(en.h, en.mu, t, rr);
 			// The local vertical: its horizontal part follows each column.
 			float up_h = sin_z * (en.t0 + t) / rr, up_z = (en.ez + cos_z * t) / rr;
 			float sun_z = up_z * P.sun_dir.z, moon_z = up_z * P.moon_dir.z;
-			// ... and at the step's far end.
-			float hb = altitude_along(en.h, en.mu, next, rb_);
-			float bup_h = sin_z * (en.t0 + next) / rb_, bup_z = (en.ez + cos_z * next) / rb_;
-			float mu_hb = horizon_cos(hb), bsun_z = bup_z * P.sun_dir.z, bmoon_z = bup_z * P.moon_dir.z;
+			StepEnd eb = step_end(en, sin_z, cos_z, next);
 			Scatter sc;
 			Medium m = medium_parts(hs, sc);
 			TAlt ta = t_alt(hs);
 			float e_sun = P.planet.x / ta.r * P.sun_dir.w, e_moon = P.planet.x / ta.r * P.moon_dir.w;
+			float sun_k = e_sun > 0.0 ? 0.5 / e_sun : 1e30, moon_k = e_moon > 0.0 ? 0.5 / e_moon : 1e30;
 			vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
 			for (int j = 0; j < SV_AZ_GROUP; j++) {
-				float xb = bup_h * sun_h[j] + bsun_z - mu_hb;
-				float vis = disk_visible_mean(sun_x[j], xb, e_sun);
-				sun_x[j] = xb;
+				float vis = disk_visible_mean(over_horizon(ea, sun_h[j], P.sun_dir.z),
+							      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
 				vec3 s = light_source_lit(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb,
 							  phased(sc, ph_sun[j]), m.scattering);
 				if (MOON_LIT) {
-					xb = bup_h * moon_h[j] + bmoon_z - mu_hb;
-					vis = disk_visible_mean(moon_x[j], xb, e_moon);
-					moon_x[j] = xb;
+					vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
+								over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
 					s += light_source_lit(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb,
 							      phased(sc, ph_moon[j]), m.scattering);
 				}
 				radiance[j] += w * s;
 			}
+			ea = eb;
 			tr *= step_t;
 		}
 	}
