@@ -199,26 +199,64 @@ static v3 transmittance_to_top(const struct ctx *c, double h, double mu)
 	return bilinear(m->t[0], m->w[0], m->h[0], u, vv);
 }
 
+/* Visible part of a light's disk of half-width e (cosine units at the
+ * horizon) whose centre stands x over the local horizon: see
+ * light_transmittance in common.glsl. */
+static double disk_visible(double x, double e)
+{
+	if (!(e > 0))
+		return x < 0 ? 0 : 1;
+	double k = (x + e) / (2.0 * e);
+	k = k < 0 ? 0 : k > 1 ? 1 : k;
+	return k * k * (3.0 - 2.0 * k);
+}
+
+/* Mean of disk_visible over a march step along which x goes linearly from
+ * xa to xb: see disk_visible_mean in common.glsl, the same algorithm. */
+static double disk_visible_mean(double xa, double xb, double e)
+{
+	double lo = fmin(xa, xb), hi = fmax(xa, xb);
+	if (lo >= e)
+		return 1.0;
+	if (hi <= -e)
+		return 0.0;
+	double inside = 1.0, above = 0.0;
+	if (hi > lo) {
+		inside = fmax(fmin(hi, e) - fmax(lo, -e), 0.0) / (hi - lo);
+		above = fmax(hi - fmax(lo, e), 0.0) / (hi - lo);
+	}
+	if (!(e > 0))
+		return above;
+	double kl = 0.5 + 0.5 * skymap_clamp(lo / e, -1, 1), kh = 0.5 + 0.5 * skymap_clamp(hi / e, -1, 1);
+	double g = kh * kh + kh * kl + kl * kl - 0.5 * (kh + kl) * (kh * kh + kl * kl);
+	return inside * g + above;
+}
+
+/* Half-width of a light's disk in cosine units at the horizon of altitude h. */
+static double disk_halfwidth(const struct ctx *c, double h, double radius_rad)
+{
+	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h;
+	return c->rb / (c->rb + hc) * radius_rad;
+}
+
+/* Transmittance to the top times the visible part of the light's disk. */
+static v3 visible_transmittance(const struct ctx *c, double h, double mu, double visible)
+{
+	if (visible <= 0)
+		return v(0, 0, 0);
+	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h, u, vv;
+	const struct model_tables *m = c->tab;
+	skymap_transmittance_uv(c->rb, c->rt, hc, mu < -1 ? -1 : mu > 1 ? 1 : mu, m->w[0], m->h[0], &u, &vv);
+	return scale(bilinear(m->t[0], m->w[0], m->h[0], u, vv), visible);
+}
+
 /* See light_transmittance in common.glsl: the light is a disk of angular
  * radius radius_rad that the horizon covers gradually. */
 static v3 light_transmittance(const struct ctx *c, double h, double mu, double radius_rad)
 {
-	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h, r = c->rb + hc;
+	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h;
 	double mu_h = h < 0 ? -2.0 : skymap_horizon_cos(c->rb, hc);
-	double e = c->rb / r * radius_rad, x = mu - mu_h, visible;
-	if (e > 0) {
-		double k = (x + e) / (2.0 * e);
-		k = k < 0 ? 0 : k > 1 ? 1 : k;
-		visible = k * k * (3.0 - 2.0 * k);
-	} else {
-		visible = x < 0 ? 0 : 1;
-	}
-	if (visible <= 0)
-		return v(0, 0, 0);
-	double u, vv;
-	const struct model_tables *m = c->tab;
-	skymap_transmittance_uv(c->rb, c->rt, hc, mu < -1 ? -1 : mu > 1 ? 1 : mu, m->w[0], m->h[0], &u, &vv);
-	return scale(bilinear(m->t[0], m->w[0], m->h[0], u, vv), visible);
+	return visible_transmittance(c, h, mu, disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad)));
 }
 
 static v3 multiscatter(const struct ctx *c, double h, double mu_s)
@@ -229,15 +267,27 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s)
 	return bilinear(m->t[1], m->w[1], m->h[1], u, vv);
 }
 
+/* visible: the part of the light's disk seen, averaged over the march step
+ * (disk_visible_mean); negative to take it at the point instead. */
 static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, double radius_deg,
-			v3 illum, v3 sigma_s)
+			double visible, v3 illum, v3 sigma_s)
 {
-	double mu_l = dot(up, light);
-	v3 s = mul(phased_scattering(c, h, dot(dir, light)),
-		   light_transmittance(c, h, mu_l, radius_deg * SKYMAP_PI / 180.0));
+	double mu_l = dot(up, light), radius_rad = radius_deg * SKYMAP_PI / 180.0;
+	v3 t = visible < 0 ? light_transmittance(c, h, mu_l, radius_rad)
+			   : visible_transmittance(c, h, mu_l, visible);
+	v3 s = mul(phased_scattering(c, h, dot(dir, light)), t);
 	if (c->s->quality.multiscatter_dirs)	/* 0: higher orders switched off */
 		s = add(s, mul(sigma_s, multiscatter(c, h, mu_l)));
 	return mul(s, illum);
+}
+
+/* A light's height over the local horizon (mu_l - mu_horizon) at distance t
+ * along a view ray from the observer. */
+static double light_over_horizon(const struct ctx *c, v3 dir, double t, v3 light)
+{
+	double rr, h = altitude_along(c, c->h0, dir.z, t, &rr);
+	v3 up = v(dir.x * t / rr, dir.y * t / rr, (c->rb + c->h0 + dir.z * t) / rr);
+	return dot(up, light) - skymap_horizon_cos(c->rb, h);
 }
 
 static bool ray_in_shell(const struct ctx *c, double h0, v3 dir, double *t0, double *t1)
@@ -381,11 +431,15 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 		}
 }
 
-/* In-scattered radiance and optical depth along [a, b] of a view ray. */
+/* In-scattered radiance and optical depth along [a, b] of a view ray.
+ * segment_lit averages the visible part of each light's disk over each step
+ * (the sky-view pass); otherwise it is taken at the step's midpoint. */
 static void march(const struct ctx *c, v3 dir, double a, double b, uint32_t n, bool quadratic,
-		  v3 *radiance, v3 *tau)
+		  bool segment_lit, v3 *radiance, v3 *tau)
 {
 	double r0 = c->rb + c->h0, len = b - a, prev = 0;
+	double sun_x = segment_lit ? light_over_horizon(c, dir, a, c->sun) : 0;
+	double moon_x = segment_lit && c->moon_lit ? light_over_horizon(c, dir, a, c->moon) : 0;
 	for (uint32_t i = 0; i < n; i++) {
 		double x = (double)(i + 1) / n, next = quadratic ? len * x * x : len * x;
 		double dt = next - prev, t = a + 0.5 * (prev + next), rr;
@@ -393,10 +447,25 @@ static void march(const struct ctx *c, v3 dir, double a, double b, uint32_t n, b
 		double hs = altitude_along(c, c->h0, dir.z, t, &rr);
 		v3 up = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
 		struct medium m = medium(c, hs);
-		v3 s = light_source(c, hs, up, dir, c->sun, c->s->sun.angular_radius_deg, c->sun_illum, m.scattering);
+		double vis_sun = -1, vis_moon = -1;
+		if (segment_lit) {
+			double xb = light_over_horizon(c, dir, a + next, c->sun);
+			vis_sun = disk_visible_mean(sun_x, xb, disk_halfwidth(c, hs, c->s->sun.angular_radius_deg *
+										   SKYMAP_PI / 180.0));
+			sun_x = xb;
+			if (c->moon_lit) {
+				xb = light_over_horizon(c, dir, a + next, c->moon);
+				vis_moon = disk_visible_mean(moon_x, xb,
+							     disk_halfwidth(c, hs, c->s->moon.angular_radius_deg *
+										   SKYMAP_PI / 180.0));
+				moon_x = xb;
+			}
+		}
+		v3 s = light_source(c, hs, up, dir, c->sun, c->s->sun.angular_radius_deg, vis_sun, c->sun_illum,
+				    m.scattering);
 		if (c->moon_lit)
-			s = add(s, light_source(c, hs, up, dir, c->moon, c->s->moon.angular_radius_deg, c->moon_illum,
-						m.scattering));
+			s = add(s, light_source(c, hs, up, dir, c->moon, c->s->moon.angular_radius_deg, vis_moon,
+						c->moon_illum, m.scattering));
 		*radiance = add(*radiance, mul(mul(vexp_neg(*tau), s), segment_weight(m.extinction, dt)));
 		*tau = add(*tau, scale(m.extinction, dt));
 	}
@@ -411,22 +480,48 @@ static v3 night_sky(const struct ctx *c, double mu, bool sky, v3 tr)
 	return sky ? v(l, l, l) : scale(v(1 - tr.x, 1 - tr.y, 1 - tr.z), l);
 }
 
+/* The direction of a sky-view texel as skyview.comp computes it: the
+ * mapping of skymap_skyview_inverse, evaluated from the horizon's angle
+ * from the nadir and, for rays that point down, the ray's own; ret_sky
+ * says whether the row is above the horizon. */
+static v3 skyview_direction(const struct ctx *c, double u, double vv, uint32_t h, bool *ret_sky)
+{
+	double beta = atan2(c->rb, sqrt(rho2(c, c->h0))), th = SKYMAP_PI - beta;
+	double x = skymap_clamp(skymap_tex_to_unit(vv, h), 0.0, 1.0), sin_z, cos_z;
+	*ret_sky = x < 0.5;
+	if (*ret_sky) {
+		double a = 1.0 - 2.0 * x, zenith = th * (1.0 - a * a);
+		if (zenith <= 0.5 * SKYMAP_PI) {
+			sin_z = sin(zenith);
+			cos_z = cos(zenith);
+		} else {
+			double nadir = beta + th * a * a;
+			sin_z = sin(nadir);
+			cos_z = -cos(nadir);
+		}
+	} else {
+		double a = 2.0 * x - 1.0, nadir = beta * (1.0 - a * a);
+		sin_z = sin(nadir);
+		cos_z = -cos(nadir);
+	}
+	double az = 2.0 * SKYMAP_PI * u;
+	return v(sin_z * sin(az), sin_z * cos(az), cos_z);
+}
+
 static void compute_skyview(const struct ctx *c, const struct state_table_quality *q, double *out)
 {
-	double mu_h = horizon_cos(c, c->h0);
 	for (uint32_t j = 0; j < q->height; j++)
 		for (uint32_t i = 0; i < q->width; i++) {
-			double zen, az, t0, t1;
-			skymap_skyview_inverse(mu_h, (i + 0.5) / q->width, (j + 0.5) / q->height, q->height,
-					       &zen, &az);
-			v3 dir = v(sin(zen) * sin(az), sin(zen) * cos(az), cos(zen));
+			double t0, t1;
+			bool sky;
+			v3 dir = skyview_direction(c, (i + 0.5) / q->width, (j + 0.5) / q->height, q->height, &sky);
 			v3 rad = { 0 }, tau = { 0 };
 			if (ray_in_shell(c, c->h0, dir, &t0, &t1)) {
 				double len = t1 - t0, lo = c->s->quality.skyview_min_steps;
 				double nf = ceil(lo + (q->steps - lo) * skymap_clamp(len / 100.0, 0, 1));
-				march(c, dir, t0, t1, nf < 1 ? 1 : (uint32_t)nf, true, &rad, &tau);
+				march(c, dir, t0, t1, nf < 1 ? 1 : (uint32_t)nf, true, true, &rad, &tau);
 			}
-			rad = add(rad, night_sky(c, dir.z, dir.z > mu_h, vexp_neg(tau)));
+			rad = add(rad, night_sky(c, dir.z, sky, vexp_neg(tau)));
 			put(out + 4 * (j * q->width + i), rad, mean3(vexp_neg(tau)));
 		}
 }
@@ -453,7 +548,7 @@ static void compute_aerial(const struct ctx *c, const struct state_table_quality
 				double a = fmax(prev, t0), b = inside ? fmin(depth, t1) : a;
 				prev = depth;
 				if (b > a)
-					march(c, dir, a, b, q->steps, false, &rad, &tau);
+					march(c, dir, a, b, q->steps, false, false, &rad, &tau);
 				v3 tr = vexp_neg(tau);
 				v3 night = scale(v(1 - tr.x, 1 - tr.y, 1 - tr.z), c->night_cd_m2 * (1 + c->night_gain / 3));
 				put(out + 4 * ((k * q->height + j) * q->width + i), add(rad, night), mean3(tr));

@@ -321,6 +321,33 @@ vec3 light_transmittance(TAlt a, float mu, float radius_rad)
 	return visible > 0.0 ? visible * transmittance_lookup(a, mu) : vec3(0.0);
 }
 
+// The same visible fraction averaged over a whole march step rather than
+// taken at its midpoint: x_a and x_b are mu - mu_horizon (the light's
+// height over the local horizon, in cosine units) at the step's two ends,
+// taken linear in between, e the disk's half-width in those units. On a
+// small planet the horizon dips by degrees along one step, so a midpoint
+// sample switched the step's whole contribution on within a fraction of a
+// degree of the light and the sky brightened in stairs as the sun set; the
+// mean moves the shadow's edge continuously through the step. With
+// V = smoothstep(-e, e, x) and k = (x / e + 1) / 2, the integral of
+// 3 k^2 - 2 k^3 over [k_lo, k_hi] is (k_hi - k_lo) G with
+// G = k_hi^2 + k_hi k_lo + k_lo^2 - (k_hi + k_lo) (k_hi^2 + k_lo^2) / 2,
+// factored so that a short step does not cancel; G(k, k) = V. half_inv_e
+// is 0.5 / e, shared by the columns of a step; for a point light (e = 0)
+// pass 1e30: k is then 0 or 1 and G the step function.
+float disk_visible_mean(float xa, float xb, float e, float half_inv_e)
+{
+	// Branch-free: lavapipe runs both sides of a branch for its lanes. The
+	// step's parts fully lit (above) and in the penumbra (inside), the
+	// latter weighted by G; a step of zero length is G itself, the
+	// smoothstep at the point.
+	float lo = min(xa, xb), hi = max(xa, xb), d = hi - lo;
+	float above = max(hi, e) - max(lo, e), inside = clamp(hi, -e, e) - clamp(lo, -e, e);
+	float kl = clamp(0.5 + lo * half_inv_e, 0.0, 1.0), kh = clamp(0.5 + hi * half_inv_e, 0.0, 1.0);
+	float g = kh * kh + kh * kl + kl * kl - 0.5 * (kh + kl) * (kh * kh + kl * kl);
+	return d > 0.0 ? (inside * g + above) / d : g;
+}
+
 vec3 multiscatter_at(TAlt a, float mu_s)
 {
 	// skymap.h: u packs texels around the horizon of the altitude.
@@ -408,6 +435,16 @@ vec3 phased(Scatter sc, Phases ph)
 vec3 light_source(TAlt a, float mu_l, float radius_rad, vec3 illum, vec3 phased, vec3 sigma_s)
 {
 	vec3 s = phased * light_transmittance(a, mu_l, radius_rad);
+	if (MULTISCATTER_ON)
+		s += sigma_s * multiscatter_at(a, mu_l);
+	return s * illum;
+}
+
+// light_source for a march step whose visible fraction of the light is
+// already known (disk_visible_mean): the step's midpoint gives the rest.
+vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s)
+{
+	vec3 s = visible > 0.0 ? phased * (visible * transmittance_lookup(a, mu_l)) : vec3(0.0);
 	if (MULTISCATTER_ON)
 		s += sigma_s * multiscatter_at(a, mu_l);
 	return s * illum;

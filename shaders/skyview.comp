@@ -13,6 +13,31 @@
 layout(constant_id = 20) const int SV_AZ_GROUP = 8;
 layout(local_size_x = 8, local_size_y = 8) in;
 
+// The local vertical (its horizontal part along the row's columns, up_h,
+// and its vertical part, up_z) and the horizon's cosine at distance t along
+// a row's rays: what a light's height over the horizon needs at the end of
+// a march step.
+struct StepEnd {
+	float up_h, up_z, mu_h;
+};
+
+StepEnd step_end(Entry en, float sin_z, float cos_z, float t)
+{
+	float rr, h = altitude_along(en.h, en.mu, t, rr), inv = 1.0 / rr;
+	StepEnd e;
+	e.up_h = sin_z * (en.t0 + t) * inv;
+	e.up_z = (en.ez + cos_z * t) * inv;
+	e.mu_h = -safe_sqrt(rho2(max(h, 0.0))) * inv;	// horizon_cos(h): r = rb + h
+	return e;
+}
+
+// A light's height over the horizon (mu_l - mu_horizon) in a column whose
+// horizontal unit vector has dot light_h with the light's direction.
+float over_horizon(StepEnd e, float light_h, float light_z)
+{
+	return e.up_h * light_h + e.up_z * light_z - e.mu_h;
+}
+
 void main()
 {
 	load_params();
@@ -26,17 +51,30 @@ void main()
 	int py = (gy & 1) == 0 ? gy >> 1 : OUT_H - 1 - (gy >> 1);
 
 	float h0 = P.planet.w;
-	float th = acos(clamp(P.misc.x, -1.0, 1.0));
+	// The row's direction from angles that keep their bits: the horizon's
+	// angle from the nadir, beta = atan(Rb / rho), rather than acos of its
+	// cosine, and the angle from the nadir for rays that point down. From
+	// 1e6 km the planet spans 0.36 degree around the nadir, where acos(mu_h)
+	// lost 5e-6 rad (5 km at the limb) and a zenith angle near pi 2e-7.
+	float beta = atan(P.planet.x, safe_sqrt(rho2(max(h0, 0.0)))), th = PI - beta;
 	float x = clamp(tex_to_unit((float(py) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0);
-	float zenith;
-	if (x < 0.5) {
-		float a = 1.0 - 2.0 * x;
-		zenith = th * (1.0 - a * a);
+	bool sky = x < 0.5;
+	float sin_z, cos_z;
+	if (sky) {
+		float a = 1.0 - 2.0 * x, zenith = th * (1.0 - a * a);
+		if (zenith <= 0.5 * PI) {
+			sin_z = sin(zenith);
+			cos_z = cos(zenith);
+		} else {
+			float nadir = beta + th * a * a;
+			sin_z = sin(nadir);
+			cos_z = -cos(nadir);
+		}
 	} else {
-		float a = 2.0 * x - 1.0;
-		zenith = th + (PI - th) * a * a;
+		float a = 2.0 * x - 1.0, nadir = beta * (1.0 - a * a);
+		sin_z = sin(nadir);
+		cos_z = -cos(nadir);
 	}
-	float sin_z = sin(zenith), cos_z = cos(zenith);
 	vec3 dir[SV_AZ_GROUP], radiance[SV_AZ_GROUP];
 	Phases ph_sun[SV_AZ_GROUP], ph_moon[SV_AZ_GROUP];
 	// The lights' cosine to the local vertical at a step is
@@ -62,6 +100,10 @@ void main()
 		float len = en.len;
 		float n_f = ceil(mix(P.misc.y, float(STEPS), clamp(len / 100.0, 0.0, 1.0)));
 		int n = max(int(n_f), 1);
+		// The visible part of each light's disk is averaged over each step
+		// (disk_visible_mean) from the light's height over the local horizon
+		// at the step's two ends.
+		StepEnd ea = step_end(en, sin_z, cos_z, 0.0);
 		float prev = 0.0;
 		for (int i = 0; i < n; i++) {
 			float a = float(i + 1) / float(n);
@@ -72,25 +114,34 @@ void main()
 			// The local vertical: its horizontal part follows each column.
 			float up_h = sin_z * (en.t0 + t) / rr, up_z = (en.ez + cos_z * t) / rr;
 			float sun_z = up_z * P.sun_dir.z, moon_z = up_z * P.moon_dir.z;
+			StepEnd eb = step_end(en, sin_z, cos_z, next);
 			Scatter sc;
 			Medium m = medium_parts(hs, sc);
 			TAlt ta = t_alt(hs);
+			float e_sun = P.planet.x / ta.r * P.sun_dir.w, e_moon = P.planet.x / ta.r * P.moon_dir.w;
+			float sun_k = e_sun > 0.0 ? 0.5 / e_sun : 1e30, moon_k = e_moon > 0.0 ? 0.5 / e_moon : 1e30;
 			vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
 			for (int j = 0; j < SV_AZ_GROUP; j++) {
-				vec3 s = light_source(ta, up_h * sun_h[j] + sun_z, P.sun_dir.w, P.sun_illum.rgb,
-						      phased(sc, ph_sun[j]), m.scattering);
-				if (MOON_LIT)
-					s += light_source(ta, up_h * moon_h[j] + moon_z, P.moon_dir.w, P.moon_illum.rgb,
-							  phased(sc, ph_moon[j]), m.scattering);
+				float vis = disk_visible_mean(over_horizon(ea, sun_h[j], P.sun_dir.z),
+							      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
+				vec3 s = light_source_lit(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb,
+							  phased(sc, ph_sun[j]), m.scattering);
+				if (MOON_LIT) {
+					vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
+								over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
+					s += light_source_lit(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb,
+							      phased(sc, ph_moon[j]), m.scattering);
+				}
 				radiance[j] += w * s;
 			}
+			ea = eb;
 			tr *= step_t;
 		}
 	}
 	float tr_mean = (tr.r + tr.g + tr.b) / 3.0;
 	// Night-sky floor: L_z (1 + c (1 - mu)) over the sky, its airlight (1 - T) toward the ground.
 	vec3 night = P.night.rgb * (1.0 + P.night.w * (1.0 - max(cos_z, 0.0))) *
-		     (cos_z > P.misc.x ? vec3(1.0) : 1.0 - tr);
+		     (sky ? vec3(1.0) : 1.0 - tr);
 	for (int j = 0; j < SV_AZ_GROUP; j++)
 		if (x0 + j < OUT_W)
 			STORE_TEXEL(SB, py * OUT_W + x0 + j, vec4(radiance[j] + night, tr_mean));

@@ -86,7 +86,8 @@ static void test_low_observer(void)
 
 static void test_horizon(void)
 {
-	static const char *const names[] = { "earth", "mars", "titan-like", "scattering x100", "observer 1 m" };
+	static const char *const names[] = { "earth", "mars", "titan-like", "scattering x100", "observer 1 m",
+					      "thin x0.01", "planet 10 km, shell 100 km" };
 	char err[512];
 	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]); i++) {
 		struct sky_state s;

@@ -69,7 +69,7 @@ struct stab_result {
 	uint64_t fails[STAB_N_INVARIANTS];	/* values that broke the invariant */
 	double max_t_ray_drop;	/* largest fall of T along a sampled ray (bilinear table) */
 	double max_asym;	/* largest mirror difference / peak of the table */
-	double max_jump_ratio;	/* largest horizon step / larger neighbouring step */
+	double max_jump_ratio;	/* largest horizon step / largest of the two steps either side */
 	double max_psi;		/* largest multi-scattering psi_ms seen */
 	double max_radiance;	/* largest sky-view or aerial radiance seen */
 	char first[320];	/* the first violation: case, table, texel, values */
@@ -91,8 +91,8 @@ void stab_check(const char *name, const struct sky_state *s, const struct model_
 		const struct stab_tol *tol, struct stab_result *r);
 
 /* Sweeps the sun from -3 to +3 degrees of elevation in 0.25 degree steps and
- * checks every sky-view row's mean radiance for a step more than 4 times its
- * larger neighbour (and above 1e-6 of the row's peak). Returns 0 or -errno. */
+ * checks every sky-view row's mean radiance for a step more than 4 times the
+ * largest of the two steps on either side (and above 1e-6 of the row's peak). Returns 0 or -errno. */
 int stab_horizon(const char *name, stab_compute_fn fn, void *ctx, const struct sky_state *s,
 		 struct stab_result *r, char *err, size_t err_size);
 
