@@ -96,7 +96,7 @@ static double mean_density(const struct atmo_profile *p, double ha, double hb)
  * radius of the tangent point) and the tangent point's altitude, kept apart
  * because p - rb would cancel. Along the ray u = t + r mu, and the altitude
  * is h(u) = h_tan + u^2 / (s + p), s = sqrt(u^2 + p^2). common.glsl has the
- * same functions in float32. */
+ * same functions in float32 (shaders/columns.comp). */
 struct chord {
 	double rb, p, h_tan;
 };
@@ -123,8 +123,8 @@ static double chord_crossing(const struct chord *c, double h)
 }
 
 /* x - asinh(x) for x >= 0 without cancellation: the series below 0.1 (its
- * first left-out term is 7e-16 of the sum there). common.glsl splits at
- * 0.5, where float32's asinh is accurate enough and the series still is. */
+ * first left-out term is 7e-16 of the sum there). shaders/columns.comp splits at
+ * 0.5 (float32). */
 static double x_minus_asinh(double x)
 {
 	if (x >= 0.1)
@@ -148,27 +148,20 @@ static double chord_curvature(const struct chord *c, double ua, double ub)
 	return -0.5 * c->p * c->p * x_minus_asinh((ub - ua) * (ub + ua) / den);
 }
 
+#define N_KINKS 5
+
 /* The profile's kinks: the layer boundary and where either layer's linear
- * term meets the clamps at 0 and 1, ascending. A kink that a layer never
- * reaches only cuts a piece in two. */
-static int profile_kinks(const struct atmo_profile *p, double ret[5])
+ * term meets the clamps at 0 and 1. A kink that a layer never reaches only
+ * cuts a piece in two; a flat layer repeats the boundary. */
+static void profile_kinks(const struct atmo_profile *p, double ret[N_KINKS])
 {
-	int n = 0;
-	ret[n++] = p->layers[0].width_km;
+	double w = p->layers[0].width_km;
+	ret[0] = w;
 	for (int i = 0; i < 2; i++) {
 		const struct atmo_layer *l = &p->layers[i];
-		if (l->linear_per_km == 0.0)
-			continue;
-		ret[n++] = -l->constant / l->linear_per_km;
-		ret[n++] = (1.0 - l->constant) / l->linear_per_km;
+		ret[1 + 2 * i] = l->linear_per_km != 0.0 ? -l->constant / l->linear_per_km : w;
+		ret[2 + 2 * i] = l->linear_per_km != 0.0 ? (1.0 - l->constant) / l->linear_per_km : w;
 	}
-	for (int i = 1; i < n; i++)
-		for (int j = i; j > 0 && ret[j] < ret[j - 1]; j--) {
-			double t = ret[j];
-			ret[j] = ret[j - 1];
-			ret[j - 1] = t;
-		}
-	return n;
 }
 
 /* The integral over [ua, ub] of a profile that is linear in altitude
@@ -193,19 +186,24 @@ static double column_piece(const struct atmo_profile *p, const struct chord *c, 
 }
 
 /* The same over |u| in [lo, hi], 0 <= lo, where the altitude rises with
- * |u|: cut at every kink crossed. */
+ * |u|: cut at every kink crossed, the next one the lowest kink above the
+ * last (as columns.comp, which cannot sort). */
 static double column_rising(const struct atmo_profile *p, const struct chord *c,
-			    const double *kinks, int n_kinks, double lo, double hi)
+			    const double kinks[N_KINKS], double lo, double hi)
 {
 	double ua = lo, ha = chord_altitude(c, lo), h_hi = chord_altitude(c, hi), sum = 0.0;
-	for (int i = 0; i < n_kinks; i++) {
-		if (!(kinks[i] > ha && kinks[i] < h_hi))
-			continue;
-		double ub = chord_crossing(c, kinks[i]);
+	for (int i = 0; i < N_KINKS; i++) {
+		double next = h_hi;
+		for (int j = 0; j < N_KINKS; j++)
+			if (kinks[j] > ha && kinks[j] < next)
+				next = kinks[j];
+		if (!(next < h_hi))
+			break;
+		double ub = chord_crossing(c, next);
 		ub = ub < ua ? ua : ub > hi ? hi : ub;
-		sum += column_piece(p, c, ua, ha, ub, kinks[i]);
+		sum += column_piece(p, c, ua, ha, ub, next);
 		ua = ub;
-		ha = kinks[i];
+		ha = next;
 	}
 	return sum + column_piece(p, c, ua, ha, hi, h_hi);
 }
@@ -218,14 +216,14 @@ static double column_rising(const struct atmo_profile *p, const struct chord *c,
  * altitude. */
 static double column_linear(const struct atmo_profile *p, double rb, double h, double mu, double d)
 {
-	double kinks[5];
-	int n = profile_kinks(p, kinks);
+	double kinks[N_KINKS];
+	profile_kinks(p, kinks);
 	struct chord c = chord_of(rb, h, mu);
 	double u0 = (rb + h) * mu, u1 = u0 + d, sum = 0.0;
 	if (u0 < 0)
-		sum += column_rising(p, &c, kinks, n, u1 < 0 ? -u1 : 0.0, -u0);
+		sum += column_rising(p, &c, kinks, u1 < 0 ? -u1 : 0.0, -u0);
 	if (u1 > 0)
-		sum += column_rising(p, &c, kinks, n, u0 > 0 ? u0 : 0.0, u1);
+		sum += column_rising(p, &c, kinks, u0 > 0 ? u0 : 0.0, u1);
 	return sum;
 }
 
