@@ -785,6 +785,7 @@ static int cmd_status(struct client *c, const struct proto_request *req, struct 
 		reply_add(r, "%s_ms: %.3f\n", state_table_names[t], st.table_ms[t]);
 	reply_add(r, "computations: %llu\nfailures: %llu\n", (unsigned long long)st.computations,
 		  (unsigned long long)st.failures);
+	reply_add(r, "column_passes: %llu\n", (unsigned long long)st.column_passes);
 	reply_add(r, "last_error: %s\n", st.last_error[0] ? st.last_error : "none");
 	reply_add(r, "storage_warning: %s\n", st.storage_warning[0] ? st.storage_warning : "none");
 	reply_add(r, "device: %s\ndevice_type: %s\n", d->name, d->type_name);

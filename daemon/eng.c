@@ -51,9 +51,14 @@ struct gpu_constituent {
 /* The tables later passes look up: transmittance and multi-scattering. */
 #define N_LOOKUPS 2
 /* Bindings: 0 parameters, 1-4 the tables (storage), 5-6 the lookups,
- * 7 the cameras of the aerial volumes (storage). */
-#define N_BINDINGS (1 + STATE_N_TABLES + N_LOOKUPS + 1)
-#define VIEWS_BINDING (N_BINDINGS - 1)
+ * 7 the cameras of the aerial volumes (storage), 8 the column densities of
+ * the transmittance texels (storage). */
+#define VIEWS_BINDING (1 + STATE_N_TABLES + N_LOOKUPS)
+#define COLUMNS_BINDING (VIEWS_BINDING + 1)
+#define N_BINDINGS (COLUMNS_BINDING + 1)
+/* Compute passes: one per table, then the column densities (SHADER_COLUMNS). */
+#define PASS_COLUMNS STATE_N_TABLES
+#define N_PASSES (STATE_N_TABLES + 1)
 
 struct gpu_params {
 	float planet[4], albedo[4], sun_dir[4], sun_illum[4], moon_dir[4], moon_illum[4];
@@ -79,6 +84,16 @@ struct gpu_buffer {
 	VkDeviceSize bytes;
 };
 
+/* What the column densities depend on: the shell's geometry, the density
+ * profiles of the constituents in the shaders, the table's size and steps
+ * (the column pass's specialization). Coefficients are not in it. */
+struct column_key {
+	float planet[3];	/* bottom, top, shell: the observer left out */
+	float h_top;		/* misc.w */
+	float layers[ATMO_MAX_CONSTITUENTS][12];
+	struct spec spec;
+};
+
 struct eng {
 	struct vkfn vk;
 	void *loader;
@@ -96,9 +111,9 @@ struct eng {
 	VkPipelineLayout pipe_layout;
 	VkDescriptorPool desc_pool;
 	VkDescriptorSet set;
-	VkShaderModule modules[STATE_N_TABLES];
-	struct pipeline pipes[STATE_N_TABLES][MAX_PIPELINES];
-	int n_pipes[STATE_N_TABLES];
+	VkShaderModule modules[N_PASSES];
+	struct pipeline pipes[N_PASSES][MAX_PIPELINES];
+	int n_pipes[N_PASSES];
 	uint64_t pipelines_created;
 	VkCommandPool cmd_pool;
 	VkCommandBuffer cmd;
@@ -116,6 +131,13 @@ struct eng {
 	 * lavapipe (measured: about half of the sky-view pass). */
 	VkBufferView lookup_view[N_LOOKUPS];
 	VkFormat lookup_format[N_LOOKUPS];
+	/* Column densities per transmittance texel (vec4, one per constituent):
+	 * recomputed only when column_key changes, so that a change of the
+	 * coefficients alone runs the tiny transmittance pass only. */
+	struct gpu_buffer columns;
+	struct column_key column_key;
+	bool columns_valid;
+	bool columns_in_flight;
 
 	/* Completion: a waiter thread waits on the fence, then writes the eventfd. */
 	int event_fd;
@@ -478,7 +500,7 @@ static VkDescriptorType binding_type(int binding)
 {
 	if (binding == 0)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-	return binding <= STATE_N_TABLES || binding == VIEWS_BINDING
+	return binding <= STATE_N_TABLES || binding >= VIEWS_BINDING
 		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
 		       : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 }
@@ -543,7 +565,7 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
-		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 1 },
+		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 2 },
 		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
@@ -552,7 +574,7 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 		.descriptorPool = e->desc_pool, .descriptorSetCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkAllocateDescriptorSets(e->dev, &dai, &e->set));
 
-	for (int t = 0; t < STATE_N_TABLES; t++) {
+	for (int t = 0; t < N_PASSES; t++) {
 		VkShaderModuleCreateInfo si = { .sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO,
 			.codeSize = shader_code[t].bytes, .pCode = shader_code[t].words };
 		VK_TRY(e->vk.vkCreateShaderModule(e->dev, &si, NULL, &e->modules[t]));
@@ -567,7 +589,7 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	VK_TRY(e->vk.vkAllocateCommandBuffers(e->dev, &cai, &e->cmd));
 	if (e->timestamps) {
 		VkQueryPoolCreateInfo qpi = { .sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO,
-			.queryType = VK_QUERY_TYPE_TIMESTAMP, .queryCount = 2 * STATE_N_TABLES };
+			.queryType = VK_QUERY_TYPE_TIMESTAMP, .queryCount = 2 * N_PASSES };
 		VK_TRY(e->vk.vkCreateQueryPool(e->dev, &qpi, NULL, &e->queries));
 	}
 	VkFenceCreateInfo fi = { .sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO };
@@ -634,9 +656,11 @@ void eng_free(struct eng *e)
 		for (int i = 0; i < N_LOOKUPS; i++)
 			if (e->lookup_view[i])
 				e->vk.vkDestroyBufferView(e->dev, e->lookup_view[i], NULL);
-		for (int t = 0; t < STATE_N_TABLES; t++) {
-			buffer_free(e, &e->table[t]);
-			buffer_free(e, &e->readback[t]);
+		for (int t = 0; t < N_PASSES; t++) {
+			if (t < STATE_N_TABLES) {
+				buffer_free(e, &e->table[t]);
+				buffer_free(e, &e->readback[t]);
+			}
 			for (int i = 0; i < e->n_pipes[t]; i++)
 				e->vk.vkDestroyPipeline(e->dev, e->pipes[t][i].pipe, NULL);
 			if (e->modules[t])
@@ -644,6 +668,7 @@ void eng_free(struct eng *e)
 		}
 		buffer_free(e, &e->params);
 		buffer_free(e, &e->views);
+		buffer_free(e, &e->columns);
 		if (e->fence)
 			e->vk.vkDestroyFence(e->dev, e->fence, NULL);
 		if (e->queries)
@@ -903,6 +928,7 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 		k.v[1] = k.v[2] = k.v[3] = k.v[4] = 0;	/* extinction only */
 		k.v[6] = k.v[7] = 0;
 		k.v[10] = k.v[11] = k.v[16] = 0;
+		k.v[15] = k.v[18] = 0;	/* steps and profiles: the column pass's */
 	}
 	if (t != STATE_MULTISCATTER)
 		k.v[16] = 0;
@@ -915,6 +941,35 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
 		k.v[7] = 0;	/* the ground enters through the multiscatter table */
 	return k;
+}
+
+/* The column pass is specialized on the constituents' count and profile
+ * kinds, the transmittance table's size and its steps, nothing else. */
+static struct spec column_spec(const struct spec *base, const struct sky_state *s)
+{
+	const struct state_table_quality *q = &s->quality.t[STATE_TRANSMITTANCE];
+	struct spec k = { { 0 } };
+
+	k.v[0] = base->v[0];
+	k.v[12] = (int32_t)q->width;
+	k.v[13] = (int32_t)q->height;
+	k.v[15] = (int32_t)q->steps;
+	k.v[18] = base->v[18];
+	return k;
+}
+
+static void column_key(const struct gpu_params *p, const struct spec *column_spec,
+		       struct column_key *ret)
+{
+	memset(ret, 0, sizeof(*ret));
+	memcpy(ret->planet, p->planet, sizeof(ret->planet));
+	ret->h_top = p->misc[3];
+	for (int i = 0; i < column_spec->v[0]; i++) {
+		memcpy(ret->layers[i], p->c[i].layer0, 4 * sizeof(float));
+		memcpy(ret->layers[i] + 4, p->c[i].layer0c_1, 4 * sizeof(float));
+		memcpy(ret->layers[i] + 8, p->c[i].layer1c, 4 * sizeof(float));
+	}
+	ret->spec = *column_spec;
 }
 
 static int get_pipeline(struct eng *e, int t, const struct spec *key, VkPipeline *ret,
@@ -1012,6 +1067,17 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 		lost |= STATE_BIT(t);
 		rebind = true;
 	}
+	const struct state_table_quality *tq = &s->quality.t[STATE_TRANSMITTANCE];
+	VkDeviceSize column_bytes = (VkDeviceSize)tq->width * tq->height * 4 * sizeof(float);
+	if (!e->columns.buf || e->columns.bytes != column_bytes) {
+		buffer_free(e, &e->columns);
+		e->columns_valid = false;
+		rc = buffer_new(e, column_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->columns, err, err_size);
+		if (rc < 0)
+			return rc;
+		rebind = true;
+	}
 	if (rebind) {
 		VkDescriptorBufferInfo bi[N_BINDINGS] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
 		VkWriteDescriptorSet w[N_BINDINGS];
@@ -1019,12 +1085,14 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 			w[i] = (VkWriteDescriptorSet){ .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
 				.dstSet = e->set, .dstBinding = (uint32_t)i, .descriptorCount = 1,
 				.descriptorType = binding_type(i) };
-			if (i > STATE_N_TABLES && i != VIEWS_BINDING) {
+			if (i > STATE_N_TABLES && i < VIEWS_BINDING) {
 				w[i].pTexelBufferView = &e->lookup_view[i - 1 - STATE_N_TABLES];
 				continue;
 			}
 			if (i == VIEWS_BINDING)
 				bi[i] = (VkDescriptorBufferInfo){ e->views.buf, 0, VK_WHOLE_SIZE };
+			else if (i == COLUMNS_BINDING)
+				bi[i] = (VkDescriptorBufferInfo){ e->columns.buf, 0, VK_WHOLE_SIZE };
 			else if (i > 0)
 				bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
 			w[i].pBufferInfo = &bi[i];
@@ -1089,6 +1157,7 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 
 	fill_params(s, &params, &base);
 	VkPipeline pipes[STATE_N_TABLES] = { 0 }, group_pipes[N_VOLUMES] = { 0 };
+	VkPipeline column_pipe = VK_NULL_HANDLE;
 	uint32_t group_of[N_VOLUMES], group_size[N_VOLUMES], n_groups = view_groups(s, group_of, group_size);
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if (mask & STATE_BIT(t)) {
@@ -1103,6 +1172,19 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 			if (rc < 0)
 				return rc;
 		}
+	/* The column densities are recomputed only when what they depend on
+	 * changed; the same inputs give the same bits, so a table made from
+	 * kept columns is the one a fresh engine makes. */
+	struct spec ck = column_spec(&base, s);
+	struct column_key key;
+	column_key(&params, &ck, &key);
+	bool run_columns = (mask & STATE_BIT(STATE_TRANSMITTANCE)) &&
+			   (!e->columns_valid || memcmp(&key, &e->column_key, sizeof(key)));
+	if (run_columns) {
+		rc = get_pipeline(e, PASS_COLUMNS, &ck, &column_pipe, err, err_size);
+		if (rc < 0)
+			return rc;
+	}
 	memcpy(e->params.map, &params, sizeof(params));
 	fill_views(s, e->views.map);
 
@@ -1110,7 +1192,7 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 		.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT };
 	VK_TRY(e->vk.vkBeginCommandBuffer(e->cmd, &bi));
 	if (e->timestamps)
-		e->vk.vkCmdResetQueryPool(e->cmd, e->queries, 0, 2 * STATE_N_TABLES);
+		e->vk.vkCmdResetQueryPool(e->cmd, e->queries, 0, 2 * N_PASSES);
 	e->vk.vkCmdBindDescriptorSets(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, e->pipe_layout, 0, 1,
 				      &e->set, 0, NULL);
 	VkMemoryBarrier compute_to_compute = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
@@ -1120,6 +1202,19 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 			continue;
 		uint32_t gx, gy;
 		groups(s, t, &gx, &gy);
+		if (t == STATE_TRANSMITTANCE && run_columns) {
+			if (e->timestamps)
+				e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT,
+							  e->queries, 2 * PASS_COLUMNS);
+			e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, column_pipe);
+			e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
+			e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+						   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
+						   &compute_to_compute, 0, NULL, 0, NULL);
+			if (e->timestamps)
+				e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT,
+							  e->queries, 2 * PASS_COLUMNS + 1);
+		}
 		if (e->timestamps)
 			e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
 						  2 * t);
@@ -1168,6 +1263,12 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 	clock_gettime(CLOCK_MONOTONIC, &e->submit_time);
 	VK_TRY(e->vk.vkQueueSubmit(e->queue, 1, &si, e->fence));
 
+	if (run_columns) {
+		/* Invalidated again if the computation fails (eng_complete). */
+		e->column_key = key;
+		e->columns_valid = true;
+	}
+	e->columns_in_flight = run_columns;
 	pthread_mutex_lock(&e->lock);
 	e->in_flight_mask = mask;
 	e->pending = true;
@@ -1196,10 +1297,13 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 	while (read(e->event_fd, &count, sizeof(count)) == sizeof(count))
 		;
 
-	struct eng_timing t = { .computed = mask, .total_ms = elapsed_ms(&e->submit_time, &now) };
+	struct eng_timing t = { .computed = mask, .total_ms = elapsed_ms(&e->submit_time, &now),
+		.columns = e->columns_in_flight };
 	pthread_mutex_lock(&e->lock);
 	e->finished = false;
 	pthread_mutex_unlock(&e->lock);
+	if (wr != VK_SUCCESS)
+		e->columns_valid = false;
 	VK_TRY(wr);
 	for (int i = 0; i < STATE_N_TABLES; i++) {
 		if (!(mask & STATE_BIT(i)))
@@ -1217,6 +1321,13 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 							   &ts[2 * i], sizeof(uint64_t),
 							   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
 			t.table_ms[i] = (double)(ts[2 * i + 1] - ts[2 * i]) * e->timestamp_period_ns * 1e-6;
+		}
+		if (t.columns) {
+			VK_TRY(e->vk.vkGetQueryPoolResults(e->dev, e->queries, 2 * PASS_COLUMNS, 2,
+							   sizeof(uint64_t) * 2, ts, sizeof(uint64_t),
+							   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+			t.columns_ms = (double)(ts[1] - ts[0]) * e->timestamp_period_ns * 1e-6;
+			t.table_ms[STATE_TRANSMITTANCE] += t.columns_ms;
 		}
 	}
 	*ret = t;

@@ -34,8 +34,15 @@ struct eng_device {
 
 struct eng_timing {
 	uint32_t computed;		/* STATE_BIT mask of the tables computed */
-	double table_ms[STATE_N_TABLES];/* GPU time per table (timestamps), else wall time */
+	double table_ms[STATE_N_TABLES];/* GPU time per table (timestamps), else wall time;
+					 * transmittance's includes the column pass */
 	double total_ms;		/* submit to completion, wall clock */
+	/* 1 when the column-density pass ran: transmittance is exp(-sum ext_k L_k)
+	 * from column densities L_k that depend on the geometry, the profiles
+	 * and the table's size and steps only, kept from the last computation
+	 * unless one of those changed. */
+	int columns;
+	double columns_ms;		/* its GPU time (timestamps), else 0 */
 };
 
 /* Lists the Vulkan devices, at most max of them, into ret (may be NULL when

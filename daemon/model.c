@@ -81,39 +81,150 @@ static double mean_exp(double k, double ha, double hb)
 	return (exp(k * hb) - exp(k * ha)) / (2.0 * x);
 }
 
-/* See clamped_linear_integral and mean_linear_density in common.glsl. */
-static double clamped_linear_integral(double a, double c, double x, double y)
-{
-	if (fabs(a) < 1e-12)
-		return (c < 0 ? 0 : c > 1 ? 1 : c) * (y - x);
-	double ux = a * x + c, uy = a * y + c;
-	double gx = ux <= 0 ? 0 : ux >= 1 ? ux - 0.5 : 0.5 * ux * ux;
-	double gy = uy <= 0 ? 0 : uy >= 1 ? uy - 0.5 : 0.5 * uy * uy;
-	return (gy - gx) / a;
-}
-
-/* Mean density over a step from ha to hb, exact where the altitude changes
- * linearly: exponential layers through mean_exp, a profile of linear layers
- * only (ozone's tent) split at the layer boundary and the clamps. */
+/* Mean density over a step from ha to hb of a profile with an exponential
+ * term, exact where the altitude changes linearly over the step. */
 static double mean_density(const struct atmo_profile *p, double ha, double hb)
 {
 	double hm = 0.5 * (ha + hb);
-	const struct atmo_layer *l0 = &p->layers[0], *l1 = &p->layers[1];
-	if (l0->exp_term == 0.0 && l1->exp_term == 0.0) {
-		double lo = ha < hb ? ha : hb, hi = ha < hb ? hb : ha, w = l0->width_km;
-		if (hi - lo < 1e-9) {
-			const struct atmo_layer *l = lo < w ? l0 : l1;
-			double d = l->linear_per_km * lo + l->constant;
-			return d < 0 ? 0 : d > 1 ? 1 : d;
-		}
-		double m = w < lo ? lo : w > hi ? hi : w;
-		return (clamped_linear_integral(l0->linear_per_km, l0->constant, lo, m) +
-			clamped_linear_integral(l1->linear_per_km, l1->constant, m, hi)) / (hi - lo);
-	}
 	const struct atmo_layer *l = hm < p->layers[0].width_km ? &p->layers[0] : &p->layers[1];
 	double e = l->exp_term != 0.0 ? l->exp_term * mean_exp(l->exp_scale_per_km, ha, hb) : 0.0;
 	double d = e + l->linear_per_km * hm + l->constant;
 	return d < 0 ? 0 : d > 1 ? 1 : d;
+}
+
+/* A straight ray seen from the planet's centre: impact parameter p (the
+ * radius of the tangent point) and the tangent point's altitude, kept apart
+ * because p - rb would cancel. Along the ray u = t + r mu, and the altitude
+ * is h(u) = h_tan + u^2 / (s + p), s = sqrt(u^2 + p^2). common.glsl has the
+ * same functions in float32 (shaders/columns.comp). */
+struct chord {
+	double rb, p, h_tan;
+};
+
+static struct chord chord_of(double rb, double h, double mu)
+{
+	double u0 = (rb + h) * mu;
+	double q = h * (2.0 * rb + h) - u0 * u0;	/* p^2 - rb^2 */
+	struct chord c = { .rb = rb, .p = sqrt(fmax(rb * rb + q, 0.0)) };
+	c.h_tan = q / (c.p + rb);
+	return c;
+}
+
+static double chord_altitude(const struct chord *c, double u)
+{
+	double sp = sqrt(u * u + c->p * c->p) + c->p;
+	return sp > 0 ? c->h_tan + u * u / sp : c->h_tan;
+}
+
+/* |u| where the chord crosses altitude h (>= h_tan). */
+static double chord_crossing(const struct chord *c, double h)
+{
+	return sqrt(fmax((h - c->h_tan) * (h + c->h_tan + 2.0 * c->rb), 0.0));
+}
+
+/* x - asinh(x) for x >= 0 without cancellation: the series below 0.1 (its
+ * first left-out term is 7e-16 of the sum there). shaders/columns.comp splits at
+ * 0.5 (float32). */
+static double x_minus_asinh(double x)
+{
+	if (x >= 0.1)
+		return x - asinh(x);
+	double x2 = x * x;
+	return x * x2 * (1.0 / 6 - x2 * (3.0 / 40 - x2 * (5.0 / 112 - x2 * (35.0 / 1152 -
+	       x2 * (63.0 / 2816 - x2 * (231.0 / 13312 - x2 * (143.0 / 10240 -
+	       x2 * (6435.0 / 557056))))))));
+}
+
+/* The integral of h(u) over [ua, ub] (0 <= ua <= ub) minus its trapezoid
+ * (ub - ua) (h(ua) + h(ub)) / 2. With u = p sinh(theta) it is
+ * -p^2 (sinh(dtheta) - dtheta) / 2, and sinh(dtheta) is the X below, which
+ * has no p in a denominator (p = 0 on a vertical ray). <= 0: h is convex. */
+static double chord_curvature(const struct chord *c, double ua, double ub)
+{
+	double sa = sqrt(ua * ua + c->p * c->p), sb = sqrt(ub * ub + c->p * c->p);
+	double den = ub * sa + ua * sb;
+	if (!(c->p > 0) || !(den > 0))
+		return 0.0;
+	return -0.5 * c->p * c->p * x_minus_asinh((ub - ua) * (ub + ua) / den);
+}
+
+#define N_KINKS 5
+
+/* The profile's kinks: the layer boundary and where either layer's linear
+ * term meets the clamps at 0 and 1. A kink that a layer never reaches only
+ * cuts a piece in two; a flat layer repeats the boundary. */
+static void profile_kinks(const struct atmo_profile *p, double ret[N_KINKS])
+{
+	double w = p->layers[0].width_km;
+	ret[0] = w;
+	for (int i = 0; i < 2; i++) {
+		const struct atmo_layer *l = &p->layers[i];
+		ret[1 + 2 * i] = l->linear_per_km != 0.0 ? -l->constant / l->linear_per_km : w;
+		ret[2 + 2 * i] = l->linear_per_km != 0.0 ? (1.0 - l->constant) / l->linear_per_km : w;
+	}
+}
+
+/* The integral over [ua, ub] of a profile that is linear in altitude
+ * between the altitudes ha and hb (no kink between): the trapezoid of the
+ * densities at the ends, which cannot cancel, plus the slope times the
+ * chord's curvature. */
+static double column_piece(const struct atmo_profile *p, const struct chord *c, double ua,
+			   double ha, double ub, double hb)
+{
+	double hm = 0.5 * (ha + hb);
+	const struct atmo_layer *l = hm < p->layers[0].width_km ? &p->layers[0] : &p->layers[1];
+	double dm = l->linear_per_km * hm + l->constant;
+	if (dm <= 0.0)
+		return 0.0;
+	if (dm >= 1.0)
+		return ub - ua;
+	double da = l->linear_per_km * ha + l->constant, db = l->linear_per_km * hb + l->constant;
+	da = da < 0 ? 0 : da > 1 ? 1 : da;
+	db = db < 0 ? 0 : db > 1 ? 1 : db;
+	double x = (ub - ua) * 0.5 * (da + db) + l->linear_per_km * chord_curvature(c, ua, ub);
+	return x > 0 ? x : 0;
+}
+
+/* The same over |u| in [lo, hi], 0 <= lo, where the altitude rises with
+ * |u|: cut at every kink crossed, the next one the lowest kink above the
+ * last (as columns.comp, which cannot sort). */
+static double column_rising(const struct atmo_profile *p, const struct chord *c,
+			    const double kinks[N_KINKS], double lo, double hi)
+{
+	double ua = lo, ha = chord_altitude(c, lo), h_hi = chord_altitude(c, hi), sum = 0.0;
+	for (int i = 0; i < N_KINKS; i++) {
+		double next = h_hi;
+		for (int j = 0; j < N_KINKS; j++)
+			if (kinks[j] > ha && kinks[j] < next)
+				next = kinks[j];
+		if (!(next < h_hi))
+			break;
+		double ub = chord_crossing(c, next);
+		ub = ub < ua ? ua : ub > hi ? hi : ub;
+		sum += column_piece(p, c, ua, ha, ub, next);
+		ua = ub;
+		ha = next;
+	}
+	return sum + column_piece(p, c, ua, ha, hi, h_hi);
+}
+
+/* The column density of a profile of clamped linear layers (ozone's tent)
+ * from altitude h along mu for a length d, in closed form. Steps that take
+ * the altitude as linear in t miss its curvature near a grazing ray's
+ * tangent point, where rows of the table rose by 0.11 %. The ray descends
+ * to its tangent point (u < 0), then rises: each half is monotone in
+ * altitude. */
+static double column_linear(const struct atmo_profile *p, double rb, double h, double mu, double d)
+{
+	double kinks[N_KINKS];
+	profile_kinks(p, kinks);
+	struct chord c = chord_of(rb, h, mu);
+	double u0 = (rb + h) * mu, u1 = u0 + d, sum = 0.0;
+	if (u0 < 0)
+		sum += column_rising(p, &c, kinks, u1 < 0 ? -u1 : 0.0, -u0);
+	if (u1 > 0)
+		sum += column_rising(p, &c, kinks, u0 > 0 ? u0 : 0.0, u1);
+	return sum;
 }
 
 static v3 phased_scattering(const struct ctx *c, double h, double mu)
@@ -323,25 +434,35 @@ static void put(double *dst, v3 rgb, double a)
 	dst[3] = a;
 }
 
-/* Optical depth from altitude h along mu to the top, the quadrature of the
- * transmittance pass: steps of equal length, each layer integrated exactly
+/* Optical depth from altitude h along mu to the top, as the engine's two
+ * transmittance passes compute it: per constituent the column density of
+ * its profile (geometry only), then the sum of the columns weighted by the
+ * extinctions. Profiles of linear layers in closed form (column_linear);
+ * profiles with an exponential term in steps of equal length, each exact
  * for a linear change of altitude over the step. */
 static v3 optical_depth(const struct ctx *c, double h, double mu, uint32_t steps)
 {
-	double d = distance_to_top(c, h, mu), dt = d / steps, rr, ha = h;
+	double d = distance_to_top(c, h, mu), dt = d / steps, rr;
 	v3 tau = { 0 };
-	for (uint32_t k = 0; k < steps; k++) {
-		double hb = altitude_along(c, h, mu, (k + 1) * dt, &rr);
-		for (int n = 0; n < c->a->n_constituents; n++) {
-			const struct atmo_constituent *a = &c->a->c[n];
-			tau = add(tau, scale(v(a->scattering_per_km[0] + a->absorption_per_km[0],
-					       a->scattering_per_km[1] + a->absorption_per_km[1],
-					       a->scattering_per_km[2] + a->absorption_per_km[2]),
-					     mean_density(&a->density, ha, hb)));
+	for (int n = 0; n < c->a->n_constituents; n++) {
+		const struct atmo_constituent *a = &c->a->c[n];
+		const struct atmo_profile *p = &a->density;
+		double column = 0.0, ha = h;
+		if (p->layers[0].exp_term == 0.0 && p->layers[1].exp_term == 0.0) {
+			column = column_linear(p, c->rb, h, mu, d);
+		} else {
+			for (uint32_t k = 0; k < steps; k++) {
+				double hb = altitude_along(c, h, mu, (k + 1) * dt, &rr);
+				column += mean_density(p, ha, hb);
+				ha = hb;
+			}
+			column *= dt;
 		}
-		ha = hb;
+		tau = add(tau, scale(v(a->scattering_per_km[0] + a->absorption_per_km[0],
+				       a->scattering_per_km[1] + a->absorption_per_km[1],
+				       a->scattering_per_km[2] + a->absorption_per_km[2]), column));
 	}
-	return scale(tau, dt);
+	return tau;
 }
 
 static void compute_transmittance(const struct ctx *c, const struct state_table_quality *q, double *out)

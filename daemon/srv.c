@@ -222,6 +222,7 @@ static void eng_ready(void *ctx, uint32_t events)
 		s->eng_valid |= s->in_flight_mask;
 		s->st.last_computed = timing.computed ? timing.computed : s->in_flight_mask;
 		s->st.last_total_ms = timing.total_ms;
+		s->st.column_passes += (uint64_t)timing.columns;
 		for (int t = 0; t < STATE_N_TABLES; t++)
 			if (s->st.last_computed & STATE_BIT(t))
 				s->st.table_ms[t] = timing.table_ms[t];

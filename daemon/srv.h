@@ -41,6 +41,7 @@ struct srv_status {
 	uint32_t demand;		/* srv_set_demand's tables */
 	uint32_t needed;		/* demand with its dependencies */
 	uint64_t computations, failures;
+	uint64_t column_passes;		/* computations that ran transmittance's column pass */
 	char last_error[256];		/* "" when the last computation succeeded */
 	char storage_warning[192];	/* float16 broke in the last computation; "" when not */
 };

@@ -69,6 +69,9 @@ layout(std430, binding = 4) buffer AerialBuf { uint d[]; } AB;
 // buffers: the format converts f16, and the gathers are vectorized.
 layout(binding = 5) uniform samplerBuffer TransmittanceTex;
 layout(binding = 6) uniform samplerBuffer MultiscatterTex;
+// Column densities of the transmittance texels, one per constituent
+// (columns.comp): internal, float32 whatever the tables' storage.
+layout(std430, binding = 8) buffer ColumnBuf { vec4 d[]; } CB;
 
 // Texels are RGBA: four 32-bit words, or two words of packed halves.
 #define STORE_TEXEL(B, i, v) do { \
@@ -115,35 +118,6 @@ float mean_exp(float k, float ha, float hb)
 	if (abs(x) < 0.1)
 		return exp(0.5 * k * (ha + hb)) * (1.0 + x * x * (1.0 / 6.0 + x * x / 120.0));
 	return (exp(k * hb) - exp(k * ha)) / (2.0 * x);
-}
-
-// Integral over h from x to y of clamp(a h + c, 0, 1): G(u) = 0, u^2 / 2,
-// u - 1/2 below 0, on [0, 1], above 1 is its antiderivative in u = a h + c.
-float clamped_linear_integral(float a, float c, float x, float y)
-{
-	if (abs(a) < 1e-12)
-		return clamp(c, 0.0, 1.0) * (y - x);
-	float ux = a * x + c, uy = a * y + c;
-	float gx = ux <= 0.0 ? 0.0 : ux >= 1.0 ? ux - 0.5 : 0.5 * ux * ux;
-	float gy = uy <= 0.0 ? 0.0 : uy >= 1.0 ? uy - 0.5 : 0.5 * uy * uy;
-	return (gy - gx) / a;
-}
-
-// Mean over [ha, hb] of a profile without exponential terms (ozone's tent):
-// exact for the clamped piecewise-linear profile, split at the layer
-// boundary w, where a midpoint rule would put a step's whole density on
-// one side of the kink (transmittance rows then rose with path length).
-// l0, l1: (exp_term, exp_scale, linear, constant) of the two layers.
-float mean_linear_density(vec4 l0, vec4 l1, float w, float ha, float hb)
-{
-	float lo = min(ha, hb), hi = max(ha, hb);
-	if (hi - lo < 1e-6) {
-		vec4 l = lo < w ? l0 : l1;
-		return clamp(l.z * lo + l.w, 0.0, 1.0);
-	}
-	float m = clamp(w, lo, hi);
-	return (clamped_linear_integral(l0.z, l0.w, lo, m) +
-		clamped_linear_integral(l1.z, l1.w, m, hi)) / (hi - lo);
 }
 
 int phase_kind(int i) { return i == 0 ? PHASE_0 : i == 1 ? PHASE_1 : i == 2 ? PHASE_2 : PHASE_3; }

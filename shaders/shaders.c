@@ -5,10 +5,12 @@
 #include "multiscatter.spv.h"
 #include "skyview.spv.h"
 #include "aerial.spv.h"
+#include "columns.spv.h"
 
 const struct shader_code shader_code[SHADER_COUNT] = {
 	{ "transmittance", shader_transmittance_spv, sizeof(shader_transmittance_spv) },
 	{ "multiscatter", shader_multiscatter_spv, sizeof(shader_multiscatter_spv) },
 	{ "skyview", shader_skyview_spv, sizeof(shader_skyview_spv) },
 	{ "aerial", shader_aerial_spv, sizeof(shader_aerial_spv) },
+	{ "columns", shader_columns_spv, sizeof(shader_columns_spv) },
 };

@@ -259,6 +259,90 @@ out:
 	hang_up(&user);
 }
 
+/* Computes transmittance alone for s on e; returns whether the column pass
+ * ran, -1 on error. */
+static int transmittance_on(struct eng *e, const struct sky_state *s)
+{
+	struct eng_timing t;
+	char err[256];
+
+	if (eng_compute(e, s, T, &t, err, sizeof(err)) < 0) {
+		FAIL("transmittance: %s", err);
+		return -1;
+	}
+	CHECK(t.computed == T);
+	return t.columns;
+}
+
+/* Transmittance on e is bit-identical to a fresh engine's for s. */
+static void check_fresh(struct eng *e, const struct sky_state *s, const char *what)
+{
+	struct eng *fresh;
+	char err[256];
+	size_t a, b;
+
+	if (eng_new(NULL, err, sizeof(err), &fresh) < 0) {
+		FAIL("%s: %s", what, err);
+		return;
+	}
+	CHECK(transmittance_on(fresh, s) == 1);	/* a fresh engine has no columns */
+	const void *x = eng_table(e, STATE_TRANSMITTANCE, &a), *y = eng_table(fresh, STATE_TRANSMITTANCE, &b);
+	if (a != b || memcmp(x, y, a))
+		FAIL("%s: transmittance differs from a fresh engine's", what);
+	eng_free(fresh);
+}
+
+/* Issue 7: optical depth is linear in the coefficients, so the engine keeps
+ * the column densities of the transmittance texels and a change of
+ * coefficients alone runs only exp(-sum ext_k L_k); what the columns depend
+ * on (a scale height, a layer, the shell, the steps) runs the column pass. */
+static void test_columns(void)
+{
+	struct sky_state s;
+	struct eng *e;
+	char err[256];
+
+	state_default(&s);
+	for (int i = 0; small[i]; i++)
+		CHECK(state_set_pair(&s, small[i], NULL, err, sizeof(err)) == 0);
+	if (eng_new(NULL, err, sizeof(err), &e) < 0) {
+		FAIL("%s", err);
+		return;
+	}
+	CHECK(transmittance_on(e, &s) == 1);
+	CHECK(transmittance_on(e, &s) == 0);	/* the same state: kept */
+	static const char *const coefficients[] = {
+		"mie_scattering_per_km=0.0041", "rayleigh_scattering_per_km=0.006,0.0135,0.033",
+		"ozone_absorption_per_km=0.0013,0.0038,0.0002", "mie_absorption_per_km=0.0005",
+	};
+	for (size_t i = 0; i < sizeof(coefficients) / sizeof(coefficients[0]); i++) {
+		CHECK(state_set_pair(&s, coefficients[i], NULL, err, sizeof(err)) == 0);
+		if (transmittance_on(e, &s) != 0)
+			FAIL("%s ran the column pass", coefficients[i]);
+		check_fresh(e, &s, coefficients[i]);
+	}
+	/* The other tables are unaffected by the columns kept or not. */
+	static const char *const geometry[] = {
+		"mie_scale_height_km=1.4", "ozone_layer0_width_km=24", "top_radius_km=6470",
+		"transmittance_steps=24",
+	};
+	for (size_t i = 0; i < sizeof(geometry) / sizeof(geometry[0]); i++) {
+		if (state_set_pair(&s, geometry[i], NULL, err, sizeof(err)) < 0) {
+			FAIL("%s: %s", geometry[i], err);
+			continue;
+		}
+		if (transmittance_on(e, &s) != 1)
+			FAIL("%s did not run the column pass", geometry[i]);
+		check_fresh(e, &s, geometry[i]);
+	}
+	/* A constituent switched off changes the set the columns are for. */
+	CHECK(state_set_pair(&s, "mie_scattering_per_km=0", NULL, err, sizeof(err)) == 0);
+	CHECK(state_set_pair(&s, "mie_absorption_per_km=0", NULL, err, sizeof(err)) == 0);
+	CHECK(transmittance_on(e, &s) == 1);
+	check_fresh(e, &s, "mie off");
+	eng_free(e);
+}
+
 int main(void)
 {
 	struct daemon d = { 0 };
@@ -272,6 +356,7 @@ int main(void)
 		printf("skipped: %s\n", err);
 		return 77;
 	}
+	test_columns();
 	state_default(&mirror);
 	for (int i = 0; small[i]; i++)
 		mirror_set(small[i]);
@@ -307,6 +392,18 @@ int main(void)
 	EXPECT(&ctl, "last_computed", "transmittance");
 	EXPECT(&ctl, "tables_needed", "transmittance");
 	check_slot(map, T, "transmittance only");
+	/* A weather change on it: transmittance from the kept column densities,
+	 * the same bits as a full recompute. */
+	uint64_t columns = reply_u64(reply, "column_passes");
+	CHECK(columns >= 1);
+	change(&ctl, "mie_scattering_per_km=0.0041");
+	EXPECT(&ctl, "last_computed", "transmittance");
+	CHECK(reply_u64(reply, "column_passes") == columns);
+	check_slot(map, T, "weather, transmittance only");
+	change(&ctl, "mie_scale_height_km=1.3");
+	EXPECT(&ctl, "last_computed", "transmittance");
+	CHECK(reply_u64(reply, "column_passes") == columns + 1);
+	check_slot(map, T, "profile, transmittance only");
 
 	/* A time-of-day change leaves transmittance as it was: carried, not
 	 * recomputed. */
