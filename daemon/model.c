@@ -370,12 +370,33 @@ static v3 light_transmittance(const struct ctx *c, double h, double mu, double r
 	return visible_transmittance(c, h, mu, disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad)));
 }
 
+/* Each of the two rows at its own altitude's u, blended in altitude (see
+ * multiscatter_at in common.glsl). */
 static v3 multiscatter(const struct ctx *c, double h, double mu_s)
 {
 	double u, vv;
 	const struct model_tables *m = c->tab;
-	skymap_multiscatter_uv(c->rb, c->rt, h, mu_s, m->w[1], m->h[1], &u, &vv);
-	return bilinear(m->t[1], m->w[1], m->h[1], u, vv);
+	uint32_t w = m->w[1], n = m->h[1];
+	skymap_multiscatter_uv(c->rb, c->rt, h, mu_s, w, n, &u, &vv);
+	double py = vv * n - 0.5, fy = py - floor(py);
+	int iy = (int)floor(py);
+	int y0 = iy < 0 ? 0 : iy > (int)n - 1 ? (int)n - 1 : iy;
+	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)n - 1 ? (int)n - 1 : iy + 1;
+	v3 row[2];
+	for (int k = 0; k < 2; k++) {
+		int y = k ? y1 : y0;
+		/* skymap_multiscatter_uv at the row's altitude, except that sqrt|s|
+		 * turns linear for |s| < 1e-10 (a shift below 1e-5 texel): row 0's
+		 * horizon is mu = 0 exactly, where sqrt would blow the last-bit
+		 * difference of two mirrored views' mu up to 1e-8 and break the
+		 * 1e-9 mirror check of the model (tools/stab.c). */
+		double mh = skymap_horizon_cos(c->rb, (double)y / (n - 1) * c->shell);
+		double d = skymap_clamp(mu_s, -1.0, 1.0) - mh;
+		double sn = skymap_clamp(d < 0.0 ? d / (1.0 + mh) : d / (1.0 - mh), -1.0, 1.0);
+		double a = fabs(sn) < 1e-10 ? sn * 1e5 : copysign(sqrt(fabs(sn)), sn);
+		row[k] = bilinear(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
+	}
+	return add(row[0], scale(add(row[1], scale(row[0], -1.0)), fy));
 }
 
 /* visible: the part of the light's disk seen, averaged over the march step
@@ -488,6 +509,28 @@ void model_optical_depth(const struct atmo *a, double altitude_km, double mu, ui
 	ret_tau[2] = tau.z;
 }
 
+/* Sub-samples per axis of a direction's cell for its mean phase. */
+#define MS_PHASE_SUB 2
+
+/* The mean over direction k's cell of constituent kc's phase toward the sun,
+ * from MS_PHASE_SUB^2 equal-area sub-samples (see multiscatter.comp). The
+ * cells: 8 rings of equal cos-zenith height by 8 azimuth columns, or for
+ * two directions the upper and lower hemispheres. */
+static double ms_cell_phase(const struct atmo_constituent *kc, uint32_t k, uint32_t n, v3 sun)
+{
+	uint32_t rings = n == 2 ? 2 : 8, ring = n == 2 ? k : k / 8, col = n == 2 ? 0 : k % 8;
+	double dphi = n == 2 ? 2.0 * SKYMAP_PI : 2.0 * SKYMAP_PI / 8.0, sum = 0;
+	for (int a = 0; a < MS_PHASE_SUB; a++) {
+		double ct = 1.0 - 2.0 * (ring + (a + 0.5) / MS_PHASE_SUB) / rings;
+		double st = skymap_safe_sqrt(1.0 - ct * ct);
+		for (int b = 0; b < MS_PHASE_SUB; b++) {
+			double ph = dphi * (col + (b + 0.5) / MS_PHASE_SUB);
+			sum += phase(kc->phase, kc->g, st * cos(ph) * sun.x + ct * sun.z);
+		}
+	}
+	return sum / (MS_PHASE_SUB * MS_PHASE_SUB);
+}
+
 static v3 ms_direction(uint32_t k, uint32_t n)
 {
 	if (n == 2)
@@ -509,8 +552,25 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 			v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
 			v3 sl = { 0 }, sf = { 0 }, se = { 0 };
 			double r0 = c->rb + h;
+			/* The first scattering of L2 with each constituent's own phase,
+			 * the cells' means normalised to sum to exactly 1 over the
+			 * sphere (see multiscatter.comp). */
+			double norm_phase[ATMO_MAX_CONSTITUENTS] = { 0 };
+			for (int n = 0; n < c->a->n_constituents; n++) {
+				const struct atmo_constituent *kc = &c->a->c[n];
+				if (kc->phase == ATMO_PHASE_NONE)
+					continue;
+				double sum = 0;
+				for (uint32_t k = 0; k < dirs; k++)
+					sum += ms_cell_phase(kc, k, dirs, sun);
+				norm_phase[n] = 1.0 / (4.0 * SKYMAP_PI * sum / dirs);
+			}
 			for (uint32_t k = 0; k < dirs; k++) {
 				v3 dir = ms_direction(k, dirs);
+				double cell_phase[ATMO_MAX_CONSTITUENTS] = { 0 };
+				for (int n = 0; n < c->a->n_constituents; n++)
+					if (c->a->c[n].phase != ATMO_PHASE_NONE)
+						cell_phase[n] = ms_cell_phase(&c->a->c[n], k, dirs, sun) * norm_phase[n];
 				double tg, t_end = distance_to_top(c, h, dir.z);
 				bool ground = hits_ground(c, h, dir.z, &tg);
 				if (ground)
@@ -525,7 +585,14 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 					v3 p = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
 					v3 t_sun = light_transmittance(c, hs, dot(p, sun),
 								       c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
-					l2 = add(l2, mul(mul(w, m.scattering), scale(t_sun, 1.0 / (4.0 * SKYMAP_PI))));
+					v3 phased = { 0 };
+					for (int n = 0; n < c->a->n_constituents; n++) {
+						const struct atmo_constituent *kc = &c->a->c[n];
+						phased = add(phased, scale(v(kc->scattering_per_km[0], kc->scattering_per_km[1],
+									     kc->scattering_per_km[2]),
+									   atmo_density(&kc->density, hs) * cell_phase[n]));
+					}
+					l2 = add(l2, mul(mul(w, phased), t_sun));
 					f = add(f, mul(w, m.scattering));
 					absorbed = add(absorbed, mul(w, m.absorption));
 					tau = add(tau, scale(m.extinction, dt));

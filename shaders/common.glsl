@@ -237,8 +237,8 @@ struct TAlt {
 	float h, r, mu_horizon;
 	Axis t_rows;		// the altitude's rows in the transmittance table
 	Axis ms_rows;		// and in the multi-scattering table,
-	float ms_horizon;	// whose u packs texels around this horizon cosine
-	float ms_below, ms_above;	// 1 / (1 + mu_horizon), 1 / (1 - mu_horizon)
+	vec2 ms_horizon;	// whose u packs texels around each row's horizon cosine
+	vec2 ms_below, ms_above;	// 1 / (1 + mu_horizon), 1 / (1 - mu_horizon)
 	float top_c;		// top^2 - r^2
 	float d_min, inv_range;	// x_mu = (d - d_min) * inv_range
 };
@@ -256,7 +256,9 @@ TAlt t_alt(float h)
 	a.mu_horizon = h < 0.0 ? -2.0 : -rho / a.r;
 	a.t_rows = axis(rho / H, T_H);
 	a.ms_rows = axis(h / shell, M_H);
-	a.ms_horizon = -rho / a.r;
+	// Each row is read at its own altitude's u for mu_s (multiscatter_at).
+	vec2 hr = vec2(float(a.ms_rows.i0), float(a.ms_rows.i1)) * (shell / float(M_H - 1));
+	a.ms_horizon = vec2(horizon_cos(hr.x), horizon_cos(hr.y));
 	a.ms_below = 1.0 / (1.0 + a.ms_horizon);
 	a.ms_above = 1.0 / (1.0 - a.ms_horizon);
 	a.top_c = (shell - a.h) * (2.0 * rb + shell + a.h);
@@ -322,12 +324,21 @@ float disk_visible_mean(float xa, float xb, float e, float half_inv_e)
 	return d > 0.0 ? (inside * g + above) / d : g;
 }
 
+// skymap.h: u packs texels around the horizon of the row's altitude. The
+// two rows are read at the same mu_s, each at its own u, and blended in
+// altitude: one u for both would read the lower row at a sun higher above
+// the earth's shadow than the point's (mu_h grows as sqrt(h) between rows),
+// which put the sky in the shadow up to 60 % high near the horizon.
 vec3 multiscatter_at(TAlt a, float mu_s)
 {
-	// skymap.h: u packs texels around the horizon of the altitude.
-	float d = clamp(mu_s, -1.0, 1.0) - a.ms_horizon;
-	float sn = clamp(d * (d < 0.0 ? a.ms_below : a.ms_above), -1.0, 1.0);
-	return bilinear(MultiscatterTex, M_W, 0.5 + 0.5 * sign(sn) * sqrt(abs(sn)), a.ms_rows).rgb;
+	vec2 d = vec2(clamp(mu_s, -1.0, 1.0)) - a.ms_horizon;
+	vec2 sn = clamp(d * mix(a.ms_above, a.ms_below, lessThan(d, vec2(0.0))), -1.0, 1.0);
+	vec2 u = 0.5 + 0.5 * sign(sn) * sqrt(abs(sn));
+	Axis c0 = axis(u.x, M_W), c1 = axis(u.y, M_W);
+	int r0 = a.ms_rows.i0 * M_W, r1 = a.ms_rows.i1 * M_W;
+	vec3 lo = mix(texelFetch(MultiscatterTex, r0 + c0.i0), texelFetch(MultiscatterTex, r0 + c0.i1), c0.f).rgb;
+	vec3 hi = mix(texelFetch(MultiscatterTex, r1 + c1.i0), texelFetch(MultiscatterTex, r1 + c1.i1), c1.f).rgb;
+	return mix(lo, hi, a.ms_rows.f);
 }
 
 // The phase of every constituent for one light: constant along a view ray
