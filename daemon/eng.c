@@ -745,6 +745,11 @@ int eng_event_fd(const struct eng *e)
 	return e->event_fd;
 }
 
+void eng_forget_columns(struct eng *e)
+{
+	e->columns_valid = false;
+}
+
 const void *eng_table(const struct eng *e, enum state_table t, size_t *ret_bytes)
 {
 	if (ret_bytes)

@@ -95,6 +95,10 @@ uint64_t eng_pipelines_created(const struct eng *e);
 int eng_event_fd(const struct eng *e);
 /* Non-blocking: 0 and the timing once finished, -EAGAIN before. */
 int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_size);
+/* Drops the kept column densities, so that the next computation of the
+ * transmittance table does all of its work (benchmarks of a computation
+ * from scratch). */
+void eng_forget_columns(struct eng *e);
 /* Blocks until the submitted work has finished. */
 int eng_wait(struct eng *e, struct eng_timing *ret, char *err, size_t err_size);
 /* eng_submit then eng_wait. */
