@@ -21,28 +21,13 @@
 #include "vkfn.h"
 
 #define MAX_PIPELINES 32	/* cached variants per pass */
-#define N_SPEC 22
+#define N_SPEC 21
 /* Texels of a row one invocation shares its rays between: sun angles of
  * multi-scattering, azimuths of sky-view. */
 #define MS_SUN_GROUP 4
 #define SV_AZ_GROUP 8
-/* The aerial volumes: the state's camera and STATE_MAX_VIEWS views. The
- * views buffer holds a header vec4, 4 vec4 per group of volumes, 1 per
- * volume (aerial.comp). */
-#define N_VOLUMES (1 + STATE_MAX_VIEWS)
-#define AP_MAX_GROUP 8		/* views aerial.comp marches together */
-/* Texels between the aerial volumes in device memory (aerial.comp): an
- * invocation writes a texel to each volume of its group in turn, and
- * volumes a power of two apart thrash the same cache sets (measured: a
- * group of 8 cost 5.8 times one view, 2.7 times with the stores folded
- * together). The read-back copy packs them again. */
-#define AP_PAD_TEXELS 37
-
-static size_t aerial_pad_bytes(const struct sky_state *s)
-{
-	return AP_PAD_TEXELS * (s->quality.storage == STATE_F16 ? 8u : 16u);
-}
-#define VIEW_BUFFER_BYTES ((1 + 4 * N_VOLUMES + N_VOLUMES) * 4 * sizeof(float))
+/* The state's camera and STATE_MAX_VIEWS views, 3 vec4 each. */
+#define VIEW_BUFFER_BYTES ((1 + STATE_MAX_VIEWS) * 3 * 4 * sizeof(float))
 
 /* The uniform block of shaders/common.glsl, std140: vec4s only. */
 struct gpu_constituent {
@@ -845,76 +830,19 @@ static void fill_params(const struct sky_state *s, struct gpu_params *p, struct 
 	base->v[17] = s->quality.multiscatter_dirs != 0;
 }
 
-/* The camera and altitude of aerial volume i: the state's, then each view's. */
-static void volume_camera(const struct sky_state *s, uint32_t i, struct state_camera *ret_c,
-			  double *ret_altitude_km)
-{
-	double h = i && !isnan(s->views[i - 1].altitude_km) ? s->views[i - 1].altitude_km
-							     : s->altitude_km;
-	*ret_c = i ? s->views[i - 1].camera : s->camera;
-	*ret_altitude_km = h > 0.0 ? h : 0.0;
-}
-
-/* Groups the aerial volumes whose froxel columns share their elevation
- * profile: the same altitude, pitch, roll, vfov and aspect, any yaw. Each
- * group's rays are marched once (aerial.comp); the grouping is exact
- * (equal doubles), so a volume's texels do not depend on the others.
- * Returns the number of groups, each volume's group in ret_group_of, the
- * size of each group in ret_count. */
-static uint32_t view_groups(const struct sky_state *s, uint32_t ret_group_of[N_VOLUMES],
-			    uint32_t ret_count[N_VOLUMES])
-{
-	uint32_t lead[N_VOLUMES], n_groups = 0;	/* lead: each group's first volume */
-
-	for (uint32_t i = 0; i < 1 + s->n_views; i++) {
-		struct state_camera c, d;
-		double h, hd;
-		volume_camera(s, i, &c, &h);
-		uint32_t g;
-		for (g = 0; g < n_groups; g++) {
-			volume_camera(s, lead[g], &d, &hd);
-			if (ret_count[g] < AP_MAX_GROUP && h == hd && c.pitch_deg == d.pitch_deg && c.roll_deg == d.roll_deg &&
-			    c.vfov_deg == d.vfov_deg && c.aspect == d.aspect)
-				break;
-		}
-		if (g == n_groups) {
-			lead[n_groups++] = i;
-			ret_count[g] = 0;
-		}
-		ret_group_of[i] = g;
-		ret_count[g]++;
-	}
-	return n_groups;
-}
-
-/* The views buffer of aerial.comp: per group its camera at yaw 0, per
- * volume its yaw, grouped. */
+/* The cameras of the aerial volumes: the state's, then each view's. */
 static void fill_views(const struct sky_state *s, float *out)
 {
-	uint32_t group_of[N_VOLUMES], count[N_VOLUMES];
-	uint32_t n = 1 + s->n_views, n_groups = view_groups(s, group_of, count);
-	uint32_t members_at = 1 + 4 * n_groups, next = 0;
+	double h0 = s->altitude_km > 0.0 ? s->altitude_km : 0.0;
+	double fwd[3], right[3], up[3];
 
-	put4(out, n_groups, members_at, 0, 0);
-	for (uint32_t g = 0; g < n_groups; g++) {
-		float *o = out + 4 * (1 + 4 * g);
-		put4(o + 12, count[g], next, 0, 0);
-		/* Members in volume order; a yaw turns the group's east into its
-		 * south (state_camera_basis). */
-		for (uint32_t i = 0; i < n; i++) {
-			struct state_camera c;
-			double h, fwd[3], right[3], up[3];
-			if (group_of[i] != g)
-				continue;
-			volume_camera(s, i, &c, &h);
-			double yaw = c.yaw_deg * SKYMAP_PI / 180.0;
-			put4(out + 4 * (members_at + next++), cos(yaw), sin(yaw), i, 0);
-			c.yaw_deg = 0.0;
-			state_camera_basis(&c, fwd, right, up);
-			put4(o, fwd[0], fwd[1], fwd[2], tan(c.vfov_deg * SKYMAP_PI / 360.0));
-			put4(o + 4, right[0], right[1], right[2], c.aspect);
-			put4(o + 8, up[0], up[1], up[2], h);
-		}
+	for (uint32_t i = 0; i <= s->n_views; i++) {
+		const struct state_camera *c = i ? &s->views[i - 1].camera : &s->camera;
+		double h = i && !isnan(s->views[i - 1].altitude_km) ? s->views[i - 1].altitude_km : h0;
+		state_camera_basis(c, fwd, right, up);
+		put4(out + 12 * i, fwd[0], fwd[1], fwd[2], tan(c->vfov_deg * SKYMAP_PI / 360.0));
+		put4(out + 12 * i + 4, right[0], right[1], right[2], c->aspect);
+		put4(out + 12 * i + 8, up[0], up[1], up[2], h > 0.0 ? h : 0.0);
 	}
 }
 
@@ -983,14 +911,7 @@ static int get_pipeline(struct eng *e, int t, const struct spec *key, VkPipeline
 	int rc = 0;
 	for (int i = 0; i < e->n_pipes[t]; i++)
 		if (!memcmp(&e->pipes[t][i].key, key, sizeof(*key))) {
-			/* Least recently used goes first: the aerial pass takes a
-			 * pipeline per group of views, none of which an eviction
-			 * in the same submission may destroy. */
-			struct pipeline hit = e->pipes[t][i];
-			memmove(&e->pipes[t][i], &e->pipes[t][i + 1],
-				sizeof(hit) * (size_t)(e->n_pipes[t] - i - 1));
-			e->pipes[t][e->n_pipes[t] - 1] = hit;
-			*ret = hit.pipe;
+			*ret = e->pipes[t][i].pipe;
 			return 0;
 		}
 	if (e->n_pipes[t] == MAX_PIPELINES) {
@@ -1009,9 +930,7 @@ static int get_pipeline(struct eng *e, int t, const struct spec *key, VkPipeline
 		.stage = { .sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
 			   .stage = VK_SHADER_STAGE_COMPUTE_BIT, .module = e->modules[t],
 			   .pName = "main", .pSpecializationInfo = &si },
-		.layout = e->pipe_layout,
-		/* aerial.comp: a dispatch per group of views, z its index. */
-		.flags = t == STATE_AERIAL ? VK_PIPELINE_CREATE_DISPATCH_BASE_BIT : 0 };
+		.layout = e->pipe_layout };
 	VkPipeline p;
 	VK_TRY(e->vk.vkCreateComputePipelines(e->dev, VK_NULL_HANDLE, 1, &ci, NULL, &p));
 	e->pipelines_created++;
@@ -1048,10 +967,7 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 		buffer_free(e, &e->table[t]);
 		buffer_free(e, &e->readback[t]);
 		e->table_bytes[t] = 0;
-		size_t device_bytes = bytes;
-		if (t == STATE_AERIAL)
-			device_bytes += (1 + s->n_views) * aerial_pad_bytes(s);
-		rc = buffer_new(e, device_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+		rc = buffer_new(e, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
 					  VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
 					  VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
 				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->table[t], err, err_size);
@@ -1161,19 +1077,11 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 	mask |= lost & state_closure(mask);
 
 	fill_params(s, &params, &base);
-	VkPipeline pipes[STATE_N_TABLES] = { 0 }, group_pipes[N_VOLUMES] = { 0 };
-	VkPipeline column_pipe = VK_NULL_HANDLE;
-	uint32_t group_of[N_VOLUMES], group_size[N_VOLUMES], n_groups = view_groups(s, group_of, group_size);
+	VkPipeline pipes[STATE_N_TABLES] = { 0 }, column_pipe = VK_NULL_HANDLE;
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if (mask & STATE_BIT(t)) {
 			struct spec k = pass_spec(&base, s, t);
-			if (t != STATE_AERIAL)
-				rc = get_pipeline(e, t, &k, &pipes[t], err, err_size);
-			for (uint32_t g = 0; t == STATE_AERIAL && g < n_groups && rc == 0; g++) {
-				/* The aerial pass is compiled for each group's size. */
-				k.v[21] = (int32_t)group_size[g];
-				rc = get_pipeline(e, t, &k, &group_pipes[g], err, err_size);
-			}
+			rc = get_pipeline(e, t, &k, &pipes[t], err, err_size);
 			if (rc < 0)
 				return rc;
 		}
@@ -1223,16 +1131,9 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 		if (e->timestamps)
 			e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
 						  2 * t);
-		if (t == STATE_AERIAL) {
-			/* A dispatch per group of views; they write disjoint volumes. */
-			for (uint32_t g = 0; g < n_groups; g++) {
-				e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, group_pipes[g]);
-				e->vk.vkCmdDispatchBase(e->cmd, 0, 0, g, gx, gy, 1);
-			}
-		} else {
-			e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[t]);
-			e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
-		}
+		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[t]);
+		/* Every view's volume in one dispatch: z is the view. */
+		e->vk.vkCmdDispatch(e->cmd, gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1);
 		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
 					   &compute_to_compute, 0, NULL, 0, NULL);
@@ -1246,16 +1147,8 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 				   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &to_copy, 0, NULL, 0, NULL);
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if (mask & STATE_BIT(t)) {
-			VkBufferCopy c[N_VOLUMES] = { { 0, 0, e->table_bytes[t] } };
-			uint32_t n = 1;
-			if (t == STATE_AERIAL) {
-				/* Packed again: the volumes are padded on the device. */
-				n = 1 + s->n_views;
-				VkDeviceSize vol = e->table_bytes[t] / n, pad = aerial_pad_bytes(s);
-				for (uint32_t i = 0; i < n; i++)
-					c[i] = (VkBufferCopy){ i * (vol + pad), i * vol, vol };
-			}
-			e->vk.vkCmdCopyBuffer(e->cmd, e->table[t].buf, e->readback[t].buf, n, c);
+			VkBufferCopy c = { 0, 0, e->table_bytes[t] };
+			e->vk.vkCmdCopyBuffer(e->cmd, e->table[t].buf, e->readback[t].buf, 1, &c);
 		}
 	VkMemoryBarrier to_host = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
 		.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT, .dstAccessMask = VK_ACCESS_HOST_READ_BIT };

@@ -58,7 +58,6 @@
 	X(vkCmdBindPipeline)                 \
 	X(vkCmdBindDescriptorSets)           \
 	X(vkCmdDispatch)                     \
-	X(vkCmdDispatchBase)                 \
 	X(vkCmdPipelineBarrier)              \
 	X(vkCmdCopyBuffer)                   \
 	X(vkCmdWriteTimestamp)               \
