@@ -53,14 +53,14 @@ static void test_named(void)
 		for (int t = 0; t < STATE_N_TABLES; t++) {
 			psnr_of[c][t] = psnr[t];
 			printf(" %s %5.1f dB %.1e", state_table_names[t], psnr[t], rel[t]);
-			if (!(psnr[t] >= MIN_PSNR_DB) && !stab_find_known(name, STAB_N_INVARIANTS, true))
+			if (!(psnr[t] >= MIN_PSNR_DB))
 				FAIL("%s: %s PSNR %.1f dB under %.0f dB", name, state_table_names[t], psnr[t],
 				     MIN_PSNR_DB);
 		}
 		printf("\n");
 		model_tables_finish(&gpu);
 		model_tables_finish(&ref);
-		stab_report(name, &r, true);
+		stab_report(name, &r);
 	}
 }
 
@@ -98,7 +98,7 @@ static void test_horizon(void)
 		if (stab_horizon(names[i], stab_engine, eng, &s, &r, err, sizeof(err)) < 0)
 			FAIL("%s: %s", names[i], err);
 		printf("horizon %-24s largest step / neighbour %.2f\n", names[i], r.max_jump_ratio);
-		stab_report(names[i], &r, true);
+		stab_report(names[i], &r);
 	}
 }
 
@@ -129,7 +129,7 @@ static void test_sweep(void)
 	for (int k = 0; k < STAB_N_INVARIANTS; k++)
 		printf("  %-24s %llu of %llu failed\n", stab_invariant_names[k],
 		       (unsigned long long)total.fails[k], (unsigned long long)total.samples[k]);
-	stab_report("gpu sweep", &total, true);
+	stab_report("gpu sweep", &total);
 }
 
 int main(void)

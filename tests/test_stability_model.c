@@ -39,7 +39,7 @@ static void test_named(void)
 		printf("%-32s psi max %-10.3g L max %-10.3g T ray drop %-9.2e asym %-9.2e jump ratio %.2f\n",
 		       stab_cases[c].name, r.max_psi, r.max_radiance, r.max_t_ray_drop, r.max_asym,
 		       r.max_jump_ratio);
-		stab_report(stab_cases[c].name, &r, false);
+		stab_report(stab_cases[c].name, &r);
 	}
 }
 
@@ -81,7 +81,7 @@ static void test_sweep(void)
 		printf("  %-24s %llu of %llu failed\n", stab_invariant_names[k],
 		       (unsigned long long)total.fails[k], (unsigned long long)total.samples[k]);
 	CHECK(refused == 0);
-	stab_report("sweep", &total, false);
+	stab_report("sweep", &total);
 }
 
 int main(void)

@@ -153,12 +153,6 @@ int bench_stability(int argc, char **argv)
 	for (int ch; (ch = fgetc(prec)) != EOF;)
 		fputc(ch, f);
 	fclose(prec);
-	fprintf(f, "\n## Known violations (not fixed yet)\n\n| case | invariant | on | cause |\n|---|---|---|---|\n");
-	for (size_t i = 0; i < stab_n_known; i++)
-		fprintf(f, "| %s | %s | %s | %s |\n", stab_known[i].case_name,
-			stab_known[i].invariant < STAB_N_INVARIANTS ? stab_invariant_names[stab_known[i].invariant]
-								   : "PSNR >= 60 dB",
-			stab_known[i].where, stab_known[i].why);
 	fprintf(f, "\n## Multi-scattering as f_ms -> 1\n\n"
 		   "The engine neither clamps f_ms nor sums a series: it computes 1 - f_ms directly as what "
 		   "leaves each ray (transmittance to its end) plus what is absorbed along it, a sum of "

@@ -104,18 +104,5 @@ void stab_compare(const struct sky_state *s, const struct model_tables *ref,
 
 uint64_t stab_total_fails(const struct stab_result *r);
 
-/* Violations found and not yet fixed, each with its cause: the tests report
- * them without failing, docs/stability.md lists them. invariant is
- * STAB_N_INVARIANTS for a precision floor (PSNR under the tests' 60 dB);
- * where is "model", "f32" or both. */
-struct stab_known {
-	const char *case_name;
-	int invariant;
-	const char *where;
-	const char *why;
-};
-extern const struct stab_known stab_known[];
-extern const size_t stab_n_known;
-const struct stab_known *stab_find_known(const char *case_name, int invariant, bool f32);
 
 #endif
