@@ -511,15 +511,20 @@ void model_optical_depth(const struct atmo *a, double altitude_km, double mu, ui
 
 /* Sub-samples per axis of a direction's cell for its mean phase. */
 #define MS_PHASE_SUB 2
+/* The 64-direction grid: rings of equal cos-zenith height by azimuth
+ * columns (why 16 x 4: multiscatter.comp). */
+#define MS_RINGS 16
+#define MS_COLS 4
 
 /* The mean over direction k's cell of constituent kc's phase toward the sun,
  * from MS_PHASE_SUB^2 equal-area sub-samples (see multiscatter.comp). The
- * cells: 8 rings of equal cos-zenith height by 8 azimuth columns, or for
- * two directions the upper and lower hemispheres. */
+ * cells: MS_RINGS rings of equal cos-zenith height by MS_COLS azimuth
+ * columns, or for two directions the upper and lower hemispheres. */
 static double ms_cell_phase(const struct atmo_constituent *kc, uint32_t k, uint32_t n, v3 sun)
 {
-	uint32_t rings = n == 2 ? 2 : 8, ring = n == 2 ? k : k / 8, col = n == 2 ? 0 : k % 8;
-	double dphi = n == 2 ? 2.0 * SKYMAP_PI : 2.0 * SKYMAP_PI / 8.0, sum = 0;
+	uint32_t rings = n == 2 ? 2 : MS_RINGS, ring = n == 2 ? k : k / MS_COLS;
+	uint32_t col = n == 2 ? 0 : k % MS_COLS;
+	double dphi = n == 2 ? 2.0 * SKYMAP_PI : 2.0 * SKYMAP_PI / MS_COLS, sum = 0;
 	for (int a = 0; a < MS_PHASE_SUB; a++) {
 		double ct = 1.0 - 2.0 * (ring + (a + 0.5) / MS_PHASE_SUB) / rings;
 		double st = skymap_safe_sqrt(1.0 - ct * ct);
@@ -535,7 +540,8 @@ static v3 ms_direction(uint32_t k, uint32_t n)
 {
 	if (n == 2)
 		return v(0, 0, k == 0 ? 1.0 : -1.0);
-	double ct = 1.0 - 2.0 * ((k / 8) + 0.5) / 8.0, ph = 2.0 * SKYMAP_PI * ((k % 8) + 0.5) / 8.0;
+	double ct = 1.0 - 2.0 * ((k / MS_COLS) + 0.5) / MS_RINGS;
+	double ph = 2.0 * SKYMAP_PI * ((k % MS_COLS) + 0.5) / MS_COLS;
 	double st = skymap_safe_sqrt(1.0 - ct * ct);
 	return v(st * cos(ph), st * sin(ph), ct);
 }
