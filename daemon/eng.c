@@ -1037,6 +1037,27 @@ static void groups(const struct sky_state *s, int t, uint32_t *x, uint32_t *y)
 	*y = (q->height + ly - 1) / ly;
 }
 
+/* Records one pass: its dispatch between two timestamps (queries 2 pass and
+ * 2 pass + 1), then a barrier so that the next pass reads what it wrote. */
+static void record_pass(struct eng *e, int pass, VkPipeline pipe, uint32_t gx, uint32_t gy,
+			uint32_t gz)
+{
+	const VkMemoryBarrier compute_to_compute = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_SHADER_READ_BIT };
+
+	if (e->timestamps)
+		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
+					  2 * (uint32_t)pass);
+	e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipe);
+	e->vk.vkCmdDispatch(e->cmd, gx, gy, gz);
+	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+				   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &compute_to_compute, 0,
+				   NULL, 0, NULL);
+	if (e->timestamps)
+		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, e->queries,
+					  2 * (uint32_t)pass + 1);
+}
+
 int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err, size_t err_size)
 {
 	struct gpu_params params;
@@ -1108,38 +1129,15 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 		e->vk.vkCmdResetQueryPool(e->cmd, e->queries, 0, 2 * N_PASSES);
 	e->vk.vkCmdBindDescriptorSets(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, e->pipe_layout, 0, 1,
 				      &e->set, 0, NULL);
-	VkMemoryBarrier compute_to_compute = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
-		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_SHADER_READ_BIT };
 	for (int t = 0; t < STATE_N_TABLES; t++) {
 		if (!(mask & STATE_BIT(t)))
 			continue;
 		uint32_t gx, gy;
 		groups(s, t, &gx, &gy);
-		if (t == STATE_TRANSMITTANCE && run_columns) {
-			if (e->timestamps)
-				e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT,
-							  e->queries, 2 * PASS_COLUMNS);
-			e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, column_pipe);
-			e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
-			e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-						   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
-						   &compute_to_compute, 0, NULL, 0, NULL);
-			if (e->timestamps)
-				e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT,
-							  e->queries, 2 * PASS_COLUMNS + 1);
-		}
-		if (e->timestamps)
-			e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
-						  2 * t);
-		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[t]);
+		if (t == STATE_TRANSMITTANCE && run_columns)
+			record_pass(e, PASS_COLUMNS, column_pipe, gx, gy, 1);
 		/* Every view's volume in one dispatch: z is the view. */
-		e->vk.vkCmdDispatch(e->cmd, gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1);
-		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
-					   &compute_to_compute, 0, NULL, 0, NULL);
-		if (e->timestamps)
-			e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT,
-						  e->queries, 2 * t + 1);
+		record_pass(e, t, pipes[t], gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1);
 	}
 	VkMemoryBarrier to_copy = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
 		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT };

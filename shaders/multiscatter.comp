@@ -13,8 +13,6 @@
 #include "common.glsl"
 
 layout(constant_id = 16) const int MS_DIRS = 64;
-// Sub-samples per axis of a direction's cell for its mean phase.
-const int PHASE_SUB = 2;	// cell_subsamples() is written for 2
 // The 64-direction grid: rings of equal cos-zenith height by azimuth
 // columns. A ray's path through the shell depends on its zenith angle only,
 // and near the horizon that path grows by a factor of ten within a few
@@ -47,13 +45,8 @@ void cell_subsamples(int k, out vec4 ret_cp, out vec4 ret_ct)
 // phase() for four cosines at once.
 vec4 phase4(int kind, float g, vec4 mu)
 {
-	if (kind == 1)
-		return 3.0 / (16.0 * PI) * (1.0 + mu * mu);
-	vec4 den = (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - mu);
-	vec4 hg = (1.0 - g * g) / (4.0 * PI * den * sqrt(den));
-	if (kind == 3)
-		return hg;
-	return hg * 1.5 * (1.0 + mu * mu) / (2.0 + g * g);
+	return vec4(phase(kind, g, mu.x), phase(kind, g, mu.y), phase(kind, g, mu.z),
+		    phase(kind, g, mu.w));
 }
 
 // The density of each constituent at altitude h (0 past N_CONST).
@@ -99,18 +92,16 @@ void main()
 	// the direction and the sun only, so it is a per-direction weight of
 	// each constituent's scattering (q), not a per-step cost. A point value
 	// is a poor quadrature of such a lobe over a 0.2 sr cell: q is the
-	// cell's mean (PHASE_SUB^2 sub-samples; 2 x 2 reads within 0.1 % of
+	// cell's mean (2 x 2 sub-samples, cell_subsamples(); 2 x 2 reads within 0.1 % of
 	// 4 x 4 on Earth, 0.6 % on Mars), normalised so that the cells' phases
 	// sum to exactly 1 over the sphere and no energy is made or lost.
 	// Only the scattering at x and beyond stays isotropic (Hillaire's
 	// assumption).
-	// phase_norm: 1 / (4 pi norm sum), over the marched cells, of the
-	// sub-sample sums of each constituent's phase, so that the cells'
-	// phases integrate to exactly 1 over the sphere.
-	// Each cell's sub-sample sum is evaluated once and kept (the phase
-	// functions were 1.9 ms of the pass when the main loop evaluated them
-	// again).
-	float cell_sum[32 * 4 * MS_SUN_GROUP];
+	// cell_sum: each marched cell's mean phase per constituent and sun,
+	// evaluated once and kept (the phase functions were 1.9 ms of the pass
+	// when the main loop evaluated them again); phase_norm: 1 / (4 pi norm
+	// total) makes the cells' phases integrate to exactly 1 over the sphere.
+	float cell_sum[32 * 4 * MS_SUN_GROUP];	// n_dirs <= 32 marched cells
 	float total[4][MS_SUN_GROUP];
 	for (int i = 0; i < 4; i++)
 		for (int j = 0; j < MS_SUN_GROUP; j++)
