@@ -16,6 +16,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "model.h"
 #include "shaders.h"
 #include "skymap.h"
 #include "vkfn.h"
@@ -50,6 +51,19 @@ struct gpu_params {
 	float cam_fwd[4], cam_right[4], cam_up[4], misc[4];
 	struct gpu_constituent c[ATMO_MAX_CONSTITUENTS];
 	float night[4];		/* night-sky floor, after the constituents as in common.glsl */
+	/* The ground's first bounce through each constituent's phase, k - 1
+	 * by |cos-zenith| of the view (model_ground_excess), a vec4 of the
+	 * constituents per entry. */
+	float ground_excess[MODEL_GROUND_N][4];
+};
+
+/* model_ground_excess of one constituent, kept while its phase stays: it
+ * costs about 30000 phase evaluations, more than a sun change's tables. */
+struct ground_cache {
+	bool valid;
+	enum atmo_phase kind;
+	double g;
+	double excess[MODEL_GROUND_N];
 };
 
 /* Specialization constants, by constant_id. */
@@ -120,6 +134,7 @@ struct eng {
 	 * recomputed only when column_key changes, so that a change of the
 	 * coefficients alone runs the tiny transmittance pass only. */
 	struct gpu_buffer columns;
+	struct ground_cache ground[ATMO_MAX_CONSTITUENTS];	/* by gpu constituent */
 	struct column_key column_key;
 	bool columns_valid;
 	bool columns_in_flight;
@@ -760,7 +775,7 @@ static void put4(float d[4], double a, double b, double c, double w)
 	d[3] = (float)w;
 }
 
-static void fill_params(const struct sky_state *s, struct gpu_params *p, struct spec *base)
+static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p, struct spec *base)
 {
 	const struct atmo *a = &s->atmo;
 	double sun[3], moon[3], fwd[3], right[3], up[3];
@@ -810,6 +825,16 @@ static void fill_params(const struct sky_state *s, struct gpu_params *p, struct 
 		bool scatters = c->scattering_per_km[0] > 0 || c->scattering_per_km[1] > 0 ||
 				c->scattering_per_km[2] > 0;
 		base->v[1 + n] = scatters ? (int32_t)c->phase : 0;
+		struct ground_cache *gc = &e->ground[n];
+		enum atmo_phase kind = scatters ? c->phase : ATMO_PHASE_NONE;
+		if (!gc->valid || gc->kind != kind || gc->g != c->g) {
+			model_ground_excess(kind, c->g, gc->excess);
+			gc->valid = true;
+			gc->kind = kind;
+			gc->g = c->g;
+		}
+		for (int k = 0; k < MODEL_GROUND_N; k++)
+			p->ground_excess[k][n] = (float)gc->excess[k];
 		/* Profiles without an exponential term (ozone's tent) skip exp(). */
 		if (l0->exp_term != 0.0 || l1->exp_term != 0.0)
 			base->v[18] |= 1 << n;
@@ -1097,7 +1122,7 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 	 * whose buffer was reallocated must come along. */
 	mask |= lost & state_closure(mask);
 
-	fill_params(s, &params, &base);
+	fill_params(e, s, &params, &base);
 	VkPipeline pipes[STATE_N_TABLES] = { 0 }, column_pipe = VK_NULL_HANDLE;
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if (mask & STATE_BIT(t)) {

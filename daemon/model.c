@@ -69,6 +69,46 @@ static double phase(enum atmo_phase kind, double g, double mu)
 	return hg * 1.5 * (1.0 + mu * mu) / (2.0 + g * g);
 }
 
+/* Quadrature of model_ground_excess: midpoints in u with c = 1 - 2 u^2, which
+ * crowds the nodes at the forward peak (g = 0.99: 1 - c ~ 1e-4 holds several
+ * of them), mirrored for a backward peak (g < 0). */
+#define GROUND_NODES 1024
+
+/* k(mu) of model_ground_excess for mu >= 0 as a single integral over the
+ * scattering cosine c between upwelling light d and w = -view: of the
+ * directions at cosine c from w, those with d_z > 0 span the azimuths where
+ * s_c s_v cos(phi) > c mu (s the sines), 2 acos(c mu / (s_c s_v)) of 2 pi. */
+static double ground_k(enum atmo_phase kind, double g, double mu)
+{
+	double sv = skymap_safe_sqrt(1.0 - mu * mu), sum = 0.0, peak = g < 0.0 ? -1.0 : 1.0;
+	for (int n = 0; n < GROUND_NODES; n++) {
+		double u = (n + 0.5) / GROUND_NODES, c = peak * (1.0 - 2.0 * u * u);
+		double sc = 2.0 * u * sqrt(1.0 - u * u);	/* sqrt(1 - c^2) */
+		double den = sc * sv, span;
+		if (c * mu >= den)
+			span = 0.0;
+		else if (c * mu <= -den)
+			span = 2.0 * SKYMAP_PI;
+		else
+			span = 2.0 * acos(c * mu / den);
+		sum += phase(kind, g, c) * span * 4.0 * u;	/* dc = 4 u du */
+	}
+	return 2.0 * sum / GROUND_NODES;
+}
+
+void model_ground_excess(enum atmo_phase kind, double g, double ret_excess[MODEL_GROUND_N])
+{
+	for (int i = 0; i < MODEL_GROUND_N; i++) {
+		/* The isotropic phase is exactly isotropic over any hemisphere and
+		 * Rayleigh's (1 + c^2) too (the mean of c^2 over a hemisphere is 1/3
+		 * about any axis): 0 without quadrature noise. */
+		double k = kind == ATMO_PHASE_NONE || kind == ATMO_PHASE_RAYLEIGH
+				   ? 1.0 : ground_k(kind, g, (double)i / (MODEL_GROUND_N - 1));
+		/* k(0) = 1 by symmetry; the clamp keeps k(mu) + k(-mu) = 2 in [0, 2]. */
+		ret_excess[i] = i == 0 ? 0.0 : skymap_clamp(k - 1.0, -1.0, 1.0);
+	}
+}
+
 /* Mean of exp(k h) over [ha, hb], exact for a linear change of altitude.
  * Written as a difference of two exponentials of real altitudes, never as
  * exp(k hm) sinh(x) / x: with a 0.1 km scale height over a 100 km step that

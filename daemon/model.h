@@ -36,4 +36,22 @@ void model_refine(const struct sky_state *s, uint32_t factor, struct sky_state *
 void model_optical_depth(const struct atmo *a, double altitude_km, double mu, uint32_t steps,
 			 double ret_tau[3]);
 
+/* The ground's first bounce seen through a constituent's phase. Sunlight
+ * that the ground reflects reaches a point x from below; the
+ * multi-scattering table carries it as an isotropic part of psi_ms (its
+ * share in A), but scattered toward a viewer looking along cos-zenith mu_view
+ * it goes through the phase at the angle between upwelling light and -view:
+ * backwards for a viewer looking up, forwards for one looking down. With the
+ * ground light taken uniform over the lower hemisphere, the phase's integral
+ * over that hemisphere relative to the isotropic one is
+ *   k(mu_view) = 2 * integral over upward d of p(-d . view),
+ * 1 for the isotropic phase and (exactly) for Rayleigh's, 0.07 for
+ * Cornette-Shanks g = 0.8 looking at the zenith and 1.92 at the nadir, and
+ * k(-mu) = 2 - k(mu). ret_excess[i] = k(mu) - 1 at mu = i / (MODEL_GROUND_N - 1),
+ * i.e. for viewers looking up; lookups interpolate linearly in |mu| and take
+ * the sign of mu (see ground_excess in common.glsl). Costs about 30000 phase
+ * evaluations: callers keep the result while the constituent stays. */
+#define MODEL_GROUND_N 32
+void model_ground_excess(enum atmo_phase kind, double g, double ret_excess[MODEL_GROUND_N]);
+
 #endif

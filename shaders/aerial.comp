@@ -64,14 +64,14 @@ void main()
 				float t = a + (float(i) + 0.5) * dt, rr;
 				float hs = altitude_along(en.h, en.mu, t - t0, rr);
 				vec3 up = vec3(dir.xy * t, en.ez + dir.z * (t - t0)) / rr;
-				Step st = sample_step(hs, ph_sun, ph_moon);
+				Step st = sample_step(hs, ph_sun, ph_moon, ground_excess(dot(up, dir)));
 				Medium m = st.m;
 				TAlt ta = t_alt(hs);
 				vec3 s = light_source(ta, dot(up, P.sun_dir.xyz), P.sun_dir.w, P.sun_illum.rgb,
-						      st.phased_sun, m.scattering);
+						      st.phased_sun, m.scattering, st.ground);
 				if (MOON_LIT)
 					s += light_source(ta, dot(up, P.moon_dir.xyz), P.moon_dir.w, P.moon_illum.rgb,
-							  st.phased_moon, m.scattering);
+							  st.phased_moon, m.scattering, st.ground);
 				vec3 step_t;
 				radiance += tr * s * step_weight(m.extinction, dt, step_t);
 				tr *= step_t;

@@ -50,6 +50,7 @@ struct Params {
 				// w H = sqrt(top^2 - bottom^2), the horizontal distance to the top from the ground
 	Constituent C[4];
 	vec4 night;		// night-sky floor: rgb zenith cd/m2, w horizon gain c (daemon/state.h)
+	vec4 ground_excess[32];	// GROUND_N entries, one component per constituent (ground_excess())
 };
 layout(std140, binding = 0) uniform ParamsBlock { Params params; };
 
@@ -60,6 +61,26 @@ layout(std140, binding = 0) uniform ParamsBlock { Params params; };
 Params P;
 
 void load_params() { P = params; }
+
+// The ground's first bounce through each constituent's phase
+// (model_ground_excess in daemon/model.c, MODEL_GROUND_N entries): k - 1 for
+// a view of cos-zenith mu_view at the scattering point, a component per
+// constituent. The multi-scattering table scatters the sunlit ground's light
+// isotropically (its share of psi_ms is the table's A); a forward-peaked
+// phase sends little of that upwelling light back to a viewer looking up
+// (k = 0.07 at the zenith for g = 0.8) and much to one looking down, which
+// read the albedo 0.3 day sky 4.7 % high with the sun at the zenith. Read
+// from the uniform block, not P: an array indexed by a varying index would
+// leave P's registers on lavapipe.
+const int GROUND_N = 32;
+
+vec4 ground_excess(float mu_view)
+{
+	float x = min(abs(mu_view), 1.0) * float(GROUND_N - 1), fl = floor(x);
+	int i = int(fl);
+	vec4 e = mix(params.ground_excess[i], params.ground_excess[min(i + 1, GROUND_N - 1)], x - fl);
+	return mu_view < 0.0 ? -e : e;
+}
 
 layout(std430, binding = 1) buffer TransmittanceBuf { uint d[]; } TB;
 layout(std430, binding = 2) buffer MultiscatterBuf { uint d[]; } MB;
@@ -329,15 +350,15 @@ float disk_visible_mean(float xa, float xb, float e, float half_inv_e)
 // altitude: one u for both would read the lower row at a sun higher above
 // the earth's shadow than the point's (mu_h grows as sqrt(h) between rows),
 // which put the sky in the shadow up to 60 % high near the horizon.
-vec3 multiscatter_at(TAlt a, float mu_s)
+vec4 multiscatter_at(TAlt a, float mu_s)
 {
 	vec2 d = vec2(clamp(mu_s, -1.0, 1.0)) - a.ms_horizon;
 	vec2 sn = clamp(d * mix(a.ms_above, a.ms_below, lessThan(d, vec2(0.0))), -1.0, 1.0);
 	vec2 u = 0.5 + 0.5 * sign(sn) * sqrt(abs(sn));
 	Axis c0 = axis(u.x, M_W), c1 = axis(u.y, M_W);
 	int r0 = a.ms_rows.i0 * M_W, r1 = a.ms_rows.i1 * M_W;
-	vec3 lo = mix(texelFetch(MultiscatterTex, r0 + c0.i0), texelFetch(MultiscatterTex, r0 + c0.i1), c0.f).rgb;
-	vec3 hi = mix(texelFetch(MultiscatterTex, r1 + c1.i0), texelFetch(MultiscatterTex, r1 + c1.i1), c1.f).rgb;
+	vec4 lo = mix(texelFetch(MultiscatterTex, r0 + c0.i0), texelFetch(MultiscatterTex, r0 + c0.i1), c0.f);
+	vec4 hi = mix(texelFetch(MultiscatterTex, r1 + c1.i0), texelFetch(MultiscatterTex, r1 + c1.i1), c1.f);
 	return mix(lo, hi, a.ms_rows.f);
 }
 
@@ -362,15 +383,18 @@ struct Step {
 	Medium m;
 	vec3 phased_sun;
 	vec3 phased_moon;
+	vec3 ground;	// ground_scattering() of the step
 };
 
-Step sample_step(float h, Phases sun, Phases moon)
+// ground_ex: ground_excess() of the view at the step.
+Step sample_step(float h, Phases sun, Phases moon, vec4 ground_ex)
 {
 	Step st;
 	st.m.scattering = vec3(0.0);
 	st.m.absorption = vec3(0.0);
 	st.phased_sun = vec3(0.0);
 	st.phased_moon = vec3(0.0);
+	st.ground = vec3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
 		float d = density(i, h);
 		vec3 s = d * P.C[i].scattering.rgb;
@@ -379,6 +403,8 @@ Step sample_step(float h, Phases sun, Phases moon)
 		st.phased_sun += s * sun.p[i];
 		if (MOON_LIT)
 			st.phased_moon += s * moon.p[i];
+		if (!GROUND_BLACK)
+			st.ground += s * ground_ex[i];
 	}
 	st.m.extinction = st.m.scattering + st.m.absorption;
 	return st;
@@ -415,23 +441,40 @@ vec3 phased(Scatter sc, Phases ph)
 	return r;
 }
 
+// What the ground's first bounce adds to the isotropic scattering sigma_s at
+// a point for a view whose ground_excess() is ex: sum of sigma_i (k_i - 1).
+vec3 ground_scattering(Scatter sc, vec4 ex)
+{
+	vec3 r = vec3(0.0);
+	if (!GROUND_BLACK)
+		for (int i = 0; i < N_CONST; i++)
+			r += sc.s[i] * ex[i];
+	return r;
+}
+
 // In-scattered radiance source at a point for one light: single scattering
-// through each constituent's phase plus Hillaire's isotropic higher orders.
-vec3 light_source(TAlt a, float mu_l, float radius_rad, vec3 illum, vec3 phased, vec3 sigma_s)
+// through each constituent's phase plus Hillaire's isotropic higher orders,
+// of which the ground's first bounce (the share A of psi_ms) takes
+// sigma_s + ground (ground_scattering()) instead of sigma_s.
+vec3 light_source(TAlt a, float mu_l, float radius_rad, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground)
 {
 	vec3 s = phased * light_transmittance(a, mu_l, radius_rad);
-	if (MULTISCATTER_ON)
-		s += sigma_s * multiscatter_at(a, mu_l);
+	if (MULTISCATTER_ON) {
+		vec4 ms = multiscatter_at(a, mu_l);
+		s += (sigma_s + ms.a * ground) * ms.rgb;
+	}
 	return s * illum;
 }
 
 // light_source for a march step whose visible fraction of the light is
 // already known (disk_visible_mean): the step's midpoint gives the rest.
-vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s)
+vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground)
 {
 	vec3 s = visible > 0.0 ? phased * (visible * transmittance_lookup(a, mu_l)) : vec3(0.0);
-	if (MULTISCATTER_ON)
-		s += sigma_s * multiscatter_at(a, mu_l);
+	if (MULTISCATTER_ON) {
+		vec4 ms = multiscatter_at(a, mu_l);
+		s += (sigma_s + ms.a * ground) * ms.rgb;
+	}
 	return s * illum;
 }
 

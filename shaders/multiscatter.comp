@@ -81,7 +81,7 @@ void main()
 	const float norm = dir_weight / float(MS_DIRS);
 	float r0 = P.planet.x + h;
 
-	// Per direction: L2, f (transfer of unit isotropic light) and the
+	// Per direction: L2 and, for f (the transfer of unit isotropic light), the
 	// escape 1 - f written as what leaves or is absorbed, so that 1 - f_ms
 	// never comes from a cancelling subtraction.
 	//
@@ -131,10 +131,12 @@ void main()
 		scattering_of[i] = P.C[i].scattering.rgb;
 		absorption_of[i] = P.C[i].absorption.rgb;
 	}
-	vec3 sum_l2[MS_SUN_GROUP];
-	for (int j = 0; j < MS_SUN_GROUP; j++)
+	vec3 sum_l2[MS_SUN_GROUP], sum_ground[MS_SUN_GROUP];
+	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		sum_l2[j] = vec3(0.0);
-	vec3 sum_f = vec3(0.0), sum_escape = vec3(0.0);
+		sum_ground[j] = vec3(0.0);
+	}
+	vec3 sum_escape = vec3(0.0);
 	for (int k = 0; k < n_dirs; k++) {
 		vec3 dir;
 		if (MS_DIRS == 2) {
@@ -152,7 +154,7 @@ void main()
 		if (ground)
 			t_end = tg;
 		float dt = t_end / float(STEPS);
-		vec3 tr = vec3(1.0), f = vec3(0.0), absorbed = vec3(0.0);
+		vec3 tr = vec3(1.0), absorbed = vec3(0.0);
 		// Per sun, the phase-weighted scattering per unit density of each
 		// constituent: a matrix times the step's densities. Arrays of
 		// constituents indexed in loops left the registers on lavapipe
@@ -181,7 +183,6 @@ void main()
 			for (int j = 0; j < MS_SUN_GROUP; j++)
 				l2[j] += w * (phased_of[j] * dens) *
 					 light_transmittance(a, dot(up, sun[j]), P.sun_dir.w);
-			f += w * scattering;
 			absorbed += w * absorption;
 			tr *= step_t;
 		}
@@ -194,23 +195,30 @@ void main()
 			TAlt a = t_alt(0.0);
 			for (int j = 0; j < MS_SUN_GROUP; j++) {
 				float mu_g = dot(n, sun[j]);
-				sum_l2[j] += tr * transmittance_at(a, mu_g) * max(mu_g, 0.0) * P.albedo.rgb / PI;
+				sum_ground[j] += tr * transmittance_at(a, mu_g) * max(mu_g, 0.0) * P.albedo.rgb / PI;
 			}
 			// Under the isotropic field psi the Lambertian ground sends back
 			// albedo times psi: a transfer like scattering, so every order
 			// bounces off the ground, not only the second.
 			returned = tr * P.albedo.rgb;
 		}
-		sum_f += f + returned;
 		sum_escape += tr - returned + absorbed;
 	}
-	vec3 f = sum_f * norm, escape = sum_escape * norm;
+	vec3 escape = sum_escape * norm;
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		if (x0 + j >= OUT_W)
 			break;
 		// Guard: 1 - f_ms is a sum of non-negative terms; the floor of 1e-6
 		// only keeps 0 / 0 away (where the escape is 0, L2 is 0 too).
-		vec3 psi = sum_l2[j] * norm / max(escape, vec3(1e-6));
-		STORE_TEXEL(MB, py * OUT_W + x0 + j, vec4(psi, (f.r + f.g + f.b) / 3.0));
+		vec3 psi = (sum_l2[j] + sum_ground[j]) * norm / max(escape, vec3(1e-6));
+		// A: the ground's first bounce G (the sunlit ground's light at the
+		// point, its mean over the sphere) as a share of psi, which the
+		// sky-view and aerial passes scatter through each constituent's
+		// phase (ground_excess() in common.glsl); its higher orders
+		// G f_ms / (1 - f_ms) stay isotropic. One share for the three
+		// channels, weighted by luminance (Rec. 709), since A is one value.
+		const vec3 lum = vec3(0.2126, 0.7152, 0.0722);
+		float share = dot(sum_ground[j], lum) * norm / max(dot(psi, lum), 1e-30);
+		STORE_TEXEL(MB, py * OUT_W + x0 + j, vec4(psi, clamp(share, 0.0, 1.0)));
 	}
 }
