@@ -136,7 +136,7 @@ void main()
 		sum_l2[j] = vec3(0.0);
 		sum_ground[j] = vec3(0.0);
 	}
-	vec3 sum_escape = vec3(0.0);
+	vec3 sum_escape = vec3(0.0), sum_returned = vec3(0.0);
 	for (int k = 0; k < n_dirs; k++) {
 		vec3 dir;
 		if (MS_DIRS == 2) {
@@ -203,14 +203,23 @@ void main()
 			returned = tr * P.albedo.rgb;
 		}
 		sum_escape += tr - returned + absorbed;
+		sum_returned += returned;
 	}
 	vec3 escape = sum_escape * norm;
+	// The ground's first bounce G travels up: the next order of it is only
+	// what the air scatters, never a reflection straight off the ground
+	// again, so its higher orders take f - f_ground (f_ground = the mean of
+	// the returned transfer), not f: G (1 - f_ground) / (1 - f_ms) in all.
+	// Counting the impossible ground-to-ground return read the albedo 0.3
+	// day sky 12 % of the ground's part high (sun 90: +3.9 % at 0.2 km,
+	// +2.2 % at 10 km).
+	vec3 ground_kept = 1.0 - sum_returned * norm;
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		if (x0 + j >= OUT_W)
 			break;
 		// Guard: 1 - f_ms is a sum of non-negative terms; the floor of 1e-6
 		// only keeps 0 / 0 away (where the escape is 0, L2 is 0 too).
-		vec3 psi = (sum_l2[j] + sum_ground[j]) * norm / max(escape, vec3(1e-6));
+		vec3 psi = (sum_l2[j] + sum_ground[j] * ground_kept) * norm / max(escape, vec3(1e-6));
 		// A: the ground's first bounce G (the sunlit ground's light at the
 		// point, its mean over the sphere) as a share of psi, which the
 		// sky-view and aerial passes scatter through each constituent's
