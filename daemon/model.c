@@ -30,6 +30,8 @@ struct ctx {
 	bool moon_lit;
 	double night_cd_m2, night_gain;	/* state_night_floor */
 	const struct model_tables *tab;
+	/* model_ground_excess of each constituent (0 for one that scatters nothing) */
+	double ground_excess[ATMO_MAX_CONSTITUENTS][MODEL_GROUND_N];
 };
 
 static double rho2(const struct ctx *c, double h) { return h * (2.0 * c->rb + h); }
@@ -340,6 +342,22 @@ static v3 bilinear(const double *tab, uint32_t w, uint32_t h, double u, double v
 	return v(out[0], out[1], out[2]);
 }
 
+/* bilinear() of the A channel. */
+static double bilinear_a(const double *tab, uint32_t w, uint32_t h, double u, double vv)
+{
+	double px = skymap_clamp(u, 0, 1) * w - 0.5, py = skymap_clamp(vv, 0, 1) * h - 0.5;
+	double fx = px - floor(px), fy = py - floor(py);
+	int ix = (int)floor(px), iy = (int)floor(py);
+	int x0 = ix < 0 ? 0 : ix > (int)w - 1 ? (int)w - 1 : ix;
+	int x1 = ix + 1 < 0 ? 0 : ix + 1 > (int)w - 1 ? (int)w - 1 : ix + 1;
+	int y0 = iy < 0 ? 0 : iy > (int)h - 1 ? (int)h - 1 : iy;
+	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)h - 1 ? (int)h - 1 : iy + 1;
+	double a = tab[4 * (y0 * w + x0) + 3], b = tab[4 * (y0 * w + x1) + 3];
+	double cc = tab[4 * (y1 * w + x0) + 3], d = tab[4 * (y1 * w + x1) + 3];
+	double top = a + (b - a) * fx, bot = cc + (d - cc) * fx;
+	return top + (bot - top) * fy;
+}
+
 static v3 transmittance_to_top(const struct ctx *c, double h, double mu)
 {
 	double t, u, vv;
@@ -411,8 +429,9 @@ static v3 light_transmittance(const struct ctx *c, double h, double mu, double r
 }
 
 /* Each of the two rows at its own altitude's u, blended in altitude (see
- * multiscatter_at in common.glsl). */
-static v3 multiscatter(const struct ctx *c, double h, double mu_s)
+ * multiscatter_at in common.glsl); the A channel (the ground's share) in
+ * ret_share. */
+static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share)
 {
 	double u, vv;
 	const struct model_tables *m = c->tab;
@@ -423,6 +442,7 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s)
 	int y0 = iy < 0 ? 0 : iy > (int)n - 1 ? (int)n - 1 : iy;
 	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)n - 1 ? (int)n - 1 : iy + 1;
 	v3 row[2];
+	double share[2];
 	for (int k = 0; k < 2; k++) {
 		int y = k ? y1 : y0;
 		/* skymap_multiscatter_uv at the row's altitude, except that sqrt|s|
@@ -435,21 +455,45 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s)
 		double sn = skymap_clamp(d < 0.0 ? d / (1.0 + mh) : d / (1.0 - mh), -1.0, 1.0);
 		double a = fabs(sn) < 1e-10 ? sn * 1e5 : copysign(sqrt(fabs(sn)), sn);
 		row[k] = bilinear(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
+		share[k] = bilinear_a(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 	}
+	*ret_share = share[0] + (share[1] - share[0]) * fy;
 	return add(row[0], scale(add(row[1], scale(row[0], -1.0)), fy));
 }
 
+/* The ground's first bounce through the phases at altitude h for a view of
+ * cos-zenith mu_view there: sum of sigma_i (k_i - 1), as ground_excess and
+ * ground_scattering in common.glsl (the same table, interpolated alike). */
+static v3 ground_scattering(const struct ctx *c, double h, double mu_view)
+{
+	double x = fmin(fabs(mu_view), 1.0) * (MODEL_GROUND_N - 1), fl = floor(x);
+	int i = (int)fl, i1 = i + 1 < MODEL_GROUND_N ? i + 1 : MODEL_GROUND_N - 1;
+	v3 s = { 0 };
+	for (int n = 0; n < c->a->n_constituents; n++) {
+		const struct atmo_constituent *k = &c->a->c[n];
+		const double *e = c->ground_excess[n];
+		double ex = e[i] + (e[i1] - e[i]) * (x - fl);
+		s = add(s, scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
+				 atmo_density(&k->density, h) * (mu_view < 0 ? -ex : ex)));
+	}
+	return s;
+}
+
 /* visible: the part of the light's disk seen, averaged over the march step
- * (disk_visible_mean); negative to take it at the point instead. */
+ * (disk_visible_mean); negative to take it at the point instead. ground:
+ * ground_scattering() of the step. */
 static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, double radius_deg,
-			double visible, v3 illum, v3 sigma_s)
+			double visible, v3 illum, v3 sigma_s, v3 ground)
 {
 	double mu_l = dot(up, light), radius_rad = radius_deg * SKYMAP_PI / 180.0;
 	v3 t = visible < 0 ? light_transmittance(c, h, mu_l, radius_rad)
 			   : visible_transmittance(c, h, mu_l, visible);
 	v3 s = mul(phased_scattering(c, h, dot(dir, light)), t);
-	if (c->s->quality.multiscatter_dirs)	/* 0: higher orders switched off */
-		s = add(s, mul(sigma_s, multiscatter(c, h, mu_l)));
+	if (c->s->quality.multiscatter_dirs) {	/* 0: higher orders switched off */
+		double share;
+		v3 psi = multiscatter(c, h, mu_l, &share);
+		s = add(s, mul(add(sigma_s, scale(ground, share)), psi));
+	}
 	return mul(s, illum);
 }
 
@@ -596,7 +640,7 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 			skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						    q->width, q->height, &h, &mu_s);
 			v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
-			v3 sl = { 0 }, sf = { 0 }, se = { 0 };
+			v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 };
 			double r0 = c->rb + h;
 			/* The first scattering of L2 with each constituent's own phase,
 			 * the cells' means normalised to sum to exactly 1 over the
@@ -622,7 +666,7 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 				if (ground)
 					t_end = tg;
 				double dt = t_end / q->steps;
-				v3 tau = { 0 }, l2 = { 0 }, f = { 0 }, absorbed = { 0 };
+				v3 tau = { 0 }, l2 = { 0 }, absorbed = { 0 };
 				for (uint32_t s = 0; s < q->steps; s++) {
 					double t = (s + 0.5) * dt, rr;
 					double hs = altitude_along(c, h, dir.z, t, &rr);
@@ -639,7 +683,6 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 									   atmo_density(&kc->density, hs) * cell_phase[n]));
 					}
 					l2 = add(l2, mul(mul(w, phased), t_sun));
-					f = add(f, mul(w, m.scattering));
 					absorbed = add(absorbed, mul(w, m.absorption));
 					tau = add(tau, scale(m.extinction, dt));
 				}
@@ -648,20 +691,27 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 					v3 n = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb, (r0 + dir.z * t_end) / c->rb);
 					double mu_g = dot(n, sun);
 					v3 g = mul(t_ray, transmittance_to_top(c, 0.0, mu_g));
-					l2 = add(l2, scale(mul(g, v(albedo[0], albedo[1], albedo[2])),
+					sg = add(sg, scale(mul(g, v(albedo[0], albedo[1], albedo[2])),
 							   (mu_g > 0 ? mu_g : 0) / SKYMAP_PI));
 					/* Every order bounces off the ground (see multiscatter.comp). */
 					returned = mul(t_ray, v(albedo[0], albedo[1], albedo[2]));
 				}
 				sl = add(sl, l2);
-				sf = add(sf, add(f, returned));
+				sr = add(sr, returned);
 				se = add(se, add(add(t_ray, scale(returned, -1.0)), absorbed));
 			}
 			sl = scale(sl, 1.0 / dirs);
-			sf = scale(sf, 1.0 / dirs);
+			sg = scale(sg, 1.0 / dirs);
+			sr = scale(sr, 1.0 / dirs);
 			se = scale(se, 1.0 / dirs);
+			/* The ground's first bounce G: its higher orders without the
+			 * ground-to-ground return, its share of psi in A (see
+			 * multiscatter.comp). */
+			sl = add(sl, mul(sg, v(1.0 - sr.x, 1.0 - sr.y, 1.0 - sr.z)));
 			v3 psi = v(sl.x / fmax(se.x, 1e-6), sl.y / fmax(se.y, 1e-6), sl.z / fmax(se.z, 1e-6));
-			put(out + 4 * (j * q->width + i), psi, mean3(sf));
+			v3 lum = v(0.2126, 0.7152, 0.0722);
+			double share = dot(sg, lum) / fmax(dot(psi, lum), 1e-30);
+			put(out + 4 * (j * q->width + i), psi, skymap_clamp(share, 0.0, 1.0));
 		}
 }
 
@@ -695,11 +745,12 @@ static void march(const struct ctx *c, v3 dir, double a, double b, uint32_t n, b
 				moon_x = xb;
 			}
 		}
+		v3 ground = ground_scattering(c, hs, dot(up, dir));
 		v3 s = light_source(c, hs, up, dir, c->sun, c->s->sun.angular_radius_deg, vis_sun, c->sun_illum,
-				    m.scattering);
+				    m.scattering, ground);
 		if (c->moon_lit)
 			s = add(s, light_source(c, hs, up, dir, c->moon, c->s->moon.angular_radius_deg, vis_moon,
-						c->moon_illum, m.scattering));
+						c->moon_illum, m.scattering, ground));
 		*radiance = add(*radiance, mul(mul(vexp_neg(*tau), s), segment_weight(m.extinction, dt)));
 		*tau = add(*tau, scale(m.extinction, dt));
 	}
@@ -837,6 +888,12 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	c.moon_illum = scale(v(s->moon.color[0], s->moon.color[1], s->moon.color[2]), s->moon.illuminance_lx);
 	c.moon_lit = s->moon.illuminance_lx > 0;
 	state_night_floor(s, &c.night_cd_m2, &c.night_gain);
+	for (int n = 0; n < s->atmo.n_constituents; n++) {
+		const struct atmo_constituent *k = &s->atmo.c[n];
+		bool scatters = k->scattering_per_km[0] > 0 || k->scattering_per_km[1] > 0 ||
+				k->scattering_per_km[2] > 0;
+		model_ground_excess(scatters ? k->phase : ATMO_PHASE_NONE, k->g, c.ground_excess[n]);
+	}
 
 	int rc = model_tables_new(s, mask, &m);
 	if (rc < 0)
