@@ -8,7 +8,8 @@
  * as the state's storage says, rows of width texels, rows bottom-up in v,
  * the aerial volume's slices stacked (see proto/skymap.h for the mappings).
  *   transmittance  RGB transmittance to the top of the atmosphere, A = 1
- *   multiscatter   RGB psi_ms per unit illuminance (1/sr), A = f_ms (mean)
+ *   multiscatter   RGB psi_ms per unit illuminance (1/sr), A = the share of the
+ *                  ground's first bounce in psi_ms (luminance-weighted, [0, 1])
  *   skyview        RGB radiance (cd/m2 per channel when illuminances are in lx),
  *                  A = mean transmittance along the view ray
  *   aerial         RGB in-scattered radiance, A = mean transmittance

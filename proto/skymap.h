@@ -15,7 +15,12 @@
 
 #include <math.h>
 
-#define SKYMAP_VERSION 2
+/* Version 3: the multi-scattering table's A holds the share of the
+ * ground's first bounce in psi_ms (luminance-weighted, in [0, 1]; it was the
+ * mean f_ms), which the sky-view and aerial passes scatter through each
+ * constituent's phase rather than isotropically (shaders/common.glsl,
+ * ground_excess). */
+#define SKYMAP_VERSION 3
 
 #ifndef SKYMAP_PI
 #define SKYMAP_PI 3.14159265358979323846

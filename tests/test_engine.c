@@ -74,6 +74,14 @@ static void compare(const char *name, const struct sky_state *s, double min_psnr
 		double mse = se / (n / 4 * 3);
 		double psnr = mse > 0 ? 10 * log10(peak * peak / mse) : INFINITY;
 		printf("%-28s %-14s PSNR %6.1f dB  max rel %.2e\n", name, state_table_names[t], psnr, max_rel);
+		/* The multi-scattering table's A: the ground's share of psi_ms. */
+		if (t == STATE_MULTISCATTER) {
+			double max_a = 0;
+			for (size_t i = 3; i < n; i += 4)
+				max_a = fmax(max_a, fabs(texel((enum state_table)t, i) - m.t[t][i]));
+			if (!(max_a <= 0.01))
+				FAIL("%s: multiscatter A (the ground's share) off by %.3g", name, max_a);
+		}
 		if (peak > 0 && !(psnr >= min_psnr_db))
 			FAIL("%s: %s PSNR %.1f dB under %.0f dB", name, state_table_names[t], psnr, min_psnr_db);
 	}
