@@ -81,7 +81,7 @@ void main()
 	const float norm = dir_weight / float(MS_DIRS);
 	float r0 = P.planet.x + h;
 
-	// Per direction: L2 and, for f (the transfer of unit isotropic light), the
+	// Per direction: L2, f (transfer of unit isotropic light) and the
 	// escape 1 - f written as what leaves or is absorbed, so that 1 - f_ms
 	// never comes from a cancelling subtraction.
 	//
@@ -136,7 +136,9 @@ void main()
 		sum_l2[j] = vec3(0.0);
 		sum_ground[j] = vec3(0.0);
 	}
-	vec3 sum_escape = vec3(0.0), sum_returned = vec3(0.0);
+	// sum_f (f_ms) is no longer stored (A holds the ground's share); psi
+	// takes 1 - f_ms from sum_escape.
+	vec3 sum_f = vec3(0.0), sum_escape = vec3(0.0), sum_returned = vec3(0.0);
 	for (int k = 0; k < n_dirs; k++) {
 		vec3 dir;
 		if (MS_DIRS == 2) {
@@ -154,7 +156,7 @@ void main()
 		if (ground)
 			t_end = tg;
 		float dt = t_end / float(STEPS);
-		vec3 tr = vec3(1.0), absorbed = vec3(0.0);
+		vec3 tr = vec3(1.0), f = vec3(0.0), absorbed = vec3(0.0);
 		// Per sun, the phase-weighted scattering per unit density of each
 		// constituent: a matrix times the step's densities. Arrays of
 		// constituents indexed in loops left the registers on lavapipe
@@ -183,6 +185,7 @@ void main()
 			for (int j = 0; j < MS_SUN_GROUP; j++)
 				l2[j] += w * (phased_of[j] * dens) *
 					 light_transmittance(a, dot(up, sun[j]), P.sun_dir.w);
+			f += w * scattering;
 			absorbed += w * absorption;
 			tr *= step_t;
 		}
@@ -202,6 +205,7 @@ void main()
 			// bounces off the ground, not only the second.
 			returned = tr * P.albedo.rgb;
 		}
+		sum_f += f + returned;
 		sum_escape += tr - returned + absorbed;
 		sum_returned += returned;
 	}
@@ -224,7 +228,7 @@ void main()
 		// point, its mean over the sphere) as a share of psi, which the
 		// sky-view and aerial passes scatter through each constituent's
 		// phase (ground_excess() in common.glsl); its higher orders
-		// G f_ms / (1 - f_ms) stay isotropic. One share for the three
+		// G (f_ms - f_ground) / (1 - f_ms) stay isotropic. One share for the three
 		// channels, weighted by luminance (Rec. 709), since A is one value.
 		const vec3 lum = vec3(0.2126, 0.7152, 0.0722);
 		float share = dot(sum_ground[j], lum) * norm / max(dot(psi, lum), 1e-30);
