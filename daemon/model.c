@@ -511,22 +511,49 @@ void model_optical_depth(const struct atmo *a, double altitude_km, double mu, ui
 
 /* Sub-samples per axis of a direction's cell for its mean phase. */
 #define MS_PHASE_SUB 2
-/* The 64-direction grid: rings of equal cos-zenith height by azimuth
- * columns (why 16 x 4: multiscatter.comp). */
+/* The 64-direction grid: rings of cos-zenith, denser near the horizon, by
+ * azimuth columns (why 16 x 4 and these rings: multiscatter.comp). */
 #define MS_RINGS 16
 #define MS_COLS 4
+#define MS_RING_POW 1.2
+
+/* The cosine of ring edge e (0: zenith, MS_RINGS: nadir), or for two
+ * directions of the hemispheres' edges. */
+static double ms_ring_edge(uint32_t e, uint32_t n)
+{
+	if (n == 2)
+		return 1.0 - e;
+	double s = 1.0 - 2.0 * e / MS_RINGS;
+	return (s < 0 ? -1.0 : 1.0) * pow(fabs(s), MS_RING_POW);
+}
+
+/* Direction k's ring's top and bottom cosines. */
+static void ms_ring(uint32_t k, uint32_t n, double *ret_top, double *ret_bot)
+{
+	uint32_t ring = n == 2 ? k : k / MS_COLS;
+	*ret_top = ms_ring_edge(ring, n);
+	*ret_bot = ms_ring_edge(ring + 1, n);
+}
+
+/* Direction k's cell's solid angle over the mean cell's. */
+static double ms_cell_weight(uint32_t k, uint32_t n)
+{
+	double top, bot;
+	ms_ring(k, n, &top, &bot);
+	return n == 2 ? 1.0 : (top - bot) * MS_RINGS * 0.5;
+}
 
 /* The mean over direction k's cell of constituent kc's phase toward the sun,
  * from MS_PHASE_SUB^2 equal-area sub-samples (see multiscatter.comp). The
- * cells: MS_RINGS rings of equal cos-zenith height by MS_COLS azimuth
- * columns, or for two directions the upper and lower hemispheres. */
+ * cells: MS_RINGS rings (ms_ring_edge()) by MS_COLS azimuth columns, or for
+ * two directions the upper and lower hemispheres. */
 static double ms_cell_phase(const struct atmo_constituent *kc, uint32_t k, uint32_t n, v3 sun)
 {
-	uint32_t rings = n == 2 ? 2 : MS_RINGS, ring = n == 2 ? k : k / MS_COLS;
 	uint32_t col = n == 2 ? 0 : k % MS_COLS;
-	double dphi = n == 2 ? 2.0 * SKYMAP_PI : 2.0 * SKYMAP_PI / MS_COLS, sum = 0;
+	double dphi = n == 2 ? 2.0 * SKYMAP_PI : 2.0 * SKYMAP_PI / MS_COLS, sum = 0, top, bot;
+	ms_ring(k, n, &top, &bot);
 	for (int a = 0; a < MS_PHASE_SUB; a++) {
-		double ct = 1.0 - 2.0 * (ring + (a + 0.5) / MS_PHASE_SUB) / rings;
+		double ct = top + (bot - top) * (a + 0.5) / MS_PHASE_SUB;
 		double st = skymap_safe_sqrt(1.0 - ct * ct);
 		for (int b = 0; b < MS_PHASE_SUB; b++) {
 			double ph = dphi * (col + (b + 0.5) / MS_PHASE_SUB);
@@ -540,7 +567,9 @@ static v3 ms_direction(uint32_t k, uint32_t n)
 {
 	if (n == 2)
 		return v(0, 0, k == 0 ? 1.0 : -1.0);
-	double ct = 1.0 - 2.0 * ((k / MS_COLS) + 0.5) / MS_RINGS;
+	double top, bot;
+	ms_ring(k, n, &top, &bot);
+	double ct = 0.5 * (top + bot);
 	double ph = 2.0 * SKYMAP_PI * ((k % MS_COLS) + 0.5) / MS_COLS;
 	double st = skymap_safe_sqrt(1.0 - ct * ct);
 	return v(st * cos(ph), st * sin(ph), ct);
@@ -568,7 +597,7 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 					continue;
 				double sum = 0;
 				for (uint32_t k = 0; k < dirs; k++)
-					sum += ms_cell_phase(kc, k, dirs, sun);
+					sum += ms_cell_weight(k, dirs) * ms_cell_phase(kc, k, dirs, sun);
 				norm_phase[n] = 1.0 / (4.0 * SKYMAP_PI * sum / dirs);
 			}
 			for (uint32_t k = 0; k < dirs; k++) {
@@ -603,7 +632,13 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 					absorbed = add(absorbed, mul(w, m.absorption));
 					tau = add(tau, scale(m.extinction, dt));
 				}
-				v3 t_ray = vexp_neg(tau), returned = { 0 };
+				/* The cell's solid angle over the mean cell's: every
+				 * term below is linear in these four. */
+				double wk = ms_cell_weight(k, dirs);
+				l2 = scale(l2, wk);
+				f = scale(f, wk);
+				absorbed = scale(absorbed, wk);
+				v3 t_ray = scale(vexp_neg(tau), wk), returned = { 0 };
 				if (ground) {
 					v3 n = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb, (r0 + dir.z * t_end) / c->rb);
 					double mu_g = dot(n, sun);
