@@ -517,8 +517,8 @@ void model_optical_depth(const struct atmo *a, double altitude_km, double mu, ui
 #define MS_COLS 4
 #define MS_RING_POW 1.2
 
-/* The cosine of ring edge e (0: zenith, MS_RINGS: nadir), or for two
- * directions of the hemispheres' edges. */
+/* The cosine of ring edge e (0: zenith, MS_RINGS: nadir); for two
+ * directions, the hemispheres' edges (1, 0, -1). */
 static double ms_ring_edge(uint32_t e, uint32_t n)
 {
 	if (n == 2)
