@@ -595,22 +595,49 @@ void model_optical_depth(const struct atmo *a, double altitude_km, double mu, ui
 
 /* Sub-samples per axis of a direction's cell for its mean phase. */
 #define MS_PHASE_SUB 2
-/* The 64-direction grid: rings of equal cos-zenith height by azimuth
- * columns (why 16 x 4: multiscatter.comp). */
+/* The 64-direction grid: rings of cos-zenith, denser near the horizon, by
+ * azimuth columns (why 16 x 4 and these rings: multiscatter.comp). */
 #define MS_RINGS 16
 #define MS_COLS 4
+#define MS_RING_POW 1.2
+
+/* The cosine of ring edge e (0: zenith, MS_RINGS: nadir); for two
+ * directions, the hemispheres' edges (1, 0, -1). */
+static double ms_ring_edge(uint32_t e, uint32_t n)
+{
+	if (n == 2)
+		return 1.0 - e;
+	double s = 1.0 - 2.0 * e / MS_RINGS;
+	return (s < 0 ? -1.0 : 1.0) * pow(fabs(s), MS_RING_POW);
+}
+
+/* Direction k's ring's top and bottom cosines. */
+static void ms_ring(uint32_t k, uint32_t n, double *ret_top, double *ret_bot)
+{
+	uint32_t ring = n == 2 ? k : k / MS_COLS;
+	*ret_top = ms_ring_edge(ring, n);
+	*ret_bot = ms_ring_edge(ring + 1, n);
+}
+
+/* Direction k's cell's solid angle over the mean cell's. */
+static double ms_cell_weight(uint32_t k, uint32_t n)
+{
+	double top, bot;
+	ms_ring(k, n, &top, &bot);
+	return n == 2 ? 1.0 : (top - bot) * MS_RINGS * 0.5;
+}
 
 /* The mean over direction k's cell of constituent kc's phase toward the sun,
  * from MS_PHASE_SUB^2 equal-area sub-samples (see multiscatter.comp). The
- * cells: MS_RINGS rings of equal cos-zenith height by MS_COLS azimuth
- * columns, or for two directions the upper and lower hemispheres. */
+ * cells: MS_RINGS rings (ms_ring_edge()) by MS_COLS azimuth columns, or for
+ * two directions the upper and lower hemispheres. */
 static double ms_cell_phase(const struct atmo_constituent *kc, uint32_t k, uint32_t n, v3 sun)
 {
-	uint32_t rings = n == 2 ? 2 : MS_RINGS, ring = n == 2 ? k : k / MS_COLS;
 	uint32_t col = n == 2 ? 0 : k % MS_COLS;
-	double dphi = n == 2 ? 2.0 * SKYMAP_PI : 2.0 * SKYMAP_PI / MS_COLS, sum = 0;
+	double dphi = n == 2 ? 2.0 * SKYMAP_PI : 2.0 * SKYMAP_PI / MS_COLS, sum = 0, top, bot;
+	ms_ring(k, n, &top, &bot);
 	for (int a = 0; a < MS_PHASE_SUB; a++) {
-		double ct = 1.0 - 2.0 * (ring + (a + 0.5) / MS_PHASE_SUB) / rings;
+		double ct = top + (bot - top) * (a + 0.5) / MS_PHASE_SUB;
 		double st = skymap_safe_sqrt(1.0 - ct * ct);
 		for (int b = 0; b < MS_PHASE_SUB; b++) {
 			double ph = dphi * (col + (b + 0.5) / MS_PHASE_SUB);
@@ -624,94 +651,113 @@ static v3 ms_direction(uint32_t k, uint32_t n)
 {
 	if (n == 2)
 		return v(0, 0, k == 0 ? 1.0 : -1.0);
-	double ct = 1.0 - 2.0 * ((k / MS_COLS) + 0.5) / MS_RINGS;
+	double top, bot;
+	ms_ring(k, n, &top, &bot);
+	double ct = 0.5 * (top + bot);
 	double ph = 2.0 * SKYMAP_PI * ((k % MS_COLS) + 0.5) / MS_COLS;
 	double st = skymap_safe_sqrt(1.0 - ct * ct);
 	return v(st * cos(ph), st * sin(ph), ct);
 }
 
+/* One texel of the multi-scattering table at altitude h and sun cosine
+ * mu_s: psi, the ground's share of it (A) and the escape 1 - f_ms. */
+static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double h, double mu_s,
+		     v3 *ret_psi, double *ret_share, v3 *ret_escape)
+{
+	const double albedo[3] = { c->a->ground_albedo[0], c->a->ground_albedo[1], c->a->ground_albedo[2] };
+	v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
+	v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 };
+	double r0 = c->rb + h;
+	/* The first scattering of L2 with each constituent's own phase,
+	 * the cells' means normalised to sum to exactly 1 over the
+	 * sphere (see multiscatter.comp). */
+	double norm_phase[ATMO_MAX_CONSTITUENTS] = { 0 };
+	for (int n = 0; n < c->a->n_constituents; n++) {
+		const struct atmo_constituent *kc = &c->a->c[n];
+		if (kc->phase == ATMO_PHASE_NONE)
+			continue;
+		double sum = 0;
+		for (uint32_t k = 0; k < dirs; k++)
+			sum += ms_cell_weight(k, dirs) * ms_cell_phase(kc, k, dirs, sun);
+		norm_phase[n] = 1.0 / (4.0 * SKYMAP_PI * sum / dirs);
+	}
+	for (uint32_t k = 0; k < dirs; k++) {
+		v3 dir = ms_direction(k, dirs);
+		double cell_phase[ATMO_MAX_CONSTITUENTS] = { 0 };
+		for (int n = 0; n < c->a->n_constituents; n++)
+			if (c->a->c[n].phase != ATMO_PHASE_NONE)
+				cell_phase[n] = ms_cell_phase(&c->a->c[n], k, dirs, sun) * norm_phase[n];
+		double tg, t_end = distance_to_top(c, h, dir.z);
+		bool ground = hits_ground(c, h, dir.z, &tg);
+		if (ground)
+			t_end = tg;
+		double dt = t_end / steps;
+		v3 tau = { 0 }, l2 = { 0 }, absorbed = { 0 };
+		for (uint32_t s = 0; s < steps; s++) {
+			double t = (s + 0.5) * dt, rr;
+			double hs = altitude_along(c, h, dir.z, t, &rr);
+			struct medium m = medium(c, hs);
+			v3 w = mul(vexp_neg(tau), segment_weight(m.extinction, dt));
+			v3 p = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
+			v3 t_sun = light_transmittance(c, hs, dot(p, sun),
+						       c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
+			v3 phased = { 0 };
+			for (int n = 0; n < c->a->n_constituents; n++) {
+				const struct atmo_constituent *kc = &c->a->c[n];
+				phased = add(phased, scale(v(kc->scattering_per_km[0], kc->scattering_per_km[1],
+							     kc->scattering_per_km[2]),
+							   atmo_density(&kc->density, hs) * cell_phase[n]));
+			}
+			l2 = add(l2, mul(mul(w, phased), t_sun));
+			absorbed = add(absorbed, mul(w, m.absorption));
+			tau = add(tau, scale(m.extinction, dt));
+		}
+		/* The cell's solid angle over the mean cell's: every
+		 * term below is linear in these four. */
+		double wk = ms_cell_weight(k, dirs);
+		l2 = scale(l2, wk);
+		absorbed = scale(absorbed, wk);
+		v3 t_ray = scale(vexp_neg(tau), wk), returned = { 0 };
+		if (ground) {
+			v3 n = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb, (r0 + dir.z * t_end) / c->rb);
+			double mu_g = dot(n, sun);
+			v3 g = mul(t_ray, transmittance_to_top(c, 0.0, mu_g));
+			sg = add(sg, scale(mul(g, v(albedo[0], albedo[1], albedo[2])),
+					   (mu_g > 0 ? mu_g : 0) / SKYMAP_PI));
+			/* Every order bounces off the ground (see multiscatter.comp). */
+			returned = mul(t_ray, v(albedo[0], albedo[1], albedo[2]));
+		}
+		sl = add(sl, l2);
+		sr = add(sr, returned);
+		se = add(se, add(add(t_ray, scale(returned, -1.0)), absorbed));
+	}
+	sl = scale(sl, 1.0 / dirs);
+	sg = scale(sg, 1.0 / dirs);
+	sr = scale(sr, 1.0 / dirs);
+	se = scale(se, 1.0 / dirs);
+	/* The ground's first bounce G: its higher orders without the
+	 * ground-to-ground return, its share of psi in A (see
+	 * multiscatter.comp). */
+	sl = add(sl, mul(sg, v(1.0 - sr.x, 1.0 - sr.y, 1.0 - sr.z)));
+	v3 psi = v(sl.x / fmax(se.x, 1e-6), sl.y / fmax(se.y, 1e-6), sl.z / fmax(se.z, 1e-6));
+	v3 lum = v(0.2126, 0.7152, 0.0722);
+	double share = dot(sg, lum) / fmax(dot(psi, lum), 1e-30);
+	*ret_psi = psi;
+	*ret_share = skymap_clamp(share, 0.0, 1.0);
+	*ret_escape = se;
+}
+
 static void compute_multiscatter(const struct ctx *c, const struct state_table_quality *q,
 				 uint32_t dirs, double *out)
 {
-	const double albedo[3] = { c->a->ground_albedo[0], c->a->ground_albedo[1], c->a->ground_albedo[2] };
 	for (uint32_t j = 0; j < q->height; j++)
 		for (uint32_t i = 0; i < q->width; i++) {
-			double h, mu_s;
+			double h, mu_s, share;
+			v3 psi, escape;
 			skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						    q->width, q->height, &h, &mu_s);
-			v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
-			v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 };
-			double r0 = c->rb + h;
-			/* The first scattering of L2 with each constituent's own phase,
-			 * the cells' means normalised to sum to exactly 1 over the
-			 * sphere (see multiscatter.comp). */
-			double norm_phase[ATMO_MAX_CONSTITUENTS] = { 0 };
-			for (int n = 0; n < c->a->n_constituents; n++) {
-				const struct atmo_constituent *kc = &c->a->c[n];
-				if (kc->phase == ATMO_PHASE_NONE)
-					continue;
-				double sum = 0;
-				for (uint32_t k = 0; k < dirs; k++)
-					sum += ms_cell_phase(kc, k, dirs, sun);
-				norm_phase[n] = 1.0 / (4.0 * SKYMAP_PI * sum / dirs);
-			}
-			for (uint32_t k = 0; k < dirs; k++) {
-				v3 dir = ms_direction(k, dirs);
-				double cell_phase[ATMO_MAX_CONSTITUENTS] = { 0 };
-				for (int n = 0; n < c->a->n_constituents; n++)
-					if (c->a->c[n].phase != ATMO_PHASE_NONE)
-						cell_phase[n] = ms_cell_phase(&c->a->c[n], k, dirs, sun) * norm_phase[n];
-				double tg, t_end = distance_to_top(c, h, dir.z);
-				bool ground = hits_ground(c, h, dir.z, &tg);
-				if (ground)
-					t_end = tg;
-				double dt = t_end / q->steps;
-				v3 tau = { 0 }, l2 = { 0 }, absorbed = { 0 };
-				for (uint32_t s = 0; s < q->steps; s++) {
-					double t = (s + 0.5) * dt, rr;
-					double hs = altitude_along(c, h, dir.z, t, &rr);
-					struct medium m = medium(c, hs);
-					v3 w = mul(vexp_neg(tau), segment_weight(m.extinction, dt));
-					v3 p = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
-					v3 t_sun = light_transmittance(c, hs, dot(p, sun),
-								       c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
-					v3 phased = { 0 };
-					for (int n = 0; n < c->a->n_constituents; n++) {
-						const struct atmo_constituent *kc = &c->a->c[n];
-						phased = add(phased, scale(v(kc->scattering_per_km[0], kc->scattering_per_km[1],
-									     kc->scattering_per_km[2]),
-									   atmo_density(&kc->density, hs) * cell_phase[n]));
-					}
-					l2 = add(l2, mul(mul(w, phased), t_sun));
-					absorbed = add(absorbed, mul(w, m.absorption));
-					tau = add(tau, scale(m.extinction, dt));
-				}
-				v3 t_ray = vexp_neg(tau), returned = { 0 };
-				if (ground) {
-					v3 n = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb, (r0 + dir.z * t_end) / c->rb);
-					double mu_g = dot(n, sun);
-					v3 g = mul(t_ray, transmittance_to_top(c, 0.0, mu_g));
-					sg = add(sg, scale(mul(g, v(albedo[0], albedo[1], albedo[2])),
-							   (mu_g > 0 ? mu_g : 0) / SKYMAP_PI));
-					/* Every order bounces off the ground (see multiscatter.comp). */
-					returned = mul(t_ray, v(albedo[0], albedo[1], albedo[2]));
-				}
-				sl = add(sl, l2);
-				sr = add(sr, returned);
-				se = add(se, add(add(t_ray, scale(returned, -1.0)), absorbed));
-			}
-			sl = scale(sl, 1.0 / dirs);
-			sg = scale(sg, 1.0 / dirs);
-			sr = scale(sr, 1.0 / dirs);
-			se = scale(se, 1.0 / dirs);
-			/* The ground's first bounce G: its higher orders without the
-			 * ground-to-ground return, its share of psi in A (see
-			 * multiscatter.comp). */
-			sl = add(sl, mul(sg, v(1.0 - sr.x, 1.0 - sr.y, 1.0 - sr.z)));
-			v3 psi = v(sl.x / fmax(se.x, 1e-6), sl.y / fmax(se.y, 1e-6), sl.z / fmax(se.z, 1e-6));
-			v3 lum = v(0.2126, 0.7152, 0.0722);
-			double share = dot(sg, lum) / fmax(dot(psi, lum), 1e-30);
-			put(out + 4 * (j * q->width + i), psi, skymap_clamp(share, 0.0, 1.0));
+			ms_texel(c, q->steps, dirs, h, mu_s, &psi, &share, &escape);
+			put(out + 4 * (j * q->width + i), psi, share);
 		}
 }
 
@@ -870,31 +916,38 @@ int model_tables_new(const struct sky_state *s, uint32_t mask, struct model_tabl
 	return 0;
 }
 
-int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables *ret)
+/* The model's context for state s reading the tables in tab. */
+static void ctx_init(struct ctx *c, const struct sky_state *s, const struct model_tables *tab)
 {
-	struct model_tables m = { 0 };
-	struct ctx c = { .s = s, .a = &s->atmo, .tab = &m };
 	double sun[3], moon[3];
 
-	c.rb = s->atmo.bottom_radius_km;
-	c.rt = s->atmo.top_radius_km;
-	c.shell = c.rt - c.rb;
-	c.h0 = s->altitude_km > 0 ? s->altitude_km : 0;
+	*c = (struct ctx){ .s = s, .a = &s->atmo, .tab = tab };
+	c->rb = s->atmo.bottom_radius_km;
+	c->rt = s->atmo.top_radius_km;
+	c->shell = c->rt - c->rb;
+	c->h0 = s->altitude_km > 0 ? s->altitude_km : 0;
 	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, sun);
 	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, moon);
-	c.sun = v(sun[0], sun[1], sun[2]);
-	c.moon = v(moon[0], moon[1], moon[2]);
-	c.sun_illum = scale(v(s->sun.color[0], s->sun.color[1], s->sun.color[2]), s->sun.illuminance_lx);
-	c.moon_illum = scale(v(s->moon.color[0], s->moon.color[1], s->moon.color[2]), s->moon.illuminance_lx);
-	c.moon_lit = s->moon.illuminance_lx > 0;
-	state_night_floor(s, &c.night_cd_m2, &c.night_gain);
+	c->sun = v(sun[0], sun[1], sun[2]);
+	c->moon = v(moon[0], moon[1], moon[2]);
+	c->sun_illum = scale(v(s->sun.color[0], s->sun.color[1], s->sun.color[2]), s->sun.illuminance_lx);
+	c->moon_illum = scale(v(s->moon.color[0], s->moon.color[1], s->moon.color[2]), s->moon.illuminance_lx);
+	c->moon_lit = s->moon.illuminance_lx > 0;
+	state_night_floor(s, &c->night_cd_m2, &c->night_gain);
 	for (int n = 0; n < s->atmo.n_constituents; n++) {
 		const struct atmo_constituent *k = &s->atmo.c[n];
 		bool scatters = k->scattering_per_km[0] > 0 || k->scattering_per_km[1] > 0 ||
 				k->scattering_per_km[2] > 0;
-		model_ground_excess(scatters ? k->phase : ATMO_PHASE_NONE, k->g, c.ground_excess[n]);
+		model_ground_excess(scatters ? k->phase : ATMO_PHASE_NONE, k->g, c->ground_excess[n]);
 	}
+}
 
+int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables *ret)
+{
+	struct model_tables m = { 0 };
+	struct ctx c;
+
+	ctx_init(&c, s, &m);
 	int rc = model_tables_new(s, mask, &m);
 	if (rc < 0)
 		return rc;
@@ -917,4 +970,23 @@ void model_refine(const struct sky_state *s, uint32_t factor, struct sky_state *
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		ret->quality.t[t].steps *= factor;
 	ret->quality.skyview_min_steps = ret->quality.t[STATE_SKYVIEW].steps;
+}
+
+int model_multiscatter_escape(const struct sky_state *s, double altitude_km, double ret_escape[3])
+{
+	struct model_tables m;
+	struct ctx c;
+	int rc = model_compute(s, 1u << STATE_TRANSMITTANCE, &m);
+	if (rc < 0)
+		return rc;
+	ctx_init(&c, s, &m);
+	uint32_t dirs = s->quality.multiscatter_dirs ? s->quality.multiscatter_dirs : 2;
+	double share;
+	v3 psi, escape;
+	ms_texel(&c, s->quality.t[STATE_MULTISCATTER].steps, dirs, altitude_km, 1.0, &psi, &share, &escape);
+	ret_escape[0] = escape.x;
+	ret_escape[1] = escape.y;
+	ret_escape[2] = escape.z;
+	model_tables_finish(&m);
+	return 0;
 }

@@ -30,6 +30,13 @@ int model_tables_new(const struct sky_state *s, uint32_t mask, struct model_tabl
  * "high step counts"); sky-view uses its maximum everywhere. */
 void model_refine(const struct sky_state *s, uint32_t factor, struct sky_state *ret);
 
+/* The escape 1 - f_ms per channel at altitude_km: the mean over the
+ * multi-scattering table's direction quadrature of what leaves along each
+ * direction or is absorbed (plus what the ground does not return), i.e. the
+ * denominator of psi_ms = L2 / (1 - f_ms) as the table computes it.
+ * Returns 0 or -ENOMEM. */
+int model_multiscatter_escape(const struct sky_state *s, double altitude_km, double ret_escape[3]);
+
 /* Optical depth per channel from altitude_km along cos-zenith mu to the top
  * of the atmosphere, by the transmittance pass's quadrature with steps steps
  * (the ground is not tested: the caller says whether the ray hits it). */
