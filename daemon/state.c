@@ -36,6 +36,7 @@ struct key {
 
 static const char *const storage_names[] = { "f32", "f16", NULL };
 static const char *const spacing_names[] = { "linear", "squared", NULL };
+static const char *const iteration_names[] = { "auto", "0", "1", "2", "3", "4", NULL };
 
 #define OFF(field) offsetof(struct sky_state, field)
 #define QT(i, f) OFF(quality.t[i].f)
@@ -71,6 +72,8 @@ static const struct key keys[] = {
 	{ "multiscatter_height", K_UINT, QT(1, height), FROM_M, 2, 1024, 0 },
 	{ "multiscatter_steps", K_UINT, QT(1, steps), FROM_M, 1, 4096, 0 },
 	{ "multiscatter_dirs", K_UINT, OFF(quality.multiscatter_dirs), FROM_M, 0, 64, 0 },
+	{ "multiscatter_iterations", K_ENUM, OFF(quality.multiscatter_iterations), FROM_M, 0, 0,
+	  iteration_names },
 	{ "skyview_width", K_UINT, QT(2, width), S_BIT, 2, 4096, 0 },
 	{ "skyview_height", K_UINT, QT(2, height), S_BIT, 2, 4096, 0 },
 	{ "skyview_steps", K_UINT, QT(2, steps), S_BIT, 1, 4096, 0 },
@@ -158,13 +161,13 @@ struct quality_preset {
 
 static const struct quality_preset quality_presets[] = {
 	{ "low", { { { 128, 32, 1, 20 }, { 16, 16, 1, 10 }, { 96, 54, 1, 16 }, { 16, 16, 16, 1 } },
-		   2, 4, 128.0, STATE_SQUARED, STATE_F16 } },
+		   2, 4, 128.0, STATE_SQUARED, STATE_F16, 0 } },
 	{ "medium", { { { 256, 64, 1, 40 }, { 32, 32, 1, 20 }, { 192, 108, 1, 30 }, { 32, 32, 32, 1 } },
-		      64, 4, 128.0, STATE_SQUARED, STATE_F32 } },
+		      64, 4, 128.0, STATE_SQUARED, STATE_F32, 0 } },
 	{ "high", { { { 256, 64, 1, 60 }, { 32, 32, 1, 30 }, { 256, 144, 1, 45 }, { 48, 48, 32, 2 } },
-		    64, 6, 128.0, STATE_SQUARED, STATE_F32 } },
+		    64, 6, 128.0, STATE_SQUARED, STATE_F32, 0 } },
 	{ "ultra", { { { 512, 128, 1, 80 }, { 64, 64, 1, 40 }, { 384, 216, 1, 60 }, { 64, 64, 64, 2 } },
-		     64, 8, 128.0, STATE_SQUARED, STATE_F32 } },
+		     64, 8, 128.0, STATE_SQUARED, STATE_F32, 0 } },
 };
 #define N_QUALITY_PRESETS (sizeof(quality_presets) / sizeof(quality_presets[0]))
 
@@ -569,6 +572,28 @@ size_t state_table_bytes(const struct sky_state *s, enum state_table t)
 	const struct state_table_quality *q = &s->quality.t[t];
 	return (size_t)q->width * q->height * (t == STATE_AERIAL ? q->depth : 1) *
 	       state_texel_bytes(s->quality.storage);
+}
+
+uint32_t state_multiscatter_iterations(const struct sky_state *s)
+{
+	if (s->quality.multiscatter_dirs == 0)
+		return 0;
+	if (s->quality.multiscatter_iterations > 0)
+		return (uint32_t)s->quality.multiscatter_iterations - 1;
+	/* Midpoint rule over the shell: the threshold needs a few percent. */
+	const struct atmo *a = &s->atmo;
+	const int n = 1000;
+	double shell_km = a->top_radius_km - a->bottom_radius_km, tau[3] = { 0 };
+	for (int k = 0; k < n; k++) {
+		double h = (k + 0.5) * shell_km / n;
+		for (int i = 0; i < a->n_constituents; i++) {
+			double d = atmo_density(&a->c[i].density, h) * shell_km / n;
+			for (int c = 0; c < 3; c++)
+				tau[c] += d * (a->c[i].scattering_per_km[c] + a->c[i].absorption_per_km[c]);
+		}
+	}
+	double most = fmax(tau[0], fmax(tau[1], tau[2]));
+	return most >= STATE_THICK_OPTICAL_DEPTH ? 2 : 0;
 }
 
 int state_validate(const struct sky_state *s, uint64_t max_buffer_bytes,
