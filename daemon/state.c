@@ -159,6 +159,7 @@ struct quality_preset {
 	struct state_quality q;
 };
 
+/* The last field, 0, is multiscatter_iterations=auto. */
 static const struct quality_preset quality_presets[] = {
 	{ "low", { { { 128, 32, 1, 20 }, { 16, 16, 1, 10 }, { 96, 54, 1, 16 }, { 16, 16, 16, 1 } },
 		   2, 4, 128.0, STATE_SQUARED, STATE_F16, 0 } },
@@ -580,18 +581,9 @@ uint32_t state_multiscatter_iterations(const struct sky_state *s)
 		return 0;
 	if (s->quality.multiscatter_iterations > 0)
 		return (uint32_t)s->quality.multiscatter_iterations - 1;
-	/* Midpoint rule over the shell: the threshold needs a few percent. */
-	const struct atmo *a = &s->atmo;
-	const int n = 1000;
-	double shell_km = a->top_radius_km - a->bottom_radius_km, tau[3] = { 0 };
-	for (int k = 0; k < n; k++) {
-		double h = (k + 0.5) * shell_km / n;
-		for (int i = 0; i < a->n_constituents; i++) {
-			double d = atmo_density(&a->c[i].density, h) * shell_km / n;
-			for (int c = 0; c < 3; c++)
-				tau[c] += d * (a->c[i].scattering_per_km[c] + a->c[i].absorption_per_km[c]);
-		}
-	}
+	/* The threshold needs a few percent: 1000 intervals are plenty. */
+	double tau[3];
+	atmo_vertical_optical_depth(&s->atmo, 1000, tau);
 	double most = fmax(tau[0], fmax(tau[1], tau[2]));
 	return most >= STATE_THICK_OPTICAL_DEPTH ? 2 : 0;
 }
