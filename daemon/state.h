@@ -179,8 +179,8 @@ size_t state_table_bytes(const struct sky_state *s, enum state_table t);
 /* The steps of the neighbourhood iteration of psi_ms that the tables of s
  * get: the key multiscatter_iterations, or with "auto" 2 where the
  * atmosphere's vertical optical depth from the ground (largest channel)
- * is at least STATE_THICK_OPTICAL_DEPTH and 0 below; always 0 with
- * multi-scattering off. Hillaire's psi = L2 / (1 - f_ms) is within a few
+ * is at least STATE_THICK_OPTICAL_DEPTH and 0 below or with 2 directions;
+ * always 0 with multi-scattering off. Hillaire's psi = L2 / (1 - f_ms) is within a few
  * percent below that depth and 14-29 % low at ten times Earth's (see
  * shaders/msiterate.comp). */
 #define STATE_THICK_OPTICAL_DEPTH 1.0

@@ -171,6 +171,9 @@ static void test_multiscatter_iterations(void)
 	CHECK(state_set_pair(&s, "rayleigh_scattering_per_km=0.05802,0.13558,0.331", NULL, err, sizeof(err)) == 0);
 	CHECK(state_set_pair(&s, "mie_scattering_per_km=0.03996", NULL, err, sizeof(err)) == 0);
 	CHECK(state_multiscatter_iterations(&s) == 2);
+	CHECK(state_set_pair(&s, "multiscatter_dirs=2", NULL, err, sizeof(err)) == 0);
+	CHECK(state_multiscatter_iterations(&s) == 0);
+	CHECK(state_set_pair(&s, "multiscatter_dirs=64", NULL, err, sizeof(err)) == 0);
 	CHECK(state_set_pair(&s, "multiscatter_iterations=0", &dirty, err, sizeof(err)) == 0);
 	CHECK(dirty == (STATE_ALL_TABLES & ~STATE_BIT(STATE_TRANSMITTANCE)));
 	CHECK(state_multiscatter_iterations(&s) == 0);
