@@ -22,7 +22,7 @@
 #include "vkfn.h"
 
 #define MAX_PIPELINES 32	/* cached variants per pass */
-#define N_SPEC 21
+#define N_SPEC 22
 /* Texels of a row one invocation shares its rays between: sun angles of
  * multi-scattering, azimuths of sky-view. */
 #define MS_SUN_GROUP 4
@@ -38,13 +38,17 @@ struct gpu_constituent {
 #define N_LOOKUPS 2
 /* Bindings: 0 parameters, 1-4 the tables (storage), 5-6 the lookups,
  * 7 the cameras of the aerial volumes (storage), 8 the column densities of
- * the transmittance texels (storage). */
+ * the transmittance texels (storage), 9 the scratch of the iteration of
+ * psi_ms (storage: the next table, then L2). */
 #define VIEWS_BINDING (1 + STATE_N_TABLES + N_LOOKUPS)
 #define COLUMNS_BINDING (VIEWS_BINDING + 1)
-#define N_BINDINGS (COLUMNS_BINDING + 1)
-/* Compute passes: one per table, then the column densities (SHADER_COLUMNS). */
+#define ITERATE_BINDING (COLUMNS_BINDING + 1)
+#define N_BINDINGS (ITERATE_BINDING + 1)
+/* Compute passes: one per table, then the column densities (SHADER_COLUMNS)
+ * and the iteration of psi_ms (SHADER_MSITERATE). */
 #define PASS_COLUMNS STATE_N_TABLES
-#define N_PASSES (STATE_N_TABLES + 1)
+#define PASS_MSITERATE (STATE_N_TABLES + 1)
+#define N_PASSES (STATE_N_TABLES + 2)
 
 struct gpu_params {
 	float planet[4], albedo[4], sun_dir[4], sun_illum[4], moon_dir[4], moon_illum[4];
@@ -138,6 +142,11 @@ struct eng {
 	struct column_key column_key;
 	bool columns_valid;
 	bool columns_in_flight;
+	/* The iteration of psi_ms (shaders/msiterate.comp): its output in the
+	 * table's format, copied over the table after each step, then L2 as
+	 * float32 RGBA per texel. */
+	struct gpu_buffer ms_iterate;
+	uint32_t iterations_in_flight;
 
 	/* Completion: a waiter thread waits on the fence, then writes the eventfd. */
 	int event_fd;
@@ -565,7 +574,7 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
-		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 2 },
+		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 3 },
 		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
@@ -669,6 +678,7 @@ void eng_free(struct eng *e)
 		buffer_free(e, &e->params);
 		buffer_free(e, &e->views);
 		buffer_free(e, &e->columns);
+		buffer_free(e, &e->ms_iterate);
 		if (e->fence)
 			e->vk.vkDestroyFence(e->dev, e->fence, NULL);
 		if (e->queries)
@@ -1024,6 +1034,18 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 			return rc;
 		rebind = true;
 	}
+	const struct state_table_quality *mq = &s->quality.t[STATE_MULTISCATTER];
+	VkDeviceSize iterate_bytes = e->table_bytes[STATE_MULTISCATTER] +
+				     (VkDeviceSize)mq->width * mq->height * 4 * sizeof(float);
+	if (!e->ms_iterate.buf || e->ms_iterate.bytes != iterate_bytes) {
+		buffer_free(e, &e->ms_iterate);
+		rc = buffer_new(e, iterate_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+						  VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->ms_iterate, err, err_size);
+		if (rc < 0)
+			return rc;
+		rebind = true;
+	}
 	if (rebind) {
 		VkDescriptorBufferInfo bi[N_BINDINGS] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
 		VkWriteDescriptorSet w[N_BINDINGS];
@@ -1039,6 +1061,8 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 				bi[i] = (VkDescriptorBufferInfo){ e->views.buf, 0, VK_WHOLE_SIZE };
 			else if (i == COLUMNS_BINDING)
 				bi[i] = (VkDescriptorBufferInfo){ e->columns.buf, 0, VK_WHOLE_SIZE };
+			else if (i == ITERATE_BINDING)
+				bi[i] = (VkDescriptorBufferInfo){ e->ms_iterate.buf, 0, VK_WHOLE_SIZE };
 			else if (i > 0)
 				bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
 			w[i].pBufferInfo = &bi[i];
@@ -1081,6 +1105,41 @@ static void record_pass(struct eng *e, int pass, VkPipeline pipe, uint32_t gx, u
 	if (e->timestamps)
 		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, e->queries,
 					  2 * (uint32_t)pass + 1);
+}
+
+/* Records the steps of the iteration of psi_ms after the multi-scattering
+ * pass: each step writes the next table into the scratch buffer, which is
+ * then copied over the table (later passes and the next step read it
+ * through the lookup view). One pair of timestamps spans all steps. */
+static void record_iteration(struct eng *e, const struct sky_state *s, const VkPipeline pipes[2],
+			     uint32_t steps)
+{
+	const VkMemoryBarrier to_copy = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_SHADER_READ_BIT,
+		.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_TRANSFER_WRITE_BIT };
+	const VkMemoryBarrier to_read = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+		.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+		.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT };
+	uint32_t gx, gy;
+
+	groups(s, STATE_MULTISCATTER, &gx, &gy);
+	if (e->timestamps)
+		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
+					  2 * PASS_MSITERATE);
+	for (uint32_t i = 0; i < steps; i++) {
+		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[i > 0]);
+		e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
+		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+					   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &to_copy, 0, NULL, 0, NULL);
+		VkBufferCopy c = { 0, 0, e->table_bytes[STATE_MULTISCATTER] };
+		e->vk.vkCmdCopyBuffer(e->cmd, e->ms_iterate.buf, e->table[STATE_MULTISCATTER].buf, 1, &c);
+		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &to_read, 0, NULL, 0,
+					   NULL);
+	}
+	if (e->timestamps)
+		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, e->queries,
+					  2 * PASS_MSITERATE + 1);
 }
 
 int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err, size_t err_size)
@@ -1131,6 +1190,17 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 			if (rc < 0)
 				return rc;
 		}
+	/* The iteration of psi_ms: its first step recovers L2 from the table,
+	 * the later ones read it back (constant_id 21). */
+	uint32_t iterations = (mask & STATE_BIT(STATE_MULTISCATTER)) ? state_multiscatter_iterations(s) : 0;
+	VkPipeline iterate_pipes[2] = { VK_NULL_HANDLE, VK_NULL_HANDLE };
+	for (int i = 0; i < 2 && iterations > 0; i++) {
+		struct spec k = pass_spec(&base, s, STATE_MULTISCATTER);
+		k.v[21] = i == 0;
+		rc = get_pipeline(e, PASS_MSITERATE, &k, &iterate_pipes[i], err, err_size);
+		if (rc < 0)
+			return rc;
+	}
 	/* The column densities are recomputed only when what they depend on
 	 * changed; the same inputs give the same bits, so a table made from
 	 * kept columns is the one a fresh engine makes. */
@@ -1163,6 +1233,8 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 			record_pass(e, PASS_COLUMNS, column_pipe, gx, gy, 1);
 		/* Every view's volume in one dispatch: z is the view. */
 		record_pass(e, t, pipes[t], gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1);
+		if (t == STATE_MULTISCATTER && iterations > 0)
+			record_iteration(e, s, iterate_pipes, iterations);
 	}
 	VkMemoryBarrier to_copy = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
 		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT };
@@ -1190,6 +1262,7 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 		e->columns_valid = true;
 	}
 	e->columns_in_flight = run_columns;
+	e->iterations_in_flight = iterations;
 	pthread_mutex_lock(&e->lock);
 	e->in_flight_mask = mask;
 	e->pending = true;
@@ -1249,6 +1322,12 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 							   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
 			t.columns_ms = (double)(ts[1] - ts[0]) * e->timestamp_period_ns * 1e-6;
 			t.table_ms[STATE_TRANSMITTANCE] += t.columns_ms;
+		}
+		if (e->iterations_in_flight) {
+			VK_TRY(e->vk.vkGetQueryPoolResults(e->dev, e->queries, 2 * PASS_MSITERATE, 2,
+							   sizeof(uint64_t) * 2, ts, sizeof(uint64_t),
+							   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+			t.table_ms[STATE_MULTISCATTER] += (double)(ts[1] - ts[0]) * e->timestamp_period_ns * 1e-6;
 		}
 	}
 	*ret = t;

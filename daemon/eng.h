@@ -36,7 +36,8 @@ struct eng_device {
 struct eng_timing {
 	uint32_t computed;		/* STATE_BIT mask of the tables computed */
 	double table_ms[STATE_N_TABLES];/* GPU time per table (timestamps), else wall time;
-					 * transmittance's includes the column pass */
+					 * transmittance's includes the column pass,
+					 * multi-scattering's the iteration of psi_ms */
 	double total_ms;		/* submit to completion, wall clock */
 	/* 1 when the column-density pass ran: transmittance is exp(-sum ext_k L_k)
 	 * from column densities L_k that depend on the geometry, the profiles

@@ -600,6 +600,8 @@ void model_optical_depth(const struct atmo *a, double altitude_km, double mu, ui
 #define MS_RINGS 16
 #define MS_COLS 4
 #define MS_RING_POW 1.2
+/* The weights of A, the ground's share of psi (see msgrid.glsl). */
+#define SHARE_LUM v(0.2126, 0.7152, 0.0722)
 
 /* The cosine of ring edge e (0: zenith, MS_RINGS: nadir); for two
  * directions, the hemispheres' edges (1, 0, -1). */
@@ -740,16 +742,78 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 	 * multiscatter.comp). */
 	sl = add(sl, mul(sg, v(1.0 - sr.x, 1.0 - sr.y, 1.0 - sr.z)));
 	v3 psi = v(sl.x / fmax(se.x, 1e-6), sl.y / fmax(se.y, 1e-6), sl.z / fmax(se.z, 1e-6));
-	v3 lum = v(0.2126, 0.7152, 0.0722);
-	double share = dot(sg, lum) / fmax(dot(psi, lum), 1e-30);
+	double share = dot(sg, SHARE_LUM) / fmax(dot(psi, SHARE_LUM), 1e-30);
 	*ret_psi = psi;
 	*ret_share = skymap_clamp(share, 0.0, 1.0);
 	*ret_escape = se;
 }
 
-static void compute_multiscatter(const struct ctx *c, const struct state_table_quality *q,
-				 uint32_t dirs, double *out)
+/* The steps of the neighbourhood iteration of psi_ms (msiterate.comp):
+ * psi'(x) = L2(x) + the light that the air around x, lit by psi at its own
+ * altitude and sun angle (the table), and the ground scatter toward x,
+ * with the quadrature of the table. l2 holds each texel's L2 (with the
+ * ground's first bounce, as the table has it); the ground's share in A
+ * keeps the first bounce's luminance as psi grows. */
+static int iterate_multiscatter(const struct ctx *c, const struct state_table_quality *q,
+				uint32_t dirs, uint32_t steps, const v3 *l2, double *out)
 {
+	const v3 albedo = v(c->a->ground_albedo[0], c->a->ground_albedo[1], c->a->ground_albedo[2]);
+	size_t n = (size_t)q->width * q->height;
+	double *next = malloc(4 * n * sizeof(double));
+	if (!next)
+		return -ENOMEM;
+	for (uint32_t it = 0; it < steps; it++) {
+		for (uint32_t j = 0; j < q->height; j++)
+			for (uint32_t i = 0; i < q->width; i++) {
+				double h, mu_s, share;
+				skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width,
+							    (j + 0.5) / q->height, q->width, q->height, &h, &mu_s);
+				v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s), g = { 0 };
+				double r0 = c->rb + h;
+				for (uint32_t k = 0; k < dirs; k++) {
+					v3 dir = ms_direction(k, dirs), gk = { 0 };
+					double tg, t_end = distance_to_top(c, h, dir.z);
+					bool ground = hits_ground(c, h, dir.z, &tg);
+					if (ground)
+						t_end = tg;
+					double dt = t_end / q->steps;
+					v3 tau = { 0 };
+					for (uint32_t s = 0; s < q->steps; s++) {
+						double t = (s + 0.5) * dt, rr;
+						double hs = altitude_along(c, h, dir.z, t, &rr);
+						struct medium m = medium(c, hs);
+						v3 w = mul(vexp_neg(tau), segment_weight(m.extinction, dt));
+						v3 p = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
+						gk = add(gk, mul(mul(w, m.scattering), multiscatter(c, hs, dot(p, sun), &share)));
+						tau = add(tau, scale(m.extinction, dt));
+					}
+					if (ground) {
+						v3 nr = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb,
+							  (r0 + dir.z * t_end) / c->rb);
+						gk = add(gk, mul(mul(vexp_neg(tau), albedo),
+								 multiscatter(c, 0.0, dot(nr, sun), &share)));
+					}
+					g = add(g, scale(gk, ms_cell_weight(k, dirs)));
+				}
+				size_t at = (size_t)j * q->width + i;
+				const double *own = out + 4 * at;
+				v3 psi = add(l2[at], scale(g, 1.0 / dirs));
+				share = own[3] * dot(v(own[0], own[1], own[2]), SHARE_LUM) / fmax(dot(psi, SHARE_LUM), 1e-30);
+				put(next + 4 * at, psi, skymap_clamp(share, 0.0, 1.0));
+			}
+		memcpy(out, next, 4 * n * sizeof(double));
+	}
+	free(next);
+	return 0;
+}
+
+static int compute_multiscatter(const struct ctx *c, const struct state_table_quality *q,
+				uint32_t dirs, double *out)
+{
+	uint32_t steps = state_multiscatter_iterations(c->s);
+	v3 *l2_of = steps ? calloc((size_t)q->width * q->height, sizeof(v3)) : NULL;
+	if (steps && !l2_of)
+		return -ENOMEM;
 	for (uint32_t j = 0; j < q->height; j++)
 		for (uint32_t i = 0; i < q->width; i++) {
 			double h, mu_s, share;
@@ -758,7 +822,14 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 						    q->width, q->height, &h, &mu_s);
 			ms_texel(c, q->steps, dirs, h, mu_s, &psi, &share, &escape);
 			put(out + 4 * (j * q->width + i), psi, share);
+			/* L2 as the iteration recovers it from the table. */
+			if (l2_of)
+				l2_of[j * q->width + i] = mul(psi, v(fmax(escape.x, 1e-6), fmax(escape.y, 1e-6),
+								   fmax(escape.z, 1e-6)));
 		}
+	int rc = steps ? iterate_multiscatter(c, q, dirs, steps, l2_of, out) : 0;
+	free(l2_of);
+	return rc;
 }
 
 /* In-scattered radiance and optical depth along [a, b] of a view ray.
@@ -954,8 +1025,12 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	if (m.t[0])
 		compute_transmittance(&c, &s->quality.t[0], m.t[0]);
 	if (m.t[1])
-		compute_multiscatter(&c, &s->quality.t[1],
-				     s->quality.multiscatter_dirs ? s->quality.multiscatter_dirs : 2, m.t[1]);
+		rc = compute_multiscatter(&c, &s->quality.t[1],
+					  s->quality.multiscatter_dirs ? s->quality.multiscatter_dirs : 2, m.t[1]);
+	if (rc < 0) {
+		model_tables_finish(&m);
+		return rc;
+	}
 	if (m.t[2])
 		compute_skyview(&c, &s->quality.t[2], m.t[2]);
 	if (m.t[3])

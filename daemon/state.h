@@ -68,6 +68,10 @@ struct state_quality {
 	double aerial_range_km;
 	enum state_spacing aerial_spacing;
 	enum state_storage storage;
+	/* Steps of the neighbourhood iteration of psi_ms (shaders/msiterate.comp):
+	 * 0 auto (state_multiscatter_iterations decides from the optical
+	 * depth), else one more than the number of steps (1: none). */
+	int multiscatter_iterations;
 };
 
 /* Who drives a light: the key=value of its angles (manual) or the clock. */
@@ -171,6 +175,16 @@ void state_direction(double elevation_deg, double azimuth_deg, double ret[3]);
 /* Bytes of one texel in the given storage (4 channels). */
 size_t state_texel_bytes(enum state_storage st);
 size_t state_table_bytes(const struct sky_state *s, enum state_table t);
+
+/* The steps of the neighbourhood iteration of psi_ms that the tables of s
+ * get: the key multiscatter_iterations, or with "auto" 2 where the
+ * atmosphere's vertical optical depth from the ground (largest channel)
+ * is at least STATE_THICK_OPTICAL_DEPTH and 0 below or with 2 directions;
+ * always 0 with multi-scattering off. Hillaire's psi = L2 / (1 - f_ms) is within a few
+ * percent below that depth and 14-29 % low at ten times Earth's (see
+ * shaders/msiterate.comp). */
+#define STATE_THICK_OPTICAL_DEPTH 1.0
+uint32_t state_multiscatter_iterations(const struct sky_state *s);
 
 extern const char *const state_table_names[STATE_N_TABLES];
 /* Table mask from a comma list ("skyview,aerial", "all"); -EINVAL if unknown. */

@@ -11,53 +11,9 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
+#include "msgrid.glsl"
 
-layout(constant_id = 16) const int MS_DIRS = 64;
-// The 64-direction grid: rings of cos-zenith by azimuth columns. A ray's
-// path through the shell depends on its zenith angle only, and near the
-// horizon that path grows by a factor of ten within a few degrees, so the
-// rings carry most of the quadrature's error: 8 rings x 8 azimuths read the
-// day sky 3 % low and twilight from 10 km 23 % low, 16 x 4 equal-area rings
-// 2 % and 11 % at the same cost (32 x 2 has too few azimuths for the
-// earth's shadow: 32 % low in twilight). The ring edges are
-// mu = sign(s) |s|^MS_RING_POW for s uniform in [-1, 1] (ring_edge()): the
-// rings at the horizon are 0.66 of the mean cell's solid angle, those at the
-// zenith and nadir 1.18 of it, each weighted by its exact solid angle. 1.2
-// took twilight from 10 km, sun -6, from 10.6 to 5.5 % (43 scenes: day
-// 3.22 -> 3.16 %, horizon 4.84 -> 4.75 %, twilight 4.40 -> 3.46 %); 1.1,
-// 1.3, 1.5 and 2 read worse. Edges that follow each altitude's own horizon
-// come closer to a converged grid (64 x 32) in twilight but read 0.2 km,
-// albedo 0.3, sun -6 12.5 % high: the converged grid itself reads 13.1 %
-// there (black ground 10.0 %: the method, not its quadrature), and these
-// rings keep part of a cancellation (8.3 %). Steps in proportion to each
-// direction's path did not help.
-// skybench accuracy measures it; test_msgrid checks the rings' weights.
-const int MS_RINGS = 16, MS_COLS = 4, MS_HALF_COLS = MS_COLS / 2;
-const float MS_RING_POW = 1.2;
-layout(constant_id = 19) const int MS_SUN_GROUP = 4;
 layout(local_size_x = 8, local_size_y = 8) in;
-
-// The cosine of ring edge e (0: zenith, MS_RINGS: nadir).
-float ring_edge(int e)
-{
-	float s = 1.0 - 2.0 * float(e) / float(MS_RINGS);
-	return sign(s) * pow(abs(s), MS_RING_POW);
-}
-
-// Marched direction k's ring: its top and bottom cosines.
-vec2 cell_ring(int k)
-{
-	if (MS_DIRS == 2)
-		return k == 0 ? vec2(1.0, 0.0) : vec2(0.0, -1.0);
-	int ring = k / MS_HALF_COLS;
-	return vec2(ring_edge(ring), ring_edge(ring + 1));
-}
-
-// Marched direction k's cell's solid angle over the mean cell's.
-float cell_weight(vec2 ring)
-{
-	return MS_DIRS == 2 ? 1.0 : (ring.x - ring.y) * float(MS_RINGS) * 0.5;
-}
 
 // The cosines of the 2 x 2 equal-area sub-samples of marched direction k's
 // cell (ring from cosine ring.x down to ring.y): ret_cp * sun.x + ret_ct *
@@ -83,15 +39,6 @@ vec4 phase4(int kind, float g, vec4 mu)
 		    phase(kind, g, mu.w));
 }
 
-// The density of each constituent at altitude h (0 past N_CONST).
-vec4 densities(float h)
-{
-	vec4 d = vec4(0.0);
-	for (int i = 0; i < N_CONST; i++)
-		d[i] = density(i, h);
-	return d;
-}
-
 void main()
 {
 	load_params();
@@ -99,20 +46,11 @@ void main()
 	if (x0 >= OUT_W || py >= OUT_H)
 		return;
 
-	float h = clamp(tex_to_unit((float(py) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0) * P.planet.z;
-	// skymap.h: u packs texels around the horizon of the altitude.
-	float mh = horizon_cos(h);
+	float h = ms_row_altitude(py);
 	vec3 sun[MS_SUN_GROUP];
-	for (int j = 0; j < MS_SUN_GROUP; j++) {
-		int px = min(x0 + j, OUT_W - 1);
-		float a_mu = 2.0 * tex_to_unit((float(px) + 0.5) / float(OUT_W), OUT_W) - 1.0;
-		float sn = a_mu * abs(a_mu);
-		float mu_s = clamp(mh + sn * (sn < 0.0 ? 1.0 + mh : 1.0 - mh), -1.0, 1.0);
-		sun[j] = vec3(safe_sqrt(1.0 - mu_s * mu_s), 0.0, mu_s);
-	}
-	const int n_dirs = MS_DIRS == 2 ? 2 : 32;
-	const float dir_weight = MS_DIRS == 2 ? 1.0 : 2.0;
-	const float norm = dir_weight / float(MS_DIRS == 2 ? 2 : MS_RINGS * MS_COLS);
+	ms_row_suns(x0, h, sun);
+	const int n_dirs = MS_MARCHED;
+	const float norm = MS_NORM;
 	float r0 = P.planet.x + h;
 
 	// Per direction: L2 and the escape 1 - f written as what leaves or is
@@ -175,19 +113,9 @@ void main()
 	// psi takes 1 - f_ms from sum_escape (what leaves or is absorbed).
 	vec3 sum_escape = vec3(0.0), sum_returned = vec3(0.0);
 	for (int k = 0; k < n_dirs; k++) {
-		vec3 dir;
 		vec2 ring = cell_ring(k);
 		float wk = cell_weight(ring);
-		if (MS_DIRS == 2) {
-			dir = vec3(0.0, 0.0, k == 0 ? 1.0 : -1.0);
-		} else {
-			// Ring k / MS_HALF_COLS at the middle of its cosines,
-			// azimuth column k % MS_HALF_COLS of MS_COLS: phi in (0, pi).
-			float ct = 0.5 * (ring.x + ring.y);
-			float ph = 2.0 * PI * (float(k % MS_HALF_COLS) + 0.5) / float(MS_COLS);
-			float st = safe_sqrt(1.0 - ct * ct);
-			dir = vec3(st * cos(ph), st * sin(ph), ct);
-		}
+		vec3 dir = cell_direction(k, ring);
 		float tg, t_end = distance_to_top(h, dir.z);
 		bool ground = hits_ground(h, dir.z, tg);
 		if (ground)
@@ -269,8 +197,7 @@ void main()
 		// phase (ground_excess() in common.glsl); its higher orders
 		// G (f_ms - f_ground) / (1 - f_ms) stay isotropic. One share for the three
 		// channels, weighted by luminance (Rec. 709), since A is one value.
-		const vec3 lum = vec3(0.2126, 0.7152, 0.0722);
-		float share = dot(sum_ground[j], lum) * norm / max(dot(psi, lum), 1e-30);
+		float share = dot(sum_ground[j], MS_SHARE_LUM) * norm / max(dot(psi, MS_SHARE_LUM), 1e-30);
 		STORE_TEXEL(MB, py * OUT_W + x0 + j, vec4(psi, clamp(share, 0.0, 1.0)));
 	}
 }

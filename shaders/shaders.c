@@ -6,6 +6,7 @@
 #include "skyview.spv.h"
 #include "aerial.spv.h"
 #include "columns.spv.h"
+#include "msiterate.spv.h"
 
 const struct shader_code shader_code[SHADER_COUNT] = {
 	{ "transmittance", shader_transmittance_spv, sizeof(shader_transmittance_spv) },
@@ -13,4 +14,5 @@ const struct shader_code shader_code[SHADER_COUNT] = {
 	{ "skyview", shader_skyview_spv, sizeof(shader_skyview_spv) },
 	{ "aerial", shader_aerial_spv, sizeof(shader_aerial_spv) },
 	{ "columns", shader_columns_spv, sizeof(shader_columns_spv) },
+	{ "msiterate", shader_msiterate_spv, sizeof(shader_msiterate_spv) },
 };

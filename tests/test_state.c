@@ -1,4 +1,5 @@
 /* test_state.c - the key vocabulary: parsing, refusal, invalidation. */
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -153,6 +154,38 @@ static void test_quality_presets(void)
 	CHECK(state_set_pair(&s, "quality=best", NULL, err, sizeof(err)) < 0 && strstr(err, "quality"));
 }
 
+/* multiscatter_iterations: auto iterates only optically thick atmospheres
+ * (Earth's vertical optical depth is 0.3, Mars's 0.4, ten times Earth's
+ * scattering 2.7); an explicit count wins; multi-scattering off needs none. */
+static void test_multiscatter_iterations(void)
+{
+	struct sky_state s;
+	char err[256], buf[32];
+	uint32_t dirty = 0;
+	state_default(&s);
+	CHECK(state_get(&s, "multiscatter_iterations", buf, sizeof(buf)) == 0 && strcmp(buf, "auto") == 0);
+	CHECK(state_multiscatter_iterations(&s) == 0);
+	CHECK(state_set_pair(&s, "preset=mars", NULL, err, sizeof(err)) == 0);
+	CHECK(state_multiscatter_iterations(&s) == 0);
+	state_default(&s);
+	CHECK(state_set_pair(&s, "rayleigh_scattering_per_km=0.05802,0.13558,0.331", NULL, err, sizeof(err)) == 0);
+	CHECK(state_set_pair(&s, "mie_scattering_per_km=0.03996", NULL, err, sizeof(err)) == 0);
+	CHECK(state_multiscatter_iterations(&s) == 2);
+	CHECK(state_set_pair(&s, "multiscatter_dirs=2", NULL, err, sizeof(err)) == 0);
+	CHECK(state_multiscatter_iterations(&s) == 0);
+	CHECK(state_set_pair(&s, "multiscatter_dirs=64", NULL, err, sizeof(err)) == 0);
+	CHECK(state_set_pair(&s, "multiscatter_iterations=0", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == (STATE_ALL_TABLES & ~STATE_BIT(STATE_TRANSMITTANCE)));
+	CHECK(state_multiscatter_iterations(&s) == 0);
+	CHECK(state_set_pair(&s, "multiscatter_iterations=3", NULL, err, sizeof(err)) == 0);
+	CHECK(state_multiscatter_iterations(&s) == 3);
+	CHECK(state_get(&s, "quality", buf, sizeof(buf)) == 0 && strcmp(buf, "custom") == 0);
+	CHECK(state_set_pair(&s, "multiscatter_dirs=0", NULL, err, sizeof(err)) == 0);
+	CHECK(state_multiscatter_iterations(&s) == 0);
+	CHECK(state_set_pair(&s, "multiscatter_iterations=5", NULL, err, sizeof(err)) == -EINVAL);
+	CHECK(strstr(err, "multiscatter_iterations") != NULL);
+}
+
 int main(void)
 {
 	test_defaults_are_valid();
@@ -162,5 +195,6 @@ int main(void)
 	test_roundtrip();
 	test_clock_keys();
 	test_quality_presets();
+	test_multiscatter_iterations();
 	return test_report("test_state");
 }

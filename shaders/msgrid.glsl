@@ -1,0 +1,104 @@
+// msgrid.glsl - the multi-scattering passes' shared geometry: each texel's
+// altitude and sun angles (skymap.h's mapping), and the direction grid over
+// which multiscatter.comp integrates L2 and f_ms and msiterate.comp gathers
+// the neighbourhood's light. The two must use the same quadrature:
+// msiterate recovers L2 = psi (1 - f_ms) from the table on its first step.
+// Included after common.glsl.
+
+layout(constant_id = 16) const int MS_DIRS = 64;
+// The 64-direction grid: rings of cos-zenith by azimuth columns. A ray's
+// path through the shell depends on its zenith angle only, and near the
+// horizon that path grows by a factor of ten within a few degrees, so the
+// rings carry most of the quadrature's error: 8 rings x 8 azimuths read the
+// day sky 3 % low and twilight from 10 km 23 % low, 16 x 4 equal-area rings
+// 2 % and 11 % at the same cost (32 x 2 has too few azimuths for the
+// earth's shadow: 32 % low in twilight). The ring edges are
+// mu = sign(s) |s|^MS_RING_POW for s uniform in [-1, 1] (ring_edge()): the
+// rings at the horizon are 0.66 of the mean cell's solid angle, those at the
+// zenith and nadir 1.18 of it, each weighted by its exact solid angle. 1.2
+// took twilight from 10 km, sun -6, from 10.6 to 5.5 % (43 scenes: day
+// 3.22 -> 3.16 %, horizon 4.84 -> 4.75 %, twilight 4.40 -> 3.46 %); 1.1,
+// 1.3, 1.5 and 2 read worse. Edges that follow each altitude's own horizon
+// come closer to a converged grid (64 x 32) in twilight but read 0.2 km,
+// albedo 0.3, sun -6 12.5 % high: the converged grid itself reads 13.1 %
+// there (black ground 10.0 %: the method, not its quadrature), and these
+// rings keep part of a cancellation (8.3 %). Steps in proportion to each
+// direction's path did not help.
+// skybench accuracy measures it; test_msgrid checks the rings' weights.
+const int MS_RINGS = 16, MS_COLS = 4, MS_HALF_COLS = MS_COLS / 2;
+const float MS_RING_POW = 1.2;
+layout(constant_id = 19) const int MS_SUN_GROUP = 4;
+
+// The cosine of ring edge e (0: zenith, MS_RINGS: nadir).
+float ring_edge(int e)
+{
+	float s = 1.0 - 2.0 * float(e) / float(MS_RINGS);
+	return sign(s) * pow(abs(s), MS_RING_POW);
+}
+
+// Marched direction k's ring: its top and bottom cosines.
+vec2 cell_ring(int k)
+{
+	if (MS_DIRS == 2)
+		return k == 0 ? vec2(1.0, 0.0) : vec2(0.0, -1.0);
+	int ring = k / MS_HALF_COLS;
+	return vec2(ring_edge(ring), ring_edge(ring + 1));
+}
+
+// Marched direction k's cell's solid angle over the mean cell's.
+float cell_weight(vec2 ring)
+{
+	return MS_DIRS == 2 ? 1.0 : (ring.x - ring.y) * float(MS_RINGS) * 0.5;
+}
+
+// Marched direction k at the middle of its ring's cosines, azimuth column
+// k % MS_HALF_COLS of MS_COLS: phi in (0, pi); for 2 directions straight up
+// and down.
+vec3 cell_direction(int k, vec2 ring)
+{
+	if (MS_DIRS == 2)
+		return vec3(0.0, 0.0, k == 0 ? 1.0 : -1.0);
+	float ct = 0.5 * (ring.x + ring.y);
+	float ph = 2.0 * PI * (float(k % MS_HALF_COLS) + 0.5) / float(MS_COLS);
+	float st = safe_sqrt(1.0 - ct * ct);
+	return vec3(st * cos(ph), st * sin(ph), ct);
+}
+
+// The density of each constituent at altitude h (0 past N_CONST).
+vec4 densities(float h)
+{
+	vec4 d = vec4(0.0);
+	for (int i = 0; i < N_CONST; i++)
+		d[i] = density(i, h);
+	return d;
+}
+
+// Row py's altitude in km.
+float ms_row_altitude(int py)
+{
+	return clamp(tex_to_unit((float(py) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0) * P.planet.z;
+}
+
+// The suns (in the x-z plane) of texels x0 .. x0 + MS_SUN_GROUP - 1 of the
+// row at altitude h: skymap.h's u packs texels around the horizon of the
+// altitude. Texels past the row repeat its last.
+void ms_row_suns(int x0, float h, out vec3 ret_sun[MS_SUN_GROUP])
+{
+	float mh = horizon_cos(h);
+	for (int j = 0; j < MS_SUN_GROUP; j++) {
+		int px = min(x0 + j, OUT_W - 1);
+		float a_mu = 2.0 * tex_to_unit((float(px) + 0.5) / float(OUT_W), OUT_W) - 1.0;
+		float sn = a_mu * abs(a_mu);
+		float mu_s = clamp(mh + sn * (sn < 0.0 ? 1.0 + mh : 1.0 - mh), -1.0, 1.0);
+		ret_sun[j] = vec3(safe_sqrt(1.0 - mu_s * mu_s), 0.0, mu_s);
+	}
+}
+
+// The weight of a direction's cell in the mean over the sphere: 2 / 64
+// (the directions at -phi are not marched), or 1 / 2 for 2 directions.
+const int MS_MARCHED = MS_DIRS == 2 ? 2 : MS_RINGS * MS_HALF_COLS;
+const float MS_NORM = MS_DIRS == 2 ? 0.5 : 2.0 / float(MS_RINGS * MS_COLS);
+
+// A, the ground's first bounce's share of psi, weighs the channels by
+// luminance (Rec. 709): one grey share for the three.
+const vec3 MS_SHARE_LUM = vec3(0.2126, 0.7152, 0.0722);

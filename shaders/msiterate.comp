@@ -1,0 +1,117 @@
+// msiterate.comp - one Jacobi step of the isotropic multiple-scattering
+// transfer, psi'(x) = L2(x) + sum over directions of the light psi(y) that
+// every point y around x scatters toward x (and the ground returns), with
+// psi(y) read from the table at y's own altitude and sun angle.
+//
+// Hillaire's psi = L2 / (1 - f_ms) assumes that every point around x sees
+// the same psi as x. Where the air is optically thick that fails: the
+// sunlight dies with depth, so the air above a low point is lit far more
+// than the point itself and psi near the ground comes out low (Earth with
+// ten times the scattering: the horizon 29 % dark, the day sky 14 %). psi
+// depends on altitude and sun angle only (a spherical planet under a
+// distant sun), so the table itself tells what every y sees, and a few
+// steps of this iteration converge to the transfer's fixed point. The
+// engine runs it only for thick atmospheres (state_multiscatter_iterations).
+//
+// Same directions (msgrid.glsl) and steps as multiscatter.comp, so that
+// L2 = psi (1 - f) is recovered exactly from the table on the first step
+// (ITER_FIRST), which keeps it for the later ones in the scratch buffer;
+// L2 here includes the ground's first bounce as the table has it.
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#include "common.glsl"
+#include "msgrid.glsl"
+
+layout(constant_id = 21) const bool ITER_FIRST = true;
+layout(local_size_x = 8, local_size_y = 8) in;
+
+// The next psi in the table's storage format (copied over the table after
+// the pass), then L2 as float32 RGBA per texel.
+layout(std430, binding = 9) buffer IterBuf { uint d[]; } IB;
+
+void main()
+{
+	load_params();
+	int x0 = int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, py = int(gl_GlobalInvocationID.y);
+	if (x0 >= OUT_W || py >= OUT_H)
+		return;
+
+	float h = ms_row_altitude(py);
+	vec3 sun[MS_SUN_GROUP];
+	ms_row_suns(x0, h, sun);
+	const int n_dirs = MS_MARCHED;
+	const float norm = MS_NORM;
+	float r0 = P.planet.x + h;
+	mat4x3 scattering_of = mat4x3(0.0), absorption_of = mat4x3(0.0);
+	for (int i = 0; i < N_CONST; i++) {
+		scattering_of[i] = P.C[i].scattering.rgb;
+		absorption_of[i] = P.C[i].absorption.rgb;
+	}
+
+	// The light scattered toward x per sun (gathered), and 1 - f as in
+	// multiscatter.comp: what leaves or is absorbed.
+	vec3 gathered[MS_SUN_GROUP];
+	for (int j = 0; j < MS_SUN_GROUP; j++)
+		gathered[j] = vec3(0.0);
+	vec3 sum_escape = vec3(0.0);
+	TAlt ground_alt = t_alt(0.0);
+	for (int k = 0; k < n_dirs; k++) {
+		vec2 ring = cell_ring(k);
+		float wk = cell_weight(ring);
+		vec3 dir = cell_direction(k, ring);
+		float tg, t_end = distance_to_top(h, dir.z);
+		bool ground = hits_ground(h, dir.z, tg);
+		if (ground)
+			t_end = tg;
+		float dt = t_end / float(STEPS);
+		vec3 tr = vec3(1.0), absorbed = vec3(0.0);
+		for (int s = 0; s < STEPS; s++) {
+			float t = (float(s) + 0.5) * dt, rr;
+			float hs = altitude_along(h, dir.z, t, rr);
+			vec4 dens = densities(hs);
+			vec3 scattering = scattering_of * dens, absorption = absorption_of * dens;
+			vec3 step_t, w = tr * step_weight(scattering + absorption, dt, step_t);
+			TAlt a = t_alt(hs);
+			vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr, ws = (w * wk) * scattering;
+			for (int j = 0; j < MS_SUN_GROUP; j++)
+				gathered[j] += ws * multiscatter_at(a, dot(up, sun[j])).rgb;
+			absorbed += w * absorption;
+			tr *= step_t;
+		}
+		// The cell's solid angle over the mean cell's (as multiscatter.comp).
+		tr *= wk;
+		absorbed *= wk;
+		vec3 returned = vec3(0.0);
+		if (ground && !GROUND_BLACK) {
+			// The Lambertian ground under psi sends back albedo times psi.
+			vec3 n = vec3(dir.xy * t_end, r0 + dir.z * t_end) / P.planet.x;
+			returned = tr * P.albedo.rgb;
+			for (int j = 0; j < MS_SUN_GROUP; j++)
+				gathered[j] += returned * multiscatter_at(ground_alt, dot(n, sun[j])).rgb;
+		}
+		sum_escape += tr - returned + absorbed;
+	}
+	vec3 escape = sum_escape * norm;
+	int l2_base = (STORAGE_F16 ? 2 : 4) * OUT_W * OUT_H;
+	for (int j = 0; j < MS_SUN_GROUP; j++) {
+		int i = py * OUT_W + x0 + j;
+		if (x0 + j >= OUT_W)
+			break;
+		vec4 own = texelFetch(MultiscatterTex, i);
+		vec3 l2;
+		if (ITER_FIRST) {
+			// multiscatter.comp stored psi = L2 / max(escape, 1e-6).
+			l2 = own.rgb * max(escape, vec3(1e-6));
+			for (int c = 0; c < 3; c++)
+				IB.d[l2_base + 4 * i + c] = floatBitsToUint(l2[c]);
+		} else {
+			l2 = vec3(uintBitsToFloat(IB.d[l2_base + 4 * i]), uintBitsToFloat(IB.d[l2_base + 4 * i + 1]),
+				  uintBitsToFloat(IB.d[l2_base + 4 * i + 2]));
+		}
+		// A, the ground's first bounce's share of psi: the bounce stays,
+		// psi grows.
+		vec3 psi = l2 + gathered[j] * norm;
+		float share = own.a * dot(own.rgb, MS_SHARE_LUM) / max(dot(psi, MS_SHARE_LUM), 1e-30);
+		STORE_TEXEL(IB, i, vec4(psi, clamp(share, 0.0, 1.0)));
+	}
+}
