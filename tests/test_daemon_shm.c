@@ -48,9 +48,13 @@ static int snapshot(const uint8_t *map, uint8_t *copy)
 	return atomic_load_explicit(seq, memory_order_relaxed) == s1;
 }
 
-/* A reader process: reads continuously until stop_fd hangs up, then writes
- * its counts to result_fd. ready_fd gets one byte once it has mapped. */
-static int reader(const char *sock, int stop_fd, int result_fd, int ready_fd)
+/* A reader process: reads continuously until it has copied a slot of
+ * generation *final_gen or later (UINT64_MAX until the writer has made its
+ * last change), then writes its counts to result_fd. Ending on the event,
+ * not on a signal from the writer, makes every reader prove it saw the last
+ * publication however the scheduler treated it. ready_fd gets one byte once
+ * it has mapped. */
+static int reader(const char *sock, const _Atomic uint64_t *final_gen, int result_fd, int ready_fd)
 {
 	struct reader_result res = { 0 };
 	struct conn c;
@@ -68,12 +72,7 @@ static int reader(const char *sock, int stop_fd, int result_fd, int ready_fd)
 	(void)!nice(19);
 	if (ready_fd >= 0)
 		(void)!write(ready_fd, "r", 1);
-	for (uint64_t i = 0;; i++) {
-		if ((i & 15) == 0) {
-			struct pollfd p = { stop_fd, POLLIN, 0 };
-			if (poll(&p, 1, 0) > 0)
-				break;
-		}
+	for (;;) {
 		if (!snapshot(map, copy)) {
 			res.torn++;
 			continue;
@@ -86,6 +85,8 @@ static int reader(const char *sock, int stop_fd, int result_fd, int ready_fd)
 			res.generations++;
 			res.last_generation = s->generation;
 		}
+		if (s->generation >= atomic_load_explicit(final_gen, memory_order_acquire))
+			break;
 	}
 	(void)!write(result_fd, &res, sizeof(res));
 	return 0;
@@ -93,20 +94,24 @@ static int reader(const char *sock, int stop_fd, int result_fd, int ready_fd)
 
 static void test_readers(struct daemon *d)
 {
-	int stop[2], results[2], ready[2];
+	int results[2], ready[2];
 	pid_t pids[READERS];
 	struct conn c;
 	char req[128];
 
-	CHECK(pipe2(stop, O_CLOEXEC) == 0 && pipe2(results, O_CLOEXEC) == 0 && pipe2(ready, O_CLOEXEC) == 0);
+	_Atomic uint64_t *final_gen = mmap(NULL, sizeof(*final_gen), PROT_READ | PROT_WRITE,
+					   MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+	if (final_gen == MAP_FAILED) {
+		FAIL("mmap: %s", strerror(errno));
+		return;
+	}
+	atomic_store(final_gen, UINT64_MAX);
+	CHECK(pipe2(results, O_CLOEXEC) == 0 && pipe2(ready, O_CLOEXEC) == 0);
 	for (int i = 0; i < READERS; i++) {
 		pids[i] = fork();
-		if (pids[i] == 0) {
-			close(stop[1]);
-			_exit(reader(d->sock, stop[0], results[1], ready[1]));
-		}
+		if (pids[i] == 0)
+			_exit(reader(d->sock, final_gen, results[1], ready[1]));
 	}
-	close(stop[0]);
 	close(results[1]);
 	close(ready[1]);
 	for (int i = 0; i < READERS; i++) {
@@ -138,7 +143,7 @@ static void test_readers(struct daemon *d)
 	clock_gettime(CLOCK_MONOTONIC, &ts);
 	double ms = ((uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec - t0) / 1e6;
 	CHECK(last - first + 1 == (uint64_t)CHANGES);
-	close(stop[1]);
+	atomic_store_explicit(final_gen, last, memory_order_release);
 	struct reader_result total = { 0 }, r;
 	int got = 0;
 	while (read(results[0], &r, sizeof(r)) == sizeof(r)) {
@@ -147,7 +152,7 @@ static void test_readers(struct daemon *d)
 		total.torn += r.torn;
 		total.bad += r.bad;
 		total.generations += r.generations;
-		CHECK(r.snapshots > 0);
+		CHECK(r.snapshots > 0 && r.last_generation >= last);
 	}
 	for (int i = 0; i < READERS; i++) {
 		int status;
@@ -163,6 +168,7 @@ static void test_readers(struct daemon *d)
 	       (unsigned long long)total.generations);
 	close(results[0]);
 	close(ready[0]);
+	munmap(final_gen, sizeof(*final_gen));
 	conn_close(&c);
 }
 
@@ -232,17 +238,18 @@ static int serves(struct daemon *d)
 static void test_abuse(struct daemon *d)
 {
 	/* A reader killed mid-read holds nothing. */
-	int stop[2], results[2], ready[2];
-	CHECK(pipe2(stop, O_CLOEXEC) == 0 && pipe2(results, O_CLOEXEC) == 0 && pipe2(ready, O_CLOEXEC) == 0);
+	static const _Atomic uint64_t never = UINT64_MAX;
+	int results[2], ready[2];
+	CHECK(pipe2(results, O_CLOEXEC) == 0 && pipe2(ready, O_CLOEXEC) == 0);
 	pid_t pid = fork();
 	if (pid == 0)
-		_exit(reader(d->sock, stop[0], results[1], ready[1]));
+		_exit(reader(d->sock, &never, results[1], ready[1]));
 	char b;
 	CHECK(read(ready[0], &b, 1) == 1);
 	kill(pid, SIGKILL);
 	waitpid(pid, NULL, 0);
 	for (int i = 0; i < 2; i++)
-		close(stop[i]), close(results[i]), close(ready[i]);
+		close(results[i]), close(ready[i]);
 	CHECK(serves(d));
 
 	/* A client that never reads: pipelined requests and events pile up. */
