@@ -22,7 +22,7 @@
 #include "vkfn.h"
 
 #define MAX_PIPELINES 32	/* cached variants per pass */
-#define N_SPEC 21
+#define N_SPEC 22
 /* Texels of a row one invocation shares its rays between: sun angles of
  * multi-scattering, azimuths of sky-view. */
 #define MS_SUN_GROUP 4
@@ -41,7 +41,11 @@ struct gpu_constituent {
  * the transmittance texels (storage). */
 #define VIEWS_BINDING (1 + STATE_N_TABLES + N_LOOKUPS)
 #define COLUMNS_BINDING (VIEWS_BINDING + 1)
-#define N_BINDINGS (COLUMNS_BINDING + 1)
+/* 9 the multiply scattered light's first moment (storage, written by the
+ * multi-scattering pass), 10 the same memory as a lookup. */
+#define MOMENT_BINDING (COLUMNS_BINDING + 1)
+#define MOMENT_TEX_BINDING (MOMENT_BINDING + 1)
+#define N_BINDINGS (MOMENT_TEX_BINDING + 1)
 /* Compute passes: one per table, then the column densities (SHADER_COLUMNS). */
 #define PASS_COLUMNS STATE_N_TABLES
 #define N_PASSES (STATE_N_TABLES + 1)
@@ -134,6 +138,10 @@ struct eng {
 	 * recomputed only when column_key changes, so that a change of the
 	 * coefficients alone runs the tiny transmittance pass only. */
 	struct gpu_buffer columns;
+	/* The first moment of the multiply scattered light, an RGBA float32
+	 * texel per multi-scattering texel (MOMENT_ON in common.glsl). */
+	struct gpu_buffer moment;
+	VkBufferView moment_view;
 	struct ground_cache ground[ATMO_MAX_CONSTITUENTS];	/* by gpu constituent */
 	struct column_key column_key;
 	bool columns_valid;
@@ -500,6 +508,8 @@ static VkDescriptorType binding_type(int binding)
 {
 	if (binding == 0)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+	if (binding == MOMENT_TEX_BINDING)
+		return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 	return binding <= STATE_N_TABLES || binding >= VIEWS_BINDING
 		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
 		       : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
@@ -565,8 +575,8 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
-		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 2 },
-		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS } };
+		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 3 },
+		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 1 } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
 	VK_TRY(e->vk.vkCreateDescriptorPool(e->dev, &dpi, NULL, &e->desc_pool));
@@ -669,6 +679,9 @@ void eng_free(struct eng *e)
 		buffer_free(e, &e->params);
 		buffer_free(e, &e->views);
 		buffer_free(e, &e->columns);
+		if (e->moment_view)
+			e->vk.vkDestroyBufferView(e->dev, e->moment_view, NULL);
+		buffer_free(e, &e->moment);
 		if (e->fence)
 			e->vk.vkDestroyFence(e->dev, e->fence, NULL);
 		if (e->queries)
@@ -817,7 +830,7 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 		put4(g->scattering, c->scattering_per_km[0], c->scattering_per_km[1],
 		     c->scattering_per_km[2], c->g);
 		put4(g->absorption, c->absorption_per_km[0], c->absorption_per_km[1],
-		     c->absorption_per_km[2], 0);
+		     c->absorption_per_km[2], model_phase_g1(c->phase, c->g));
 		put4(g->layer0, l0->width_km, l0->exp_term, l0->exp_scale_per_km, l0->linear_per_km);
 		put4(g->layer0c_1, l0->constant, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km);
 		put4(g->layer1c, l1->constant, 0, 0, 0);
@@ -853,6 +866,7 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 	 * asked for at all, is computed with the cheapest quadrature. */
 	base->v[16] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
 	base->v[17] = s->quality.multiscatter_dirs != 0;
+	base->v[21] = s->quality.multiscatter_dirs != 0 && model_moment_wanted(s);
 }
 
 /* The cameras of the aerial volumes: the state's, then each view's. */
@@ -895,7 +909,7 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 	if (t == STATE_MULTISCATTER)
 		k.v[6] = k.v[17] = 0;	/* the table is the term itself */
 	if (t == STATE_TRANSMITTANCE)
-		k.v[17] = 0;
+		k.v[17] = k.v[21] = 0;
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
 		k.v[7] = 0;	/* the ground enters through the multiscatter table */
 	return k;
@@ -1024,6 +1038,27 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 			return rc;
 		rebind = true;
 	}
+	const struct state_table_quality *mq = &s->quality.t[STATE_MULTISCATTER];
+	VkDeviceSize moment_bytes = (VkDeviceSize)mq->width * mq->height * 4 * sizeof(float);
+	if (!e->moment.buf || e->moment.bytes != moment_bytes) {
+		if (e->moment_view) {
+			e->vk.vkDestroyBufferView(e->dev, e->moment_view, NULL);
+			e->moment_view = VK_NULL_HANDLE;
+		}
+		buffer_free(e, &e->moment);
+		/* Its contents go with the multi-scattering table's, which is
+		 * recomputed whenever its size (and so this one's) changes. */
+		rc = buffer_new(e, moment_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+					     VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
+				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->moment, err, err_size);
+		if (rc < 0)
+			return rc;
+		VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
+			.buffer = e->moment.buf, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
+			.range = VK_WHOLE_SIZE };
+		VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->moment_view));
+		rebind = true;
+	}
 	if (rebind) {
 		VkDescriptorBufferInfo bi[N_BINDINGS] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
 		VkWriteDescriptorSet w[N_BINDINGS];
@@ -1035,10 +1070,16 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 				w[i].pTexelBufferView = &e->lookup_view[i - 1 - STATE_N_TABLES];
 				continue;
 			}
+			if (i == MOMENT_TEX_BINDING) {
+				w[i].pTexelBufferView = &e->moment_view;
+				continue;
+			}
 			if (i == VIEWS_BINDING)
 				bi[i] = (VkDescriptorBufferInfo){ e->views.buf, 0, VK_WHOLE_SIZE };
 			else if (i == COLUMNS_BINDING)
 				bi[i] = (VkDescriptorBufferInfo){ e->columns.buf, 0, VK_WHOLE_SIZE };
+			else if (i == MOMENT_BINDING)
+				bi[i] = (VkDescriptorBufferInfo){ e->moment.buf, 0, VK_WHOLE_SIZE };
 			else if (i > 0)
 				bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
 			w[i].pBufferInfo = &bi[i];

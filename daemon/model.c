@@ -32,6 +32,13 @@ struct ctx {
 	const struct model_tables *tab;
 	/* model_ground_excess of each constituent (0 for one that scatters nothing) */
 	double ground_excess[ATMO_MAX_CONSTITUENTS][MODEL_GROUND_N];
+	/* The multiply scattered light's first moment (model_moment_wanted):
+	 * per multi-scattering texel 3 m (x toward the sun's azimuth, z up,
+	 * then two zeros), m its net flux over its scalar flux; and g1 of
+	 * each constituent. */
+	bool moment_on;
+	double *moment;
+	double g1[ATMO_MAX_CONSTITUENTS];
 };
 
 static double rho2(const struct ctx *c, double h) { return h * (2.0 * c->rb + h); }
@@ -69,6 +76,49 @@ static double phase(enum atmo_phase kind, double g, double mu)
 	if (kind == ATMO_PHASE_HENYEY_GREENSTEIN)
 		return hg;
 	return hg * 1.5 * (1.0 + mu * mu) / (2.0 + g * g);
+}
+
+/* Nodes of model_phase_g1's quadrature (as ground_k's). */
+#define G1_NODES 8192
+
+double model_phase_g1(enum atmo_phase kind, double g)
+{
+	if (kind == ATMO_PHASE_NONE || kind == ATMO_PHASE_RAYLEIGH)
+		return 0.0;
+	if (kind == ATMO_PHASE_HENYEY_GREENSTEIN)
+		return g;
+	/* 2 pi times the integral of p(c) c over [-1, 1], with the nodes
+	 * crowded at the peak as in ground_k (c = +-(1 - 2 u^2), dc = 4 u du). */
+	double sum = 0.0, peak = g < 0.0 ? -1.0 : 1.0;
+	for (int n = 0; n < G1_NODES; n++) {
+		double u = (n + 0.5) / (G1_NODES), c = peak * (1.0 - 2.0 * u * u);
+		sum += phase(kind, g, c) * c * 4.0 * u;
+	}
+	return 2.0 * SKYMAP_PI * sum / (G1_NODES);
+}
+
+/* The vertical scattering optical depth of each constituent (green) times
+ * |g1| summed: how much light a forward-peaked phase steers. Earth's Mie
+ * (0.0048 x 0.8) is far below the threshold, Mars' dust (0.17 x 0.88) far
+ * above it. */
+#define MOMENT_AUTO_MIN 0.02
+
+bool model_moment_wanted(const struct sky_state *s)
+{
+	const struct atmo *a = &s->atmo;
+	if (s->quality.multiscatter_moment != STATE_MOMENT_AUTO)
+		return s->quality.multiscatter_moment == STATE_MOMENT_ON;
+	double shell = a->top_radius_km - a->bottom_radius_km, steered = 0.0;
+	for (int n = 0; n < a->n_constituents; n++) {
+		const struct atmo_constituent *k = &a->c[n];
+		double g1 = fabs(model_phase_g1(k->phase, k->g)), tau = 0.0;
+		if (g1 == 0.0 || k->scattering_per_km[1] <= 0.0)
+			continue;
+		for (int i = 0; i < 256; i++)
+			tau += atmo_density(&k->density, (i + 0.5) / 256 * shell) * shell / 256;
+		steered += g1 * tau * k->scattering_per_km[1];
+	}
+	return steered >= MOMENT_AUTO_MIN;
 }
 
 /* Quadrature of model_ground_excess: midpoints in u with c = 1 - 2 u^2, which
@@ -431,7 +481,7 @@ static v3 light_transmittance(const struct ctx *c, double h, double mu, double r
 /* Each of the two rows at its own altitude's u, blended in altitude (see
  * multiscatter_at in common.glsl); the A channel (the ground's share) in
  * ret_share. */
-static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share)
+static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, v3 *ret_moment)
 {
 	double u, vv;
 	const struct model_tables *m = c->tab;
@@ -441,7 +491,7 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 	int iy = (int)floor(py);
 	int y0 = iy < 0 ? 0 : iy > (int)n - 1 ? (int)n - 1 : iy;
 	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)n - 1 ? (int)n - 1 : iy + 1;
-	v3 row[2];
+	v3 row[2], mrow[2] = { { 0, 0, 0 }, { 0, 0, 0 } };
 	double share[2];
 	for (int k = 0; k < 2; k++) {
 		int y = k ? y1 : y0;
@@ -456,8 +506,11 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 		double a = fabs(sn) < 1e-10 ? sn * 1e5 : copysign(sqrt(fabs(sn)), sn);
 		row[k] = bilinear(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 		share[k] = bilinear_a(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
+		if (c->moment_on)
+			mrow[k] = bilinear(c->moment + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 	}
 	*ret_share = share[0] + (share[1] - share[0]) * fy;
+	*ret_moment = add(mrow[0], scale(add(mrow[1], scale(mrow[0], -1.0)), fy));
 	return add(row[0], scale(add(row[1], scale(row[0], -1.0)), fy));
 }
 
@@ -491,8 +544,25 @@ static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, d
 	v3 s = mul(phased_scattering(c, h, dot(dir, light)), t);
 	if (c->s->quality.multiscatter_dirs) {	/* 0: higher orders switched off */
 		double share;
-		v3 psi = multiscatter(c, h, mu_l, &share);
-		s = add(s, mul(add(sigma_s, scale(ground, share)), psi));
+		v3 mom, psi = multiscatter(c, h, mu_l, &share, &mom);
+		v3 sig = add(sigma_s, scale(ground, share));
+		if (c->moment_on) {
+			/* ms_source in common.glsl: psi (sigma_s + sum sigma_i g1_i 3 m . o),
+			 * o = -dir in the frame of the light's vertical plane. */
+			v3 fwd = { 0 };
+			for (int n = 0; n < c->a->n_constituents; n++) {
+				const struct atmo_constituent *k = &c->a->c[n];
+				fwd = add(fwd, scale(v(k->scattering_per_km[0], k->scattering_per_km[1],
+						       k->scattering_per_km[2]),
+						     atmo_density(&k->density, h) * c->g1[n]));
+			}
+			double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l;
+			double o_x = skymap_clamp((view_up * mu_l - dot(dir, light)) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
+			double mo = mom.x * o_x - mom.y * view_up;
+			sig = add(sig, scale(fwd, mo));
+			sig = v(fmax(sig.x, 0.0), fmax(sig.y, 0.0), fmax(sig.z, 0.0));
+		}
+		s = add(s, mul(sig, psi));
 	}
 	return mul(s, illum);
 }
@@ -640,7 +710,7 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 			skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						    q->width, q->height, &h, &mu_s);
 			v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
-			v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 };
+			v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 }, sm = { 0 };
 			double r0 = c->rb + h;
 			/* The first scattering of L2 with each constituent's own phase,
 			 * the cells' means normalised to sum to exactly 1 over the
@@ -697,6 +767,8 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 					returned = mul(t_ray, v(albedo[0], albedo[1], albedo[2]));
 				}
 				sl = add(sl, l2);
+				/* L2's first moment: its light travels along -dir. */
+				sm = add(sm, scale(dir, -dot(l2, v(0.2126, 0.7152, 0.0722))));
 				sr = add(sr, returned);
 				se = add(se, add(add(t_ray, scale(returned, -1.0)), absorbed));
 			}
@@ -712,6 +784,14 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 			v3 lum = v(0.2126, 0.7152, 0.0722);
 			double share = dot(sg, lum) / fmax(dot(psi, lum), 1e-30);
 			put(out + 4 * (j * q->width + i), psi, skymap_clamp(share, 0.0, 1.0));
+			if (c->moment_on) {
+				/* As multiscatter.comp: scaled like psi, relative to all of it. */
+				double k = 3.0 / dirs / fmax(dot(se, lum), 1e-6) / fmax(dot(psi, lum), 1e-30);
+				double *mo = c->moment + 4 * (j * q->width + i);
+				mo[0] = sm.x * k;
+				mo[1] = sm.z * k;
+				mo[2] = mo[3] = 0.0;
+			}
 		}
 }
 
@@ -898,6 +978,16 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	int rc = model_tables_new(s, mask, &m);
 	if (rc < 0)
 		return rc;
+	c.moment_on = s->quality.multiscatter_dirs && model_moment_wanted(s) && m.t[1];
+	if (c.moment_on) {
+		for (int n = 0; n < s->atmo.n_constituents; n++)
+			c.g1[n] = model_phase_g1(s->atmo.c[n].phase, s->atmo.c[n].g);
+		c.moment = calloc(4 * (size_t)m.w[1] * m.h[1], sizeof(double));
+		if (!c.moment) {
+			model_tables_finish(&m);
+			return -ENOMEM;
+		}
+	}
 	if (m.t[0])
 		compute_transmittance(&c, &s->quality.t[0], m.t[0]);
 	if (m.t[1])
@@ -907,6 +997,7 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 		compute_skyview(&c, &s->quality.t[2], m.t[2]);
 	if (m.t[3])
 		compute_aerial(&c, &s->quality.t[3], m.t[3]);
+	free(c.moment);
 	*ret = m;
 	return 0;
 }

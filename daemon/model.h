@@ -54,4 +54,16 @@ void model_optical_depth(const struct atmo *a, double altitude_km, double mu, ui
 #define MODEL_GROUND_N 32
 void model_ground_excess(enum atmo_phase kind, double g, double ret_excess[MODEL_GROUND_N]);
 
+/* The first Legendre moment g1 of a phase function (its mean cosine): 0 for
+ * Rayleigh and none, g for Henyey-Greenstein, by quadrature for
+ * Cornette-Shanks (3 g (4 + g^2) / (5 (2 + g^2)) in closed form). */
+double model_phase_g1(enum atmo_phase kind, double g);
+
+/* Whether the multiply scattered light's first moment is applied
+ * (multiscatter_moment: on, off, or auto: on when the sum over the
+ * constituents of |g1| times the vertical scattering optical depth reaches
+ * 0.02, i.e. a forward-peaked phase steers a share of the light that
+ * matters: Mars' dust, not Earth's thin Mie layer). */
+bool model_moment_wanted(const struct sky_state *s);
+
 #endif

@@ -7,6 +7,9 @@
 
 
 const float PI = 3.14159265358979;
+#ifndef MSIGN
+#define MSIGN 0.25
+#endif
 
 // Specialization constants: what a scene does not need is compiled out.
 layout(constant_id = 0) const int N_CONST = 3;        // constituents that are not all zero
@@ -27,10 +30,11 @@ layout(constant_id = 14) const int OUT_D = 1;
 layout(constant_id = 15) const int STEPS = 1;
 layout(constant_id = 17) const bool MULTISCATTER_ON = true;
 layout(constant_id = 18) const int EXP_MASK = 15;      // bit i: constituent i has an exponential term
+layout(constant_id = 21) const bool MOMENT_ON = false; // the multiply scattered light's first moment (ms_source)
 
 struct Constituent {
 	vec4 scattering;	// rgb 1/km, w = g
-	vec4 absorption;	// rgb 1/km
+	vec4 absorption;	// rgb 1/km, w = g1, the phase's first Legendre moment (model_phase_g1)
 	vec4 layer0;		// width_km, exp_term, exp_scale_per_km, linear_per_km
 	vec4 layer0c_1;		// constant (layer 0), exp_term, exp_scale_per_km, linear_per_km (layer 1)
 	vec4 layer1c;		// constant (layer 1)
@@ -93,6 +97,11 @@ layout(binding = 6) uniform samplerBuffer MultiscatterTex;
 // Column densities of the transmittance texels, one per constituent
 // (columns.comp): internal, float32 whatever the tables' storage.
 layout(std430, binding = 8) buffer ColumnBuf { vec4 d[]; } CB;
+// The first moment of the multiply scattered light (multiscatter.comp, when
+// MOMENT_ON): a texel per multi-scattering texel, float32, internal. Written
+// through the storage buffer, read through the texel buffer.
+layout(std430, binding = 9) buffer MomentBuf { vec4 d[]; } MOB;
+layout(binding = 10) uniform samplerBuffer MomentTex;
 
 // Texels are RGBA: four 32-bit words, or two words of packed halves.
 #define STORE_TEXEL(B, i, v) do { \
@@ -384,6 +393,7 @@ struct Step {
 	vec3 phased_sun;
 	vec3 phased_moon;
 	vec3 ground;	// ground_scattering() of the step
+	vec3 forward;	// forward_scattering() of the step
 };
 
 // ground_ex: ground_excess() of the view at the step.
@@ -395,6 +405,7 @@ Step sample_step(float h, Phases sun, Phases moon, vec4 ground_ex)
 	st.phased_sun = vec3(0.0);
 	st.phased_moon = vec3(0.0);
 	st.ground = vec3(0.0);
+	st.forward = vec3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
 		float d = density(i, h);
 		vec3 s = d * P.C[i].scattering.rgb;
@@ -405,6 +416,8 @@ Step sample_step(float h, Phases sun, Phases moon, vec4 ground_ex)
 			st.phased_moon += s * moon.p[i];
 		if (!GROUND_BLACK)
 			st.ground += s * ground_ex[i];
+		if (MOMENT_ON)
+			st.forward += s * P.C[i].absorption.w;
 	}
 	st.m.extinction = st.m.scattering + st.m.absorption;
 	return st;
@@ -452,29 +465,83 @@ vec3 ground_scattering(Scatter sc, vec4 ex)
 	return r;
 }
 
+// The scattering weighted by each constituent's g1 (ms_source): sum of sigma_i g1_i.
+vec3 forward_scattering(Scatter sc)
+{
+	vec3 r = vec3(0.0);
+	if (MOMENT_ON)
+		for (int i = 0; i < N_CONST; i++)
+			r += sc.s[i] * P.C[i].absorption.w;
+	return r;
+}
+
+// multiscatter_at and the first moment of the same texels (MomentTex): the
+// moment's x along the light's horizontal direction, y up, times 3 and
+// relative to psi (multiscatter.comp).
+vec4 multiscatter_moment_at(TAlt a, float mu_s, out vec2 ret_moment)
+{
+	vec2 d = vec2(clamp(mu_s, -1.0, 1.0)) - a.ms_horizon;
+	vec2 sn = clamp(d * mix(a.ms_above, a.ms_below, lessThan(d, vec2(0.0))), -1.0, 1.0);
+	vec2 u = 0.5 + 0.5 * sign(sn) * sqrt(abs(sn));
+	Axis c0 = axis(u.x, M_W), c1 = axis(u.y, M_W);
+	int r0 = a.ms_rows.i0 * M_W, r1 = a.ms_rows.i1 * M_W;
+	vec4 lo = mix(texelFetch(MultiscatterTex, r0 + c0.i0), texelFetch(MultiscatterTex, r0 + c0.i1), c0.f);
+	vec4 hi = mix(texelFetch(MultiscatterTex, r1 + c1.i0), texelFetch(MultiscatterTex, r1 + c1.i1), c1.f);
+	vec2 mlo = mix(texelFetch(MomentTex, r0 + c0.i0).xy, texelFetch(MomentTex, r0 + c0.i1).xy, c0.f);
+	vec2 mhi = mix(texelFetch(MomentTex, r1 + c1.i0).xy, texelFetch(MomentTex, r1 + c1.i1).xy, c1.f);
+	ret_moment = mix(mlo, mhi, a.ms_rows.f);
+	return mix(lo, hi, a.ms_rows.f);
+}
+
+// The higher orders at a point for one light: Hillaire's isotropic psi_ms
+// scattered by sigma_s, the ground's first bounce (the share A of psi_ms)
+// by sigma_s + ground (ground_scattering()). With MOMENT_ON the multiply
+// scattered light is not taken isotropic but to first order,
+// L(w) = psi (1 + 3 m . w) with m its net flux over its scalar flux; a phase
+// whose first Legendre moment is g1 scatters that toward the eye as
+// psi (1 + 3 g1 m . o), o the direction toward the eye: forward is the sum
+// of sigma_i g1_i, Rayleigh's g1 is 0. Mars' dust (g = 0.85) sees a field
+// that flows away from a low sun, which the isotropic phase read 15-30 %
+// low toward the sun and too high away from it. view_up and view_light:
+// the view's cosines with the local vertical and with the light.
+vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, float view_up, float view_light)
+{
+	if (!MOMENT_ON) {
+		vec4 ms = multiscatter_at(a, mu_l);
+		return (sigma_s + ms.a * ground) * ms.rgb;
+	}
+	vec2 m;
+	vec4 ms = multiscatter_moment_at(a, mu_l, m);
+	// o = -view in the frame of the light's vertical plane: up, and along
+	// the light's horizontal direction (undefined with the light at the
+	// zenith, where m.x is 0 by symmetry).
+	float s2 = 1.0 - mu_l * mu_l;
+	float o_x = clamp((view_up * mu_l - view_light) * inversesqrt(max(s2, 1e-12)), -1.0, 1.0);
+	float mo = MSIGN * (m.x * o_x - m.y * view_up);
+	// A first-order expansion may go negative where the field is strongly
+	// directed; the light scattered never does.
+	return max(sigma_s + ms.a * ground + forward * mo, vec3(0.0)) * ms.rgb;
+}
+
 // In-scattered radiance source at a point for one light: single scattering
-// through each constituent's phase plus Hillaire's isotropic higher orders,
-// of which the ground's first bounce (the share A of psi_ms) takes
-// sigma_s + ground (ground_scattering()) instead of sigma_s.
-vec3 light_source(TAlt a, float mu_l, float radius_rad, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground)
+// through each constituent's phase plus the higher orders (ms_source).
+vec3 light_source(TAlt a, float mu_l, float radius_rad, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground,
+		  vec3 forward, float view_up, float view_light)
 {
 	vec3 s = phased * light_transmittance(a, mu_l, radius_rad);
-	if (MULTISCATTER_ON) {
-		vec4 ms = multiscatter_at(a, mu_l);
-		s += (sigma_s + ms.a * ground) * ms.rgb;
-	}
+	if (MULTISCATTER_ON)
+		s += ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
 	return s * illum;
 }
 
 // light_source for a march step whose visible fraction of the light is
 // already known (disk_visible_mean): the step's midpoint gives the rest.
-vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground)
+vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground,
+		      vec3 forward, float view_up, float view_light)
 {
 	vec3 s = visible > 0.0 ? phased * (visible * transmittance_lookup(a, mu_l)) : vec3(0.0);
-	if (MULTISCATTER_ON) {
-		vec4 ms = multiscatter_at(a, mu_l);
-		s += (sigma_s + ms.a * ground) * ms.rgb;
-	}
+	if (MULTISCATTER_ON)
+		s += ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
 	return s * illum;
 }
 

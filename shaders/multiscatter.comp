@@ -22,6 +22,9 @@ layout(constant_id = 16) const int MS_DIRS = 64;
 // earth's shadow: 32 % low in twilight). skybench accuracy measures it.
 const int MS_RINGS = 16, MS_COLS = 4, MS_HALF_COLS = MS_COLS / 2;
 layout(constant_id = 19) const int MS_SUN_GROUP = 4;
+#ifndef MOMENT_PSI
+#define MOMENT_PSI 1
+#endif
 layout(local_size_x = 8, local_size_y = 8) in;
 
 // The cosines of the 2 x 2 equal-area sub-samples of marched direction k's
@@ -132,9 +135,16 @@ void main()
 		absorption_of[i] = P.C[i].absorption.rgb;
 	}
 	vec3 sum_l2[MS_SUN_GROUP], sum_ground[MS_SUN_GROUP];
+	// The first moment of L2 (MOMENT_ON): the luminance of each direction's
+	// light times the direction it travels (-dir), x toward the sun's
+	// azimuth, y up (the marched half of the azimuths counts twice, so the
+	// component across the sun's vertical plane cancels).
+	vec2 sum_moment[MS_SUN_GROUP];
+	const vec3 moment_lum = vec3(0.2126, 0.7152, 0.0722);
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		sum_l2[j] = vec3(0.0);
 		sum_ground[j] = vec3(0.0);
+		sum_moment[j] = vec2(0.0);
 	}
 	// sum_f (f_ms) is no longer stored (A holds the ground's share); psi
 	// takes 1 - f_ms from sum_escape.
@@ -191,6 +201,9 @@ void main()
 		}
 		for (int j = 0; j < MS_SUN_GROUP; j++)
 			sum_l2[j] += l2[j];
+		if (MOMENT_ON)
+			for (int j = 0; j < MS_SUN_GROUP; j++)
+				sum_moment[j] -= dir.xz * dot(l2[j], moment_lum);
 		vec3 returned = vec3(0.0);
 		if (ground && !GROUND_BLACK) {
 			// Lambertian ground lit by the sun: albedo / pi times the cosine.
@@ -218,6 +231,11 @@ void main()
 	// day sky 12 % of the ground's part high (sun 90: +3.9 % at 0.2 km,
 	// +2.2 % at 10 km).
 	vec3 ground_kept = 1.0 - sum_returned * norm;
+#if MOMENT_PSI
+	float MOMENT_SCALE = 1.0 / max(dot(escape, vec3(0.2126, 0.7152, 0.0722)), 1e-6);
+#else
+	const float MOMENT_SCALE = 1.0;
+#endif
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		if (x0 + j >= OUT_W)
 			break;
@@ -233,5 +251,12 @@ void main()
 		const vec3 lum = vec3(0.2126, 0.7152, 0.0722);
 		float share = dot(sum_ground[j], lum) * norm / max(dot(psi, lum), 1e-30);
 		STORE_TEXEL(MB, py * OUT_W + x0 + j, vec4(psi, clamp(share, 0.0, 1.0)));
+		// The moment for ms_source: 3 m with m = the net flux over the
+		// scalar flux, relative to all of psi. L2's moment stands for
+		// the higher orders' too, scaled like psi (1 / (1 - f_ms)).
+		if (MOMENT_ON) {
+			vec2 m = 3.0 * sum_moment[j] * norm * MOMENT_SCALE / max(dot(psi, lum), 1e-30);
+			MOB.d[py * OUT_W + x0 + j] = vec4(m, 0.0, 0.0);
+		}
 	}
 }
