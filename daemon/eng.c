@@ -138,8 +138,8 @@ struct eng {
 	 * recomputed only when column_key changes, so that a change of the
 	 * coefficients alone runs the tiny transmittance pass only. */
 	struct gpu_buffer columns;
-	/* The first moment of the multiply scattered light, an RGBA float32
-	 * texel per multi-scattering texel (MOMENT_ON in common.glsl). */
+	/* The shape of the multiply scattered light, two RGBA float32 texels
+	 * per multi-scattering texel (ms_source in common.glsl). */
 	struct gpu_buffer moment;
 	VkBufferView moment_view;
 	struct ground_cache ground[ATMO_MAX_CONSTITUENTS];	/* by gpu constituent */
@@ -830,10 +830,10 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 		put4(g->scattering, c->scattering_per_km[0], c->scattering_per_km[1],
 		     c->scattering_per_km[2], c->g);
 		put4(g->absorption, c->absorption_per_km[0], c->absorption_per_km[1],
-		     c->absorption_per_km[2], model_phase_g1(c->phase, c->g));
+		     c->absorption_per_km[2], model_phase_legendre(c->phase, c->g, 1));
 		put4(g->layer0, l0->width_km, l0->exp_term, l0->exp_scale_per_km, l0->linear_per_km);
 		put4(g->layer0c_1, l0->constant, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km);
-		put4(g->layer1c, l1->constant, 0, 0, 0);
+		put4(g->layer1c, l1->constant, model_phase_legendre(c->phase, c->g, 2), 0, 0);
 		/* A constituent that scatters nothing needs no phase function. */
 		bool scatters = c->scattering_per_km[0] > 0 || c->scattering_per_km[1] > 0 ||
 				c->scattering_per_km[2] > 0;
@@ -866,7 +866,14 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 	 * asked for at all, is computed with the cheapest quadrature. */
 	base->v[16] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
 	base->v[17] = s->quality.multiscatter_dirs != 0;
-	base->v[21] = s->quality.multiscatter_dirs != 0 && model_moment_wanted(s);
+	/* The lobe constituent (common.glsl's ms_source) by its index among those in the shaders, plus 1. */
+	int lobe = s->quality.multiscatter_dirs ? model_moment_constituent(s) : -1;
+	if (lobe >= 0 && constituent_active(&a->c[lobe])) {
+		int before = 0;
+		for (int i = 0; i < lobe; i++)
+			before += constituent_active(&a->c[i]);
+		base->v[21] = before + 1;
+	}
 }
 
 /* The cameras of the aerial volumes: the state's, then each view's. */
@@ -1039,7 +1046,7 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 		rebind = true;
 	}
 	const struct state_table_quality *mq = &s->quality.t[STATE_MULTISCATTER];
-	VkDeviceSize moment_bytes = (VkDeviceSize)mq->width * mq->height * 4 * sizeof(float);
+	VkDeviceSize moment_bytes = (VkDeviceSize)mq->width * mq->height * 8 * sizeof(float);
 	if (!e->moment.buf || e->moment.bytes != moment_bytes) {
 		if (e->moment_view) {
 			e->vk.vkDestroyBufferView(e->dev, e->moment_view, NULL);

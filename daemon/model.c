@@ -32,13 +32,13 @@ struct ctx {
 	const struct model_tables *tab;
 	/* model_ground_excess of each constituent (0 for one that scatters nothing) */
 	double ground_excess[ATMO_MAX_CONSTITUENTS][MODEL_GROUND_N];
-	/* The multiply scattered light's first moment (model_moment_wanted):
-	 * per multi-scattering texel 3 m (x toward the sun's azimuth, z up,
-	 * then two zeros), m its net flux over its scalar flux; and g1 of
-	 * each constituent. */
-	bool moment_on;
+	/* The shape of the multiply scattered light for the constituent
+	 * model_moment_constituent names (-1 none): per multi-scattering
+	 * texel the 8 numbers of multiscatter.comp's two texels; that
+	 * constituent's g1 and g2. */
+	int lobe;
 	double *moment;
-	double g1[ATMO_MAX_CONSTITUENTS];
+	double lobe_g[2];
 };
 
 static double rho2(const struct ctx *c, double h) { return h * (2.0 * c->rb + h); }
@@ -78,47 +78,59 @@ static double phase(enum atmo_phase kind, double g, double mu)
 	return hg * 1.5 * (1.0 + mu * mu) / (2.0 + g * g);
 }
 
-/* Nodes of model_phase_g1's quadrature (as ground_k's). */
-#define G1_NODES 8192
+/* Nodes of model_phase_legendre's quadrature (as ground_k's). */
+#define LEGENDRE_NODES 8192
 
-double model_phase_g1(enum atmo_phase kind, double g)
+double model_phase_legendre(enum atmo_phase kind, double g, int l)
 {
-	if (kind == ATMO_PHASE_NONE || kind == ATMO_PHASE_RAYLEIGH)
-		return 0.0;
+	if (kind == ATMO_PHASE_NONE || l < 1)
+		return l == 0 && kind != ATMO_PHASE_NONE ? 1.0 : 0.0;
 	if (kind == ATMO_PHASE_HENYEY_GREENSTEIN)
-		return g;
-	/* 2 pi times the integral of p(c) c over [-1, 1], with the nodes
-	 * crowded at the peak as in ground_k (c = +-(1 - 2 u^2), dc = 4 u du). */
+		return pow(g, l);
+	/* 2 pi times the integral of p(c) P_l(c) over [-1, 1], with the
+	 * nodes crowded at the peak as in ground_k (c = +-(1 - 2 u^2),
+	 * dc = 4 u du); P_l by its recurrence. */
 	double sum = 0.0, peak = g < 0.0 ? -1.0 : 1.0;
-	for (int n = 0; n < G1_NODES; n++) {
-		double u = (n + 0.5) / (G1_NODES), c = peak * (1.0 - 2.0 * u * u);
-		sum += phase(kind, g, c) * c * 4.0 * u;
+	for (int n = 0; n < LEGENDRE_NODES; n++) {
+		double u = (n + 0.5) / LEGENDRE_NODES, c = peak * (1.0 - 2.0 * u * u);
+		double p0 = 1.0, p1 = c;
+		for (int k = 2; k <= l; k++) {
+			double p2 = ((2 * k - 1) * c * p1 - (k - 1) * p0) / k;
+			p0 = p1;
+			p1 = p2;
+		}
+		sum += phase(kind, g, c) * p1 * 4.0 * u;
 	}
-	return 2.0 * SKYMAP_PI * sum / (G1_NODES);
+	return 2.0 * SKYMAP_PI * sum / LEGENDRE_NODES;
 }
 
-/* The vertical scattering optical depth of each constituent (green) times
- * |g1| summed: how much light a forward-peaked phase steers. Earth's Mie
- * (0.0048 x 0.8) is far below the threshold, Mars' dust (0.17 x 0.88) far
- * above it. */
+/* model_moment_constituent's threshold on |g1| tau: Earth's Mie
+ * (0.0048 x 0.8) is far below it, Mars' dust (0.17 x 0.88) far above. */
 #define MOMENT_AUTO_MIN 0.02
 
-bool model_moment_wanted(const struct sky_state *s)
+int model_moment_constituent(const struct sky_state *s)
 {
 	const struct atmo *a = &s->atmo;
-	if (s->quality.multiscatter_moment != STATE_MOMENT_AUTO)
-		return s->quality.multiscatter_moment == STATE_MOMENT_ON;
-	double shell = a->top_radius_km - a->bottom_radius_km, steered = 0.0;
+	double shell = a->top_radius_km - a->bottom_radius_km, best_steered = 0.0;
+	int best = -1;
+	if (s->quality.multiscatter_moment == STATE_MOMENT_OFF)
+		return -1;
 	for (int n = 0; n < a->n_constituents; n++) {
 		const struct atmo_constituent *k = &a->c[n];
-		double g1 = fabs(model_phase_g1(k->phase, k->g)), tau = 0.0;
+		double g1 = fabs(model_phase_legendre(k->phase, k->g, 1)), tau = 0.0;
 		if (g1 == 0.0 || k->scattering_per_km[1] <= 0.0)
 			continue;
 		for (int i = 0; i < 256; i++)
 			tau += atmo_density(&k->density, (i + 0.5) / 256 * shell) * shell / 256;
-		steered += g1 * tau * k->scattering_per_km[1];
+		double steered = g1 * tau * k->scattering_per_km[1];
+		if (best < 0 || steered > best_steered) {
+			best = n;
+			best_steered = steered;
+		}
 	}
-	return steered >= MOMENT_AUTO_MIN;
+	if (s->quality.multiscatter_moment == STATE_MOMENT_AUTO && best_steered < MOMENT_AUTO_MIN)
+		return -1;
+	return best;
 }
 
 /* Quadrature of model_ground_excess: midpoints in u with c = 1 - 2 u^2, which
@@ -478,10 +490,22 @@ static v3 light_transmittance(const struct ctx *c, double h, double mu, double r
 	return visible_transmittance(c, h, mu, disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad)));
 }
 
+/* The 6 numbers of the multiply scattered light's shape (two texels of 4,
+ * the last two unused) of row tab at u, linear between texel centres. */
+static void shape_row(const double *tab, uint32_t w, double u, double ret[6])
+{
+	double p = u * w - 0.5, f = p - floor(p);
+	int i = (int)floor(p);
+	int i0 = i < 0 ? 0 : i > (int)w - 1 ? (int)w - 1 : i;
+	int i1 = i + 1 < 0 ? 0 : i + 1 > (int)w - 1 ? (int)w - 1 : i + 1;
+	for (int k = 0; k < 6; k++)
+		ret[k] = tab[8 * i0 + k] + (tab[8 * i1 + k] - tab[8 * i0 + k]) * f;
+}
+
 /* Each of the two rows at its own altitude's u, blended in altitude (see
  * multiscatter_at in common.glsl); the A channel (the ground's share) in
  * ret_share. */
-static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, v3 *ret_moment)
+static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, double ret_shape[6])
 {
 	double u, vv;
 	const struct model_tables *m = c->tab;
@@ -491,7 +515,8 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 	int iy = (int)floor(py);
 	int y0 = iy < 0 ? 0 : iy > (int)n - 1 ? (int)n - 1 : iy;
 	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)n - 1 ? (int)n - 1 : iy + 1;
-	v3 row[2], mrow[2] = { { 0, 0, 0 }, { 0, 0, 0 } };
+	v3 row[2];
+	double mrow[2][6] = { { 0 }, { 0 } };
 	double share[2];
 	for (int k = 0; k < 2; k++) {
 		int y = k ? y1 : y0;
@@ -506,11 +531,12 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 		double a = fabs(sn) < 1e-10 ? sn * 1e5 : copysign(sqrt(fabs(sn)), sn);
 		row[k] = bilinear(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 		share[k] = bilinear_a(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
-		if (c->moment_on)
-			mrow[k] = bilinear(c->moment + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
+		if (c->lobe >= 0)
+			shape_row(c->moment + 8 * (size_t)y * w, w, skymap_unit_to_tex(0.5 + 0.5 * a, w), mrow[k]);
 	}
 	*ret_share = share[0] + (share[1] - share[0]) * fy;
-	*ret_moment = add(mrow[0], scale(add(mrow[1], scale(mrow[0], -1.0)), fy));
+	for (int i = 0; i < 6; i++)
+		ret_shape[i] = mrow[0][i] + (mrow[1][i] - mrow[0][i]) * fy;
 	return add(row[0], scale(add(row[1], scale(row[0], -1.0)), fy));
 }
 
@@ -543,23 +569,21 @@ static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, d
 			   : visible_transmittance(c, h, mu_l, visible);
 	v3 s = mul(phased_scattering(c, h, dot(dir, light)), t);
 	if (c->s->quality.multiscatter_dirs) {	/* 0: higher orders switched off */
-		double share;
-		v3 mom, psi = multiscatter(c, h, mu_l, &share, &mom);
+		double share, sh[6];
+		v3 psi = multiscatter(c, h, mu_l, &share, sh);
 		v3 sig = add(sigma_s, scale(ground, share));
-		if (c->moment_on) {
-			/* ms_source in common.glsl: psi (sigma_s + sum sigma_i g1_i 3 m . o),
-			 * o = -dir in the frame of the light's vertical plane. */
-			v3 fwd = { 0 };
-			for (int n = 0; n < c->a->n_constituents; n++) {
-				const struct atmo_constituent *k = &c->a->c[n];
-				fwd = add(fwd, scale(v(k->scattering_per_km[0], k->scattering_per_km[1],
-						       k->scattering_per_km[2]),
-						     atmo_density(&k->density, h) * c->g1[n]));
-			}
-			double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l;
+		if (c->lobe >= 0) {
+			/* ms_source in common.glsl: the constituent scatters the
+			 * shape's bands 1 and 2 through its g1 and g2 toward
+			 * o = -dir, in the frame of the light's vertical plane. */
+			const struct atmo_constituent *k = &c->a->c[c->lobe];
+			v3 fwd = scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
+				       atmo_density(&k->density, h));
+			double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l, o_z = -view_up;
 			double o_x = skymap_clamp((view_up * mu_l - dot(dir, light)) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
-			double mo = mom.x * o_x - mom.y * view_up;
-			sig = add(sig, scale(fwd, mo));
+			double b1 = sh[0] * o_x + sh[1] * o_z;
+			double b2 = sh[2] + sh[3] * o_x * o_x + sh[4] * o_z * o_z + sh[5] * o_x * o_z;
+			sig = add(sig, scale(fwd, c->lobe_g[0] * b1 + c->lobe_g[1] * b2));
 			sig = v(fmax(sig.x, 0.0), fmax(sig.y, 0.0), fmax(sig.z, 0.0));
 		}
 		s = add(s, mul(sig, psi));
@@ -710,7 +734,7 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 			skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						    q->width, q->height, &h, &mu_s);
 			v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
-			v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 }, sm = { 0 };
+			v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 }, sm = { 0 }, s2 = { 0 };
 			double r0 = c->rb + h;
 			/* The first scattering of L2 with each constituent's own phase,
 			 * the cells' means normalised to sum to exactly 1 over the
@@ -768,10 +792,13 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 				}
 				sl = add(sl, l2);
 				/* L2's first moment: its light travels along -dir. */
-				sm = add(sm, scale(dir, -dot(l2, v(0.2126, 0.7152, 0.0722))));
+				double l2_lum = dot(l2, v(0.2126, 0.7152, 0.0722));
+				sm = add(sm, scale(dir, -l2_lum));
+				s2 = add(s2, scale(v(dir.x * dir.x, dir.z * dir.z, dir.x * dir.z), l2_lum));
 				sr = add(sr, returned);
 				se = add(se, add(add(t_ray, scale(returned, -1.0)), absorbed));
 			}
+			double lum_l2 = dot(sl, v(0.2126, 0.7152, 0.0722));
 			sl = scale(sl, 1.0 / dirs);
 			sg = scale(sg, 1.0 / dirs);
 			sr = scale(sr, 1.0 / dirs);
@@ -784,13 +811,19 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 			v3 lum = v(0.2126, 0.7152, 0.0722);
 			double share = dot(sg, lum) / fmax(dot(psi, lum), 1e-30);
 			put(out + 4 * (j * q->width + i), psi, skymap_clamp(share, 0.0, 1.0));
-			if (c->moment_on) {
-				/* As multiscatter.comp: scaled like psi, relative to all of it. */
-				double k = 3.0 / dirs / fmax(dot(se, lum), 1e-6) / fmax(dot(psi, lum), 1e-30);
-				double *mo = c->moment + 4 * (j * q->width + i);
-				mo[0] = sm.x * k;
-				mo[1] = sm.z * k;
-				mo[2] = mo[3] = 0.0;
+			if (c->lobe >= 0) {
+				/* The shape of multiscatter.comp (sl is L2 + the ground's
+				 * part by now: L2 alone is sm's and s2's weight). */
+				double l = fmax(lum_l2, 1e-30), txx = s2.x / l, tzz = s2.y / l, txz = s2.z / l;
+				double tyy = 1.0 - txx - tzz;
+				double k = l / dirs / fmax(dot(se, lum), 1e-6) / fmax(dot(psi, lum), 1e-30);
+				double *mo = c->moment + 8 * (j * q->width + i);
+				mo[0] = k * 3.0 * sm.x / l;
+				mo[1] = k * 3.0 * sm.z / l;
+				mo[2] = k * (7.5 * tyy - 2.5);
+				mo[3] = k * 7.5 * (txx - tyy);
+				mo[4] = k * 7.5 * (tzz - tyy);
+				mo[5] = k * 15.0 * txz;
 			}
 		}
 }
@@ -978,11 +1011,11 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	int rc = model_tables_new(s, mask, &m);
 	if (rc < 0)
 		return rc;
-	c.moment_on = s->quality.multiscatter_dirs && model_moment_wanted(s) && m.t[1];
-	if (c.moment_on) {
-		for (int n = 0; n < s->atmo.n_constituents; n++)
-			c.g1[n] = model_phase_g1(s->atmo.c[n].phase, s->atmo.c[n].g);
-		c.moment = calloc(4 * (size_t)m.w[1] * m.h[1], sizeof(double));
+	c.lobe = s->quality.multiscatter_dirs && m.t[1] ? model_moment_constituent(s) : -1;
+	if (c.lobe >= 0) {
+		c.lobe_g[0] = model_phase_legendre(s->atmo.c[c.lobe].phase, s->atmo.c[c.lobe].g, 1);
+		c.lobe_g[1] = model_phase_legendre(s->atmo.c[c.lobe].phase, s->atmo.c[c.lobe].g, 2);
+		c.moment = calloc(8 * (size_t)m.w[1] * m.h[1], sizeof(double));
 		if (!c.moment) {
 			model_tables_finish(&m);
 			return -ENOMEM;

@@ -54,16 +54,20 @@ void model_optical_depth(const struct atmo *a, double altitude_km, double mu, ui
 #define MODEL_GROUND_N 32
 void model_ground_excess(enum atmo_phase kind, double g, double ret_excess[MODEL_GROUND_N]);
 
-/* The first Legendre moment g1 of a phase function (its mean cosine): 0 for
- * Rayleigh and none, g for Henyey-Greenstein, by quadrature for
- * Cornette-Shanks (3 g (4 + g^2) / (5 (2 + g^2)) in closed form). */
-double model_phase_g1(enum atmo_phase kind, double g);
+/* The Legendre moment g_l of a phase function normalised to 1 over the
+ * sphere (the mean of P_l of the scattering cosine; g_1 is the mean cosine):
+ * g^l for Henyey-Greenstein, by quadrature otherwise (Cornette-Shanks:
+ * g_1 = 3 g (4 + g^2) / (5 (2 + g^2)); Rayleigh: g_1 = 0, g_2 = 0.1);
+ * 0 for none. */
+double model_phase_legendre(enum atmo_phase kind, double g, int l);
 
-/* Whether the multiply scattered light's first moment is applied
- * (multiscatter_moment: on, off, or auto: on when the sum over the
- * constituents of |g1| times the vertical scattering optical depth reaches
- * 0.02, i.e. a forward-peaked phase steers a share of the light that
- * matters: Mars' dust, not Earth's thin Mie layer). */
-bool model_moment_wanted(const struct sky_state *s);
+/* The constituent (its index in s->atmo) whose phase scatters the lobe of
+ * the multiply scattered light (ms_source in shaders/common.glsl), or -1
+ * for none: the one of largest |g1| times vertical scattering optical
+ * depth (green); multiscatter_moment=off: none; on: that one; auto: that
+ * one where its |g1| tau reaches 0.02, i.e. where a forward-peaked phase
+ * steers a share of the light that matters (Mars' dust: 0.15; Earth's thin
+ * Mie layer: 0.004). */
+int model_moment_constituent(const struct sky_state *s);
 
 #endif

@@ -7,9 +7,7 @@
 
 
 const float PI = 3.14159265358979;
-#ifndef MSIGN
-#define MSIGN 0.25
-#endif
+#define B1X 0.0
 
 // Specialization constants: what a scene does not need is compiled out.
 layout(constant_id = 0) const int N_CONST = 3;        // constituents that are not all zero
@@ -30,14 +28,15 @@ layout(constant_id = 14) const int OUT_D = 1;
 layout(constant_id = 15) const int STEPS = 1;
 layout(constant_id = 17) const bool MULTISCATTER_ON = true;
 layout(constant_id = 18) const int EXP_MASK = 15;      // bit i: constituent i has an exponential term
-layout(constant_id = 21) const bool MOMENT_ON = false; // the multiply scattered light's first moment (ms_source)
+layout(constant_id = 21) const int MOMENT_LOBE = 0;    // 1 + the constituent whose phase sees the lobe (ms_source), 0 none
+const int MOMENT_CONST = MOMENT_LOBE - 1;
 
 struct Constituent {
 	vec4 scattering;	// rgb 1/km, w = g
 	vec4 absorption;	// rgb 1/km, w = g1, the phase's first Legendre moment (model_phase_g1)
 	vec4 layer0;		// width_km, exp_term, exp_scale_per_km, linear_per_km
 	vec4 layer0c_1;		// constant (layer 0), exp_term, exp_scale_per_km, linear_per_km (layer 1)
-	vec4 layer1c;		// constant (layer 1)
+	vec4 layer1c;		// constant (layer 1), y = g2, the phase's second Legendre moment
 };
 
 struct Params {
@@ -97,8 +96,8 @@ layout(binding = 6) uniform samplerBuffer MultiscatterTex;
 // Column densities of the transmittance texels, one per constituent
 // (columns.comp): internal, float32 whatever the tables' storage.
 layout(std430, binding = 8) buffer ColumnBuf { vec4 d[]; } CB;
-// The first moment of the multiply scattered light (multiscatter.comp, when
-// MOMENT_ON): a texel per multi-scattering texel, float32, internal. Written
+// The shape of the multiply scattered light (multiscatter.comp, with a lobe
+// constituent): two texels per multi-scattering texel, float32, internal. Written
 // through the storage buffer, read through the texel buffer.
 layout(std430, binding = 9) buffer MomentBuf { vec4 d[]; } MOB;
 layout(binding = 10) uniform samplerBuffer MomentTex;
@@ -416,8 +415,8 @@ Step sample_step(float h, Phases sun, Phases moon, vec4 ground_ex)
 			st.phased_moon += s * moon.p[i];
 		if (!GROUND_BLACK)
 			st.ground += s * ground_ex[i];
-		if (MOMENT_ON)
-			st.forward += s * P.C[i].absorption.w;
+		if (i == MOMENT_CONST)
+			st.forward = s;
 	}
 	st.m.extinction = st.m.scattering + st.m.absorption;
 	return st;
@@ -465,20 +464,15 @@ vec3 ground_scattering(Scatter sc, vec4 ex)
 	return r;
 }
 
-// The scattering weighted by each constituent's g1 (ms_source): sum of sigma_i g1_i.
+// The scattering of the constituent that sees the lobe (ms_source).
 vec3 forward_scattering(Scatter sc)
 {
-	vec3 r = vec3(0.0);
-	if (MOMENT_ON)
-		for (int i = 0; i < N_CONST; i++)
-			r += sc.s[i] * P.C[i].absorption.w;
-	return r;
+	return MOMENT_CONST >= 0 ? sc.s[max(MOMENT_CONST, 0)] : vec3(0.0);
 }
 
-// multiscatter_at and the first moment of the same texels (MomentTex): the
-// moment's x along the light's horizontal direction, y up, times 3 and
-// relative to psi (multiscatter.comp).
-vec4 multiscatter_moment_at(TAlt a, float mu_s, out vec2 ret_moment)
+// multiscatter_at and the shape of the same texels (MomentTex, two texels
+// each: multiscatter.comp).
+vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_s0, out vec2 ret_s1)
 {
 	vec2 d = vec2(clamp(mu_s, -1.0, 1.0)) - a.ms_horizon;
 	vec2 sn = clamp(d * mix(a.ms_above, a.ms_below, lessThan(d, vec2(0.0))), -1.0, 1.0);
@@ -487,40 +481,45 @@ vec4 multiscatter_moment_at(TAlt a, float mu_s, out vec2 ret_moment)
 	int r0 = a.ms_rows.i0 * M_W, r1 = a.ms_rows.i1 * M_W;
 	vec4 lo = mix(texelFetch(MultiscatterTex, r0 + c0.i0), texelFetch(MultiscatterTex, r0 + c0.i1), c0.f);
 	vec4 hi = mix(texelFetch(MultiscatterTex, r1 + c1.i0), texelFetch(MultiscatterTex, r1 + c1.i1), c1.f);
-	vec2 mlo = mix(texelFetch(MomentTex, r0 + c0.i0).xy, texelFetch(MomentTex, r0 + c0.i1).xy, c0.f);
-	vec2 mhi = mix(texelFetch(MomentTex, r1 + c1.i0).xy, texelFetch(MomentTex, r1 + c1.i1).xy, c1.f);
-	ret_moment = mix(mlo, mhi, a.ms_rows.f);
+	int a0 = 2 * (r0 + c0.i0), a1 = 2 * (r0 + c0.i1), b0 = 2 * (r1 + c1.i0), b1 = 2 * (r1 + c1.i1);
+	ret_s0 = mix(mix(texelFetch(MomentTex, a0), texelFetch(MomentTex, a1), c0.f),
+		     mix(texelFetch(MomentTex, b0), texelFetch(MomentTex, b1), c1.f), a.ms_rows.f);
+	ret_s1 = mix(mix(texelFetch(MomentTex, a0 + 1).xy, texelFetch(MomentTex, a1 + 1).xy, c0.f),
+		     mix(texelFetch(MomentTex, b0 + 1).xy, texelFetch(MomentTex, b1 + 1).xy, c1.f), a.ms_rows.f);
 	return mix(lo, hi, a.ms_rows.f);
 }
 
 // The higher orders at a point for one light: Hillaire's isotropic psi_ms
 // scattered by sigma_s, the ground's first bounce (the share A of psi_ms)
-// by sigma_s + ground (ground_scattering()). With MOMENT_ON the multiply
-// scattered light is not taken isotropic but to first order,
-// L(w) = psi (1 + 3 m . w) with m its net flux over its scalar flux; a phase
-// whose first Legendre moment is g1 scatters that toward the eye as
-// psi (1 + 3 g1 m . o), o the direction toward the eye: forward is the sum
-// of sigma_i g1_i, Rayleigh's g1 is 0. Mars' dust (g = 0.85) sees a field
-// that flows away from a low sun, which the isotropic phase read 15-30 %
-// low toward the sun and too high away from it. view_up and view_light:
-// the view's cosines with the local vertical and with the light.
+// by sigma_s + ground (ground_scattering()). With a lobe constituent
+// (MOMENT_CONST) the multiply scattered light is not taken isotropic but
+// expanded to its spherical harmonics of band 2, L = psi (1 + b1(w) +
+// b2(w)) (multiscatter.comp); by Funk-Hecke a phase whose Legendre moments
+// are g1 and g2 scatters it toward the eye, o, as psi (1 + g1 b1(o) +
+// g2 b2(o)): forward is that constituent's sigma_s. Mars' dust (g = 0.85)
+// sees a field that flows away from a low sun and is brightest near the
+// horizon, where the isotropic phase read the sky 30-60 % low. view_up and
+// view_light: the view's cosines with the local vertical and with the light.
 vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, float view_up, float view_light)
 {
-	if (!MOMENT_ON) {
+	if (MOMENT_CONST < 0) {
 		vec4 ms = multiscatter_at(a, mu_l);
 		return (sigma_s + ms.a * ground) * ms.rgb;
 	}
-	vec2 m;
-	vec4 ms = multiscatter_moment_at(a, mu_l, m);
-	// o = -view in the frame of the light's vertical plane: up, and along
-	// the light's horizontal direction (undefined with the light at the
-	// zenith, where m.x is 0 by symmetry).
+	vec4 s0;
+	vec2 s1;
+	vec4 ms = multiscatter_shape_at(a, mu_l, s0, s1);
+	// o = -view in the frame of the light's vertical plane: along the
+	// light's horizontal direction (undefined with the light at the
+	// zenith, where the field has no such part by symmetry), and up.
 	float s2 = 1.0 - mu_l * mu_l;
-	float o_x = clamp((view_up * mu_l - view_light) * inversesqrt(max(s2, 1e-12)), -1.0, 1.0);
-	float mo = MSIGN * (m.x * o_x - m.y * view_up);
-	// A first-order expansion may go negative where the field is strongly
+	float o_x = clamp((view_up * mu_l - view_light) * inversesqrt(max(s2, 1e-12)), -1.0, 1.0), o_z = -view_up;
+	float b1 = B1X * s0.x * o_x + s0.y * o_z;
+	float b2 = s0.z + s0.w * o_x * o_x + s1.x * o_z * o_z + s1.y * o_x * o_z;
+	vec2 g = vec2(P.C[max(MOMENT_CONST, 0)].absorption.w, P.C[max(MOMENT_CONST, 0)].layer1c.y);
+	// A truncated expansion may go negative where the field is strongly
 	// directed; the light scattered never does.
-	return max(sigma_s + ms.a * ground + forward * mo, vec3(0.0)) * ms.rgb;
+	return max(sigma_s + ms.a * ground + forward * (g.x * b1 + g.y * b2), vec3(0.0)) * ms.rgb;
 }
 
 // In-scattered radiance source at a point for one light: single scattering

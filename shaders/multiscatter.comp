@@ -135,16 +135,18 @@ void main()
 		absorption_of[i] = P.C[i].absorption.rgb;
 	}
 	vec3 sum_l2[MS_SUN_GROUP], sum_ground[MS_SUN_GROUP];
-	// The first moment of L2 (MOMENT_ON): the luminance of each direction's
+	// The first two moments of L2 (a lobe constituent): the luminance of each direction's
 	// light times the direction it travels (-dir), x toward the sun's
 	// azimuth, y up (the marched half of the azimuths counts twice, so the
 	// component across the sun's vertical plane cancels).
 	vec2 sum_moment[MS_SUN_GROUP];
+	vec3 sum_second[MS_SUN_GROUP];	// the second moments xx, zz, xz
 	const vec3 moment_lum = vec3(0.2126, 0.7152, 0.0722);
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		sum_l2[j] = vec3(0.0);
 		sum_ground[j] = vec3(0.0);
 		sum_moment[j] = vec2(0.0);
+		sum_second[j] = vec3(0.0);
 	}
 	// sum_f (f_ms) is no longer stored (A holds the ground's share); psi
 	// takes 1 - f_ms from sum_escape.
@@ -201,9 +203,12 @@ void main()
 		}
 		for (int j = 0; j < MS_SUN_GROUP; j++)
 			sum_l2[j] += l2[j];
-		if (MOMENT_ON)
-			for (int j = 0; j < MS_SUN_GROUP; j++)
-				sum_moment[j] -= dir.xz * dot(l2[j], moment_lum);
+		if (MOMENT_CONST >= 0)
+			for (int j = 0; j < MS_SUN_GROUP; j++) {
+				float l = dot(l2[j], moment_lum);
+				sum_moment[j] -= dir.xz * l;
+				sum_second[j] += vec3(dir.x * dir.x, dir.z * dir.z, dir.x * dir.z) * l;
+			}
 		vec3 returned = vec3(0.0);
 		if (ground && !GROUND_BLACK) {
 			// Lambertian ground lit by the sun: albedo / pi times the cosine.
@@ -251,12 +256,25 @@ void main()
 		const vec3 lum = vec3(0.2126, 0.7152, 0.0722);
 		float share = dot(sum_ground[j], lum) * norm / max(dot(psi, lum), 1e-30);
 		STORE_TEXEL(MB, py * OUT_W + x0 + j, vec4(psi, clamp(share, 0.0, 1.0)));
-		// The moment for ms_source: 3 m with m = the net flux over the
-		// scalar flux, relative to all of psi. L2's moment stands for
-		// the higher orders' too, scaled like psi (1 / (1 - f_ms)).
-		if (MOMENT_ON) {
-			vec2 m = 3.0 * sum_moment[j] * norm * MOMENT_SCALE / max(dot(psi, lum), 1e-30);
-			MOB.d[py * OUT_W + x0 + j] = vec4(m, 0.0, 0.0);
+		// The multiply scattered light's shape for ms_source: its
+		// spherical harmonics of bands 1 and 2 relative to band 0 (psi),
+		// from L2's moments, in the frame of the sun's vertical plane
+		// (x toward the sun's azimuth, z up; y across, where the field
+		// is symmetric). Band 1 at o is 3 m . o, m the net flux over
+		// the scalar flux; band 2 is 5 (1.5 o T o - 0.5), T the second
+		// moments, written c0 + c1 o_x^2 + c2 o_z^2 + c3 o_x o_z with
+		// o_y^2 = 1 - o_x^2 - o_z^2. L2's shape stands for the higher
+		// orders' too, scaled like psi (1 / (1 - f_ms)); the whole is
+		// relative to all of psi.
+		if (MOMENT_CONST >= 0) {
+			float l = max(dot(sum_l2[j], moment_lum), 1e-30);
+			float share = l * norm * MOMENT_SCALE / max(dot(psi, lum), 1e-30);
+			vec2 m = sum_moment[j] / l;
+			vec3 t = sum_second[j] / l;
+			float tyy = 1.0 - t.x - t.y;
+			int i = py * OUT_W + x0 + j;
+			MOB.d[2 * i] = share * vec4(3.0 * m, 7.5 * tyy - 2.5, 7.5 * (t.x - tyy));
+			MOB.d[2 * i + 1] = share * vec4(7.5 * (t.y - tyy), 15.0 * t.z, 0.0, 0.0);
 		}
 	}
 }
