@@ -78,28 +78,33 @@ static double phase(enum atmo_phase kind, double g, double mu)
 	return hg * 1.5 * (1.0 + mu * mu) / (2.0 + g * g);
 }
 
-/* Nodes of model_phase_legendre's quadrature (as ground_k's). */
+/* Nodes of model_phase_legendre's quadrature. */
 #define LEGENDRE_NODES 8192
 
 double model_phase_legendre(enum atmo_phase kind, double g, int l)
 {
-	if (kind == ATMO_PHASE_NONE || l < 1)
-		return l == 0 && kind != ATMO_PHASE_NONE ? 1.0 : 0.0;
+	if (kind == ATMO_PHASE_NONE || l < 0)
+		return 0.0;
+	if (l == 0)
+		return 1.0;	/* the phases are normalised to 1 over the sphere */
+	if (kind == ATMO_PHASE_RAYLEIGH)
+		return l == 2 ? 0.1 : 0.0;	/* 3/4 (1 + c^2) = P0 + P2 / 2 */
 	if (kind == ATMO_PHASE_HENYEY_GREENSTEIN)
 		return pow(g, l);
 	/* 2 pi times the integral of p(c) P_l(c) over [-1, 1], with the
-	 * nodes crowded at the peak as in ground_k (c = +-(1 - 2 u^2),
-	 * dc = 4 u du); P_l by its recurrence. */
+	 * nodes crowded at the peak: c = +-(1 - 2 u^4), dc = 8 u^3 du, which
+	 * puts dozens of them inside a g = 0.99 peak ((1 - c) ~ 1e-4); P_l by
+	 * its recurrence. */
 	double sum = 0.0, peak = g < 0.0 ? -1.0 : 1.0;
 	for (int n = 0; n < LEGENDRE_NODES; n++) {
-		double u = (n + 0.5) / LEGENDRE_NODES, c = peak * (1.0 - 2.0 * u * u);
+		double u = (n + 0.5) / LEGENDRE_NODES, u2 = u * u, c = peak * (1.0 - 2.0 * u2 * u2);
 		double p0 = 1.0, p1 = c;
 		for (int k = 2; k <= l; k++) {
 			double p2 = ((2 * k - 1) * c * p1 - (k - 1) * p0) / k;
 			p0 = p1;
 			p1 = p2;
 		}
-		sum += phase(kind, g, c) * p1 * 4.0 * u;
+		sum += phase(kind, g, c) * p1 * 8.0 * u2 * u;
 	}
 	return 2.0 * SKYMAP_PI * sum / LEGENDRE_NODES;
 }
@@ -490,22 +495,22 @@ static v3 light_transmittance(const struct ctx *c, double h, double mu, double r
 	return visible_transmittance(c, h, mu, disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad)));
 }
 
-/* The 6 numbers of the multiply scattered light's shape (two texels of 4,
- * the last two unused) of row tab at u, linear between texel centres. */
-static void shape_row(const double *tab, uint32_t w, double u, double ret[6])
+/* The 7 numbers of the multiply scattered light's shape (two texels of 4,
+ * the last unused) of row tab at u, linear between texel centres. */
+static void shape_row(const double *tab, uint32_t w, double u, double ret[7])
 {
 	double p = u * w - 0.5, f = p - floor(p);
 	int i = (int)floor(p);
 	int i0 = i < 0 ? 0 : i > (int)w - 1 ? (int)w - 1 : i;
 	int i1 = i + 1 < 0 ? 0 : i + 1 > (int)w - 1 ? (int)w - 1 : i + 1;
-	for (int k = 0; k < 6; k++)
+	for (int k = 0; k < 7; k++)
 		ret[k] = tab[8 * i0 + k] + (tab[8 * i1 + k] - tab[8 * i0 + k]) * f;
 }
 
 /* Each of the two rows at its own altitude's u, blended in altitude (see
  * multiscatter_at in common.glsl); the A channel (the ground's share) in
  * ret_share. */
-static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, double ret_shape[6])
+static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, double ret_shape[7])
 {
 	double u, vv;
 	const struct model_tables *m = c->tab;
@@ -516,7 +521,7 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 	int y0 = iy < 0 ? 0 : iy > (int)n - 1 ? (int)n - 1 : iy;
 	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)n - 1 ? (int)n - 1 : iy + 1;
 	v3 row[2];
-	double mrow[2][6] = { { 0 }, { 0 } };
+	double mrow[2][7] = { { 0 }, { 0 } };
 	double share[2];
 	for (int k = 0; k < 2; k++) {
 		int y = k ? y1 : y0;
@@ -535,7 +540,7 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 			shape_row(c->moment + 8 * (size_t)y * w, w, skymap_unit_to_tex(0.5 + 0.5 * a, w), mrow[k]);
 	}
 	*ret_share = share[0] + (share[1] - share[0]) * fy;
-	for (int i = 0; i < 6; i++)
+	for (int i = 0; i < 7; i++)
 		ret_shape[i] = mrow[0][i] + (mrow[1][i] - mrow[0][i]) * fy;
 	return add(row[0], scale(add(row[1], scale(row[0], -1.0)), fy));
 }
@@ -569,13 +574,14 @@ static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, d
 			   : visible_transmittance(c, h, mu_l, visible);
 	v3 s = mul(phased_scattering(c, h, dot(dir, light)), t);
 	if (c->s->quality.multiscatter_dirs) {	/* 0: higher orders switched off */
-		double share, sh[6];
+		double share, sh[7];
 		v3 psi = multiscatter(c, h, mu_l, &share, sh);
 		v3 sig = add(sigma_s, scale(ground, share));
 		if (c->lobe >= 0) {
 			/* ms_source in common.glsl: the constituent scatters the
 			 * shape's bands 1 and 2 through its g1 and g2 toward
-			 * o = -dir, in the frame of the light's vertical plane. */
+			 * o = -dir, in the frame of the light's vertical plane,
+			 * and the sun's aureole. */
 			const struct atmo_constituent *k = &c->a->c[c->lobe];
 			v3 fwd = scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
 				       atmo_density(&k->density, h));
@@ -583,7 +589,11 @@ static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, d
 			double o_x = skymap_clamp((view_up * mu_l - dot(dir, light)) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
 			double b1 = sh[0] * o_x + sh[1] * o_z;
 			double b2 = sh[2] + sh[3] * o_x * o_x + sh[4] * o_z * o_z + sh[5] * o_x * o_z;
-			sig = add(sig, scale(fwd, c->lobe_g[0] * b1 + c->lobe_g[1] * b2));
+			/* The aureole: a (4 pi HG_{g1 g1}(view . light) - 1). */
+			double gl = c->lobe_g[0] * c->lobe_g[0];
+			double den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - dot(dir, light));
+			double lobe = sh[6] * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);
+			sig = add(sig, scale(fwd, c->lobe_g[0] * b1 + c->lobe_g[1] * b2 + lobe));
 			sig = v(fmax(sig.x, 0.0), fmax(sig.y, 0.0), fmax(sig.z, 0.0));
 		}
 		s = add(s, mul(sig, psi));
@@ -815,15 +825,18 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 				/* The shape of multiscatter.comp (sl is L2 + the ground's
 				 * part by now: L2 alone is sm's and s2's weight). */
 				double l = fmax(lum_l2, 1e-30), txx = s2.x / l, tzz = s2.y / l, txz = s2.z / l;
-				double tyy = 1.0 - txx - tzz;
+				double tyy = 1.0 - txx - tzz, mx = sm.x / l, mz = sm.z / l;
 				double k = l / dirs / fmax(dot(se, lum), 1e-6) / fmax(dot(psi, lum), 1e-30);
+				double a = skymap_clamp(-mx / fmax(c->lobe_g[0] * sun.x, 1e-3), 0.0, 1.0);
 				double *mo = c->moment + 8 * (j * q->width + i);
-				mo[0] = k * 3.0 * sm.x / l;
-				mo[1] = k * 3.0 * sm.z / l;
+				mo[0] = k * 3.0 * (mx + a * c->lobe_g[0] * sun.x);
+				mo[1] = k * 3.0 * mz;
 				mo[2] = k * (7.5 * tyy - 2.5);
 				mo[3] = k * 7.5 * (txx - tyy);
 				mo[4] = k * 7.5 * (tzz - tyy);
 				mo[5] = k * 15.0 * txz;
+				mo[6] = k * a;
+				mo[7] = 0.0;
 			}
 		}
 }

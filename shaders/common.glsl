@@ -7,7 +7,6 @@
 
 
 const float PI = 3.14159265358979;
-#define B1X 0.0
 
 // Specialization constants: what a scene does not need is compiled out.
 layout(constant_id = 0) const int N_CONST = 3;        // constituents that are not all zero
@@ -472,7 +471,7 @@ vec3 forward_scattering(Scatter sc)
 
 // multiscatter_at and the shape of the same texels (MomentTex, two texels
 // each: multiscatter.comp).
-vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_s0, out vec2 ret_s1)
+vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_s0, out vec3 ret_s1)
 {
 	vec2 d = vec2(clamp(mu_s, -1.0, 1.0)) - a.ms_horizon;
 	vec2 sn = clamp(d * mix(a.ms_above, a.ms_below, lessThan(d, vec2(0.0))), -1.0, 1.0);
@@ -484,22 +483,25 @@ vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_s0, out vec2 ret_s1)
 	int a0 = 2 * (r0 + c0.i0), a1 = 2 * (r0 + c0.i1), b0 = 2 * (r1 + c1.i0), b1 = 2 * (r1 + c1.i1);
 	ret_s0 = mix(mix(texelFetch(MomentTex, a0), texelFetch(MomentTex, a1), c0.f),
 		     mix(texelFetch(MomentTex, b0), texelFetch(MomentTex, b1), c1.f), a.ms_rows.f);
-	ret_s1 = mix(mix(texelFetch(MomentTex, a0 + 1).xy, texelFetch(MomentTex, a1 + 1).xy, c0.f),
-		     mix(texelFetch(MomentTex, b0 + 1).xy, texelFetch(MomentTex, b1 + 1).xy, c1.f), a.ms_rows.f);
+	ret_s1 = mix(mix(texelFetch(MomentTex, a0 + 1).xyz, texelFetch(MomentTex, a1 + 1).xyz, c0.f),
+		     mix(texelFetch(MomentTex, b0 + 1).xyz, texelFetch(MomentTex, b1 + 1).xyz, c1.f), a.ms_rows.f);
 	return mix(lo, hi, a.ms_rows.f);
 }
 
 // The higher orders at a point for one light: Hillaire's isotropic psi_ms
 // scattered by sigma_s, the ground's first bounce (the share A of psi_ms)
 // by sigma_s + ground (ground_scattering()). With a lobe constituent
-// (MOMENT_CONST) the multiply scattered light is not taken isotropic but
-// expanded to its spherical harmonics of band 2, L = psi (1 + b1(w) +
-// b2(w)) (multiscatter.comp); by Funk-Hecke a phase whose Legendre moments
-// are g1 and g2 scatters it toward the eye, o, as psi (1 + g1 b1(o) +
-// g2 b2(o)): forward is that constituent's sigma_s. Mars' dust (g = 0.85)
-// sees a field that flows away from a low sun and is brightest near the
-// horizon, where the isotropic phase read the sky 30-60 % low. view_up and
-// view_light: the view's cosines with the local vertical and with the light.
+// (MOMENT_CONST, forward its sigma_s) the multiply scattered light is not
+// taken isotropic: multiscatter.comp describes it by the sun's aureole, a
+// share a of a Henyey-Greenstein lobe of parameter g1 about the sunlight's
+// direction, and its spherical harmonics b1 (bands 1) and b2 (band 2).
+// By Funk-Hecke a phase of Legendre moments g1, g2 scatters the bands
+// toward the eye, o, as g1 b1(o) + g2 b2(o); two Henyey-Greenstein lobes
+// convolve into one of parameter g1 g1 (their moments multiply), seen at
+// o . sunlight = view . light. Mars' dust (g = 0.85) sees a field that is
+// brightest near the horizon and around the sun, where the isotropic phase
+// read the sky 20-60 % low. view_up and view_light: the view's cosines
+// with the local vertical and with the light.
 vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, float view_up, float view_light)
 {
 	if (MOMENT_CONST < 0) {
@@ -507,19 +509,22 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 		return (sigma_s + ms.a * ground) * ms.rgb;
 	}
 	vec4 s0;
-	vec2 s1;
+	vec3 s1;
 	vec4 ms = multiscatter_shape_at(a, mu_l, s0, s1);
 	// o = -view in the frame of the light's vertical plane: along the
 	// light's horizontal direction (undefined with the light at the
 	// zenith, where the field has no such part by symmetry), and up.
 	float s2 = 1.0 - mu_l * mu_l;
 	float o_x = clamp((view_up * mu_l - view_light) * inversesqrt(max(s2, 1e-12)), -1.0, 1.0), o_z = -view_up;
-	float b1 = B1X * s0.x * o_x + s0.y * o_z;
+	float b1 = s0.x * o_x + s0.y * o_z;
 	float b2 = s0.z + s0.w * o_x * o_x + s1.x * o_z * o_z + s1.y * o_x * o_z;
 	vec2 g = vec2(P.C[max(MOMENT_CONST, 0)].absorption.w, P.C[max(MOMENT_CONST, 0)].layer1c.y);
 	// A truncated expansion may go negative where the field is strongly
 	// directed; the light scattered never does.
-	return max(sigma_s + ms.a * ground + forward * (g.x * b1 + g.y * b2), vec3(0.0)) * ms.rgb;
+	float gl = g.x * g.x;
+	float den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - view_light);
+	float lobe = s1.z * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);	// a (4 pi HG - 1)
+	return max(sigma_s + ms.a * ground + forward * (g.x * b1 + g.y * b2 + lobe), vec3(0.0)) * ms.rgb;
 }
 
 // In-scattered radiance source at a point for one light: single scattering

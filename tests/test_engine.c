@@ -95,6 +95,8 @@ static void test_against_model(void)
 		{ "earth sun 2 observer 10 km", "sun_elevation_deg=2", "altitude_km=10" },
 		{ "earth sun -4 moon", "sun_elevation_deg=-4", "moon_elevation_deg=40", "moon_illuminance_lx=0.3" },
 		{ "mars sun 20", "preset=mars", "sun_elevation_deg=20" },
+		/* The multiply scattered light's shape on Earth's Mie, moon lit too. */
+		{ "earth shape, moon", "multiscatter_moment=on", "moon_elevation_deg=40", "moon_illuminance_lx=0.3" },
 	};
 	for (size_t c = 0; c < sizeof(cases) / sizeof(cases[0]); c++) {
 		struct sky_state s;

@@ -479,8 +479,6 @@ static void measure(const struct eng *e, const struct sky_state *s, const struct
 		double rel = !isfinite(y) ? INFINITY
 			     : g->lum[i] > 0 ? (y - g->lum[i]) / g->lum[i] : (y > 0 ? INFINITY : 0);
 		enum category c = category(sc, g->dir[i].elevation_deg);
-		if (getenv("P1DEBUG"))
-			fprintf(stderr, "DIR %s %g %g %.4f\n", sc->name, g->dir[i].elevation_deg, g->dir[i].azimuth_deg, rel);
 		struct stats *st = &res->cat[c];
 		es[c][n[c]++] = (struct err_sample){ fabs(rel), w };
 		st->weight += w;
