@@ -68,6 +68,7 @@ struct ground_cache {
 	enum atmo_phase kind;
 	double g;
 	double excess[MODEL_GROUND_N];
+	double legendre[2];	/* model_phase_legendre, l = 1 and 2: a quadrature too */
 };
 
 /* Specialization constants, by constant_id. */
@@ -138,7 +139,7 @@ struct eng {
 	 * recomputed only when column_key changes, so that a change of the
 	 * coefficients alone runs the tiny transmittance pass only. */
 	struct gpu_buffer columns;
-	/* The shape of the multiply scattered light, two RGBA float32 texels
+	/* The shape of the multiply scattered light, an RGBA float32 texel
 	 * per multi-scattering texel (ms_source in common.glsl). */
 	struct gpu_buffer moment;
 	VkBufferView moment_view;
@@ -780,6 +781,11 @@ static bool constituent_active(const struct atmo_constituent *c)
 	return false;
 }
 
+static bool constituent_scatters(const struct atmo_constituent *c)
+{
+	return c->scattering_per_km[0] > 0 || c->scattering_per_km[1] > 0 || c->scattering_per_km[2] > 0;
+}
+
 static void put4(float d[4], double a, double b, double c, double w)
 {
 	d[0] = (float)a;
@@ -820,6 +826,7 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 	put4(p->night, night_cd_m2, night_cd_m2, night_cd_m2, night_gain);
 
 	/* Constituents that are zero everywhere are left out of the shaders. */
+	double g1[ATMO_MAX_CONSTITUENTS] = { 0 };	/* by index in a */
 	int n = 0;
 	for (int i = 0; i < a->n_constituents; i++) {
 		const struct atmo_constituent *c = &a->c[i];
@@ -829,23 +836,24 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 		const struct atmo_layer *l0 = &c->density.layers[0], *l1 = &c->density.layers[1];
 		put4(g->scattering, c->scattering_per_km[0], c->scattering_per_km[1],
 		     c->scattering_per_km[2], c->g);
-		put4(g->absorption, c->absorption_per_km[0], c->absorption_per_km[1],
-		     c->absorption_per_km[2], model_phase_legendre(c->phase, c->g, 1));
-		put4(g->layer0, l0->width_km, l0->exp_term, l0->exp_scale_per_km, l0->linear_per_km);
-		put4(g->layer0c_1, l0->constant, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km);
-		put4(g->layer1c, l1->constant, model_phase_legendre(c->phase, c->g, 2), 0, 0);
-		/* A constituent that scatters nothing needs no phase function. */
-		bool scatters = c->scattering_per_km[0] > 0 || c->scattering_per_km[1] > 0 ||
-				c->scattering_per_km[2] > 0;
-		base->v[1 + n] = scatters ? (int32_t)c->phase : 0;
 		struct ground_cache *gc = &e->ground[n];
-		enum atmo_phase kind = scatters ? c->phase : ATMO_PHASE_NONE;
+		enum atmo_phase kind = constituent_scatters(c) ? c->phase : ATMO_PHASE_NONE;
 		if (!gc->valid || gc->kind != kind || gc->g != c->g) {
 			model_ground_excess(kind, c->g, gc->excess);
+			gc->legendre[0] = model_phase_legendre(kind, c->g, 1);
+			gc->legendre[1] = model_phase_legendre(kind, c->g, 2);
 			gc->valid = true;
 			gc->kind = kind;
 			gc->g = c->g;
 		}
+		g1[i] = gc->legendre[0];
+		put4(g->absorption, c->absorption_per_km[0], c->absorption_per_km[1],
+		     c->absorption_per_km[2], gc->legendre[0]);
+		put4(g->layer0, l0->width_km, l0->exp_term, l0->exp_scale_per_km, l0->linear_per_km);
+		put4(g->layer0c_1, l0->constant, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km);
+		put4(g->layer1c, l1->constant, gc->legendre[1], 0, 0);
+		/* A constituent that scatters nothing needs no phase function. */
+		base->v[1 + n] = constituent_scatters(c) ? (int32_t)c->phase : 0;
 		for (int k = 0; k < MODEL_GROUND_N; k++)
 			p->ground_excess[k][n] = (float)gc->excess[k];
 		/* Profiles without an exponential term (ozone's tent) skip exp(). */
@@ -867,7 +875,7 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 	base->v[16] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
 	base->v[17] = s->quality.multiscatter_dirs != 0;
 	/* The lobe constituent (common.glsl's ms_source) by its index among those in the shaders, plus 1. */
-	int lobe = s->quality.multiscatter_dirs ? model_moment_constituent(s) : -1;
+	int lobe = s->quality.multiscatter_dirs ? model_moment_constituent(s, g1) : -1;
 	if (lobe >= 0 && constituent_active(&a->c[lobe])) {
 		int before = 0;
 		for (int i = 0; i < lobe; i++)
@@ -1046,7 +1054,7 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 		rebind = true;
 	}
 	const struct state_table_quality *mq = &s->quality.t[STATE_MULTISCATTER];
-	VkDeviceSize moment_bytes = (VkDeviceSize)mq->width * mq->height * 8 * sizeof(float);
+	VkDeviceSize moment_bytes = (VkDeviceSize)mq->width * mq->height * 4 * sizeof(float);
 	if (!e->moment.buf || e->moment.bytes != moment_bytes) {
 		if (e->moment_view) {
 			e->vk.vkDestroyBufferView(e->dev, e->moment_view, NULL);

@@ -34,7 +34,7 @@ struct ctx {
 	double ground_excess[ATMO_MAX_CONSTITUENTS][MODEL_GROUND_N];
 	/* The shape of the multiply scattered light for the constituent
 	 * model_moment_constituent names (-1 none): per multi-scattering
-	 * texel the 8 numbers of multiscatter.comp's two texels; that
+	 * texel the 4 numbers of multiscatter.comp's texel; that
 	 * constituent's g1 and g2. */
 	int lobe;
 	double *moment;
@@ -113,7 +113,7 @@ double model_phase_legendre(enum atmo_phase kind, double g, int l)
  * (0.0048 x 0.8) is far below it, Mars' dust (0.17 x 0.88) far above. */
 #define MOMENT_AUTO_MIN 0.02
 
-int model_moment_constituent(const struct sky_state *s)
+int model_moment_constituent(const struct sky_state *s, const double *g1_of)
 {
 	const struct atmo *a = &s->atmo;
 	double shell = a->top_radius_km - a->bottom_radius_km, best_steered = 0.0;
@@ -122,7 +122,7 @@ int model_moment_constituent(const struct sky_state *s)
 		return -1;
 	for (int n = 0; n < a->n_constituents; n++) {
 		const struct atmo_constituent *k = &a->c[n];
-		double g1 = fabs(model_phase_legendre(k->phase, k->g, 1)), tau = 0.0;
+		double g1 = fabs(g1_of ? g1_of[n] : model_phase_legendre(k->phase, k->g, 1)), tau = 0.0;
 		if (g1 == 0.0 || k->scattering_per_km[1] <= 0.0)
 			continue;
 		for (int i = 0; i < 256; i++)
@@ -495,22 +495,22 @@ static v3 light_transmittance(const struct ctx *c, double h, double mu, double r
 	return visible_transmittance(c, h, mu, disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad)));
 }
 
-/* The 7 numbers of the multiply scattered light's shape (two texels of 4,
- * the last unused) of row tab at u, linear between texel centres. */
-static void shape_row(const double *tab, uint32_t w, double u, double ret[7])
+/* The 4 numbers of the multiply scattered light's shape of row tab at u,
+ * linear between texel centres. */
+static void shape_row(const double *tab, uint32_t w, double u, double ret[4])
 {
 	double p = u * w - 0.5, f = p - floor(p);
 	int i = (int)floor(p);
 	int i0 = i < 0 ? 0 : i > (int)w - 1 ? (int)w - 1 : i;
 	int i1 = i + 1 < 0 ? 0 : i + 1 > (int)w - 1 ? (int)w - 1 : i + 1;
-	for (int k = 0; k < 7; k++)
-		ret[k] = tab[8 * i0 + k] + (tab[8 * i1 + k] - tab[8 * i0 + k]) * f;
+	for (int k = 0; k < 4; k++)
+		ret[k] = tab[4 * i0 + k] + (tab[4 * i1 + k] - tab[4 * i0 + k]) * f;
 }
 
 /* Each of the two rows at its own altitude's u, blended in altitude (see
  * multiscatter_at in common.glsl); the A channel (the ground's share) in
  * ret_share. */
-static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, double ret_shape[7])
+static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, double ret_shape[4])
 {
 	double u, vv;
 	const struct model_tables *m = c->tab;
@@ -521,7 +521,7 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 	int y0 = iy < 0 ? 0 : iy > (int)n - 1 ? (int)n - 1 : iy;
 	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)n - 1 ? (int)n - 1 : iy + 1;
 	v3 row[2];
-	double mrow[2][7] = { { 0 }, { 0 } };
+	double mrow[2][4] = { { 0 }, { 0 } };
 	double share[2];
 	for (int k = 0; k < 2; k++) {
 		int y = k ? y1 : y0;
@@ -537,10 +537,10 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 		row[k] = bilinear(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 		share[k] = bilinear_a(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 		if (c->lobe >= 0)
-			shape_row(c->moment + 8 * (size_t)y * w, w, skymap_unit_to_tex(0.5 + 0.5 * a, w), mrow[k]);
+			shape_row(c->moment + 4 * (size_t)y * w, w, skymap_unit_to_tex(0.5 + 0.5 * a, w), mrow[k]);
 	}
 	*ret_share = share[0] + (share[1] - share[0]) * fy;
-	for (int i = 0; i < 7; i++)
+	for (int i = 0; i < 4; i++)
 		ret_shape[i] = mrow[0][i] + (mrow[1][i] - mrow[0][i]) * fy;
 	return add(row[0], scale(add(row[1], scale(row[0], -1.0)), fy));
 }
@@ -574,7 +574,7 @@ static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, d
 			   : visible_transmittance(c, h, mu_l, visible);
 	v3 s = mul(phased_scattering(c, h, dot(dir, light)), t);
 	if (c->s->quality.multiscatter_dirs) {	/* 0: higher orders switched off */
-		double share, sh[7];
+		double share, sh[4];
 		v3 psi = multiscatter(c, h, mu_l, &share, sh);
 		v3 sig = add(sigma_s, scale(ground, share));
 		if (c->lobe >= 0) {
@@ -587,12 +587,12 @@ static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, d
 				       atmo_density(&k->density, h));
 			double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l, o_z = -view_up;
 			double o_x = skymap_clamp((view_up * mu_l - dot(dir, light)) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
-			double b1 = sh[0] * o_x + sh[1] * o_z;
-			double b2 = sh[2] + sh[3] * o_x * o_x + sh[4] * o_z * o_z + sh[5] * o_x * o_z;
+			double b1 = sh[0] * o_z;
+			double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) + sh[2] * o_x * o_z;
 			/* The aureole: a (4 pi HG_{g1 g1}(view . light) - 1). */
 			double gl = c->lobe_g[0] * c->lobe_g[0];
 			double den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - dot(dir, light));
-			double lobe = sh[6] * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);
+			double lobe = sh[3] * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);
 			sig = add(sig, scale(fwd, c->lobe_g[0] * b1 + c->lobe_g[1] * b2 + lobe));
 			sig = v(fmax(sig.x, 0.0), fmax(sig.y, 0.0), fmax(sig.z, 0.0));
 		}
@@ -824,19 +824,14 @@ static void compute_multiscatter(const struct ctx *c, const struct state_table_q
 			if (c->lobe >= 0) {
 				/* The shape of multiscatter.comp (sl is L2 + the ground's
 				 * part by now: L2 alone is sm's and s2's weight). */
-				double l = fmax(lum_l2, 1e-30), txx = s2.x / l, tzz = s2.y / l, txz = s2.z / l;
-				double tyy = 1.0 - txx - tzz, mx = sm.x / l, mz = sm.z / l;
+				double l = fmax(lum_l2, 1e-30);
 				double k = l / dirs / fmax(dot(se, lum), 1e-6) / fmax(dot(psi, lum), 1e-30);
-				double a = skymap_clamp(-mx / fmax(c->lobe_g[0] * sun.x, 1e-3), 0.0, 1.0);
-				double *mo = c->moment + 8 * (j * q->width + i);
-				mo[0] = k * 3.0 * (mx + a * c->lobe_g[0] * sun.x);
-				mo[1] = k * 3.0 * mz;
-				mo[2] = k * (7.5 * tyy - 2.5);
-				mo[3] = k * 7.5 * (txx - tyy);
-				mo[4] = k * 7.5 * (tzz - tyy);
-				mo[5] = k * 15.0 * txz;
-				mo[6] = k * a;
-				mo[7] = 0.0;
+				double a = skymap_clamp(-(sm.x / l) / fmax(c->lobe_g[0] * sun.x, 1e-3), 0.0, 1.0);
+				double *mo = c->moment + 4 * (j * q->width + i);
+				mo[0] = k * 3.0 * sm.z / l;
+				mo[1] = k * (7.5 * s2.y / l - 2.5);
+				mo[2] = k * 15.0 * s2.z / l;
+				mo[3] = k * a;
 			}
 		}
 }
@@ -1024,11 +1019,11 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	int rc = model_tables_new(s, mask, &m);
 	if (rc < 0)
 		return rc;
-	c.lobe = s->quality.multiscatter_dirs && m.t[1] ? model_moment_constituent(s) : -1;
+	c.lobe = s->quality.multiscatter_dirs && m.t[1] ? model_moment_constituent(s, NULL) : -1;
 	if (c.lobe >= 0) {
 		c.lobe_g[0] = model_phase_legendre(s->atmo.c[c.lobe].phase, s->atmo.c[c.lobe].g, 1);
 		c.lobe_g[1] = model_phase_legendre(s->atmo.c[c.lobe].phase, s->atmo.c[c.lobe].g, 2);
-		c.moment = calloc(8 * (size_t)m.w[1] * m.h[1], sizeof(double));
+		c.moment = calloc(4 * (size_t)m.w[1] * m.h[1], sizeof(double));
 		if (!c.moment) {
 			model_tables_finish(&m);
 			return -ENOMEM;

@@ -67,7 +67,8 @@ double model_phase_legendre(enum atmo_phase kind, double g, int l);
  * depth (green); multiscatter_moment=off: none; on: that one; auto: that
  * one where its |g1| tau reaches 0.02, i.e. where a forward-peaked phase
  * steers a share of the light that matters (Mars' dust: 0.15; Earth's thin
- * Mie layer: 0.004). */
-int model_moment_constituent(const struct sky_state *s);
+ * Mie layer: 0.004). g1_of: model_phase_legendre(..., 1) of each
+ * constituent of s->atmo if the caller keeps it, else NULL. */
+int model_moment_constituent(const struct sky_state *s, const double *g1_of);
 
 #endif

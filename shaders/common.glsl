@@ -96,7 +96,7 @@ layout(binding = 6) uniform samplerBuffer MultiscatterTex;
 // (columns.comp): internal, float32 whatever the tables' storage.
 layout(std430, binding = 8) buffer ColumnBuf { vec4 d[]; } CB;
 // The shape of the multiply scattered light (multiscatter.comp, with a lobe
-// constituent): two texels per multi-scattering texel, float32, internal. Written
+// constituent): a texel per multi-scattering texel, float32, internal. Written
 // through the storage buffer, read through the texel buffer.
 layout(std430, binding = 9) buffer MomentBuf { vec4 d[]; } MOB;
 layout(binding = 10) uniform samplerBuffer MomentTex;
@@ -469,9 +469,8 @@ vec3 forward_scattering(Scatter sc)
 	return MOMENT_CONST >= 0 ? sc.s[max(MOMENT_CONST, 0)] : vec3(0.0);
 }
 
-// multiscatter_at and the shape of the same texels (MomentTex, two texels
-// each: multiscatter.comp).
-vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_s0, out vec3 ret_s1)
+// multiscatter_at and the shape of the same texels (MomentTex).
+vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_shape)
 {
 	vec2 d = vec2(clamp(mu_s, -1.0, 1.0)) - a.ms_horizon;
 	vec2 sn = clamp(d * mix(a.ms_above, a.ms_below, lessThan(d, vec2(0.0))), -1.0, 1.0);
@@ -480,11 +479,8 @@ vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_s0, out vec3 ret_s1)
 	int r0 = a.ms_rows.i0 * M_W, r1 = a.ms_rows.i1 * M_W;
 	vec4 lo = mix(texelFetch(MultiscatterTex, r0 + c0.i0), texelFetch(MultiscatterTex, r0 + c0.i1), c0.f);
 	vec4 hi = mix(texelFetch(MultiscatterTex, r1 + c1.i0), texelFetch(MultiscatterTex, r1 + c1.i1), c1.f);
-	int a0 = 2 * (r0 + c0.i0), a1 = 2 * (r0 + c0.i1), b0 = 2 * (r1 + c1.i0), b1 = 2 * (r1 + c1.i1);
-	ret_s0 = mix(mix(texelFetch(MomentTex, a0), texelFetch(MomentTex, a1), c0.f),
-		     mix(texelFetch(MomentTex, b0), texelFetch(MomentTex, b1), c1.f), a.ms_rows.f);
-	ret_s1 = mix(mix(texelFetch(MomentTex, a0 + 1).xyz, texelFetch(MomentTex, a1 + 1).xyz, c0.f),
-		     mix(texelFetch(MomentTex, b0 + 1).xyz, texelFetch(MomentTex, b1 + 1).xyz, c1.f), a.ms_rows.f);
+	ret_shape = mix(mix(texelFetch(MomentTex, r0 + c0.i0), texelFetch(MomentTex, r0 + c0.i1), c0.f),
+			mix(texelFetch(MomentTex, r1 + c1.i0), texelFetch(MomentTex, r1 + c1.i1), c1.f), a.ms_rows.f);
 	return mix(lo, hi, a.ms_rows.f);
 }
 
@@ -494,7 +490,7 @@ vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_s0, out vec3 ret_s1)
 // (MOMENT_CONST, forward its sigma_s) the multiply scattered light is not
 // taken isotropic: multiscatter.comp describes it by the sun's aureole, a
 // share a of a Henyey-Greenstein lobe of parameter g1 about the sunlight's
-// direction, and its spherical harmonics b1 (bands 1) and b2 (band 2).
+// direction, and its spherical harmonics b1 (band 1) and b2 (band 2).
 // By Funk-Hecke a phase of Legendre moments g1, g2 scatters the bands
 // toward the eye, o, as g1 b1(o) + g2 b2(o); two Henyey-Greenstein lobes
 // convolve into one of parameter g1 g1 (their moments multiply), seen at
@@ -508,22 +504,21 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 		vec4 ms = multiscatter_at(a, mu_l);
 		return (sigma_s + ms.a * ground) * ms.rgb;
 	}
-	vec4 s0;
-	vec3 s1;
-	vec4 ms = multiscatter_shape_at(a, mu_l, s0, s1);
+	vec4 sh;	// 3 m_z, 5 <P2(w_z)>, 15 T_xz, a (multiscatter.comp)
+	vec4 ms = multiscatter_shape_at(a, mu_l, sh);
 	// o = -view in the frame of the light's vertical plane: along the
 	// light's horizontal direction (undefined with the light at the
 	// zenith, where the field has no such part by symmetry), and up.
 	float s2 = 1.0 - mu_l * mu_l;
 	float o_x = clamp((view_up * mu_l - view_light) * inversesqrt(max(s2, 1e-12)), -1.0, 1.0), o_z = -view_up;
-	float b1 = s0.x * o_x + s0.y * o_z;
-	float b2 = s0.z + s0.w * o_x * o_x + s1.x * o_z * o_z + s1.y * o_x * o_z;
+	float b1 = sh.x * o_z;
+	float b2 = sh.y * (1.5 * o_z * o_z - 0.5) + sh.z * o_x * o_z;
 	vec2 g = vec2(P.C[max(MOMENT_CONST, 0)].absorption.w, P.C[max(MOMENT_CONST, 0)].layer1c.y);
 	// A truncated expansion may go negative where the field is strongly
 	// directed; the light scattered never does.
 	float gl = g.x * g.x;
 	float den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - view_light);
-	float lobe = s1.z * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);	// a (4 pi HG - 1)
+	float lobe = sh.w * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);	// a (4 pi HG - 1)
 	return max(sigma_s + ms.a * ground + forward * (g.x * b1 + g.y * b2 + lobe), vec3(0.0)) * ms.rgb;
 }
 

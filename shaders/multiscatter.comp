@@ -251,18 +251,21 @@ void main()
 		STORE_TEXEL(MB, py * OUT_W + x0 + j, vec4(psi, clamp(share, 0.0, 1.0)));
 		// The multiply scattered light's shape for ms_source, from L2's
 		// moments, in the frame of the sun's vertical plane (x toward the
-		// sun's azimuth, z up; y across, where the field is symmetric):
+		// sun's azimuth, z up; y across, where the field is symmetric),
+		// relative to psi:
 		// - the sun's aureole, a Henyey-Greenstein lobe of parameter
 		//   k = g1 (light scattered once by the same phase) about the
-		//   sunlight's direction, of share a, which carries all of the
-		//   flux toward the sun's side (m_x = -a k sin(theta_s));
-		// - the spherical harmonics of bands 1 (vertical) and 2 of the
-		//   whole: band 1 at o is 3 m_z o_z, m the net flux over the
-		//   scalar flux; band 2 is 5 (1.5 o T o - 0.5), T the second
-		//   moments, written c0 + c1 o_x^2 + c2 o_z^2 + c3 o_x o_z
-		//   (o_y^2 = 1 - o_x^2 - o_z^2). Band 2 is the horizon's
-		//   brightness: long near-horizontal paths send most light
-		//   there, which a forward phase passes on to a horizontal view.
+		//   sunlight's direction, of share a, which carries the flux
+		//   toward the sun's side (m_x = -a k sin(theta_s));
+		// - band 1 of the vertical flux, 3 m_z o_z, m the net flux over
+		//   the scalar flux;
+		// - band 2, 5 (1.5 o T o - 0.5) with T the second moments, taken
+		//   symmetric about the vertical (T_xx = T_yy, which the 4
+		//   azimuth columns cannot tell apart anyway: the aureole holds
+		//   the sun's side): 5 <P2(w_z)> P2(o_z) + 15 T_xz o_x o_z. It is
+		//   the horizon's brightness: long near-horizontal paths send
+		//   most light there, which a forward phase passes on to a
+		//   horizontal view.
 		// L2's shape stands for the higher orders' too, scaled like psi
 		// (1 / (1 - f_ms)): on Mars that read 1-4 points better than L2's
 		// moments alone. Measured on Mars (sun 5 / 30, 0.2 km): band 1
@@ -270,22 +273,15 @@ void main()
 		// against 19 / 13 %): the aureole is narrow, and a cosine that
 		// brightens the sun's side darkens the opposite one as much; so
 		// did a lobe about the flux's own direction (24 / 17 %) and the
-		// aureole's band 2 taken out of T (18 / 14 %). With only 4
-		// azimuth columns T cannot see T_xx - T_yy, so the aureole is
-		// fixed on the sun rather than fitted.
+		// aureole's band 2 taken out of T (18 / 14 %).
 		if (MOMENT_CONST >= 0) {
 			float l = max(dot(sum_l2[j], moment_lum), 1e-30);
 			float share = l * norm / escape_lum / max(dot(psi, lum), 1e-30);
 			vec2 m = sum_moment[j] / l;
 			vec3 t = sum_second[j] / l;
-			float tyy = 1.0 - t.x - t.y;
 			float k = P.C[max(MOMENT_CONST, 0)].absorption.w;
 			float a = clamp(-m.x / max(k * sun[j].x, 1e-3), 0.0, 1.0);
-			// What the aureole does not carry (a clamped) stays in band 1.
-			float mx = m.x + a * k * sun[j].x;
-			int i = py * OUT_W + x0 + j;
-			MOB.d[2 * i] = share * vec4(3.0 * mx, 3.0 * m.y, 7.5 * tyy - 2.5, 7.5 * (t.x - tyy));
-			MOB.d[2 * i + 1] = share * vec4(7.5 * (t.y - tyy), 15.0 * t.z, a, 0.0);
+			MOB.d[py * OUT_W + x0 + j] = share * vec4(3.0 * m.y, 7.5 * t.y - 2.5, 15.0 * t.z, a);
 		}
 	}
 }

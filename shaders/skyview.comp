@@ -81,19 +81,15 @@ void main()
 	// up_h * dot(across, light.xy) + up_z * light.z, with across the column's
 	// horizontal unit vector: the dots are per column, up_h and up_z per step.
 	float sun_h[SV_AZ_GROUP], moon_h[SV_AZ_GROUP];
-	// The views' cosine with each light, for ms_source (constant along a ray).
-	float sun_v[SV_AZ_GROUP], moon_v[SV_AZ_GROUP];
 	for (int j = 0; j < SV_AZ_GROUP; j++) {
 		float az = 2.0 * PI * (float(min(x0 + j, OUT_W - 1)) + 0.5) / float(OUT_W);
 		vec2 across = vec2(sin(az), cos(az));
 		dir[j] = vec3(sin_z * across, cos_z);
 		ph_sun[j] = ray_phases(dir[j], P.sun_dir.xyz);
 		sun_h[j] = dot(across, P.sun_dir.xy);
-		sun_v[j] = dot(dir[j], P.sun_dir.xyz);
 		if (MOON_LIT) {
 			ph_moon[j] = ray_phases(dir[j], P.moon_dir.xyz);
 			moon_h[j] = dot(across, P.moon_dir.xy);
-			moon_v[j] = dot(dir[j], P.moon_dir.xyz);
 		}
 		radiance[j] = vec3(0.0);
 	}
@@ -133,13 +129,13 @@ void main()
 							      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
 				vec3 s = light_source_lit(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb,
 							  phased(sc, ph_sun[j]), m.scattering, ground, forward, view_up,
-							  sun_v[j]);
+							  dot(dir[j], P.sun_dir.xyz));
 				if (MOON_LIT) {
 					vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
 								over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
 					s += light_source_lit(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb,
 							      phased(sc, ph_moon[j]), m.scattering, ground, forward,
-							      view_up, moon_v[j]);
+							      view_up, dot(dir[j], P.moon_dir.xyz));
 				}
 				radiance[j] += w * s;
 			}
