@@ -118,7 +118,9 @@ int model_moment_constituent(const struct sky_state *s, const double *g1_of)
 	const struct atmo *a = &s->atmo;
 	double shell = a->top_radius_km - a->bottom_radius_km, best_steered = 0.0;
 	int best = -1;
-	if (s->quality.multiscatter_moment == STATE_MOMENT_OFF)
+	/* Two directions (up and down) see no shape, only T_zz = 1, and band
+	 * 2 would take all the light for vertical: horizontal views dark. */
+	if (s->quality.multiscatter_moment == STATE_MOMENT_OFF || s->quality.multiscatter_dirs < 64)
 		return -1;
 	for (int n = 0; n < a->n_constituents; n++) {
 		const struct atmo_constituent *k = &a->c[n];

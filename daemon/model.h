@@ -64,7 +64,8 @@ double model_phase_legendre(enum atmo_phase kind, double g, int l);
 /* The constituent (its index in s->atmo) whose phase scatters the lobe of
  * the multiply scattered light (ms_source in shaders/common.glsl), or -1
  * for none: the one of largest |g1| times vertical scattering optical
- * depth (green); multiscatter_moment=off: none; on: that one; auto: that
+ * depth (green); none with fewer than 64 multi-scattering directions
+ * (up and down see no shape); multiscatter_moment=off: none; on: that one; auto: that
  * one where its |g1| tau reaches 0.02, i.e. where a forward-peaked phase
  * steers a share of the light that matters (Mars' dust: 0.15; Earth's thin
  * Mie layer: 0.004). g1_of: model_phase_legendre(..., 1) of each

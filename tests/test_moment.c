@@ -67,6 +67,9 @@ static void test_rule(void)
 	CHECK(dust >= 0 && s.atmo.c[dust].g > 0.8);
 	set(&s, "multiscatter_moment=off");
 	CHECK(model_moment_constituent(&s, NULL) == -1);
+	set(&s, "multiscatter_moment=on");
+	set(&s, "multiscatter_dirs=2");
+	CHECK(model_moment_constituent(&s, NULL) == -1);
 }
 
 /* Luminance of a float32 sky-view table in a direction, sampled as a
