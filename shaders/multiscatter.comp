@@ -1,6 +1,7 @@
 // multiscatter.comp - Hillaire's infinite-order isotropic multiple scattering,
 // psi_ms = L2 / (1 - f_ms). Directions: 64 on an equal-area grid of 16 rings
-// by 4 azimuths, or 2 (straight up and down).
+// by 4 azimuths, or 2 (straight up and down). For a forward-peaked phase
+// (MOMENT_CONST) also the shape of that light from L2's moments (MomentBuf).
 //
 // The rays from a point at altitude h do not depend on the sun, so one
 // invocation marches them once for MS_SUN_GROUP texels of a row (sun angles)
