@@ -22,7 +22,7 @@
 #include "vkfn.h"
 
 #define MAX_PIPELINES 32	/* cached variants per pass */
-#define N_SPEC 22
+#define N_SPEC 23
 /* Texels of a row one invocation shares its rays between: sun angles of
  * multi-scattering, azimuths of sky-view. */
 #define MS_SUN_GROUP 4
@@ -43,7 +43,12 @@ struct gpu_constituent {
 #define VIEWS_BINDING (1 + STATE_N_TABLES + N_LOOKUPS)
 #define COLUMNS_BINDING (VIEWS_BINDING + 1)
 #define ITERATE_BINDING (COLUMNS_BINDING + 1)
-#define N_BINDINGS (ITERATE_BINDING + 1)
+/* 10 the shape of the multiply scattered light (storage, written by the
+ * multi-scattering pass, rescaled by the iteration), 11 the same memory as
+ * a lookup. */
+#define MOMENT_BINDING (ITERATE_BINDING + 1)
+#define MOMENT_TEX_BINDING (MOMENT_BINDING + 1)
+#define N_BINDINGS (MOMENT_TEX_BINDING + 1)
 /* Compute passes: one per table, then the column densities (SHADER_COLUMNS)
  * and the iteration of psi_ms (SHADER_MSITERATE). */
 #define PASS_COLUMNS STATE_N_TABLES
@@ -68,6 +73,7 @@ struct ground_cache {
 	enum atmo_phase kind;
 	double g;
 	double excess[MODEL_GROUND_N];
+	double legendre[2];	/* model_phase_legendre, l = 1 and 2: a quadrature too */
 };
 
 /* Specialization constants, by constant_id. */
@@ -138,6 +144,10 @@ struct eng {
 	 * recomputed only when column_key changes, so that a change of the
 	 * coefficients alone runs the tiny transmittance pass only. */
 	struct gpu_buffer columns;
+	/* The shape of the multiply scattered light, an RGBA float32 texel
+	 * per multi-scattering texel (ms_source in common.glsl). */
+	struct gpu_buffer moment;
+	VkBufferView moment_view;
 	struct ground_cache ground[ATMO_MAX_CONSTITUENTS];	/* by gpu constituent */
 	struct column_key column_key;
 	bool columns_valid;
@@ -509,6 +519,8 @@ static VkDescriptorType binding_type(int binding)
 {
 	if (binding == 0)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+	if (binding == MOMENT_TEX_BINDING)
+		return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 	return binding <= STATE_N_TABLES || binding >= VIEWS_BINDING
 		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
 		       : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
@@ -574,8 +586,8 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
-		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 3 },
-		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS } };
+		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 4 },
+		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 1 } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
 	VK_TRY(e->vk.vkCreateDescriptorPool(e->dev, &dpi, NULL, &e->desc_pool));
@@ -679,6 +691,9 @@ void eng_free(struct eng *e)
 		buffer_free(e, &e->views);
 		buffer_free(e, &e->columns);
 		buffer_free(e, &e->ms_iterate);
+		if (e->moment_view)
+			e->vk.vkDestroyBufferView(e->dev, e->moment_view, NULL);
+		buffer_free(e, &e->moment);
 		if (e->fence)
 			e->vk.vkDestroyFence(e->dev, e->fence, NULL);
 		if (e->queries)
@@ -777,6 +792,11 @@ static bool constituent_active(const struct atmo_constituent *c)
 	return false;
 }
 
+static bool constituent_scatters(const struct atmo_constituent *c)
+{
+	return c->scattering_per_km[0] > 0 || c->scattering_per_km[1] > 0 || c->scattering_per_km[2] > 0;
+}
+
 static void put4(float d[4], double a, double b, double c, double w)
 {
 	d[0] = (float)a;
@@ -817,6 +837,7 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 	put4(p->night, night_cd_m2, night_cd_m2, night_cd_m2, night_gain);
 
 	/* Constituents that are zero everywhere are left out of the shaders. */
+	double g1[ATMO_MAX_CONSTITUENTS] = { 0 };	/* by index in a */
 	int n = 0;
 	for (int i = 0; i < a->n_constituents; i++) {
 		const struct atmo_constituent *c = &a->c[i];
@@ -826,23 +847,24 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 		const struct atmo_layer *l0 = &c->density.layers[0], *l1 = &c->density.layers[1];
 		put4(g->scattering, c->scattering_per_km[0], c->scattering_per_km[1],
 		     c->scattering_per_km[2], c->g);
-		put4(g->absorption, c->absorption_per_km[0], c->absorption_per_km[1],
-		     c->absorption_per_km[2], 0);
-		put4(g->layer0, l0->width_km, l0->exp_term, l0->exp_scale_per_km, l0->linear_per_km);
-		put4(g->layer0c_1, l0->constant, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km);
-		put4(g->layer1c, l1->constant, 0, 0, 0);
-		/* A constituent that scatters nothing needs no phase function. */
-		bool scatters = c->scattering_per_km[0] > 0 || c->scattering_per_km[1] > 0 ||
-				c->scattering_per_km[2] > 0;
-		base->v[1 + n] = scatters ? (int32_t)c->phase : 0;
 		struct ground_cache *gc = &e->ground[n];
-		enum atmo_phase kind = scatters ? c->phase : ATMO_PHASE_NONE;
+		enum atmo_phase kind = constituent_scatters(c) ? c->phase : ATMO_PHASE_NONE;
 		if (!gc->valid || gc->kind != kind || gc->g != c->g) {
 			model_ground_excess(kind, c->g, gc->excess);
+			gc->legendre[0] = model_phase_legendre(kind, c->g, 1);
+			gc->legendre[1] = model_phase_legendre(kind, c->g, 2);
 			gc->valid = true;
 			gc->kind = kind;
 			gc->g = c->g;
 		}
+		g1[i] = gc->legendre[0];
+		put4(g->absorption, c->absorption_per_km[0], c->absorption_per_km[1],
+		     c->absorption_per_km[2], gc->legendre[0]);
+		put4(g->layer0, l0->width_km, l0->exp_term, l0->exp_scale_per_km, l0->linear_per_km);
+		put4(g->layer0c_1, l0->constant, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km);
+		put4(g->layer1c, l1->constant, gc->legendre[1], 0, 0);
+		/* A constituent that scatters nothing needs no phase function. */
+		base->v[1 + n] = constituent_scatters(c) ? (int32_t)c->phase : 0;
 		for (int k = 0; k < MODEL_GROUND_N; k++)
 			p->ground_excess[k][n] = (float)gc->excess[k];
 		/* Profiles without an exponential term (ozone's tent) skip exp(). */
@@ -863,6 +885,14 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 	 * asked for at all, is computed with the cheapest quadrature. */
 	base->v[16] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
 	base->v[17] = s->quality.multiscatter_dirs != 0;
+	/* The lobe constituent (common.glsl's ms_source) by its index among those in the shaders, plus 1. */
+	int lobe = s->quality.multiscatter_dirs ? model_moment_constituent(s, g1) : -1;
+	if (lobe >= 0 && constituent_active(&a->c[lobe])) {
+		int before = 0;
+		for (int i = 0; i < lobe; i++)
+			before += constituent_active(&a->c[i]);
+		base->v[22] = before + 1;
+	}
 }
 
 /* The cameras of the aerial volumes: the state's, then each view's. */
@@ -905,7 +935,7 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 	if (t == STATE_MULTISCATTER)
 		k.v[6] = k.v[17] = 0;	/* the table is the term itself */
 	if (t == STATE_TRANSMITTANCE)
-		k.v[17] = 0;
+		k.v[17] = k.v[22] = 0;
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
 		k.v[7] = 0;	/* the ground enters through the multiscatter table */
 	return k;
@@ -1046,6 +1076,26 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 			return rc;
 		rebind = true;
 	}
+	VkDeviceSize moment_bytes = (VkDeviceSize)mq->width * mq->height * 4 * sizeof(float);
+	if (!e->moment.buf || e->moment.bytes != moment_bytes) {
+		if (e->moment_view) {
+			e->vk.vkDestroyBufferView(e->dev, e->moment_view, NULL);
+			e->moment_view = VK_NULL_HANDLE;
+		}
+		buffer_free(e, &e->moment);
+		/* Its contents go with the multi-scattering table's, which is
+		 * recomputed whenever its size (and so this one's) changes. */
+		rc = buffer_new(e, moment_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+					     VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
+				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->moment, err, err_size);
+		if (rc < 0)
+			return rc;
+		VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
+			.buffer = e->moment.buf, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
+			.range = VK_WHOLE_SIZE };
+		VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->moment_view));
+		rebind = true;
+	}
 	if (rebind) {
 		VkDescriptorBufferInfo bi[N_BINDINGS] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
 		VkWriteDescriptorSet w[N_BINDINGS];
@@ -1057,12 +1107,18 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 				w[i].pTexelBufferView = &e->lookup_view[i - 1 - STATE_N_TABLES];
 				continue;
 			}
+			if (i == MOMENT_TEX_BINDING) {
+				w[i].pTexelBufferView = &e->moment_view;
+				continue;
+			}
 			if (i == VIEWS_BINDING)
 				bi[i] = (VkDescriptorBufferInfo){ e->views.buf, 0, VK_WHOLE_SIZE };
 			else if (i == COLUMNS_BINDING)
 				bi[i] = (VkDescriptorBufferInfo){ e->columns.buf, 0, VK_WHOLE_SIZE };
 			else if (i == ITERATE_BINDING)
 				bi[i] = (VkDescriptorBufferInfo){ e->ms_iterate.buf, 0, VK_WHOLE_SIZE };
+			else if (i == MOMENT_BINDING)
+				bi[i] = (VkDescriptorBufferInfo){ e->moment.buf, 0, VK_WHOLE_SIZE };
 			else if (i > 0)
 				bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
 			w[i].pBufferInfo = &bi[i];

@@ -32,6 +32,13 @@ struct ctx {
 	const struct model_tables *tab;
 	/* model_ground_excess of each constituent (0 for one that scatters nothing) */
 	double ground_excess[ATMO_MAX_CONSTITUENTS][MODEL_GROUND_N];
+	/* The shape of the multiply scattered light for the constituent
+	 * model_moment_constituent names (-1 none): per multi-scattering
+	 * texel the 4 numbers of multiscatter.comp's texel; that
+	 * constituent's g1 and g2. */
+	int lobe;
+	double *moment;
+	double lobe_g[2];
 };
 
 static double rho2(const struct ctx *c, double h) { return h * (2.0 * c->rb + h); }
@@ -69,6 +76,68 @@ static double phase(enum atmo_phase kind, double g, double mu)
 	if (kind == ATMO_PHASE_HENYEY_GREENSTEIN)
 		return hg;
 	return hg * 1.5 * (1.0 + mu * mu) / (2.0 + g * g);
+}
+
+/* Nodes of model_phase_legendre's quadrature. */
+#define LEGENDRE_NODES 8192
+
+double model_phase_legendre(enum atmo_phase kind, double g, int l)
+{
+	if (kind == ATMO_PHASE_NONE || l < 0)
+		return 0.0;
+	if (l == 0)
+		return 1.0;	/* the phases are normalised to 1 over the sphere */
+	if (kind == ATMO_PHASE_RAYLEIGH)
+		return l == 2 ? 0.1 : 0.0;	/* 3/4 (1 + c^2) = P0 + P2 / 2 */
+	if (kind == ATMO_PHASE_HENYEY_GREENSTEIN)
+		return pow(g, l);
+	/* 2 pi times the integral of p(c) P_l(c) over [-1, 1], with the
+	 * nodes crowded at the peak: c = +-(1 - 2 u^4), dc = 8 u^3 du, which
+	 * puts dozens of them inside a g = 0.99 peak ((1 - c) ~ 1e-4); P_l by
+	 * its recurrence. */
+	double sum = 0.0, peak = g < 0.0 ? -1.0 : 1.0;
+	for (int n = 0; n < LEGENDRE_NODES; n++) {
+		double u = (n + 0.5) / LEGENDRE_NODES, u2 = u * u, c = peak * (1.0 - 2.0 * u2 * u2);
+		double p0 = 1.0, p1 = c;
+		for (int k = 2; k <= l; k++) {
+			double p2 = ((2 * k - 1) * c * p1 - (k - 1) * p0) / k;
+			p0 = p1;
+			p1 = p2;
+		}
+		sum += phase(kind, g, c) * p1 * 8.0 * u2 * u;
+	}
+	return 2.0 * SKYMAP_PI * sum / LEGENDRE_NODES;
+}
+
+/* model_moment_constituent's threshold on |g1| tau: Earth's Mie
+ * (0.0048 x 0.8) is far below it, Mars' dust (0.17 x 0.88) far above. */
+#define MOMENT_AUTO_MIN 0.02
+
+int model_moment_constituent(const struct sky_state *s, const double *g1_of)
+{
+	const struct atmo *a = &s->atmo;
+	double shell = a->top_radius_km - a->bottom_radius_km, best_steered = 0.0;
+	int best = -1;
+	/* Two directions (up and down) see no shape, only T_zz = 1, and band
+	 * 2 would take all the light for vertical: horizontal views dark. */
+	if (s->quality.multiscatter_moment == STATE_MOMENT_OFF || s->quality.multiscatter_dirs < 64)
+		return -1;
+	for (int n = 0; n < a->n_constituents; n++) {
+		const struct atmo_constituent *k = &a->c[n];
+		double g1 = fabs(g1_of ? g1_of[n] : model_phase_legendre(k->phase, k->g, 1)), tau = 0.0;
+		if (g1 == 0.0 || k->scattering_per_km[1] <= 0.0)
+			continue;
+		for (int i = 0; i < 256; i++)
+			tau += atmo_density(&k->density, (i + 0.5) / 256 * shell) * shell / 256;
+		double steered = g1 * tau * k->scattering_per_km[1];
+		if (best < 0 || steered > best_steered) {
+			best = n;
+			best_steered = steered;
+		}
+	}
+	if (s->quality.multiscatter_moment == STATE_MOMENT_AUTO && best_steered < MOMENT_AUTO_MIN)
+		return -1;
+	return best;
 }
 
 /* Quadrature of model_ground_excess: midpoints in u with c = 1 - 2 u^2, which
@@ -428,10 +497,22 @@ static v3 light_transmittance(const struct ctx *c, double h, double mu, double r
 	return visible_transmittance(c, h, mu, disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad)));
 }
 
+/* The 4 numbers of the multiply scattered light's shape of row tab at u,
+ * linear between texel centres. */
+static void shape_row(const double *tab, uint32_t w, double u, double ret[4])
+{
+	double p = u * w - 0.5, f = p - floor(p);
+	int i = (int)floor(p);
+	int i0 = i < 0 ? 0 : i > (int)w - 1 ? (int)w - 1 : i;
+	int i1 = i + 1 < 0 ? 0 : i + 1 > (int)w - 1 ? (int)w - 1 : i + 1;
+	for (int k = 0; k < 4; k++)
+		ret[k] = tab[4 * i0 + k] + (tab[4 * i1 + k] - tab[4 * i0 + k]) * f;
+}
+
 /* Each of the two rows at its own altitude's u, blended in altitude (see
  * multiscatter_at in common.glsl); the A channel (the ground's share) in
  * ret_share. */
-static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share)
+static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, double ret_shape[4])
 {
 	double u, vv;
 	const struct model_tables *m = c->tab;
@@ -442,6 +523,7 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 	int y0 = iy < 0 ? 0 : iy > (int)n - 1 ? (int)n - 1 : iy;
 	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)n - 1 ? (int)n - 1 : iy + 1;
 	v3 row[2];
+	double mrow[2][4] = { { 0 }, { 0 } };
 	double share[2];
 	for (int k = 0; k < 2; k++) {
 		int y = k ? y1 : y0;
@@ -456,8 +538,12 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 		double a = fabs(sn) < 1e-10 ? sn * 1e5 : copysign(sqrt(fabs(sn)), sn);
 		row[k] = bilinear(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 		share[k] = bilinear_a(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
+		if (c->lobe >= 0)
+			shape_row(c->moment + 4 * (size_t)y * w, w, skymap_unit_to_tex(0.5 + 0.5 * a, w), mrow[k]);
 	}
 	*ret_share = share[0] + (share[1] - share[0]) * fy;
+	for (int i = 0; i < 4; i++)
+		ret_shape[i] = mrow[0][i] + (mrow[1][i] - mrow[0][i]) * fy;
 	return add(row[0], scale(add(row[1], scale(row[0], -1.0)), fy));
 }
 
@@ -490,9 +576,29 @@ static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, d
 			   : visible_transmittance(c, h, mu_l, visible);
 	v3 s = mul(phased_scattering(c, h, dot(dir, light)), t);
 	if (c->s->quality.multiscatter_dirs) {	/* 0: higher orders switched off */
-		double share;
-		v3 psi = multiscatter(c, h, mu_l, &share);
-		s = add(s, mul(add(sigma_s, scale(ground, share)), psi));
+		double share, sh[4];
+		v3 psi = multiscatter(c, h, mu_l, &share, sh);
+		v3 sig = add(sigma_s, scale(ground, share));
+		if (c->lobe >= 0) {
+			/* ms_source in common.glsl: the constituent scatters the
+			 * shape's bands 1 and 2 through its g1 and g2 toward
+			 * o = -dir, in the frame of the light's vertical plane,
+			 * and the sun's aureole. */
+			const struct atmo_constituent *k = &c->a->c[c->lobe];
+			v3 fwd = scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
+				       atmo_density(&k->density, h));
+			double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l, o_z = -view_up;
+			double o_x = skymap_clamp((view_up * mu_l - dot(dir, light)) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
+			double b1 = sh[0] * o_z;
+			double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) + sh[2] * o_x * o_z;
+			/* The aureole: a (4 pi HG_{g1 g1}(view . light) - 1). */
+			double gl = c->lobe_g[0] * c->lobe_g[0];
+			double den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - dot(dir, light));
+			double lobe = sh[3] * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);
+			sig = add(sig, scale(fwd, c->lobe_g[0] * b1 + c->lobe_g[1] * b2 + lobe));
+			sig = v(fmax(sig.x, 0.0), fmax(sig.y, 0.0), fmax(sig.z, 0.0));
+		}
+		s = add(s, mul(sig, psi));
 	}
 	return mul(s, illum);
 }
@@ -664,11 +770,11 @@ static v3 ms_direction(uint32_t k, uint32_t n)
 /* One texel of the multi-scattering table at altitude h and sun cosine
  * mu_s: psi, the ground's share of it (A) and the escape 1 - f_ms. */
 static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double h, double mu_s,
-		     v3 *ret_psi, double *ret_share, v3 *ret_escape)
+		     v3 *ret_psi, double *ret_share, v3 *ret_escape, double ret_shape[4])
 {
 	const double albedo[3] = { c->a->ground_albedo[0], c->a->ground_albedo[1], c->a->ground_albedo[2] };
 	v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
-	v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 };
+	v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 }, sm = { 0 }, s2 = { 0 };
 	double r0 = c->rb + h;
 	/* The first scattering of L2 with each constituent's own phase,
 	 * the cells' means normalised to sum to exactly 1 over the
@@ -730,9 +836,15 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 			returned = mul(t_ray, v(albedo[0], albedo[1], albedo[2]));
 		}
 		sl = add(sl, l2);
+		/* L2's first and second moments, with the cell's weight as l2
+		 * has it by now: its light travels along -dir. */
+		double l2_lum = dot(l2, SHARE_LUM);
+		sm = add(sm, scale(dir, -l2_lum));
+		s2 = add(s2, scale(v(dir.x * dir.x, dir.z * dir.z, dir.x * dir.z), l2_lum));
 		sr = add(sr, returned);
 		se = add(se, add(add(t_ray, scale(returned, -1.0)), absorbed));
 	}
+	double lum_l2 = dot(sl, SHARE_LUM);
 	sl = scale(sl, 1.0 / dirs);
 	sg = scale(sg, 1.0 / dirs);
 	sr = scale(sr, 1.0 / dirs);
@@ -746,6 +858,17 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 	*ret_psi = psi;
 	*ret_share = skymap_clamp(share, 0.0, 1.0);
 	*ret_escape = se;
+	if (ret_shape && c->lobe >= 0) {
+		/* The shape of multiscatter.comp (sl is L2 + the ground's part
+		 * by now: L2 alone is sm's and s2's weight). */
+		double l = fmax(lum_l2, 1e-30);
+		double k = l / dirs / fmax(dot(se, SHARE_LUM), 1e-6) / fmax(dot(psi, SHARE_LUM), 1e-30);
+		double a = skymap_clamp(-(sm.x / l) / fmax(c->lobe_g[0] * sun.x, 1e-3), 0.0, 1.0);
+		ret_shape[0] = k * 3.0 * sm.z / l;
+		ret_shape[1] = k * (7.5 * s2.y / l - 2.5);
+		ret_shape[2] = k * 15.0 * s2.z / l;
+		ret_shape[3] = k * a;
+	}
 }
 
 /* The steps of the neighbourhood iteration of psi_ms (msiterate.comp):
@@ -765,7 +888,7 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 	for (uint32_t it = 0; it < steps; it++) {
 		for (uint32_t j = 0; j < q->height; j++)
 			for (uint32_t i = 0; i < q->width; i++) {
-				double h, mu_s, share;
+				double h, mu_s, share, shape[4];
 				skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width,
 							    (j + 0.5) / q->height, q->width, q->height, &h, &mu_s);
 				v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s), g = { 0 };
@@ -784,22 +907,26 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 						struct medium m = medium(c, hs);
 						v3 w = mul(vexp_neg(tau), segment_weight(m.extinction, dt));
 						v3 p = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
-						gk = add(gk, mul(mul(w, m.scattering), multiscatter(c, hs, dot(p, sun), &share)));
+						gk = add(gk, mul(mul(w, m.scattering), multiscatter(c, hs, dot(p, sun), &share, shape)));
 						tau = add(tau, scale(m.extinction, dt));
 					}
 					if (ground) {
 						v3 nr = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb,
 							  (r0 + dir.z * t_end) / c->rb);
 						gk = add(gk, mul(mul(vexp_neg(tau), albedo),
-								 multiscatter(c, 0.0, dot(nr, sun), &share)));
+								 multiscatter(c, 0.0, dot(nr, sun), &share, shape)));
 					}
 					g = add(g, scale(gk, ms_cell_weight(k, dirs)));
 				}
 				size_t at = (size_t)j * q->width + i;
 				const double *own = out + 4 * at;
 				v3 psi = add(l2[at], scale(g, 1.0 / dirs));
-				share = own[3] * dot(v(own[0], own[1], own[2]), SHARE_LUM) / fmax(dot(psi, SHARE_LUM), 1e-30);
-				put(next + 4 * at, psi, skymap_clamp(share, 0.0, 1.0));
+				double kept = dot(v(own[0], own[1], own[2]), SHARE_LUM) / fmax(dot(psi, SHARE_LUM), 1e-30);
+				put(next + 4 * at, psi, skymap_clamp(own[3] * kept, 0.0, 1.0));
+				/* The shape, relative to psi, keeps its absolute size as A does. */
+				if (c->lobe >= 0)
+					for (int k = 0; k < 4; k++)
+						c->moment[4 * at + k] *= kept;
 			}
 		memcpy(out, next, 4 * n * sizeof(double));
 	}
@@ -820,7 +947,8 @@ static int compute_multiscatter(const struct ctx *c, const struct state_table_qu
 			v3 psi, escape;
 			skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						    q->width, q->height, &h, &mu_s);
-			ms_texel(c, q->steps, dirs, h, mu_s, &psi, &share, &escape);
+			ms_texel(c, q->steps, dirs, h, mu_s, &psi, &share, &escape,
+				 c->lobe >= 0 ? c->moment + 4 * ((size_t)j * q->width + i) : NULL);
 			put(out + 4 * (j * q->width + i), psi, share);
 			/* L2 as the iteration recovers it from the table. */
 			if (l2_of)
@@ -992,7 +1120,7 @@ static void ctx_init(struct ctx *c, const struct sky_state *s, const struct mode
 {
 	double sun[3], moon[3];
 
-	*c = (struct ctx){ .s = s, .a = &s->atmo, .tab = tab };
+	*c = (struct ctx){ .s = s, .a = &s->atmo, .tab = tab, .lobe = -1 };
 	c->rb = s->atmo.bottom_radius_km;
 	c->rt = s->atmo.top_radius_km;
 	c->shell = c->rt - c->rb;
@@ -1022,6 +1150,16 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	int rc = model_tables_new(s, mask, &m);
 	if (rc < 0)
 		return rc;
+	c.lobe = s->quality.multiscatter_dirs && m.t[1] ? model_moment_constituent(s, NULL) : -1;
+	if (c.lobe >= 0) {
+		c.lobe_g[0] = model_phase_legendre(s->atmo.c[c.lobe].phase, s->atmo.c[c.lobe].g, 1);
+		c.lobe_g[1] = model_phase_legendre(s->atmo.c[c.lobe].phase, s->atmo.c[c.lobe].g, 2);
+		c.moment = calloc(4 * (size_t)m.w[1] * m.h[1], sizeof(double));
+		if (!c.moment) {
+			model_tables_finish(&m);
+			return -ENOMEM;
+		}
+	}
 	if (m.t[0])
 		compute_transmittance(&c, &s->quality.t[0], m.t[0]);
 	if (m.t[1])
@@ -1035,6 +1173,7 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 		compute_skyview(&c, &s->quality.t[2], m.t[2]);
 	if (m.t[3])
 		compute_aerial(&c, &s->quality.t[3], m.t[3]);
+	free(c.moment);
 	*ret = m;
 	return 0;
 }
@@ -1058,7 +1197,7 @@ int model_multiscatter_escape(const struct sky_state *s, double altitude_km, dou
 	uint32_t dirs = s->quality.multiscatter_dirs ? s->quality.multiscatter_dirs : 2;
 	double share;
 	v3 psi, escape;
-	ms_texel(&c, s->quality.t[STATE_MULTISCATTER].steps, dirs, altitude_km, 1.0, &psi, &share, &escape);
+	ms_texel(&c, s->quality.t[STATE_MULTISCATTER].steps, dirs, altitude_km, 1.0, &psi, &share, &escape, NULL);
 	ret_escape[0] = escape.x;
 	ret_escape[1] = escape.y;
 	ret_escape[2] = escape.z;

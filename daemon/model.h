@@ -61,4 +61,22 @@ void model_optical_depth(const struct atmo *a, double altitude_km, double mu, ui
 #define MODEL_GROUND_N 32
 void model_ground_excess(enum atmo_phase kind, double g, double ret_excess[MODEL_GROUND_N]);
 
+/* The Legendre moment g_l of a phase function normalised to 1 over the
+ * sphere (the mean of P_l of the scattering cosine; g_1 is the mean cosine):
+ * g^l for Henyey-Greenstein, by quadrature otherwise (Cornette-Shanks:
+ * g_1 = 3 g (4 + g^2) / (5 (2 + g^2)); Rayleigh: g_1 = 0, g_2 = 0.1);
+ * 0 for none. */
+double model_phase_legendre(enum atmo_phase kind, double g, int l);
+
+/* The constituent (its index in s->atmo) whose phase scatters the lobe of
+ * the multiply scattered light (ms_source in shaders/common.glsl), or -1
+ * for none: the one of largest |g1| times vertical scattering optical
+ * depth (green); none with fewer than 64 multi-scattering directions
+ * (up and down see no shape); multiscatter_moment=off: none; on: that one; auto: that
+ * one where its |g1| tau reaches 0.02, i.e. where a forward-peaked phase
+ * steers a share of the light that matters (Mars' dust: 0.15; Earth's thin
+ * Mie layer: 0.004). g1_of: model_phase_legendre(..., 1) of each
+ * constituent of s->atmo if the caller keeps it, else NULL. */
+int model_moment_constituent(const struct sky_state *s, const double *g1_of);
+
 #endif

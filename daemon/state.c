@@ -37,6 +37,7 @@ struct key {
 static const char *const storage_names[] = { "f32", "f16", NULL };
 static const char *const spacing_names[] = { "linear", "squared", NULL };
 static const char *const iteration_names[] = { "auto", "0", "1", "2", "3", "4", NULL };
+static const char *const moment_names[] = { "auto", "off", "on", NULL };
 
 #define OFF(field) offsetof(struct sky_state, field)
 #define QT(i, f) OFF(quality.t[i].f)
@@ -74,6 +75,7 @@ static const struct key keys[] = {
 	{ "multiscatter_dirs", K_UINT, OFF(quality.multiscatter_dirs), FROM_M, 0, 64, 0 },
 	{ "multiscatter_iterations", K_ENUM, OFF(quality.multiscatter_iterations), FROM_M, 0, 0,
 	  iteration_names },
+	{ "multiscatter_moment", K_ENUM, OFF(quality.multiscatter_moment), FROM_M, 0, 0, moment_names },
 	{ "skyview_width", K_UINT, QT(2, width), S_BIT, 2, 4096, 0 },
 	{ "skyview_height", K_UINT, QT(2, height), S_BIT, 2, 4096, 0 },
 	{ "skyview_steps", K_UINT, QT(2, steps), S_BIT, 1, 4096, 0 },
@@ -159,16 +161,16 @@ struct quality_preset {
 	struct state_quality q;
 };
 
-/* The last field, 0, is multiscatter_iterations=auto. */
+/* The last two fields: multiscatter_iterations=auto (0), multiscatter_moment=auto. */
 static const struct quality_preset quality_presets[] = {
 	{ "low", { { { 128, 32, 1, 20 }, { 16, 16, 1, 10 }, { 96, 54, 1, 16 }, { 16, 16, 16, 1 } },
-		   2, 4, 128.0, STATE_SQUARED, STATE_F16, 0 } },
+		   2, 4, 128.0, STATE_SQUARED, STATE_F16, 0, STATE_MOMENT_AUTO } },
 	{ "medium", { { { 256, 64, 1, 40 }, { 32, 32, 1, 20 }, { 192, 108, 1, 30 }, { 32, 32, 32, 1 } },
-		      64, 4, 128.0, STATE_SQUARED, STATE_F32, 0 } },
+		      64, 4, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO } },
 	{ "high", { { { 256, 64, 1, 60 }, { 32, 32, 1, 30 }, { 256, 144, 1, 45 }, { 48, 48, 32, 2 } },
-		    64, 6, 128.0, STATE_SQUARED, STATE_F32, 0 } },
+		    64, 6, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO } },
 	{ "ultra", { { { 512, 128, 1, 80 }, { 64, 64, 1, 40 }, { 384, 216, 1, 60 }, { 64, 64, 64, 2 } },
-		     64, 8, 128.0, STATE_SQUARED, STATE_F32, 0 } },
+		     64, 8, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO } },
 };
 #define N_QUALITY_PRESETS (sizeof(quality_presets) / sizeof(quality_presets[0]))
 

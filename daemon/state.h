@@ -26,6 +26,8 @@ enum state_table {
 
 enum state_storage { STATE_F32 = 0, STATE_F16 = 1 };
 enum state_spacing { STATE_LINEAR = 0, STATE_SQUARED = 1 };
+/* The multiply scattered light's first moment (model_moment_wanted). */
+enum state_moment { STATE_MOMENT_AUTO = 0, STATE_MOMENT_OFF = 1, STATE_MOMENT_ON = 2 };
 
 struct state_light {
 	double elevation_deg;		/* geometric, above the astronomical horizon */
@@ -72,6 +74,7 @@ struct state_quality {
 	 * 0 auto (state_multiscatter_iterations decides from the optical
 	 * depth), else one more than the number of steps (1: none). */
 	int multiscatter_iterations;
+	enum state_moment multiscatter_moment;
 };
 
 /* Who drives a light: the key=value of its angles (manual) or the clock. */

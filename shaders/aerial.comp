@@ -47,6 +47,7 @@ void main()
 			     ndc.y * tan_half * cup.xyz);
 
 	Phases ph_sun = ray_phases(dir, P.sun_dir.xyz), ph_moon = ray_phases(dir, P.moon_dir.xyz);
+	float sun_v = dot(dir, P.sun_dir.xyz), moon_v = dot(dir, P.moon_dir.xyz);
 	Entry en;
 	bool inside = ray_in_shell(h0, dir, en);
 	float t0 = en.t0, t1 = en.t0 + en.len;
@@ -64,14 +65,16 @@ void main()
 				float t = a + (float(i) + 0.5) * dt, rr;
 				float hs = altitude_along(en.h, en.mu, t - t0, rr);
 				vec3 up = vec3(dir.xy * t, en.ez + dir.z * (t - t0)) / rr;
-				Step st = sample_step(hs, ph_sun, ph_moon, ground_excess(dot(up, dir)));
+				float view_up = dot(up, dir);
+				Step st = sample_step(hs, ph_sun, ph_moon, ground_excess(view_up));
 				Medium m = st.m;
 				TAlt ta = t_alt(hs);
 				vec3 s = light_source(ta, dot(up, P.sun_dir.xyz), P.sun_dir.w, P.sun_illum.rgb,
-						      st.phased_sun, m.scattering, st.ground);
+						      st.phased_sun, m.scattering, st.ground, st.forward, view_up, sun_v);
 				if (MOON_LIT)
 					s += light_source(ta, dot(up, P.moon_dir.xyz), P.moon_dir.w, P.moon_illum.rgb,
-							  st.phased_moon, m.scattering, st.ground);
+							  st.phased_moon, m.scattering, st.ground, st.forward, view_up,
+							  moon_v);
 				vec3 step_t;
 				radiance += tr * s * step_weight(m.extinction, dt, step_t);
 				tr *= step_t;

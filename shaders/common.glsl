@@ -27,13 +27,16 @@ layout(constant_id = 14) const int OUT_D = 1;
 layout(constant_id = 15) const int STEPS = 1;
 layout(constant_id = 17) const bool MULTISCATTER_ON = true;
 layout(constant_id = 18) const int EXP_MASK = 15;      // bit i: constituent i has an exponential term
+// (16, 19, 20, 21: msgrid.glsl, skyview.comp and msiterate.comp declare their own.)
+layout(constant_id = 22) const int MOMENT_LOBE = 0;    // 1 + the constituent whose phase sees the lobe (ms_source), 0 none
+const int MOMENT_CONST = MOMENT_LOBE - 1;
 
 struct Constituent {
 	vec4 scattering;	// rgb 1/km, w = g
-	vec4 absorption;	// rgb 1/km
+	vec4 absorption;	// rgb 1/km, w = g1, the phase's first Legendre moment (model_phase_g1)
 	vec4 layer0;		// width_km, exp_term, exp_scale_per_km, linear_per_km
 	vec4 layer0c_1;		// constant (layer 0), exp_term, exp_scale_per_km, linear_per_km (layer 1)
-	vec4 layer1c;		// constant (layer 1)
+	vec4 layer1c;		// constant (layer 1), y = g2, the phase's second Legendre moment
 };
 
 struct Params {
@@ -93,6 +96,11 @@ layout(binding = 6) uniform samplerBuffer MultiscatterTex;
 // Column densities of the transmittance texels, one per constituent
 // (columns.comp): internal, float32 whatever the tables' storage.
 layout(std430, binding = 8) buffer ColumnBuf { vec4 d[]; } CB;
+// The shape of the multiply scattered light (multiscatter.comp, with a lobe
+// constituent): a texel per multi-scattering texel, float32, internal. Written
+// through the storage buffer, read through the texel buffer.
+layout(std430, binding = 10) buffer MomentBuf { vec4 d[]; } MOB;
+layout(binding = 11) uniform samplerBuffer MomentTex;
 
 // Texels are RGBA: four 32-bit words, or two words of packed halves.
 #define STORE_TEXEL(B, i, v) do { \
@@ -384,6 +392,7 @@ struct Step {
 	vec3 phased_sun;
 	vec3 phased_moon;
 	vec3 ground;	// ground_scattering() of the step
+	vec3 forward;	// forward_scattering() of the step
 };
 
 // ground_ex: ground_excess() of the view at the step.
@@ -395,6 +404,7 @@ Step sample_step(float h, Phases sun, Phases moon, vec4 ground_ex)
 	st.phased_sun = vec3(0.0);
 	st.phased_moon = vec3(0.0);
 	st.ground = vec3(0.0);
+	st.forward = vec3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
 		float d = density(i, h);
 		vec3 s = d * P.C[i].scattering.rgb;
@@ -405,6 +415,8 @@ Step sample_step(float h, Phases sun, Phases moon, vec4 ground_ex)
 			st.phased_moon += s * moon.p[i];
 		if (!GROUND_BLACK)
 			st.ground += s * ground_ex[i];
+		if (i == MOMENT_CONST)
+			st.forward = s;
 	}
 	st.m.extinction = st.m.scattering + st.m.absorption;
 	return st;
@@ -452,29 +464,84 @@ vec3 ground_scattering(Scatter sc, vec4 ex)
 	return r;
 }
 
+// The scattering of the constituent that sees the lobe (ms_source).
+vec3 forward_scattering(Scatter sc)
+{
+	return MOMENT_CONST >= 0 ? sc.s[max(MOMENT_CONST, 0)] : vec3(0.0);
+}
+
+// multiscatter_at and the shape of the same texels (MomentTex).
+vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_shape)
+{
+	vec2 d = vec2(clamp(mu_s, -1.0, 1.0)) - a.ms_horizon;
+	vec2 sn = clamp(d * mix(a.ms_above, a.ms_below, lessThan(d, vec2(0.0))), -1.0, 1.0);
+	vec2 u = 0.5 + 0.5 * sign(sn) * sqrt(abs(sn));
+	Axis c0 = axis(u.x, M_W), c1 = axis(u.y, M_W);
+	int r0 = a.ms_rows.i0 * M_W, r1 = a.ms_rows.i1 * M_W;
+	vec4 lo = mix(texelFetch(MultiscatterTex, r0 + c0.i0), texelFetch(MultiscatterTex, r0 + c0.i1), c0.f);
+	vec4 hi = mix(texelFetch(MultiscatterTex, r1 + c1.i0), texelFetch(MultiscatterTex, r1 + c1.i1), c1.f);
+	ret_shape = mix(mix(texelFetch(MomentTex, r0 + c0.i0), texelFetch(MomentTex, r0 + c0.i1), c0.f),
+			mix(texelFetch(MomentTex, r1 + c1.i0), texelFetch(MomentTex, r1 + c1.i1), c1.f), a.ms_rows.f);
+	return mix(lo, hi, a.ms_rows.f);
+}
+
+// The higher orders at a point for one light: Hillaire's isotropic psi_ms
+// scattered by sigma_s, the ground's first bounce (the share A of psi_ms)
+// by sigma_s + ground (ground_scattering()). With a lobe constituent
+// (MOMENT_CONST, forward its sigma_s) the multiply scattered light is not
+// taken isotropic: multiscatter.comp describes it by the sun's aureole, a
+// share a of a Henyey-Greenstein lobe of parameter g1 about the sunlight's
+// direction, and its spherical harmonics b1 (band 1) and b2 (band 2).
+// By Funk-Hecke a phase of Legendre moments g1, g2 scatters the bands
+// toward the eye, o, as g1 b1(o) + g2 b2(o); two Henyey-Greenstein lobes
+// convolve into one of parameter g1 g1 (their moments multiply), seen at
+// o . sunlight = view . light. Mars' dust (g = 0.85) sees a field that is
+// brightest near the horizon and around the sun, where the isotropic phase
+// read the sky 20-60 % low. view_up and view_light: the view's cosines
+// with the local vertical and with the light.
+vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, float view_up, float view_light)
+{
+	if (MOMENT_CONST < 0) {
+		vec4 ms = multiscatter_at(a, mu_l);
+		return (sigma_s + ms.a * ground) * ms.rgb;
+	}
+	vec4 sh;	// 3 m_z, 5 <P2(w_z)>, 15 T_xz, a (multiscatter.comp)
+	vec4 ms = multiscatter_shape_at(a, mu_l, sh);
+	// o = -view in the frame of the light's vertical plane: along the
+	// light's horizontal direction (undefined with the light at the
+	// zenith, where the field has no such part by symmetry), and up.
+	float s2 = 1.0 - mu_l * mu_l;
+	float o_x = clamp((view_up * mu_l - view_light) * inversesqrt(max(s2, 1e-12)), -1.0, 1.0), o_z = -view_up;
+	float b1 = sh.x * o_z;
+	float b2 = sh.y * (1.5 * o_z * o_z - 0.5) + sh.z * o_x * o_z;
+	vec2 g = vec2(P.C[max(MOMENT_CONST, 0)].absorption.w, P.C[max(MOMENT_CONST, 0)].layer1c.y);
+	// A truncated expansion may go negative where the field is strongly
+	// directed; the light scattered never does.
+	float gl = g.x * g.x;
+	float den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - view_light);
+	float lobe = sh.w * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);	// a (4 pi HG - 1)
+	return max(sigma_s + ms.a * ground + forward * (g.x * b1 + g.y * b2 + lobe), vec3(0.0)) * ms.rgb;
+}
+
 // In-scattered radiance source at a point for one light: single scattering
-// through each constituent's phase plus Hillaire's isotropic higher orders,
-// of which the ground's first bounce (the share A of psi_ms) takes
-// sigma_s + ground (ground_scattering()) instead of sigma_s.
-vec3 light_source(TAlt a, float mu_l, float radius_rad, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground)
+// through each constituent's phase plus the higher orders (ms_source).
+vec3 light_source(TAlt a, float mu_l, float radius_rad, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground,
+		  vec3 forward, float view_up, float view_light)
 {
 	vec3 s = phased * light_transmittance(a, mu_l, radius_rad);
-	if (MULTISCATTER_ON) {
-		vec4 ms = multiscatter_at(a, mu_l);
-		s += (sigma_s + ms.a * ground) * ms.rgb;
-	}
+	if (MULTISCATTER_ON)
+		s += ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
 	return s * illum;
 }
 
 // light_source for a march step whose visible fraction of the light is
 // already known (disk_visible_mean): the step's midpoint gives the rest.
-vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground)
+vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground,
+		      vec3 forward, float view_up, float view_light)
 {
 	vec3 s = visible > 0.0 ? phased * (visible * transmittance_lookup(a, mu_l)) : vec3(0.0);
-	if (MULTISCATTER_ON) {
-		vec4 ms = multiscatter_at(a, mu_l);
-		s += (sigma_s + ms.a * ground) * ms.rgb;
-	}
+	if (MULTISCATTER_ON)
+		s += ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
 	return s * illum;
 }
 

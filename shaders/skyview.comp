@@ -118,7 +118,8 @@ void main()
 			Scatter sc;
 			Medium m = medium_parts(hs, sc);
 			// The view's cos-zenith at the point is the same in every column.
-			vec3 ground = ground_scattering(sc, ground_excess(sin_z * up_h + cos_z * up_z));
+			float view_up = sin_z * up_h + cos_z * up_z;
+			vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);
 			TAlt ta = t_alt(hs);
 			float e_sun = P.planet.x / ta.r * P.sun_dir.w, e_moon = P.planet.x / ta.r * P.moon_dir.w;
 			float sun_k = e_sun > 0.0 ? 0.5 / e_sun : 1e30, moon_k = e_moon > 0.0 ? 0.5 / e_moon : 1e30;
@@ -127,12 +128,14 @@ void main()
 				float vis = disk_visible_mean(over_horizon(ea, sun_h[j], P.sun_dir.z),
 							      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
 				vec3 s = light_source_lit(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb,
-							  phased(sc, ph_sun[j]), m.scattering, ground);
+							  phased(sc, ph_sun[j]), m.scattering, ground, forward, view_up,
+							  dot(dir[j], P.sun_dir.xyz));
 				if (MOON_LIT) {
 					vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
 								over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
 					s += light_source_lit(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb,
-							      phased(sc, ph_moon[j]), m.scattering, ground);
+							      phased(sc, ph_moon[j]), m.scattering, ground, forward,
+							      view_up, dot(dir[j], P.moon_dir.xyz));
 				}
 				radiance[j] += w * s;
 			}

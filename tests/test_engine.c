@@ -96,6 +96,8 @@ static void test_against_model(void)
 		{ "earth sun -4 moon", "sun_elevation_deg=-4", "moon_elevation_deg=40", "moon_illuminance_lx=0.3" },
 		{ "mars sun 20", "preset=mars", "sun_elevation_deg=20" },
 		{ "mars sun 5, 1 iteration", "preset=mars", "sun_elevation_deg=5", "multiscatter_iterations=1" },
+		/* The multiply scattered light's shape on Earth's Mie, moon lit too. */
+		{ "earth shape, moon", "multiscatter_moment=on", "moon_elevation_deg=40", "moon_illuminance_lx=0.3" },
 	};
 	for (size_t c = 0; c < sizeof(cases) / sizeof(cases[0]); c++) {
 		struct sky_state s;
@@ -110,7 +112,8 @@ static void test_against_model(void)
 	}
 }
 
-/* Ten times Earth's scattering (auto: 2 steps of the iteration of psi_ms)
+/* Ten times Earth's scattering (auto: 2 steps of the iteration of psi_ms
+ * and the multiply scattered light's shape on Mie)
  * against the model at the same steps: the method, mirrored. At medium's
  * steps the thick medium is not converged (the model at 8 times the steps
  * differs by 42 dB in sky-view without the iteration, 30 dB with it), so
@@ -124,6 +127,8 @@ static void test_thick_against_model(void)
 	set(&s, "mie_scattering_per_km=0.03996");
 	set(&s, "ground_albedo=0.3");
 	CHECK(state_multiscatter_iterations(&s) == 2);
+	/* and the shape (auto: Mie's g1 tau 0.04), rescaled by the iteration */
+	CHECK(model_moment_constituent(&s, NULL) == 1);
 	if (compute(&s, &t) < 0)
 		return;
 	check_texels("earth x10 sun 30", &s);
