@@ -61,9 +61,9 @@ struct gpu_params {
 	struct gpu_constituent c[ATMO_MAX_CONSTITUENTS];
 	float night[4];		/* night-sky floor, after the constituents as in common.glsl */
 	/* The ground's first bounce through each constituent's phase, k - 1
-	 * by |cos-zenith| of the view (model_ground_excess), a vec4 of the
-	 * constituents per entry. */
-	float ground_excess[MODEL_GROUND_N][4];
+	 * of the view's cos-zenith as a polynomial (model_ground_fit), a vec4
+	 * of the constituents per coefficient. */
+	float ground_fit[MODEL_GROUND_FIT][4];
 };
 
 /* model_ground_excess of one constituent, kept while its phase stays: it
@@ -72,7 +72,7 @@ struct ground_cache {
 	bool valid;
 	enum atmo_phase kind;
 	double g;
-	double excess[MODEL_GROUND_N];
+	double fit[MODEL_GROUND_FIT];	/* model_ground_fit of model_ground_excess */
 	double legendre[2];	/* model_phase_legendre, l = 1 and 2: a quadrature too */
 };
 
@@ -850,7 +850,9 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 		struct ground_cache *gc = &e->ground[n];
 		enum atmo_phase kind = constituent_scatters(c) ? c->phase : ATMO_PHASE_NONE;
 		if (!gc->valid || gc->kind != kind || gc->g != c->g) {
-			model_ground_excess(kind, c->g, gc->excess);
+			double excess[MODEL_GROUND_N];
+			model_ground_excess(kind, c->g, excess);
+			model_ground_fit(excess, gc->fit);
 			gc->legendre[0] = model_phase_legendre(kind, c->g, 1);
 			gc->legendre[1] = model_phase_legendre(kind, c->g, 2);
 			gc->valid = true;
@@ -865,8 +867,8 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 		put4(g->layer1c, l1->constant, gc->legendre[1], 0, 0);
 		/* A constituent that scatters nothing needs no phase function. */
 		base->v[1 + n] = constituent_scatters(c) ? (int32_t)c->phase : 0;
-		for (int k = 0; k < MODEL_GROUND_N; k++)
-			p->ground_excess[k][n] = (float)gc->excess[k];
+		for (int k = 0; k < MODEL_GROUND_FIT; k++)
+			p->ground_fit[k][n] = (float)gc->fit[k];
 		/* Profiles without an exponential term (ozone's tent) skip exp(). */
 		if (l0->exp_term != 0.0 || l1->exp_term != 0.0)
 			base->v[18] |= 1 << n;

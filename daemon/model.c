@@ -30,8 +30,9 @@ struct ctx {
 	bool moon_lit;
 	double night_cd_m2, night_gain;	/* state_night_floor */
 	const struct model_tables *tab;
-	/* model_ground_excess of each constituent (0 for one that scatters nothing) */
-	double ground_excess[ATMO_MAX_CONSTITUENTS][MODEL_GROUND_N];
+	/* model_ground_fit of each constituent's model_ground_excess (0 for one
+	 * that scatters nothing) */
+	double ground_fit[ATMO_MAX_CONSTITUENTS][MODEL_GROUND_FIT];
 	/* The shape of the multiply scattered light for the constituent
 	 * model_moment_constituent names (-1 none): per multi-scattering
 	 * texel the 4 numbers of multiscatter.comp's texel; that
@@ -178,6 +179,51 @@ void model_ground_excess(enum atmo_phase kind, double g, double ret_excess[MODEL
 		/* k(0) = 1 by symmetry; the clamp keeps k(mu) + k(-mu) = 2 in [0, 2]. */
 		ret_excess[i] = i == 0 ? 0.0 : skymap_clamp(k - 1.0, -1.0, 1.0);
 	}
+}
+
+void model_ground_fit(const double excess[MODEL_GROUND_N], double ret_coef[MODEL_GROUND_FIT])
+{
+	/* Least squares by modified Gram-Schmidt on the columns s^j at the
+	 * table's points (normal equations of monomials lose digits). */
+	enum { N = MODEL_GROUND_N, M = MODEL_GROUND_FIT };
+	double q[M][N], r[M][M] = { { 0 } }, qb[M];
+	for (int j = 0; j < M; j++)
+		for (int i = 0; i < N; i++)
+			q[j][i] = pow(sqrt((double)i / (N - 1)), j + 2);
+	for (int j = 0; j < M; j++) {
+		for (int k = 0; k < j; k++) {
+			double d = 0;
+			for (int i = 0; i < N; i++)
+				d += q[k][i] * q[j][i];
+			r[k][j] = d;
+			for (int i = 0; i < N; i++)
+				q[j][i] -= d * q[k][i];
+		}
+		double norm = 0;
+		for (int i = 0; i < N; i++)
+			norm += q[j][i] * q[j][i];
+		r[j][j] = sqrt(norm);
+		for (int i = 0; i < N; i++)
+			q[j][i] /= r[j][j];
+		qb[j] = 0;
+		for (int i = 0; i < N; i++)
+			qb[j] += q[j][i] * excess[i];
+	}
+	for (int j = M - 1; j >= 0; j--) {
+		double x = qb[j];
+		for (int k = j + 1; k < M; k++)
+			x -= r[j][k] * ret_coef[k];
+		ret_coef[j] = x / r[j][j];
+	}
+}
+
+double model_ground_fit_at(const double coef[MODEL_GROUND_FIT], double mu_view)
+{
+	double s = sqrt(fmin(fabs(mu_view), 1.0)), e = coef[MODEL_GROUND_FIT - 1];
+	for (int j = MODEL_GROUND_FIT - 2; j >= 0; j--)
+		e = e * s + coef[j];
+	e *= s * s;
+	return mu_view < 0 ? -e : e;
 }
 
 /* Mean of exp(k h) over [ha, hb], exact for a linear change of altitude.
@@ -549,18 +595,15 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 
 /* The ground's first bounce through the phases at altitude h for a view of
  * cos-zenith mu_view there: sum of sigma_i (k_i - 1), as ground_excess and
- * ground_scattering in common.glsl (the same table, interpolated alike). */
+ * ground_scattering in common.glsl (the same fit, evaluated alike). */
 static v3 ground_scattering(const struct ctx *c, double h, double mu_view)
 {
-	double x = fmin(fabs(mu_view), 1.0) * (MODEL_GROUND_N - 1), fl = floor(x);
-	int i = (int)fl, i1 = i + 1 < MODEL_GROUND_N ? i + 1 : MODEL_GROUND_N - 1;
 	v3 s = { 0 };
 	for (int n = 0; n < c->a->n_constituents; n++) {
 		const struct atmo_constituent *k = &c->a->c[n];
-		const double *e = c->ground_excess[n];
-		double ex = e[i] + (e[i1] - e[i]) * (x - fl);
+		double ex = model_ground_fit_at(c->ground_fit[n], mu_view);
 		s = add(s, scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
-				 atmo_density(&k->density, h) * (mu_view < 0 ? -ex : ex)));
+				 atmo_density(&k->density, h) * ex));
 	}
 	return s;
 }
@@ -1137,7 +1180,9 @@ static void ctx_init(struct ctx *c, const struct sky_state *s, const struct mode
 		const struct atmo_constituent *k = &s->atmo.c[n];
 		bool scatters = k->scattering_per_km[0] > 0 || k->scattering_per_km[1] > 0 ||
 				k->scattering_per_km[2] > 0;
-		model_ground_excess(scatters ? k->phase : ATMO_PHASE_NONE, k->g, c->ground_excess[n]);
+		double excess[MODEL_GROUND_N];
+		model_ground_excess(scatters ? k->phase : ATMO_PHASE_NONE, k->g, excess);
+		model_ground_fit(excess, c->ground_fit[n]);
 	}
 }
 

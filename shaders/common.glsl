@@ -53,7 +53,7 @@ struct Params {
 				// w H = sqrt(top^2 - bottom^2), the horizontal distance to the top from the ground
 	Constituent C[4];
 	vec4 night;		// night-sky floor: rgb zenith cd/m2, w horizon gain c (daemon/state.h)
-	vec4 ground_excess[32];	// GROUND_N entries, one component per constituent (ground_excess())
+	vec4 ground_fit[8];	// GROUND_FIT coefficients, one component per constituent (ground_excess())
 };
 layout(std140, binding = 0) uniform ParamsBlock { Params params; };
 
@@ -66,22 +66,25 @@ Params P;
 void load_params() { P = params; }
 
 // The ground's first bounce through each constituent's phase
-// (model_ground_excess in daemon/model.c, MODEL_GROUND_N entries): k - 1 for
-// a view of cos-zenith mu_view at the scattering point, a component per
-// constituent. The multi-scattering table scatters the sunlit ground's light
-// isotropically (its share of psi_ms is the table's A); a forward-peaked
-// phase sends little of that upwelling light back to a viewer looking up
-// (k = 0.07 at the zenith for g = 0.8) and much to one looking down, which
-// read the albedo 0.3 day sky 4.7 % high with the sun at the zenith. Read
-// from the uniform block, not P: an array indexed by a varying index would
-// leave P's registers on lavapipe.
-const int GROUND_N = 32;
+// (model_ground_excess in daemon/model.c): k - 1 for a view of cos-zenith
+// mu_view at the scattering point, a component per constituent. The
+// multi-scattering table scatters the sunlit ground's light isotropically
+// (its share of psi_ms is the table's A); a forward-peaked phase sends
+// little of that upwelling light back to a viewer looking up (k = 0.07 at
+// the zenith for g = 0.8) and much to one looking down, which read the
+// albedo 0.3 day sky 4.7 % high with the sun at the zenith. Evaluated as
+// model_ground_fit's polynomial in sqrt|mu| (powers 2 to 9): the table it
+// fits, read with a different index in every lane, was 8 % of the sky-view
+// pass.
+const int GROUND_FIT = 8;
 
 vec4 ground_excess(float mu_view)
 {
-	float x = min(abs(mu_view), 1.0) * float(GROUND_N - 1), fl = floor(x);
-	int i = int(fl);
-	vec4 e = mix(params.ground_excess[i], params.ground_excess[min(i + 1, GROUND_N - 1)], x - fl);
+	float s = sqrt(min(abs(mu_view), 1.0));
+	vec4 e = P.ground_fit[GROUND_FIT - 1];
+	for (int j = GROUND_FIT - 2; j >= 0; j--)
+		e = e * s + P.ground_fit[j];
+	e *= s * s;
 	return mu_view < 0.0 ? -e : e;
 }
 

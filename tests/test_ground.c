@@ -76,6 +76,45 @@ static void check_excess(void)
 		CHECK(e[i] == 0.0);
 }
 
+/* The polynomial the marches evaluate: at the table's points against the
+ * table, between them (where it replaces the table's interpolation)
+ * against the brute-force k, and odd in mu. */
+static void check_fit(void)
+{
+	static const struct {
+		enum atmo_phase kind;
+		double g, limit;
+	} cases[] = {
+		/* Measured between the points: 1.4e-3, 7.7e-4, 5.3e-3, 4.9e-5. */
+		{ ATMO_PHASE_CORNETTE_SHANKS, 0.8, 2e-3 },	/* Earth's Mie */
+		{ ATMO_PHASE_CORNETTE_SHANKS, 0.85, 2e-3 },	/* Mars' dust */
+		{ ATMO_PHASE_HENYEY_GREENSTEIN, 0.95, 8e-3 },
+		{ ATMO_PHASE_HENYEY_GREENSTEIN, -0.6, 1e-3 },
+		{ ATMO_PHASE_RAYLEIGH, 0.0, 1e-6 },	/* the brute force's own error: 3e-8 */
+	};
+	static const double between[] = { 0.25, 0.5, 1.5, 5.5, 15.5, 30.5 };	/* in table steps */
+	double e[MODEL_GROUND_N], coef[MODEL_GROUND_FIT];
+	for (size_t c = 0; c < sizeof(cases) / sizeof(cases[0]); c++) {
+		model_ground_excess(cases[c].kind, cases[c].g, e);
+		model_ground_fit(e, coef);
+		double at_points = 0, off_points = 0;
+		for (int i = 0; i < MODEL_GROUND_N; i++) {
+			double mu = (double)i / (MODEL_GROUND_N - 1);
+			at_points = fmax(at_points, fabs(model_ground_fit_at(coef, mu) - e[i]));
+			CHECK(model_ground_fit_at(coef, -mu) == -model_ground_fit_at(coef, mu));
+		}
+		for (size_t i = 0; i < sizeof(between) / sizeof(between[0]); i++) {
+			double mu = between[i] / (MODEL_GROUND_N - 1);
+			double ref = brute_k(cases[c].kind, cases[c].g, mu) - 1.0;
+			off_points = fmax(off_points, fabs(model_ground_fit_at(coef, mu) - ref));
+		}
+		printf("kind %d g %+.2f: fit within %.1e of the table at its points, %.1e of k between them "
+		       "(limit %.0e)\n", cases[c].kind, cases[c].g, at_points, off_points, cases[c].limit);
+		if (!(at_points <= cases[c].limit && off_points <= cases[c].limit))
+			FAIL("kind %d g %.2f: fit %.1e / %.1e off", cases[c].kind, cases[c].g, at_points, off_points);
+	}
+}
+
 /* Green radiance of the sky-view table at a view elevation (azimuth 0),
  * bilinear in v at the texel column of azimuth 0's texel. */
 static double skyview_green(const struct model_tables *m, const struct sky_state *s, double elevation_deg)
@@ -150,6 +189,7 @@ static void check_thin(const char *name, const char *zero, const char *scatter, 
 int main(void)
 {
 	check_excess();
+	check_fit();
 	check_thin("Mie g 0.8", "rayleigh_scattering_per_km=0", "mie_scattering_per_km=0.001",
 		   ATMO_PHASE_CORNETTE_SHANKS);
 	check_thin("Rayleigh", "mie_scattering_per_km=0", "rayleigh_scattering_per_km=0.001",
