@@ -24,9 +24,12 @@
 #define MAX_PIPELINES 32	/* cached variants per pass */
 #define N_SPEC 23
 /* Texels of a row one invocation shares its rays between: sun angles of
- * multi-scattering, azimuths of sky-view. */
+ * multi-scattering, azimuths of sky-view. 12 azimuths took the time-of-day
+ * change from 35.0-36.3 to 34.1-34.9 % of a full recompute against 8 once
+ * the ground's phase term added to each step (skybench demand, three
+ * paired runs each); 16 was slower in session 2 (register pressure). */
 #define MS_SUN_GROUP 4
-#define SV_AZ_GROUP 8
+#define SV_AZ_GROUP 12
 /* The state's camera and STATE_MAX_VIEWS views, 3 vec4 each. */
 #define VIEW_BUFFER_BYTES ((1 + STATE_MAX_VIEWS) * 3 * 4 * sizeof(float))
 
