@@ -438,39 +438,44 @@ static bool hits_ground(const struct ctx *c, double h, double mu, double *ret_t)
 	return true;
 }
 
-static v3 bilinear(const double *tab, uint32_t w, uint32_t h, double u, double vv)
+/* The four texels around (u, vv) of a w x h RGBA table (the edges clamped)
+ * and the weights, as the shaders' bilinear reads. */
+struct taps {
+	size_t i00, i01, i10, i11;
+	double fx, fy;
+};
+
+static struct taps taps_at(uint32_t w, uint32_t h, double u, double vv)
 {
 	double px = skymap_clamp(u, 0, 1) * w - 0.5, py = skymap_clamp(vv, 0, 1) * h - 0.5;
-	double fx = px - floor(px), fy = py - floor(py);
 	int ix = (int)floor(px), iy = (int)floor(py);
 	int x0 = ix < 0 ? 0 : ix > (int)w - 1 ? (int)w - 1 : ix;
 	int x1 = ix + 1 < 0 ? 0 : ix + 1 > (int)w - 1 ? (int)w - 1 : ix + 1;
 	int y0 = iy < 0 ? 0 : iy > (int)h - 1 ? (int)h - 1 : iy;
 	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)h - 1 ? (int)h - 1 : iy + 1;
-	const double *a = tab + 4 * (y0 * w + x0), *b = tab + 4 * (y0 * w + x1);
-	const double *cc = tab + 4 * (y1 * w + x0), *d = tab + 4 * (y1 * w + x1);
-	double out[3];
-	for (int i = 0; i < 3; i++) {
-		double top = a[i] + (b[i] - a[i]) * fx, bot = cc[i] + (d[i] - cc[i]) * fx;
-		out[i] = top + (bot - top) * fy;
-	}
-	return v(out[0], out[1], out[2]);
+	return (struct taps){ 4 * ((size_t)y0 * w + x0), 4 * ((size_t)y0 * w + x1),
+			      4 * ((size_t)y1 * w + x0), 4 * ((size_t)y1 * w + x1),
+			      px - floor(px), py - floor(py) };
+}
+
+static double taps_channel(const double *tab, const struct taps *t, int ch)
+{
+	double top = tab[t->i00 + ch] + (tab[t->i01 + ch] - tab[t->i00 + ch]) * t->fx;
+	double bot = tab[t->i10 + ch] + (tab[t->i11 + ch] - tab[t->i10 + ch]) * t->fx;
+	return top + (bot - top) * t->fy;
+}
+
+static v3 bilinear(const double *tab, uint32_t w, uint32_t h, double u, double vv)
+{
+	struct taps t = taps_at(w, h, u, vv);
+	return v(taps_channel(tab, &t, 0), taps_channel(tab, &t, 1), taps_channel(tab, &t, 2));
 }
 
 /* bilinear() of the A channel. */
 static double bilinear_a(const double *tab, uint32_t w, uint32_t h, double u, double vv)
 {
-	double px = skymap_clamp(u, 0, 1) * w - 0.5, py = skymap_clamp(vv, 0, 1) * h - 0.5;
-	double fx = px - floor(px), fy = py - floor(py);
-	int ix = (int)floor(px), iy = (int)floor(py);
-	int x0 = ix < 0 ? 0 : ix > (int)w - 1 ? (int)w - 1 : ix;
-	int x1 = ix + 1 < 0 ? 0 : ix + 1 > (int)w - 1 ? (int)w - 1 : ix + 1;
-	int y0 = iy < 0 ? 0 : iy > (int)h - 1 ? (int)h - 1 : iy;
-	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)h - 1 ? (int)h - 1 : iy + 1;
-	double a = tab[4 * (y0 * w + x0) + 3], b = tab[4 * (y0 * w + x1) + 3];
-	double cc = tab[4 * (y1 * w + x0) + 3], d = tab[4 * (y1 * w + x1) + 3];
-	double top = a + (b - a) * fx, bot = cc + (d - cc) * fx;
-	return top + (bot - top) * fy;
+	struct taps t = taps_at(w, h, u, vv);
+	return taps_channel(tab, &t, 3);
 }
 
 static v3 transmittance_to_top(const struct ctx *c, double h, double mu)

@@ -361,16 +361,36 @@ float disk_visible_mean(float xa, float xb, float e, float half_inv_e)
 // altitude: one u for both would read the lower row at a sun higher above
 // the earth's shadow than the point's (mu_h grows as sqrt(h) between rows),
 // which put the sky in the shadow up to 60 % high near the horizon.
-vec4 multiscatter_at(TAlt a, float mu_s)
+// The four texels a multi-scattering lookup blends (i: the lower row's
+// two, the upper row's two) and the weights (x, y: within each row; z:
+// between the rows).
+struct MsTaps {
+	ivec4 i;
+	vec3 f;
+};
+
+MsTaps ms_taps(TAlt a, float mu_s)
 {
 	vec2 d = vec2(clamp(mu_s, -1.0, 1.0)) - a.ms_horizon;
 	vec2 sn = clamp(d * mix(a.ms_above, a.ms_below, lessThan(d, vec2(0.0))), -1.0, 1.0);
 	vec2 u = 0.5 + 0.5 * sign(sn) * sqrt(abs(sn));
 	Axis c0 = axis(u.x, M_W), c1 = axis(u.y, M_W);
 	int r0 = a.ms_rows.i0 * M_W, r1 = a.ms_rows.i1 * M_W;
-	vec4 lo = mix(texelFetch(MultiscatterTex, r0 + c0.i0), texelFetch(MultiscatterTex, r0 + c0.i1), c0.f);
-	vec4 hi = mix(texelFetch(MultiscatterTex, r1 + c1.i0), texelFetch(MultiscatterTex, r1 + c1.i1), c1.f);
-	return mix(lo, hi, a.ms_rows.f);
+	MsTaps t;
+	t.i = ivec4(r0 + c0.i0, r0 + c0.i1, r1 + c1.i0, r1 + c1.i1);
+	t.f = vec3(c0.f, c1.f, a.ms_rows.f);
+	return t;
+}
+
+vec4 ms_read(samplerBuffer tex, MsTaps t)
+{
+	return mix(mix(texelFetch(tex, t.i.x), texelFetch(tex, t.i.y), t.f.x),
+		   mix(texelFetch(tex, t.i.z), texelFetch(tex, t.i.w), t.f.y), t.f.z);
+}
+
+vec4 multiscatter_at(TAlt a, float mu_s)
+{
+	return ms_read(MultiscatterTex, ms_taps(a, mu_s));
 }
 
 // The phase of every constituent for one light: constant along a view ray
@@ -476,16 +496,9 @@ vec3 forward_scattering(Scatter sc)
 // multiscatter_at and the shape of the same texels (MomentTex).
 vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_shape)
 {
-	vec2 d = vec2(clamp(mu_s, -1.0, 1.0)) - a.ms_horizon;
-	vec2 sn = clamp(d * mix(a.ms_above, a.ms_below, lessThan(d, vec2(0.0))), -1.0, 1.0);
-	vec2 u = 0.5 + 0.5 * sign(sn) * sqrt(abs(sn));
-	Axis c0 = axis(u.x, M_W), c1 = axis(u.y, M_W);
-	int r0 = a.ms_rows.i0 * M_W, r1 = a.ms_rows.i1 * M_W;
-	vec4 lo = mix(texelFetch(MultiscatterTex, r0 + c0.i0), texelFetch(MultiscatterTex, r0 + c0.i1), c0.f);
-	vec4 hi = mix(texelFetch(MultiscatterTex, r1 + c1.i0), texelFetch(MultiscatterTex, r1 + c1.i1), c1.f);
-	ret_shape = mix(mix(texelFetch(MomentTex, r0 + c0.i0), texelFetch(MomentTex, r0 + c0.i1), c0.f),
-			mix(texelFetch(MomentTex, r1 + c1.i0), texelFetch(MomentTex, r1 + c1.i1), c1.f), a.ms_rows.f);
-	return mix(lo, hi, a.ms_rows.f);
+	MsTaps t = ms_taps(a, mu_s);
+	ret_shape = ms_read(MomentTex, t);
+	return ms_read(MultiscatterTex, t);
 }
 
 // The higher orders at a point for one light: Hillaire's isotropic psi_ms
