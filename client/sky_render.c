@@ -77,14 +77,22 @@ int sky_sample_sky(const struct sky_view *v, double elevation_deg, double azimut
 	return 0;
 }
 
-int sky_sample_aerial(const struct sky_view *v, double screen_u, double screen_v,
-		      double distance_km, double ret_rgb[3], double *ret_transmittance)
+/* An aerial perspective sample from the state's camera's table (name NULL)
+ * or a registered view's. */
+static int aerial_at(const struct sky_view *v, const char *name, double screen_u, double screen_v,
+		     double distance_km, double ret_rgb[3], double *ret_transmittance)
 {
 	struct skysample_table t;
 	if (!ret_rgb || !isfinite(screen_u) || !isfinite(screen_v) || !isfinite(distance_km) ||
 	    distance_km < 0.0)
 		return -EINVAL;
-	int r = view_table(v, SKY_TABLE_AERIAL, &t);
+	int r;
+	if (!name)
+		r = view_table(v, SKY_TABLE_AERIAL, &t);
+	else if (!v || !v->header || !v->slot_base)
+		r = -EINVAL;
+	else
+		r = skysample_view_from_slot(v->header, v->slot_base, name, &t, NULL);
 	if (r < 0)
 		return r;
 	double rgb[3], tr;
@@ -94,6 +102,12 @@ int sky_sample_aerial(const struct sky_view *v, double screen_u, double screen_v
 	if (ret_transmittance)
 		*ret_transmittance = tr;
 	return 0;
+}
+
+int sky_sample_aerial(const struct sky_view *v, double screen_u, double screen_v,
+		      double distance_km, double ret_rgb[3], double *ret_transmittance)
+{
+	return aerial_at(v, NULL, screen_u, screen_v, distance_km, ret_rgb, ret_transmittance);
 }
 
 int sky_view_aerial_table(const struct sky_view *v, const char *name, const void **ret_texels,
@@ -116,20 +130,9 @@ int sky_sample_view_aerial(const struct sky_view *v, const char *name, double sc
 			   double screen_v, double distance_km, double ret_rgb[3],
 			   double *ret_transmittance)
 {
-	struct skysample_table t;
-	if (!v || !v->header || !v->slot_base || !name || !ret_rgb || !isfinite(screen_u) ||
-	    !isfinite(screen_v) || !isfinite(distance_km) || distance_km < 0.0)
+	if (!name)
 		return -EINVAL;
-	int r = skysample_view_from_slot(v->header, v->slot_base, name, &t, NULL);
-	if (r < 0)
-		return r;
-	double rgb[3], tr;
-	skysample_aerial(&t, &v->slot->state, screen_u, screen_v, distance_km, rgb, &tr);
-	for (int c = 0; c < 3; c++)
-		ret_rgb[c] = rgb[c];
-	if (ret_transmittance)
-		*ret_transmittance = tr;
-	return 0;
+	return aerial_at(v, name, screen_u, screen_v, distance_km, ret_rgb, ret_transmittance);
 }
 
 int sky_sample_sun(const struct sky_view *v, double ret_lx[3])
