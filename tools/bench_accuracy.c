@@ -60,6 +60,8 @@ static const struct config configs[] = {
 	{ "Msteps10", { "multiscatter_steps=10" }, false },
 	{ "Msteps40", { "multiscatter_steps=40" }, false },
 	{ "Mdirs2", { "multiscatter_dirs=2" }, false },
+	{ "Iter0", { "multiscatter_iterations=0" }, false },
+	{ "Iter4", { "multiscatter_iterations=4" }, false },
 	{ "MomentOn", { "multiscatter_moment=on" }, false },
 	{ "MomentOff", { "multiscatter_moment=off" }, false },
 	{ "S96x54", { "skyview_width=96", "skyview_height=54" }, false },
