@@ -919,6 +919,16 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 	}
 }
 
+/* The sky's light that reaches the ground per unit albedo, from psi at the
+ * ground and the sunlight's irradiance over pi (ground_sky in
+ * msiterate.comp). */
+static v3 ground_sky(v3 albedo, v3 psi_g, v3 sunlit)
+{
+	v3 s = add(scale(psi_g, 2.0), scale(mul(albedo, sunlit), -1.0));
+	return v(fmax(s.x, 0.0) / (1.0 + albedo.x), fmax(s.y, 0.0) / (1.0 + albedo.y),
+		 fmax(s.z, 0.0) / (1.0 + albedo.z));
+}
+
 /* The steps of the neighbourhood iteration of psi_ms (msiterate.comp):
  * psi'(x) = L2(x) + the light that the air around x, lit by psi at its own
  * altitude and sun angle (the table), and the ground scatter toward x,
@@ -939,7 +949,8 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 				double h, mu_s, share, shape[4];
 				skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width,
 							    (j + 0.5) / q->height, q->width, q->height, &h, &mu_s);
-				v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s), g = { 0 };
+				v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s), g = { 0 }, first = { 0 };
+				v3 returned = { 0 };
 				double r0 = c->rb + h;
 				for (uint32_t k = 0; k < dirs; k++) {
 					v3 dir = ms_direction(k, dirs), gk = { 0 };
@@ -958,17 +969,26 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 						gk = add(gk, mul(mul(w, m.scattering), multiscatter(c, hs, dot(p, sun), &share, shape)));
 						tau = add(tau, scale(m.extinction, dt));
 					}
+					double wk = ms_cell_weight(k, dirs);
 					if (ground) {
 						v3 nr = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb,
 							  (r0 + dir.z * t_end) / c->rb);
-						gk = add(gk, mul(mul(vexp_neg(tau), albedo),
-								 multiscatter(c, 0.0, dot(nr, sun), &share, shape)));
+						double mu_g = dot(nr, sun);
+						v3 back = mul(vexp_neg(tau), albedo);
+						v3 sunlit = scale(transmittance_to_top(c, 0.0, mu_g), fmax(mu_g, 0.0) / SKYMAP_PI);
+						v3 psi_g = multiscatter(c, 0.0, mu_g, &share, shape);
+						first = add(first, scale(mul(back, sunlit), wk));
+						returned = add(returned, scale(back, wk));
+						gk = add(gk, mul(back, ground_sky(albedo, psi_g, sunlit)));
 					}
-					g = add(g, scale(gk, ms_cell_weight(k, dirs)));
+					g = add(g, scale(gk, wk));
 				}
 				size_t at = (size_t)j * q->width + i;
 				const double *own = out + 4 * at;
-				v3 psi = add(l2[at], scale(g, 1.0 / dirs));
+				/* l2 holds L2 + G (1 - f_ground) as the table had it; here G
+				 * counts whole (see msiterate.comp). */
+				v3 l2_whole = add(l2[at], scale(mul(first, returned), 1.0 / ((double)dirs * dirs)));
+				v3 psi = add(l2_whole, scale(g, 1.0 / dirs));
 				double kept = dot(v(own[0], own[1], own[2]), SHARE_LUM) / fmax(dot(psi, SHARE_LUM), 1e-30);
 				put(next + 4 * at, psi, skymap_clamp(own[3] * kept, 0.0, 1.0));
 				/* The shape, relative to psi, keeps its absolute size as A does. */

@@ -29,6 +29,19 @@ layout(local_size_x = 8, local_size_y = 8) in;
 // the pass), then L2 as float32 RGBA per texel.
 layout(std430, binding = 9) buffer IterBuf { uint d[]; } IB;
 
+// The sky's light that reaches the ground per unit albedo (its irradiance
+// over pi), from psi at the ground psi_g and the sunlight's sunlit (its
+// irradiance over pi). At the ground the lower half of the sphere is the
+// ground itself, whose radiance is albedo (sunlit + sky), so psi_g = (sky +
+// albedo (sunlit + sky)) / 2 with the sky's radiance taken uniform over the
+// upper half. Returning albedo psi_g instead, as Hillaire's series does,
+// counts half the sky and the ground twice: the air between a low point and
+// a bright ground would be lit by 0.65 of the sky's reflection at albedo 0.3.
+vec3 ground_sky(vec3 psi_g, vec3 sunlit)
+{
+	return max(2.0 * psi_g - P.albedo.rgb * sunlit, vec3(0.0)) / (1.0 + P.albedo.rgb);
+}
+
 void main()
 {
 	load_params();
@@ -53,7 +66,11 @@ void main()
 	vec3 gathered[MS_SUN_GROUP];
 	for (int j = 0; j < MS_SUN_GROUP; j++)
 		gathered[j] = vec3(0.0);
-	vec3 sum_escape = vec3(0.0);
+	vec3 sum_escape = vec3(0.0), sum_returned = vec3(0.0);
+	// first: the sunlit ground's first bounce G, as multiscatter.comp has it.
+	vec3 first[MS_SUN_GROUP];
+	for (int j = 0; j < MS_SUN_GROUP; j++)
+		first[j] = vec3(0.0);
 	TAlt ground_alt = t_alt(0.0);
 	for (int k = 0; k < n_dirs; k++) {
 		vec2 ring = cell_ring(k);
@@ -83,13 +100,17 @@ void main()
 		absorbed *= wk;
 		vec3 returned = vec3(0.0);
 		if (ground && !GROUND_BLACK) {
-			// The Lambertian ground under psi sends back albedo times psi.
 			vec3 n = vec3(dir.xy * t_end, r0 + dir.z * t_end) / P.planet.x;
 			returned = tr * P.albedo.rgb;
-			for (int j = 0; j < MS_SUN_GROUP; j++)
-				gathered[j] += returned * multiscatter_at(ground_alt, dot(n, sun[j])).rgb;
+			for (int j = 0; j < MS_SUN_GROUP; j++) {
+				float mu_g = dot(n, sun[j]);
+				vec3 sunlit = transmittance_at(ground_alt, mu_g) * (max(mu_g, 0.0) / PI);
+				first[j] += returned * sunlit;
+				gathered[j] += returned * ground_sky(multiscatter_at(ground_alt, mu_g).rgb, sunlit);
+			}
 		}
 		sum_escape += tr - returned + absorbed;
+		sum_returned += returned;
 	}
 	vec3 escape = sum_escape * norm;
 	int l2_base = (STORAGE_F16 ? 2 : 4) * OUT_W * OUT_H;
@@ -100,8 +121,10 @@ void main()
 		vec4 own = texelFetch(MultiscatterTex, i);
 		vec3 l2;
 		if (ITER_FIRST) {
-			// multiscatter.comp stored psi = L2 / max(escape, 1e-6).
-			l2 = own.rgb * max(escape, vec3(1e-6));
+			// multiscatter.comp stored psi = (L2 + G (1 - f_ground)) /
+			// max(escape, 1e-6); here G counts whole, since the ground's
+			// own return is ground_sky()'s, which holds no G.
+			l2 = own.rgb * max(escape, vec3(1e-6)) + first[j] * (norm * norm) * sum_returned;
 			for (int c = 0; c < 3; c++)
 				IB.d[l2_base + 4 * i + c] = floatBitsToUint(l2[c]);
 		} else {
