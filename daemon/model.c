@@ -919,6 +919,40 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 	}
 }
 
+/* Row y of the multi-scattering table at mu_s, read at the row's own u as
+ * multiscatter() does. */
+static v3 ms_row_at(const struct ctx *c, int y, double mu_s)
+{
+	const struct model_tables *m = c->tab;
+	uint32_t w = m->w[1], n = m->h[1];
+	y = y < 0 ? 0 : y > (int)n - 1 ? (int)n - 1 : y;
+	double mh = skymap_horizon_cos(c->rb, (double)y / (n - 1) * c->shell);
+	double d = skymap_clamp(mu_s, -1.0, 1.0) - mh;
+	double sn = skymap_clamp(d < 0.0 ? d / (1.0 + mh) : d / (1.0 - mh), -1.0, 1.0);
+	double a = copysign(sqrt(fabs(sn)), sn);
+	return bilinear(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
+}
+
+/* psi at altitude h and mu_s for the iteration's neighbours: the parabola
+ * through the three nearest rows, each read at its own u (see
+ * ms_read_quadratic in msiterate.comp). */
+static v3 multiscatter_quadratic(const struct ctx *c, double h, double mu_s)
+{
+	int n = (int)c->tab->h[1];
+	if (n < 3) {
+		double share, shape[4];
+		return multiscatter(c, h, mu_s, &share, shape);
+	}
+	double p = skymap_clamp(h / c->shell, 0.0, 1.0) * (n - 1);
+	int i = (int)floor(p + 0.5);
+	i = i < 1 ? 1 : i > n - 2 ? n - 2 : i;
+	double f = p - i;
+	v3 a = ms_row_at(c, i - 1, mu_s), b = ms_row_at(c, i, mu_s), e = ms_row_at(c, i + 1, mu_s);
+	v3 r = add(add(b, scale(add(e, scale(a, -1.0)), 0.5 * f)),
+		   scale(add(add(e, scale(b, -2.0)), a), 0.5 * f * f));
+	return v(fmax(r.x, 0.0), fmax(r.y, 0.0), fmax(r.z, 0.0));
+}
+
 /* The sky's light that reaches the ground per unit albedo, from psi at the
  * ground and the sunlight's irradiance over pi (ground_sky in
  * msiterate.comp). */
@@ -966,7 +1000,7 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 						struct medium m = medium(c, hs);
 						v3 w = mul(vexp_neg(tau), segment_weight(m.extinction, dt));
 						v3 p = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
-						gk = add(gk, mul(mul(w, m.scattering), multiscatter(c, hs, dot(p, sun), &share, shape)));
+						gk = add(gk, mul(mul(w, m.scattering), multiscatter_quadratic(c, hs, dot(p, sun))));
 						tau = add(tau, scale(m.extinction, dt));
 					}
 					double wk = ms_cell_weight(k, dirs);
