@@ -919,6 +919,50 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 	}
 }
 
+/* Row y of the multi-scattering table at mu_s, read at the row's own u as
+ * multiscatter() does. */
+static v3 ms_row_at(const struct ctx *c, int y, double mu_s)
+{
+	const struct model_tables *m = c->tab;
+	uint32_t w = m->w[1], n = m->h[1];
+	y = y < 0 ? 0 : y > (int)n - 1 ? (int)n - 1 : y;
+	double mh = skymap_horizon_cos(c->rb, (double)y / (n - 1) * c->shell);
+	double d = skymap_clamp(mu_s, -1.0, 1.0) - mh;
+	double sn = skymap_clamp(d < 0.0 ? d / (1.0 + mh) : d / (1.0 - mh), -1.0, 1.0);
+	double a = copysign(sqrt(fabs(sn)), sn);
+	return bilinear(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
+}
+
+/* psi at altitude h and mu_s for the iteration's neighbours: the parabola
+ * through the three nearest rows, each read at its own u (see
+ * ms_read_quadratic in msiterate.comp). */
+static v3 multiscatter_quadratic(const struct ctx *c, double h, double mu_s)
+{
+	int n = (int)c->tab->h[1];
+	if (n < 3) {
+		double share, shape[4];
+		return multiscatter(c, h, mu_s, &share, shape);
+	}
+	double p = skymap_clamp(h / c->shell, 0.0, 1.0) * (n - 1);
+	int i = (int)floor(p + 0.5);
+	i = i < 1 ? 1 : i > n - 2 ? n - 2 : i;
+	double f = p - i;
+	v3 a = ms_row_at(c, i - 1, mu_s), b = ms_row_at(c, i, mu_s), e = ms_row_at(c, i + 1, mu_s);
+	v3 r = add(add(b, scale(add(e, scale(a, -1.0)), 0.5 * f)),
+		   scale(add(add(e, scale(b, -2.0)), a), 0.5 * f * f));
+	return v(fmax(r.x, 0.0), fmax(r.y, 0.0), fmax(r.z, 0.0));
+}
+
+/* The sky's light that reaches the ground per unit albedo, from psi at the
+ * ground and the sunlight's irradiance over pi (ground_sky in
+ * msiterate.comp). */
+static v3 ground_sky(v3 albedo, v3 psi_g, v3 sunlit)
+{
+	v3 s = add(scale(psi_g, 2.0), scale(mul(albedo, sunlit), -1.0));
+	return v(fmax(s.x, 0.0) / (1.0 + albedo.x), fmax(s.y, 0.0) / (1.0 + albedo.y),
+		 fmax(s.z, 0.0) / (1.0 + albedo.z));
+}
+
 /* The steps of the neighbourhood iteration of psi_ms (msiterate.comp):
  * psi'(x) = L2(x) + the light that the air around x, lit by psi at its own
  * altitude and sun angle (the table), and the ground scatter toward x,
@@ -939,7 +983,8 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 				double h, mu_s, share, shape[4];
 				skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width,
 							    (j + 0.5) / q->height, q->width, q->height, &h, &mu_s);
-				v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s), g = { 0 };
+				v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s), g = { 0 }, first = { 0 };
+				v3 returned = { 0 };
 				double r0 = c->rb + h;
 				for (uint32_t k = 0; k < dirs; k++) {
 					v3 dir = ms_direction(k, dirs), gk = { 0 };
@@ -955,20 +1000,29 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 						struct medium m = medium(c, hs);
 						v3 w = mul(vexp_neg(tau), segment_weight(m.extinction, dt));
 						v3 p = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
-						gk = add(gk, mul(mul(w, m.scattering), multiscatter(c, hs, dot(p, sun), &share, shape)));
+						gk = add(gk, mul(mul(w, m.scattering), multiscatter_quadratic(c, hs, dot(p, sun))));
 						tau = add(tau, scale(m.extinction, dt));
 					}
+					double wk = ms_cell_weight(k, dirs);
 					if (ground) {
 						v3 nr = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb,
 							  (r0 + dir.z * t_end) / c->rb);
-						gk = add(gk, mul(mul(vexp_neg(tau), albedo),
-								 multiscatter(c, 0.0, dot(nr, sun), &share, shape)));
+						double mu_g = dot(nr, sun);
+						v3 back = mul(vexp_neg(tau), albedo);
+						v3 sunlit = scale(transmittance_to_top(c, 0.0, mu_g), fmax(mu_g, 0.0) / SKYMAP_PI);
+						v3 psi_g = multiscatter(c, 0.0, mu_g, &share, shape);
+						first = add(first, scale(mul(back, sunlit), wk));
+						returned = add(returned, scale(back, wk));
+						gk = add(gk, mul(back, ground_sky(albedo, psi_g, sunlit)));
 					}
-					g = add(g, scale(gk, ms_cell_weight(k, dirs)));
+					g = add(g, scale(gk, wk));
 				}
 				size_t at = (size_t)j * q->width + i;
 				const double *own = out + 4 * at;
-				v3 psi = add(l2[at], scale(g, 1.0 / dirs));
+				/* l2 holds L2 + G (1 - f_ground) as the table had it; here G
+				 * counts whole (see msiterate.comp). */
+				v3 l2_whole = add(l2[at], scale(mul(first, returned), 1.0 / ((double)dirs * dirs)));
+				v3 psi = add(l2_whole, scale(g, 1.0 / dirs));
 				double kept = dot(v(own[0], own[1], own[2]), SHARE_LUM) / fmax(dot(psi, SHARE_LUM), 1e-30);
 				put(next + 4 * at, psi, skymap_clamp(own[3] * kept, 0.0, 1.0));
 				/* The shape, relative to psi, keeps its absolute size as A does. */
