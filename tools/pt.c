@@ -1173,12 +1173,28 @@ int pt_single_scatter_reference(const struct atmo *a, double altitude_km,
 
 /* ---- the tables' approximations, traced ---- */
 
+/* ret += sign * part, standard errors in quadrature. */
+static void add_parts(struct pt_result *ret, const struct pt_result *part, size_t n, double sign)
+{
+	for (size_t i = 0; i < n; i++) {
+		ret[i].samples += part[i].samples;
+		for (int ch = 0; ch < 3; ch++) {
+			ret[i].radiance[ch] += sign * part[i].radiance[ch];
+			ret[i].std_error[ch] = hypot(ret[i].std_error[ch], part[i].std_error[ch]);
+		}
+	}
+}
+
 /* Delta-M with the TMS correction (Wiscombe 1977; Nakajima and Tanaka
  * 1988): the first order exactly, in the real medium, plus every higher
  * order of the scaled medium, in which the constituent's forward peak f is
  * no scattering at all (sigma_s' = (1 - f) sigma_s, extinction less f
  * sigma_s, a Henyey-Greenstein phase of g'). The two parts are traced
- * separately, so their standard errors add in quadrature. */
+ * separately, so their standard errors add in quadrature. TMS loses the
+ * light that the peak scatters and the rest of the phase scatters once
+ * toward the eye (the scaled medium counts it as single scattering of its
+ * stronger direct beam); ap->delta_excess keeps it: plus the scaled
+ * medium's first order, minus the same through the real transmittances. */
 static int render_delta_m(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
 			  const struct pt_dir *dirs, size_t n, const struct pt_options *opt,
 			  const struct pt_approx *ap, struct pt_result *ret)
@@ -1203,13 +1219,18 @@ static int render_delta_m(const struct atmo *a, double altitude_km, const struct
 	r = render(a, altitude_km, sun, dirs, n, &single, 0, ret);
 	if (r == 0)
 		r = render(&scaled, altitude_km, sun, dirs, n, &multi,
-			   RENDER_MULTI_ONLY | (ap->isotropic ? RENDER_ISOTROPIC : 0), part);
-	for (size_t i = 0; r == 0 && i < n; i++) {
-		ret[i].samples += part[i].samples;
-		for (int ch = 0; ch < 3; ch++) {
-			ret[i].radiance[ch] += part[i].radiance[ch];
-			ret[i].std_error[ch] = hypot(ret[i].std_error[ch], part[i].std_error[ch]);
-		}
+			   (ap->delta_excess ? 0 : RENDER_MULTI_ONLY) | (ap->isotropic ? RENDER_ISOTROPIC : 0),
+			   part);
+	add_parts(ret, part, n, 1.0);
+	if (r == 0 && ap->delta_excess) {
+		/* The scaled medium's first order through the real medium's
+		 * transmittances: the removed scattering f sigma_s becomes
+		 * absorption, so extinction is the real one. */
+		struct atmo absorbing = scaled;
+		for (int ch = 0; ch < 3; ch++)
+			absorbing.c[k].absorption_per_km[ch] += ap->delta_f * a->c[k].scattering_per_km[ch];
+		r = render(&absorbing, altitude_km, sun, dirs, n, &single, 0, part);
+		add_parts(ret, part, n, -1.0);
 	}
 	free(part);
 	return r;

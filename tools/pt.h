@@ -100,6 +100,7 @@ struct pt_approx {
 				 * the orders >= 2 (pt.c: render_delta_m); 0 none */
 	double delta_f;		/* its forward fraction f, in [0, 1) */
 	double delta_g;		/* the scaled phase's g' (Henyey-Greenstein) */
+	int delta_excess;	/* keep the peak-then-once-scattered light TMS drops */
 };
 
 /* pt_render (opt->mode PT_SKY only) under the approximations of ap.

@@ -5,12 +5,13 @@
  *   skytruth [key=value ...] [--error 0.01] [--threads N] [--seed S]
  *            [--dirs elevation:azimuth,...] [--mode sky|single|ground]
  *            [--min-samples N] [--max-samples N] [--batch N] [--reference]
- *            [--isotropic] [--delta-m CONSTITUENT]
+ *            [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]
  *
  * --isotropic and --delta-m trace the sky tables' assumptions (pt_approx):
  * light scattered once already scatters isotropically; the constituent's
  * phase delta-M scaled for the orders >= 2 (f its second Legendre moment,
- * g' = (g1 - f) / (1 - f)).
+ * g' = (g1 - f) / (1 - f); --delta-f sets another f); --delta-excess keeps the light scattered once
+ * after the forward peak, which the TMS correction drops.
  *
  * The sun of the state lights the sky (sun_illuminance_lx times sun_color per
  * channel); the moon is not traced. Radiance is printed in cd/m2 per
@@ -38,7 +39,7 @@ static void usage(FILE *f)
 		"usage: skytruth [key=value ...] [--error REL] [--threads N] [--seed S]\n"
 		"                [--dirs EL:AZ,...] [--mode sky|single|ground]\n"
 		"                [--min-samples N] [--max-samples N] [--batch N] [--reference]\n"
-		"                [--isotropic] [--delta-m CONSTITUENT]\n"
+		"                [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]\n"
 		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...).\n"
 		"default --dirs %s\n", default_dirs);
 }
@@ -116,6 +117,7 @@ int main(int argc, char **argv)
 	int reference = 0;
 	struct pt_approx ap = { 0 };
 	uint64_t delta_m = 0;
+	double delta_f = -1.0;
 
 	state_default(&s);
 	pt_options_default(&opt);
@@ -133,6 +135,8 @@ int main(int argc, char **argv)
 			reference = 1;
 		} else if (strcmp(a, "--isotropic") == 0) {
 			ap.isotropic = 1;
+		} else if (strcmp(a, "--delta-excess") == 0) {
+			ap.delta_excess = 1;
 		} else if (strncmp(a, "--", 2) == 0) {
 			if (!v) {
 				fprintf(stderr, "skytruth: %s needs a value\n", a);
@@ -155,6 +159,8 @@ int main(int argc, char **argv)
 				      (opt.batch = (uint32_t)u, 0);
 			else if (strcmp(a, "--delta-m") == 0)
 				bad = parse_u64(v, &u) < 0 || u >= ATMO_MAX_CONSTITUENTS || (delta_m = u + 1, 0);
+			else if (strcmp(a, "--delta-f") == 0)
+				bad = parse_double(v, &d) < 0 || !(d >= 0.0 && d < 1.0) || (delta_f = d, 0);
 			else if (strcmp(a, "--dirs") == 0)
 				bad = parse_dirs(v, dirs, &n) < 0;
 			else if (strcmp(a, "--mode") == 0) {
@@ -192,7 +198,7 @@ int main(int argc, char **argv)
 			return 2;
 		}
 		ap.delta_m = (int)delta_m;
-		ap.delta_f = model_phase_legendre(c->phase, c->g, 2);
+		ap.delta_f = delta_f >= 0.0 ? delta_f : model_phase_legendre(c->phase, c->g, 2);
 		ap.delta_g = (model_phase_legendre(c->phase, c->g, 1) - ap.delta_f) / (1.0 - ap.delta_f);
 	}
 
