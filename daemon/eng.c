@@ -22,7 +22,7 @@
 #include "vkfn.h"
 
 #define MAX_PIPELINES 32	/* cached variants per pass */
-#define N_SPEC 23
+#define N_SPEC 24
 /* Texels of a row one invocation shares its rays between: sun angles of
  * multi-scattering, azimuths of sky-view. 12 azimuths took the time-of-day
  * change from 35.0-36.3 to 34.1-34.9 % of a full recompute against 8 once
@@ -808,6 +808,8 @@ static void put4(float d[4], double a, double b, double c, double w)
 	d[3] = (float)w;
 }
 
+static void fill_delta(const struct sky_state *s, int delta, struct gpu_params *p, struct spec *base);
+
 static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p, struct spec *base)
 {
 	const struct atmo *a = &s->atmo;
@@ -891,13 +893,39 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 	base->v[16] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
 	base->v[17] = s->quality.multiscatter_dirs != 0;
 	/* The lobe constituent (common.glsl's ms_source) by its index among those in the shaders, plus 1. */
-	int lobe = s->quality.multiscatter_dirs ? model_moment_constituent(s, g1) : -1;
+	int delta = s->quality.multiscatter_dirs ? model_delta_constituent(s, g1) : -1;
+	int lobe = s->quality.multiscatter_dirs && delta < 0 ? model_moment_constituent(s, g1) : -1;
 	if (lobe >= 0 && constituent_active(&a->c[lobe])) {
 		int before = 0;
 		for (int i = 0; i < lobe; i++)
 			before += constituent_active(&a->c[i]);
 		base->v[22] = before + 1;
 	}
+	fill_delta(s, delta, p, base);
+}
+
+/* Delta-M for the higher orders (common.glsl's delta_source): the
+ * constituent's index among those in the shaders plus 1 in constant 23,
+ * its forward fraction f and the truncated phase's g' in layer1c.zw, and
+ * the ground's first bounce through the truncated phase, which is what
+ * scatters psi_ms in the scaled medium. */
+static void fill_delta(const struct sky_state *s, int delta, struct gpu_params *p, struct spec *base)
+{
+	const struct atmo *a = &s->atmo;
+	if (delta < 0 || !constituent_active(&a->c[delta]))
+		return;
+	int n = 0;
+	for (int i = 0; i < delta; i++)
+		n += constituent_active(&a->c[i]);
+	double f, g, excess[MODEL_GROUND_N], fit[MODEL_GROUND_FIT];
+	model_delta_truncation(a->c[delta].phase, a->c[delta].g, &f, &g);
+	model_ground_excess(ATMO_PHASE_HENYEY_GREENSTEIN, g, excess);
+	model_ground_fit(excess, fit);
+	for (int k = 0; k < MODEL_GROUND_FIT; k++)
+		p->ground_fit[k][n] = (float)fit[k];
+	p->c[n].layer1c[2] = (float)f;
+	p->c[n].layer1c[3] = (float)g;
+	base->v[23] = n + 1;
 }
 
 /* The cameras of the aerial volumes: the state's, then each view's. */
@@ -940,7 +968,7 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 	if (t == STATE_MULTISCATTER)
 		k.v[6] = k.v[17] = 0;	/* the table is the term itself */
 	if (t == STATE_TRANSMITTANCE)
-		k.v[17] = k.v[22] = 0;
+		k.v[17] = k.v[22] = k.v[23] = 0;
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
 		k.v[7] = 0;	/* the ground enters through the multiscatter table */
 	return k;

@@ -141,6 +141,23 @@ int model_moment_constituent(const struct sky_state *s, const double *g1_of)
 	return best;
 }
 
+int model_delta_constituent(const struct sky_state *s, const double *g1_of)
+{
+	struct sky_state t;
+	if (s->quality.multiscatter_delta == STATE_MOMENT_OFF)
+		return -1;
+	t = *s;
+	t.quality.multiscatter_moment = s->quality.multiscatter_delta;
+	return model_moment_constituent(&t, g1_of);
+}
+
+void model_delta_truncation(enum atmo_phase kind, double g, double *ret_f, double *ret_g)
+{
+	double f = model_phase_legendre(kind, g, MODEL_DELTA_ORDER), g1 = model_phase_legendre(kind, g, 1);
+	*ret_f = f;
+	*ret_g = f < 1.0 ? (g1 - f) / (1.0 - f) : 0.0;
+}
+
 /* Quadrature of model_ground_excess: midpoints in u with c = 1 - 2 u^2, which
  * crowds the nodes at the forward peak (g = 0.99: 1 - c ~ 1e-4 holds several
  * of them), mirrored for a backward peak (g < 0). */

@@ -44,6 +44,12 @@ vec4 phase4(int kind, float g, vec4 mu)
 void main()
 {
 	load_params();
+	// Delta-M (delta_source in common.glsl): the table is the scaled
+	// medium's, whose DELTA_CONST scatters (1 - f) sigma_D through p' and
+	// whose sunlight comes through T_l' = T_l delta_gain().
+	vec3 removed = delta_removed();
+	if (DELTA_CONST >= 0)
+		P.C[max(DELTA_CONST, 0)].scattering.rgb -= removed;
 	int x0 = int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, py = int(gl_GlobalInvocationID.y);
 	if (x0 >= OUT_W || py >= OUT_H)
 		return;
@@ -90,7 +96,9 @@ void main()
 			for (int i = 0; i < N_CONST; i++) {
 				if (phase_kind(i) == 0)
 					continue;
-				float c = dot(phase4(phase_kind(i), P.C[i].scattering.w, mu), vec4(0.25));
+				bool truncated = i == DELTA_CONST;
+				float c = dot(phase4(truncated ? 3 : phase_kind(i),
+						     truncated ? P.C[i].layer1c.w : P.C[i].scattering.w, mu), vec4(0.25));
 				cell_sum[(k * 4 + i) * MS_SUN_GROUP + j] = c;
 				total[i][j] += wk * c;
 			}
@@ -157,9 +165,13 @@ void main()
 			vec3 step_t, w = tr * step_weight(scattering + absorption, dt, step_t);
 			TAlt a = t_alt(hs);
 			vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
-			for (int j = 0; j < MS_SUN_GROUP; j++)
-				l2[j] += w * (phased_of[j] * dens) *
-					 light_transmittance(a, dot(up, sun[j]), P.sun_dir.w);
+			for (int j = 0; j < MS_SUN_GROUP; j++) {
+				float mu_l = dot(up, sun[j]);
+				vec3 t_l = light_transmittance(a, mu_l, P.sun_dir.w);
+				if (DELTA_CONST >= 0)
+					t_l *= delta_gain(a, mu_l, removed);
+				l2[j] += w * (phased_of[j] * dens) * t_l;
+			}
 			absorbed += w * absorption;
 			tr *= step_t;
 		}
@@ -184,7 +196,10 @@ void main()
 			TAlt a = t_alt(0.0);
 			for (int j = 0; j < MS_SUN_GROUP; j++) {
 				float mu_g = dot(n, sun[j]);
-				sum_ground[j] += tr * transmittance_at(a, mu_g) * max(mu_g, 0.0) * P.albedo.rgb / PI;
+				vec3 t_l = transmittance_at(a, mu_g);
+				if (DELTA_CONST >= 0)
+					t_l *= delta_gain(a, mu_g, removed);
+				sum_ground[j] += tr * t_l * max(mu_g, 0.0) * P.albedo.rgb / PI;
 			}
 			// Under the isotropic field psi the Lambertian ground sends back
 			// albedo times psi: a transfer like scattering, so every order
