@@ -684,6 +684,8 @@ static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, d
 
 /* ---- delta-M for the higher orders (delta_source in common.glsl) ---- */
 
+static v3 optical_depth(const struct ctx *c, double h, double mu, uint32_t steps);
+
 /* The delta constituent's column density from altitude h along mu to the
  * top, as optical_depth computes each constituent's. */
 static double delta_column(const struct ctx *c, double h, double mu, uint32_t steps)
@@ -713,6 +715,23 @@ static v3 delta_gain(const struct ctx *c, double h, double mu)
 	return v(exp(fmin(c->delta_f * k->scattering_per_km[0] * l, 80.0)),
 		 exp(fmin(c->delta_f * k->scattering_per_km[1] * l, 80.0)),
 		 exp(fmin(c->delta_f * k->scattering_per_km[2] * l, 80.0)));
+}
+
+/* The scaled medium's light_transmittance: the visible part of the disk
+ * times exp(-tau'), tau' read bilinearly from the scaled optical depths at
+ * the transmittance texels (columns_at in common.glsl). */
+static v3 delta_light_transmittance(const struct ctx *c, double h, double mu, double radius_rad)
+{
+	const struct model_tables *m = c->tab;
+	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h, u, vv;
+	double mu_h = h < 0 ? -2.0 : skymap_horizon_cos(c->rb, hc);
+	double vis = disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad));
+	if (vis <= 0)
+		return v(0, 0, 0);
+	skymap_transmittance_uv(c->rb, c->rt, hc, mu < -1 ? -1 : mu > 1 ? 1 : mu, m->w[0], m->h[0], &u, &vv);
+	struct taps t = taps_at(m->w[0], m->h[0], u, vv);
+	return scale(vexp_neg(v(taps_channel(c->delta_col, &t, 1), taps_channel(c->delta_col, &t, 2),
+				taps_channel(c->delta_col, &t, 3))), vis);
 }
 
 /* The delta constituent's scattering at h and f times it. */
@@ -793,12 +812,18 @@ static int delta_init(struct ctx *c, const struct sky_state *s, const struct mod
 	c->delta_col = calloc(4 * (size_t)q->width * q->height, sizeof(double));
 	if (!c->delta_col)
 		return -ENOMEM;
+	struct ctx scaled = *c;	/* column R: L_D; GBA: the scaled optical depth */
+	scaled.a = &c->scaled;
 	for (uint32_t j = 0; j < q->height; j++)
 		for (uint32_t i = 0; i < q->width; i++) {
 			double h, mu;
 			skymap_transmittance_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						     q->width, q->height, &h, &mu);
 			c->delta_col[4 * (j * q->width + i)] = delta_column(c, h, mu, q->steps);
+			v3 tau = optical_depth(&scaled, h, mu, q->steps);
+			c->delta_col[4 * (j * q->width + i) + 1] = tau.x;
+			c->delta_col[4 * (j * q->width + i) + 2] = tau.y;
+			c->delta_col[4 * (j * q->width + i) + 3] = tau.z;
 		}
 	return 0;
 }
@@ -1010,7 +1035,8 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 			v3 t_sun = light_transmittance(c, hs, dot(p, sun),
 						       c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
 			if (c->delta_light)
-				t_sun = mul(t_sun, delta_gain(c, hs, dot(p, sun)));
+				t_sun = delta_light_transmittance(c, hs, dot(p, sun),
+								  c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
 			v3 phased = { 0 };
 			for (int n = 0; n < c->a->n_constituents; n++) {
 				const struct atmo_constituent *kc = &c->a->c[n];
@@ -1031,9 +1057,10 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		if (ground) {
 			v3 n = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb, (r0 + dir.z * t_end) / c->rb);
 			double mu_g = dot(n, sun);
-			v3 g = mul(t_ray, transmittance_to_top(c, 0.0, mu_g));
-			if (c->delta_light)
-				g = mul(g, delta_gain(c, 0.0, mu_g));
+			double tg_unused;
+			v3 g = mul(t_ray, !c->delta_light ? transmittance_to_top(c, 0.0, mu_g)
+					  : hits_ground(c, 0.0, mu_g, &tg_unused) ? v(0, 0, 0)
+					  : delta_light_transmittance(c, 0.0, mu_g, 0.0));
 			sg = add(sg, scale(mul(g, v(albedo[0], albedo[1], albedo[2])),
 					   (mu_g > 0 ? mu_g : 0) / SKYMAP_PI));
 			/* Every order bounces off the ground (see multiscatter.comp). */

@@ -667,6 +667,20 @@ vec3 delta_gain(TAlt a, float mu, vec3 removed)
 	return exp(min(removed * l, vec3(80.0)));
 }
 
+// The column densities of every constituent from the altitude of a toward
+// mu to the top, bilinear at the transmittance lookup's taps: the scaled
+// medium's transmittance is exp(-(ext' * columns)), one lookup as the
+// table's (the multi-scattering pass reads no other).
+vec4 columns_at(TAlt a, float mu)
+{
+	mu = clamp(mu, -1.0, 1.0);
+	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
+	Axis c = axis((d - a.d_min) * a.inv_range, T_W);
+	int r0 = a.t_rows.i0 * T_W, r1 = a.t_rows.i1 * T_W;
+	return mix(mix(CB.d[r0 + c.i0], CB.d[r0 + c.i1], c.f), mix(CB.d[r1 + c.i0], CB.d[r1 + c.i1], c.f),
+		   a.t_rows.f);
+}
+
 // The scaled medium's phase-weighted scattering from the real one's:
 // DELTA_CONST's sigma_D p becomes (1 - f) sigma_D p'.
 vec3 delta_phased(vec3 phased, Scatter sc, Phases ph)

@@ -47,9 +47,12 @@ void main()
 	// Delta-M (delta_source in common.glsl): the table is the scaled
 	// medium's, whose DELTA_CONST scatters (1 - f) sigma_D through p' and
 	// whose sunlight comes through T_l' = T_l delta_gain().
-	vec3 removed = delta_removed();
 	if (DELTA_CONST >= 0)
-		P.C[max(DELTA_CONST, 0)].scattering.rgb -= removed;
+		P.C[max(DELTA_CONST, 0)].scattering.rgb -= delta_removed();
+	// The scaled extinctions, times columns_at() the scaled optical depth.
+	mat4x3 ext_scaled = mat4x3(0.0);
+	for (int i = 0; i < N_CONST; i++)
+		ext_scaled[i] = P.C[i].scattering.rgb + P.C[i].absorption.rgb;
 	int x0 = int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, py = int(gl_GlobalInvocationID.y);
 	if (x0 >= OUT_W || py >= OUT_H)
 		return;
@@ -167,9 +170,13 @@ void main()
 			vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
 			for (int j = 0; j < MS_SUN_GROUP; j++) {
 				float mu_l = dot(up, sun[j]);
-				vec3 t_l = light_transmittance(a, mu_l, P.sun_dir.w);
-				if (DELTA_CONST >= 0)
-					t_l *= delta_gain(a, mu_l, removed);
+				vec3 t_l;
+				if (DELTA_CONST >= 0) {
+					float vis = light_visible(a, mu_l, P.sun_dir.w);
+					t_l = vis > 0.0 ? vis * exp(-(ext_scaled * columns_at(a, mu_l))) : vec3(0.0);
+				} else {
+					t_l = light_transmittance(a, mu_l, P.sun_dir.w);
+				}
 				l2[j] += w * (phased_of[j] * dens) * t_l;
 			}
 			absorbed += w * absorption;
@@ -196,9 +203,9 @@ void main()
 			TAlt a = t_alt(0.0);
 			for (int j = 0; j < MS_SUN_GROUP; j++) {
 				float mu_g = dot(n, sun[j]);
-				vec3 t_l = transmittance_at(a, mu_g);
-				if (DELTA_CONST >= 0)
-					t_l *= delta_gain(a, mu_g, removed);
+				vec3 t_l = DELTA_CONST < 0 ? transmittance_at(a, mu_g)
+						 : mu_g < a.mu_horizon ? vec3(0.0)
+						 : exp(-(ext_scaled * columns_at(a, mu_g)));
 				sum_ground[j] += tr * t_l * max(mu_g, 0.0) * P.albedo.rgb / PI;
 			}
 			// Under the isotropic field psi the Lambertian ground sends back
