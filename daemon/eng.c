@@ -152,6 +152,7 @@ struct eng {
 	struct gpu_buffer moment;
 	VkBufferView moment_view;
 	struct ground_cache ground[ATMO_MAX_CONSTITUENTS];	/* by gpu constituent */
+	struct ground_cache delta;	/* fill_delta's: the truncated phase's fit, f and g' in legendre */
 	struct column_key column_key;
 	bool columns_valid;
 	bool columns_in_flight;
@@ -808,7 +809,8 @@ static void put4(float d[4], double a, double b, double c, double w)
 	d[3] = (float)w;
 }
 
-static void fill_delta(const struct sky_state *s, int delta, struct gpu_params *p, struct spec *base);
+static void fill_delta(struct eng *e, const struct sky_state *s, int delta, struct gpu_params *p,
+		       struct spec *base);
 
 static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p, struct spec *base)
 {
@@ -901,15 +903,17 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 			before += constituent_active(&a->c[i]);
 		base->v[22] = before + 1;
 	}
-	fill_delta(s, delta, p, base);
+	fill_delta(e, s, delta, p, base);
 }
 
 /* Delta-M for the higher orders (common.glsl's delta_source): the
  * constituent's index among those in the shaders plus 1 in constant 23,
  * its forward fraction f and the truncated phase's g' in layer1c.zw, and
  * the ground's first bounce through the truncated phase, which is what
- * scatters psi_ms in the scaled medium. */
-static void fill_delta(const struct sky_state *s, int delta, struct gpu_params *p, struct spec *base)
+ * scatters psi_ms in the scaled medium. Kept while the phase stays (a
+ * quadrature and 30000 phase evaluations, more than a sun change's tables). */
+static void fill_delta(struct eng *e, const struct sky_state *s, int delta, struct gpu_params *p,
+		       struct spec *base)
 {
 	const struct atmo *a = &s->atmo;
 	if (delta < 0 || !constituent_active(&a->c[delta]))
@@ -917,14 +921,20 @@ static void fill_delta(const struct sky_state *s, int delta, struct gpu_params *
 	int n = 0;
 	for (int i = 0; i < delta; i++)
 		n += constituent_active(&a->c[i]);
-	double f, g, excess[MODEL_GROUND_N], fit[MODEL_GROUND_FIT];
-	model_delta_truncation(a->c[delta].phase, a->c[delta].g, &f, &g);
-	model_ground_excess(ATMO_PHASE_HENYEY_GREENSTEIN, g, excess);
-	model_ground_fit(excess, fit);
+	struct ground_cache *dc = &e->delta;
+	if (!dc->valid || dc->kind != a->c[delta].phase || dc->g != a->c[delta].g) {
+		double excess[MODEL_GROUND_N];
+		model_delta_truncation(a->c[delta].phase, a->c[delta].g, &dc->legendre[0], &dc->legendre[1]);
+		model_ground_excess(ATMO_PHASE_HENYEY_GREENSTEIN, dc->legendre[1], excess);
+		model_ground_fit(excess, dc->fit);
+		dc->valid = true;
+		dc->kind = a->c[delta].phase;
+		dc->g = a->c[delta].g;
+	}
 	for (int k = 0; k < MODEL_GROUND_FIT; k++)
-		p->ground_fit[k][n] = (float)fit[k];
-	p->c[n].layer1c[2] = (float)f;
-	p->c[n].layer1c[3] = (float)g;
+		p->ground_fit[k][n] = (float)dc->fit[k];
+	p->c[n].layer1c[2] = (float)dc->legendre[0];
+	p->c[n].layer1c[3] = (float)dc->legendre[1];
 	base->v[23] = n + 1;
 }
 

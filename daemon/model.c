@@ -162,12 +162,19 @@ int model_delta_constituent(const struct sky_state *s, const double *g1_of)
 		return -1;
 	t = *s;
 	t.quality.multiscatter_moment = s->quality.multiscatter_delta;
-	return model_moment_constituent(&t, g1_of);
+	int n = model_moment_constituent(&t, g1_of);
+	/* A backward peak is no forward one: the truncation would give
+	 * |g'| > 1 (a negative phase, negative light). */
+	if (n >= 0 && !((g1_of ? g1_of[n] : model_phase_legendre(s->atmo.c[n].phase, s->atmo.c[n].g, 1)) > 0.0))
+		return -1;
+	return n;
 }
 
 void model_delta_truncation(enum atmo_phase kind, double g, double *ret_f, double *ret_g)
 {
 	double f = model_phase_legendre(kind, g, MODEL_DELTA_ORDER), g1 = model_phase_legendre(kind, g, 1);
+	/* 0 <= f <= g1 keeps g' in [0, g1]; a forward-peaked phase has it. */
+	f = f < 0.0 || !(g1 > 0.0) ? 0.0 : f > g1 ? g1 : f;
 	*ret_f = f;
 	*ret_g = f < 1.0 ? (g1 - f) / (1.0 - f) : 0.0;
 }

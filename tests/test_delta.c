@@ -65,6 +65,12 @@ static void test_rule(void)
 			s.atmo.c[i].scattering_per_km[c] *= 10.0;
 	CHECK(state_multiscatter_iterations(&s) > 0);
 	CHECK(model_delta_constituent(&s, NULL) == -1);
+	/* A backward peak: none (its truncation would make |g'| > 1). */
+	state_default(&s);
+	set(&s, "preset=mars");
+	set(&s, "multiscatter_delta=on");
+	s.atmo.c[dust].g = -0.85;
+	CHECK(model_delta_constituent(&s, NULL) == -1);
 }
 
 /* Luminance of a float32 sky-view table in a direction, as a client samples it. */
