@@ -635,8 +635,9 @@ bool ray_in_shell(float h0, vec3 dir, out Entry en)
 //   one or more times before the one real scattering toward the eye; the
 //   exact single scattering already has those with no peak scattering,
 //   sigma_s'' p'' T_l T_v, so the march adds the difference. Nakajima and
-//   Tanaka's TMS drops the difference altogether: on Mars that read the sky
-//   22 % low (tools/pt.c, pt_approx.delta_excess).
+//   Tanaka's TMS drops the difference altogether: traced exactly otherwise
+//   (tools/pt.c, pt_approx without delta_excess; f = 0.78, sun 30) that
+//   read Mars' day sky 22 % low.
 // f is the phase's 6th Legendre moment, not delta-Eddington's 2nd: the path
 // tracer with the tables' assumptions read Mars (sun 30 / 5, day / horizon)
 // 6.6 / 9.1 and 7.7 / 10.9 % off with f = 0.4 (the 6th moment is 0.416),

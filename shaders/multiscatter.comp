@@ -2,7 +2,8 @@
 // psi_ms = L2 / (1 - f_ms). Directions: 64 on a grid of 16 rings, denser
 // near the horizon, by 4 azimuths, or 2 (straight up and down). For a
 // forward-peaked phase (MOMENT_CONST) also the shape of that light from L2's
-// moments (MomentBuf).
+// moments (MomentBuf); with delta-M (DELTA_CONST, delta_source in
+// common.glsl) the table is the scaled medium's instead.
 //
 // The rays from a point at altitude h do not depend on the sun, so one
 // invocation marches them once for MS_SUN_GROUP texels of a row (sun angles)
@@ -46,7 +47,7 @@ void main()
 	load_params();
 	// Delta-M (delta_source in common.glsl): the table is the scaled
 	// medium's, whose DELTA_CONST scatters (1 - f) sigma_D through p' and
-	// whose sunlight comes through T_l' = T_l delta_gain().
+	// whose sunlight comes through T_l' = exp(-(ext' * columns_at())).
 	if (DELTA_CONST >= 0)
 		P.C[max(DELTA_CONST, 0)].scattering.rgb -= delta_removed();
 	// The scaled extinctions, times columns_at() the scaled optical depth.
