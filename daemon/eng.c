@@ -896,7 +896,7 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 	base->v[17] = s->quality.multiscatter_dirs != 0;
 	/* The lobe constituent (common.glsl's ms_source) by its index among those in the shaders, plus 1. */
 	int delta = s->quality.multiscatter_dirs ? model_delta_constituent(s, g1) : -1;
-	int lobe = s->quality.multiscatter_dirs && delta < 0 ? model_moment_constituent(s, g1) : -1;
+	int lobe = s->quality.multiscatter_dirs ? model_lobe_constituent(s, g1) : -1;
 	if (lobe >= 0 && constituent_active(&a->c[lobe])) {
 		int before = 0;
 		for (int i = 0; i < lobe; i++)

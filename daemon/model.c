@@ -170,6 +170,15 @@ int model_delta_constituent(const struct sky_state *s, const double *g1_of)
 	return n;
 }
 
+int model_lobe_constituent(const struct sky_state *s, const double *g1_of)
+{
+	int delta = model_delta_constituent(s, g1_of);
+	if (delta >= 0 && s->quality.multiscatter_moment == STATE_MOMENT_OFF)
+		return -1;
+	int lobe = model_moment_constituent(s, g1_of);
+	return delta >= 0 && lobe != delta ? -1 : lobe;
+}
+
 void model_delta_truncation(enum atmo_phase kind, double g, double *ret_f, double *ret_g)
 {
 	double f = model_phase_legendre(kind, g, MODEL_DELTA_ORDER), g1 = model_phase_legendre(kind, g, 1);
@@ -767,7 +776,22 @@ static void delta_light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 
 	if (c->s->quality.multiscatter_dirs) {
 		double share, sh[4];
 		v3 psi = multiscatter(c, h, mu_l, &share, sh);
-		s = add(s, mul(add(sigma_s, scale(ground, share)), psi));
+		v3 sig = add(sigma_s, scale(ground, share));
+		if (c->lobe >= 0) {
+			/* light_source's shape, scattered by the scaled
+			 * constituent through the truncated phase (lobe_g). */
+			v3 fwd = scale(delta_sigma(c, h), 1.0 - c->delta_f);
+			double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l, o_z = -view_up;
+			double o_x = skymap_clamp((view_up * mu_l - mu) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
+			double b1 = sh[0] * o_z;
+			double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) + sh[2] * o_x * o_z;
+			double gl = c->lobe_g[0] * c->lobe_g[0];
+			double den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - mu);
+			double lobe = sh[3] * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);
+			sig = add(sig, scale(fwd, c->lobe_g[0] * b1 + c->lobe_g[1] * b2 + lobe));
+			sig = v(fmax(sig.x, 0.0), fmax(sig.y, 0.0), fmax(sig.z, 0.0));
+		}
+		s = add(s, mul(sig, psi));
 	}
 	*ret_scaled = mul(s, illum);
 }
@@ -1405,10 +1429,14 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 		model_tables_finish(&m);
 		return rc;
 	}
-	c.lobe = s->quality.multiscatter_dirs && m.t[1] && c.delta < 0 ? model_moment_constituent(s, NULL) : -1;
+	c.lobe = s->quality.multiscatter_dirs && m.t[1] ? model_lobe_constituent(s, NULL) : -1;
 	if (c.lobe >= 0) {
 		c.lobe_g[0] = model_phase_legendre(s->atmo.c[c.lobe].phase, s->atmo.c[c.lobe].g, 1);
 		c.lobe_g[1] = model_phase_legendre(s->atmo.c[c.lobe].phase, s->atmo.c[c.lobe].g, 2);
+		if (c.delta >= 0) {	/* the truncated phase (ms_source in common.glsl) */
+			c.lobe_g[0] = c.delta_g;
+			c.lobe_g[1] = c.delta_g * c.delta_g;
+		}
 		c.moment = calloc(4 * (size_t)m.w[1] * m.h[1], sizeof(double));
 		if (!c.moment) {
 			free(c.delta_col);

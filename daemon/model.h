@@ -97,9 +97,15 @@ int model_moment_constituent(const struct sky_state *s, const double *g1_of);
  * at all, or -1. auto: the one model_moment_constituent picks under
  * multiscatter_moment=auto (Mars' dust, not Earth's Mie); on: the one it
  * picks under on; off: none; never a constituent whose mean cosine is not
- * positive (no forward peak). Where it is on, the moment term is off
- * (model_moment_constituent's result is not used). */
+ * positive (no forward peak). Where it is on, the shape of
+ * multiscatter_moment is the scaled medium's (model_lobe_constituent). */
 int model_delta_constituent(const struct sky_state *s, const double *g1_of);
+
+/* The constituent whose phase scatters the shape of the multiply scattered
+ * light, as the engine applies the knobs: model_moment_constituent; where
+ * delta-M is on, the scaled medium's shape through the truncated phase, of
+ * the same constituent only (-1 otherwise or under multiscatter_moment=off). */
+int model_lobe_constituent(const struct sky_state *s, const double *g1_of);
 
 /* The delta-M truncation of a phase: the forward fraction f (the phase's
  * Legendre moment of order MODEL_DELTA_ORDER) and the Henyey-Greenstein

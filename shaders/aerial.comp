@@ -79,14 +79,15 @@ void main()
 					float mu_l = dot(up, P.sun_dir.xyz);
 					ph = phased(sc, ph_sun);
 					delta_source(ta, mu_l, light_visible(ta, mu_l, P.sun_dir.w), P.sun_illum.rgb, ph,
-						     delta_phased(ph, sc, ph_sun), m.scattering - removed, ground_s, r, rs);
+						     delta_phased(ph, sc, ph_sun), m.scattering - removed, ground_s,
+						     scs.s[max(DELTA_CONST, 0)], view_up, sun_v, r, rs);
 					vec3 src = r, src_s = rs;
 					if (MOON_LIT) {
 						mu_l = dot(up, P.moon_dir.xyz);
 						ph = phased(sc, ph_moon);
 						delta_source(ta, mu_l, light_visible(ta, mu_l, P.moon_dir.w), P.moon_illum.rgb,
 							     ph, delta_phased(ph, sc, ph_moon), m.scattering - removed,
-							     ground_s, r, rs);
+							     ground_s, scs.s[max(DELTA_CONST, 0)], view_up, moon_v, r, rs);
 						src += r;
 						src_s += rs;
 					}

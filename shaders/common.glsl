@@ -536,6 +536,10 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 	float b1 = sh.x * o_z;
 	float b2 = sh.y * (1.5 * o_z * o_z - 0.5) + sh.z * o_x * o_z;
 	vec2 g = vec2(P.C[max(MOMENT_CONST, 0)].absorption.w, P.C[max(MOMENT_CONST, 0)].layer1c.y);
+	// With delta-M the field is the scaled medium's, scattered by the
+	// truncated phase: Henyey-Greenstein g', moments g' and g'^2.
+	if (DELTA_CONST >= 0)
+		g = vec2(P.C[max(DELTA_CONST, 0)].layer1c.w, P.C[max(DELTA_CONST, 0)].layer1c.w * P.C[max(DELTA_CONST, 0)].layer1c.w);
 	// A truncated expansion may go negative where the field is strongly
 	// directed; the light scattered never does.
 	float gl = g.x * g.x;
@@ -694,16 +698,16 @@ vec3 delta_phased(vec3 phased, Scatter sc, Phases ph)
 // real transmittance along the view (tr), ret_scaled with the scaled one.
 // phased / phased_s: the real and scaled phase-weighted scattering;
 // sigma_s / ground: the scaled medium's scattering and ground term.
+// forward: the scaled scattering of DELTA_CONST, for the shape of the
+// field (ms_source) where multiscatter_moment=on keeps it.
 void delta_source(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 phased_s, vec3 sigma_s,
-		  vec3 ground, out vec3 ret_real, out vec3 ret_scaled)
+		  vec3 ground, vec3 forward, float view_up, float view_light, out vec3 ret_real, out vec3 ret_scaled)
 {
 	vec3 t = visible > 0.0 ? visible * transmittance_lookup(a, mu_l) : vec3(0.0);
 	ret_real = (phased - phased_s) * t * illum;
 	ret_scaled = phased_s * t * delta_gain(a, mu_l, delta_removed());
-	if (MULTISCATTER_ON) {
-		vec4 ms = multiscatter_at(a, mu_l);
-		ret_scaled += (sigma_s + ms.a * ground) * ms.rgb;
-	}
+	if (MULTISCATTER_ON)
+		ret_scaled += ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
 	ret_scaled *= illum;
 }
 

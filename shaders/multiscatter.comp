@@ -271,7 +271,8 @@ void main()
 			float share = l * norm / escape_lum / max(dot(psi, MS_SHARE_LUM), 1e-30);
 			vec2 m = sum_moment[j] / l;
 			vec3 t = sum_second[j] / l;
-			float k = P.C[max(MOMENT_CONST, 0)].absorption.w;
+			float k = DELTA_CONST >= 0 ? P.C[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
+						   : P.C[max(MOMENT_CONST, 0)].absorption.w;
 			float a = clamp(-m.x / max(k * sun[j].x, 1e-3), 0.0, 1.0);
 			MOB.d[py * OUT_W + x0 + j] = share * vec4(3.0 * m.y, 7.5 * t.y - 2.5, 15.0 * t.z, a);
 		}

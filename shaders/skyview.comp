@@ -138,7 +138,8 @@ void main()
 								      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
 					vec3 ph = phased(sc, ph_sun[j]), r, rs;
 					delta_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, ph,
-						     delta_phased(ph, sc, ph_sun[j]), m.scattering - removed, ground_s, r, rs);
+						     delta_phased(ph, sc, ph_sun[j]), m.scattering - removed, ground_s,
+						     scs.s[max(DELTA_CONST, 0)], view_up, dot(dir[j], P.sun_dir.xyz), r, rs);
 					radiance[j] += w * r + w_s * rs;
 					if (MOON_LIT) {
 						vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
@@ -147,7 +148,7 @@ void main()
 						ph = phased(sc, ph_moon[j]);
 						delta_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, ph,
 							     delta_phased(ph, sc, ph_moon[j]), m.scattering - removed, ground_s,
-							     r, rs);
+							     scs.s[max(DELTA_CONST, 0)], view_up, dot(dir[j], P.moon_dir.xyz), r, rs);
 						radiance[j] += w * r + w_s * rs;
 					}
 				}

@@ -205,18 +205,43 @@ static void test_mars(float *(*sky)(void *, const struct sky_state *), void *arg
 	}
 }
 
+/* Delta-M on over off with the shape on in both (multiscatter_moment=auto;
+ * with delta-M the scaled medium's shape
+ * through the truncated phase), the engine's ratios against the model's. */
+static double model_shape_ratio[N_DIRS];
+
+static void test_mars_shape(float *(*sky)(void *, const struct sky_state *), void *arg, const char *who)
+{
+	struct sky_state s;
+	double r[N_DIRS] = { 0 };
+	mars_state(&s);
+	set(&s, "multiscatter_moment=auto");
+	ratios(sky, arg, &s, r);
+	for (size_t i = 0; i < N_DIRS; i++) {
+		printf("%s, mars sun 5 with the shape: elevation %g azimuth %g: on / off %.4f\n", who,
+		       dirs[i].el_deg, dirs[i].az_deg, r[i]);
+		if (!arg)
+			model_shape_ratio[i] = r[i];
+		else if (!(fabs(r[i] / model_shape_ratio[i] - 1.0) < 0.02))
+			FAIL("engine with the shape: elevation %g azimuth %g: on / off %.4f, model %.4f",
+			     dirs[i].el_deg, dirs[i].az_deg, r[i], model_shape_ratio[i]);
+	}
+}
+
 int main(void)
 {
 	test_truncation();
 	test_rule();
 	test_limit(model_sky, NULL, "model");
 	test_mars(model_sky, NULL, "model");
+	test_mars_shape(model_sky, NULL, "model");
 	/* The engine last: without Vulkan the test is reported skipped. */
 	if (test_failures)
 		return test_report("test_delta");
 	struct eng *e = vk_or_skip();
 	test_limit(engine_sky, e, "engine");
 	test_mars(engine_sky, e, "engine");
+	test_mars_shape(engine_sky, e, "engine");
 	eng_free(e);
 	return test_report("test_delta");
 }

@@ -67,6 +67,7 @@ static const struct config configs[] = {
 	{ "DeltaOn", { "multiscatter_delta=on" }, false },
 	{ "DeltaOff", { "multiscatter_delta=off" }, false },
 	{ "DeltaOffMomentOff", { "multiscatter_delta=off", "multiscatter_moment=off" }, false },
+	{ "DeltaOnMomentOff", { "multiscatter_delta=on", "multiscatter_moment=off" }, false },
 	{ "S96x54", { "skyview_width=96", "skyview_height=54" }, false },
 	{ "S384x216", { "skyview_width=384", "skyview_height=216" }, false },
 	{ "Ssteps15", { "skyview_steps=15" }, false },
