@@ -96,7 +96,8 @@ int model_moment_constituent(const struct sky_state *s, const double *g1_of);
  * constituent whose forward peak the higher orders treat as no scattering
  * at all, or -1. auto: the one model_moment_constituent picks under
  * multiscatter_moment=auto (Mars' dust, not Earth's Mie); on: the one it
- * picks under on; off: none; never a constituent whose mean cosine is not
+ * picks under on; off: none; none where the neighbourhood iteration runs
+ * (state_multiscatter_iterations); never a constituent whose mean cosine is not
  * positive (no forward peak). Where it is on, the shape of
  * multiscatter_moment is the scaled medium's (model_lobe_constituent). */
 int model_delta_constituent(const struct sky_state *s, const double *g1_of);

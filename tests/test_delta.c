@@ -41,7 +41,7 @@ static void test_truncation(void)
 }
 
 /* Mars' dust under auto, not Earth's Mie; off, 2 directions and a thick
- * atmosphere (the neighbourhood iteration runs) under auto: none. */
+ * atmosphere (the neighbourhood iteration runs, auto or on): none. */
 static void test_rule(void)
 {
 	struct sky_state s;
@@ -64,6 +64,8 @@ static void test_rule(void)
 		for (int c = 0; c < 3; c++)
 			s.atmo.c[i].scattering_per_km[c] *= 10.0;
 	CHECK(state_multiscatter_iterations(&s) > 0);
+	CHECK(model_delta_constituent(&s, NULL) == -1);
+	set(&s, "multiscatter_delta=on");
 	CHECK(model_delta_constituent(&s, NULL) == -1);
 	/* A backward peak: none (its truncation would make |g'| > 1). */
 	state_default(&s);
