@@ -51,7 +51,10 @@ struct gpu_constituent {
  * a lookup. */
 #define MOMENT_BINDING (ITERATE_BINDING + 1)
 #define MOMENT_TEX_BINDING (MOMENT_BINDING + 1)
-#define N_BINDINGS (MOMENT_TEX_BINDING + 1)
+/* 12 the column densities again, as a lookup: the delta-M passes read
+ * them at every step (a texel buffer read cost half a storage read). */
+#define COLUMNS_TEX_BINDING (MOMENT_TEX_BINDING + 1)
+#define N_BINDINGS (COLUMNS_TEX_BINDING + 1)
 /* Compute passes: one per table, then the column densities (SHADER_COLUMNS)
  * and the iteration of psi_ms (SHADER_MSITERATE). */
 #define PASS_COLUMNS STATE_N_TABLES
@@ -151,6 +154,7 @@ struct eng {
 	 * per multi-scattering texel (ms_source in common.glsl). */
 	struct gpu_buffer moment;
 	VkBufferView moment_view;
+	VkBufferView columns_view;	/* COLUMNS_TEX_BINDING */
 	struct ground_cache ground[ATMO_MAX_CONSTITUENTS];	/* by gpu constituent */
 	struct ground_cache delta;	/* fill_delta's: the truncated phase's fit, f and g' in legendre */
 	struct column_key column_key;
@@ -523,7 +527,7 @@ static VkDescriptorType binding_type(int binding)
 {
 	if (binding == 0)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-	if (binding == MOMENT_TEX_BINDING)
+	if (binding == MOMENT_TEX_BINDING || binding == COLUMNS_TEX_BINDING)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 	return binding <= STATE_N_TABLES || binding >= VIEWS_BINDING
 		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
@@ -591,7 +595,7 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
 		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 4 },
-		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 1 } };
+		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 2 } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
 	VK_TRY(e->vk.vkCreateDescriptorPool(e->dev, &dpi, NULL, &e->desc_pool));
@@ -693,6 +697,8 @@ void eng_free(struct eng *e)
 		}
 		buffer_free(e, &e->params);
 		buffer_free(e, &e->views);
+		if (e->columns_view)
+			e->vk.vkDestroyBufferView(e->dev, e->columns_view, NULL);
 		buffer_free(e, &e->columns);
 		buffer_free(e, &e->ms_iterate);
 		if (e->moment_view)
@@ -1099,12 +1105,21 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 	const struct state_table_quality *tq = &s->quality.t[STATE_TRANSMITTANCE];
 	VkDeviceSize column_bytes = (VkDeviceSize)tq->width * tq->height * 4 * sizeof(float);
 	if (!e->columns.buf || e->columns.bytes != column_bytes) {
+		if (e->columns_view) {
+			e->vk.vkDestroyBufferView(e->dev, e->columns_view, NULL);
+			e->columns_view = VK_NULL_HANDLE;
+		}
 		buffer_free(e, &e->columns);
 		e->columns_valid = false;
-		rc = buffer_new(e, column_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+		rc = buffer_new(e, column_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+					     VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
 				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->columns, err, err_size);
 		if (rc < 0)
 			return rc;
+		VkBufferViewCreateInfo cv = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
+			.buffer = e->columns.buf, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
+			.range = VK_WHOLE_SIZE };
+		VK_TRY(e->vk.vkCreateBufferView(e->dev, &cv, NULL, &e->columns_view));
 		rebind = true;
 	}
 	const struct state_table_quality *mq = &s->quality.t[STATE_MULTISCATTER];
@@ -1152,6 +1167,10 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 			}
 			if (i == MOMENT_TEX_BINDING) {
 				w[i].pTexelBufferView = &e->moment_view;
+				continue;
+			}
+			if (i == COLUMNS_TEX_BINDING) {
+				w[i].pTexelBufferView = &e->columns_view;
 				continue;
 			}
 			if (i == VIEWS_BINDING)

@@ -102,6 +102,8 @@ layout(binding = 6) uniform samplerBuffer MultiscatterTex;
 // Column densities of the transmittance texels, one per constituent
 // (columns.comp): internal, float32 whatever the tables' storage.
 layout(std430, binding = 8) buffer ColumnBuf { vec4 d[]; } CB;
+// The same memory as a lookup (delta-M's scaled transmittance).
+layout(binding = 12) uniform samplerBuffer ColumnTex;
 // The shape of the multiply scattered light (multiscatter.comp, with a lobe
 // constituent): a texel per multi-scattering texel, float32, internal. Written
 // through the storage buffer, read through the texel buffer.
@@ -667,8 +669,8 @@ vec3 delta_gain(TAlt a, float mu, vec3 removed)
 	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
 	Axis c = axis((d - a.d_min) * a.inv_range, T_W);
 	int r0 = a.t_rows.i0 * T_W, r1 = a.t_rows.i1 * T_W, k = max(DELTA_CONST, 0);
-	float l = mix(mix(CB.d[r0 + c.i0][k], CB.d[r0 + c.i1][k], c.f),
-		      mix(CB.d[r1 + c.i0][k], CB.d[r1 + c.i1][k], c.f), a.t_rows.f);
+	float l = mix(mix(texelFetch(ColumnTex, r0 + c.i0)[k], texelFetch(ColumnTex, r0 + c.i1)[k], c.f),
+		      mix(texelFetch(ColumnTex, r1 + c.i0)[k], texelFetch(ColumnTex, r1 + c.i1)[k], c.f), a.t_rows.f);
 	return exp(min(removed * l, vec3(80.0)));
 }
 
@@ -680,10 +682,7 @@ vec4 columns_at(TAlt a, float mu)
 {
 	mu = clamp(mu, -1.0, 1.0);
 	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
-	Axis c = axis((d - a.d_min) * a.inv_range, T_W);
-	int r0 = a.t_rows.i0 * T_W, r1 = a.t_rows.i1 * T_W;
-	return mix(mix(CB.d[r0 + c.i0], CB.d[r0 + c.i1], c.f), mix(CB.d[r1 + c.i0], CB.d[r1 + c.i1], c.f),
-		   a.t_rows.f);
+	return bilinear(ColumnTex, T_W, (d - a.d_min) * a.inv_range, a.t_rows);
 }
 
 // The scaled medium's phase-weighted scattering from the real one's:
