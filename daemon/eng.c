@@ -22,7 +22,7 @@
 #include "vkfn.h"
 
 #define MAX_PIPELINES 32	/* cached variants per pass */
-#define N_SPEC 23
+#define N_SPEC 24
 /* Texels of a row one invocation shares its rays between: sun angles of
  * multi-scattering, azimuths of sky-view. 12 azimuths took the time-of-day
  * change from 35.0-36.3 to 34.1-34.9 % of a full recompute against 8 once
@@ -51,7 +51,10 @@ struct gpu_constituent {
  * a lookup. */
 #define MOMENT_BINDING (ITERATE_BINDING + 1)
 #define MOMENT_TEX_BINDING (MOMENT_BINDING + 1)
-#define N_BINDINGS (MOMENT_TEX_BINDING + 1)
+/* 12 the column densities again, as a lookup: the delta-M passes read
+ * them at every step (a texel buffer read cost half a storage read). */
+#define COLUMNS_TEX_BINDING (MOMENT_TEX_BINDING + 1)
+#define N_BINDINGS (COLUMNS_TEX_BINDING + 1)
 /* Compute passes: one per table, then the column densities (SHADER_COLUMNS)
  * and the iteration of psi_ms (SHADER_MSITERATE). */
 #define PASS_COLUMNS STATE_N_TABLES
@@ -151,7 +154,9 @@ struct eng {
 	 * per multi-scattering texel (ms_source in common.glsl). */
 	struct gpu_buffer moment;
 	VkBufferView moment_view;
+	VkBufferView columns_view;	/* COLUMNS_TEX_BINDING */
 	struct ground_cache ground[ATMO_MAX_CONSTITUENTS];	/* by gpu constituent */
+	struct ground_cache delta;	/* fill_delta's: the truncated phase's fit, f and g' in legendre */
 	struct column_key column_key;
 	bool columns_valid;
 	bool columns_in_flight;
@@ -522,7 +527,7 @@ static VkDescriptorType binding_type(int binding)
 {
 	if (binding == 0)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-	if (binding == MOMENT_TEX_BINDING)
+	if (binding == MOMENT_TEX_BINDING || binding == COLUMNS_TEX_BINDING)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 	return binding <= STATE_N_TABLES || binding >= VIEWS_BINDING
 		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
@@ -590,7 +595,7 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
 		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 4 },
-		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 1 } };
+		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 2 } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
 	VK_TRY(e->vk.vkCreateDescriptorPool(e->dev, &dpi, NULL, &e->desc_pool));
@@ -692,6 +697,8 @@ void eng_free(struct eng *e)
 		}
 		buffer_free(e, &e->params);
 		buffer_free(e, &e->views);
+		if (e->columns_view)
+			e->vk.vkDestroyBufferView(e->dev, e->columns_view, NULL);
 		buffer_free(e, &e->columns);
 		buffer_free(e, &e->ms_iterate);
 		if (e->moment_view)
@@ -808,6 +815,9 @@ static void put4(float d[4], double a, double b, double c, double w)
 	d[3] = (float)w;
 }
 
+static void fill_delta(struct eng *e, const struct sky_state *s, int delta, struct gpu_params *p,
+		       struct spec *base);
+
 static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p, struct spec *base)
 {
 	const struct atmo *a = &s->atmo;
@@ -891,13 +901,47 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 	base->v[16] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
 	base->v[17] = s->quality.multiscatter_dirs != 0;
 	/* The lobe constituent (common.glsl's ms_source) by its index among those in the shaders, plus 1. */
-	int lobe = s->quality.multiscatter_dirs ? model_moment_constituent(s, g1) : -1;
+	int delta = s->quality.multiscatter_dirs ? model_delta_constituent(s, g1) : -1;
+	int lobe = s->quality.multiscatter_dirs ? model_lobe_constituent(s, g1) : -1;
 	if (lobe >= 0 && constituent_active(&a->c[lobe])) {
 		int before = 0;
 		for (int i = 0; i < lobe; i++)
 			before += constituent_active(&a->c[i]);
 		base->v[22] = before + 1;
 	}
+	fill_delta(e, s, delta, p, base);
+}
+
+/* Delta-M for the higher orders (common.glsl's delta_source): the
+ * constituent's index among those in the shaders plus 1 in constant 23,
+ * its forward fraction f and the truncated phase's g' in layer1c.zw, and
+ * the ground's first bounce through the truncated phase, which is what
+ * scatters psi_ms in the scaled medium. Kept while the phase stays (a
+ * quadrature and 30000 phase evaluations, more than a sun change's tables). */
+static void fill_delta(struct eng *e, const struct sky_state *s, int delta, struct gpu_params *p,
+		       struct spec *base)
+{
+	const struct atmo *a = &s->atmo;
+	if (delta < 0 || !constituent_active(&a->c[delta]))
+		return;
+	int n = 0;
+	for (int i = 0; i < delta; i++)
+		n += constituent_active(&a->c[i]);
+	struct ground_cache *dc = &e->delta;
+	if (!dc->valid || dc->kind != a->c[delta].phase || dc->g != a->c[delta].g) {
+		double excess[MODEL_GROUND_N];
+		model_delta_truncation(a->c[delta].phase, a->c[delta].g, &dc->legendre[0], &dc->legendre[1]);
+		model_ground_excess(ATMO_PHASE_HENYEY_GREENSTEIN, dc->legendre[1], excess);
+		model_ground_fit(excess, dc->fit);
+		dc->valid = true;
+		dc->kind = a->c[delta].phase;
+		dc->g = a->c[delta].g;
+	}
+	for (int k = 0; k < MODEL_GROUND_FIT; k++)
+		p->ground_fit[k][n] = (float)dc->fit[k];
+	p->c[n].layer1c[2] = (float)dc->legendre[0];
+	p->c[n].layer1c[3] = (float)dc->legendre[1];
+	base->v[23] = n + 1;
 }
 
 /* The cameras of the aerial volumes: the state's, then each view's. */
@@ -940,7 +984,7 @@ static struct spec pass_spec(const struct spec *base, const struct sky_state *s,
 	if (t == STATE_MULTISCATTER)
 		k.v[6] = k.v[17] = 0;	/* the table is the term itself */
 	if (t == STATE_TRANSMITTANCE)
-		k.v[17] = k.v[22] = 0;
+		k.v[17] = k.v[22] = k.v[23] = 0;
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
 		k.v[7] = 0;	/* the ground enters through the multiscatter table */
 	return k;
@@ -1061,12 +1105,21 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 	const struct state_table_quality *tq = &s->quality.t[STATE_TRANSMITTANCE];
 	VkDeviceSize column_bytes = (VkDeviceSize)tq->width * tq->height * 4 * sizeof(float);
 	if (!e->columns.buf || e->columns.bytes != column_bytes) {
+		if (e->columns_view) {
+			e->vk.vkDestroyBufferView(e->dev, e->columns_view, NULL);
+			e->columns_view = VK_NULL_HANDLE;
+		}
 		buffer_free(e, &e->columns);
 		e->columns_valid = false;
-		rc = buffer_new(e, column_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+		rc = buffer_new(e, column_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+					     VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
 				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->columns, err, err_size);
 		if (rc < 0)
 			return rc;
+		VkBufferViewCreateInfo cv = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
+			.buffer = e->columns.buf, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
+			.range = VK_WHOLE_SIZE };
+		VK_TRY(e->vk.vkCreateBufferView(e->dev, &cv, NULL, &e->columns_view));
 		rebind = true;
 	}
 	const struct state_table_quality *mq = &s->quality.t[STATE_MULTISCATTER];
@@ -1114,6 +1167,10 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 			}
 			if (i == MOMENT_TEX_BINDING) {
 				w[i].pTexelBufferView = &e->moment_view;
+				continue;
+			}
+			if (i == COLUMNS_TEX_BINDING) {
+				w[i].pTexelBufferView = &e->columns_view;
 				continue;
 			}
 			if (i == VIEWS_BINDING)

@@ -40,6 +40,17 @@ struct ctx {
 	int lobe;
 	double *moment;
 	double lobe_g[2];
+	/* Delta-M (model_delta_constituent, delta_source in common.glsl):
+	 * the constituent (-1 none), its f and g', the scaled atmosphere
+	 * (its scattering (1 - f) sigma_D through Henyey-Greenstein g'),
+	 * its column density per transmittance texel (RGBA, in R), and
+	 * whether the sunlight comes through the scaled transmittance (the
+	 * multi-scattering table's context only). */
+	int delta;
+	double delta_f, delta_g;
+	struct atmo scaled;
+	double *delta_col;
+	bool delta_light;
 };
 
 static double rho2(const struct ctx *c, double h) { return h * (2.0 * c->rb + h); }
@@ -139,6 +150,44 @@ int model_moment_constituent(const struct sky_state *s, const double *g1_of)
 	if (s->quality.multiscatter_moment == STATE_MOMENT_AUTO && best_steered < MOMENT_AUTO_MIN)
 		return -1;
 	return best;
+}
+
+int model_delta_constituent(const struct sky_state *s, const double *g1_of)
+{
+	struct sky_state t;
+	/* Not where the neighbourhood iteration runs (msiterate.comp): it
+	 * transports psi through the real medium, and the two together
+	 * disagreed with the model (test_engine, Mars with 1 step: A off by
+	 * 0.015, 40 dB). Forced on, Earth x10 read 6.3 / 10.5 -> 5.7 / 8.8 %
+	 * (day / horizon), so the pair is worth making consistent. */
+	if (s->quality.multiscatter_delta == STATE_MOMENT_OFF || state_multiscatter_iterations(s) > 0)
+		return -1;
+	t = *s;
+	t.quality.multiscatter_moment = s->quality.multiscatter_delta;
+	int n = model_moment_constituent(&t, g1_of);
+	/* A backward peak is no forward one: the truncation would give
+	 * |g'| > 1 (a negative phase, negative light). */
+	if (n >= 0 && !((g1_of ? g1_of[n] : model_phase_legendre(s->atmo.c[n].phase, s->atmo.c[n].g, 1)) > 0.0))
+		return -1;
+	return n;
+}
+
+int model_lobe_constituent(const struct sky_state *s, const double *g1_of)
+{
+	int delta = model_delta_constituent(s, g1_of);
+	if (delta >= 0 && s->quality.multiscatter_moment == STATE_MOMENT_OFF)
+		return -1;
+	int lobe = model_moment_constituent(s, g1_of);
+	return delta >= 0 && lobe != delta ? -1 : lobe;
+}
+
+void model_delta_truncation(enum atmo_phase kind, double g, double *ret_f, double *ret_g)
+{
+	double f = model_phase_legendre(kind, g, MODEL_DELTA_ORDER), g1 = model_phase_legendre(kind, g, 1);
+	/* 0 <= f <= g1 keeps g' in [0, g1]; a forward-peaked phase has it. */
+	f = f < 0.0 || !(g1 > 0.0) ? 0.0 : f > g1 ? g1 : f;
+	*ret_f = f;
+	*ret_g = f < 1.0 ? (g1 - f) / (1.0 - f) : 0.0;
 }
 
 /* Quadrature of model_ground_excess: midpoints in u with c = 1 - 2 u^2, which
@@ -651,6 +700,167 @@ static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, d
 	return mul(s, illum);
 }
 
+/* ---- delta-M for the higher orders (delta_source in common.glsl) ---- */
+
+static v3 optical_depth(const struct ctx *c, double h, double mu, uint32_t steps);
+
+/* The delta constituent's column density from altitude h along mu to the
+ * top, as optical_depth computes each constituent's. */
+static double delta_column(const struct ctx *c, double h, double mu, uint32_t steps)
+{
+	const struct atmo_profile *p = &c->a->c[c->delta].density;
+	double d = distance_to_top(c, h, mu), dt = d / steps, rr, column = 0.0, ha = h;
+	if (p->layers[0].exp_term == 0.0 && p->layers[1].exp_term == 0.0)
+		return column_linear(p, c->rb, h, mu, d);
+	for (uint32_t k = 0; k < steps; k++) {
+		double hb = altitude_along(c, h, mu, (k + 1) * dt, &rr);
+		column += mean_density(p, ha, hb);
+		ha = hb;
+	}
+	return column * dt;
+}
+
+/* T_l' / T_l toward mu from altitude h: exp(f sigma_D L_D), L_D read
+ * bilinearly from the column table at the transmittance lookup's taps. */
+static v3 delta_gain(const struct ctx *c, double h, double mu)
+{
+	const struct model_tables *m = c->tab;
+	const struct atmo_constituent *k = &c->s->atmo.c[c->delta];	/* the real sigma_D */
+	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h, u, vv;
+	skymap_transmittance_uv(c->rb, c->rt, hc, mu < -1 ? -1 : mu > 1 ? 1 : mu, m->w[0], m->h[0], &u, &vv);
+	struct taps t = taps_at(m->w[0], m->h[0], u, vv);
+	double l = taps_channel(c->delta_col, &t, 0);
+	return v(exp(fmin(c->delta_f * k->scattering_per_km[0] * l, 80.0)),
+		 exp(fmin(c->delta_f * k->scattering_per_km[1] * l, 80.0)),
+		 exp(fmin(c->delta_f * k->scattering_per_km[2] * l, 80.0)));
+}
+
+/* The scaled medium's light_transmittance: the visible part of the disk
+ * times exp(-tau'), tau' read bilinearly from the scaled optical depths at
+ * the transmittance texels (columns_at in common.glsl). */
+static v3 delta_light_transmittance(const struct ctx *c, double h, double mu, double radius_rad)
+{
+	const struct model_tables *m = c->tab;
+	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h, u, vv;
+	double mu_h = h < 0 ? -2.0 : skymap_horizon_cos(c->rb, hc);
+	double vis = disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad));
+	if (vis <= 0)
+		return v(0, 0, 0);
+	skymap_transmittance_uv(c->rb, c->rt, hc, mu < -1 ? -1 : mu > 1 ? 1 : mu, m->w[0], m->h[0], &u, &vv);
+	struct taps t = taps_at(m->w[0], m->h[0], u, vv);
+	return scale(vexp_neg(v(taps_channel(c->delta_col, &t, 1), taps_channel(c->delta_col, &t, 2),
+				taps_channel(c->delta_col, &t, 3))), vis);
+}
+
+/* The delta constituent's scattering at h and f times it. */
+static v3 delta_sigma(const struct ctx *c, double h)
+{
+	const struct atmo_constituent *k = &c->a->c[c->delta];
+	return scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
+		     atmo_density(&k->density, h));
+}
+
+/* delta_source: the part weighed by the real view transmittance in
+ * ret_real, by the scaled one in ret_scaled. */
+static void delta_light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, double radius_deg,
+			       double visible, v3 illum, v3 sigma_s, v3 ground, v3 *ret_real, v3 *ret_scaled)
+{
+	double mu_l = dot(up, light), radius_rad = radius_deg * SKYMAP_PI / 180.0, mu = dot(dir, light);
+	const struct atmo_constituent *k = &c->a->c[c->delta];
+	v3 t = visible < 0 ? light_transmittance(c, h, mu_l, radius_rad)
+			   : visible_transmittance(c, h, mu_l, visible);
+	v3 ph = phased_scattering(c, h, mu);
+	v3 ph_s = add(ph, scale(delta_sigma(c, h), (1.0 - c->delta_f) * phase(ATMO_PHASE_HENYEY_GREENSTEIN,
+										 c->delta_g, mu) -
+						     phase(k->phase, k->g, mu)));
+	*ret_real = mul(mul(add(ph, scale(ph_s, -1.0)), t), illum);
+	v3 s = mul(mul(ph_s, t), delta_gain(c, h, mu_l));
+	if (c->s->quality.multiscatter_dirs) {
+		double share, sh[4];
+		v3 psi = multiscatter(c, h, mu_l, &share, sh);
+		v3 sig = add(sigma_s, scale(ground, share));
+		if (c->lobe >= 0) {
+			/* light_source's shape, scattered by the scaled
+			 * constituent through the truncated phase (lobe_g). */
+			v3 fwd = scale(delta_sigma(c, h), 1.0 - c->delta_f);
+			double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l, o_z = -view_up;
+			double o_x = skymap_clamp((view_up * mu_l - mu) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
+			double b1 = sh[0] * o_z;
+			double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) + sh[2] * o_x * o_z;
+			double gl = c->lobe_g[0] * c->lobe_g[0];
+			double den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - mu);
+			double lobe = sh[3] * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);
+			sig = add(sig, scale(fwd, c->lobe_g[0] * b1 + c->lobe_g[1] * b2 + lobe));
+			sig = v(fmax(sig.x, 0.0), fmax(sig.y, 0.0), fmax(sig.z, 0.0));
+		}
+		s = add(s, mul(sig, psi));
+	}
+	*ret_scaled = mul(s, illum);
+}
+
+/* One step of march() with delta-M: the scaled medium's scattering, ground
+ * term and view optical depth (tau_scaled) beside the real ones. */
+static void delta_step(const struct ctx *c, double hs, v3 up, v3 dir, double dt, double vis_sun,
+		       double vis_moon, struct medium m, v3 *radiance, v3 *tau, v3 *tau_scaled)
+{
+	v3 removed = scale(delta_sigma(c, hs), c->delta_f), r, rs, r2, rs2;
+	v3 ext_s = add(m.extinction, scale(removed, -1.0)), sig_s = add(m.scattering, scale(removed, -1.0));
+	/* ground_scattering with the scaled constituent: ground_fit holds the
+	 * truncated phase's for it (delta_init). */
+	double ex = model_ground_fit_at(c->ground_fit[c->delta], dot(up, dir));
+	v3 ground = add(ground_scattering(c, hs, dot(up, dir)), scale(removed, -ex));
+	delta_light_source(c, hs, up, dir, c->sun, c->s->sun.angular_radius_deg, vis_sun, c->sun_illum, sig_s,
+			   ground, &r, &rs);
+	if (c->moon_lit) {
+		delta_light_source(c, hs, up, dir, c->moon, c->s->moon.angular_radius_deg, vis_moon, c->moon_illum,
+				   sig_s, ground, &r2, &rs2);
+		r = add(r, r2);
+		rs = add(rs, rs2);
+	}
+	*radiance = add(*radiance, add(mul(mul(vexp_neg(*tau), r), segment_weight(m.extinction, dt)),
+				       mul(mul(vexp_neg(*tau_scaled), rs), segment_weight(ext_s, dt))));
+	*tau = add(*tau, scale(m.extinction, dt));
+	*tau_scaled = add(*tau_scaled, scale(ext_s, dt));
+}
+
+/* Sets up c's delta-M (model_delta_constituent): f, g', the scaled
+ * atmosphere, the truncated phase's ground fit and the column table at the
+ * transmittance texels of s. Returns 0 or -ENOMEM. */
+static int delta_init(struct ctx *c, const struct sky_state *s, const struct model_tables *m)
+{
+	c->delta = s->quality.multiscatter_dirs && m->t[1] ? model_delta_constituent(s, NULL) : -1;
+	if (c->delta < 0)
+		return 0;
+	struct atmo_constituent *k = &c->scaled.c[c->delta];
+	double excess[MODEL_GROUND_N];
+	const struct state_table_quality *q = &s->quality.t[0];
+	model_delta_truncation(s->atmo.c[c->delta].phase, s->atmo.c[c->delta].g, &c->delta_f, &c->delta_g);
+	c->scaled = s->atmo;
+	for (int ch = 0; ch < 3; ch++)
+		k->scattering_per_km[ch] *= 1.0 - c->delta_f;
+	k->phase = ATMO_PHASE_HENYEY_GREENSTEIN;
+	k->g = c->delta_g;
+	model_ground_excess(ATMO_PHASE_HENYEY_GREENSTEIN, c->delta_g, excess);
+	model_ground_fit(excess, c->ground_fit[c->delta]);
+	c->delta_col = calloc(4 * (size_t)q->width * q->height, sizeof(double));
+	if (!c->delta_col)
+		return -ENOMEM;
+	struct ctx scaled = *c;	/* column R: L_D; GBA: the scaled optical depth */
+	scaled.a = &c->scaled;
+	for (uint32_t j = 0; j < q->height; j++)
+		for (uint32_t i = 0; i < q->width; i++) {
+			double h, mu;
+			skymap_transmittance_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
+						     q->width, q->height, &h, &mu);
+			c->delta_col[4 * (j * q->width + i)] = delta_column(c, h, mu, q->steps);
+			v3 tau = optical_depth(&scaled, h, mu, q->steps);
+			c->delta_col[4 * (j * q->width + i) + 1] = tau.x;
+			c->delta_col[4 * (j * q->width + i) + 2] = tau.y;
+			c->delta_col[4 * (j * q->width + i) + 3] = tau.z;
+		}
+	return 0;
+}
+
 /* A light's height over the local horizon (mu_l - mu_horizon) at distance t
  * along a view ray from the observer. */
 static double light_over_horizon(const struct ctx *c, v3 dir, double t, v3 light)
@@ -857,6 +1067,9 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 			v3 p = v(dir.x * t / rr, dir.y * t / rr, (r0 + dir.z * t) / rr);
 			v3 t_sun = light_transmittance(c, hs, dot(p, sun),
 						       c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
+			if (c->delta_light)
+				t_sun = delta_light_transmittance(c, hs, dot(p, sun),
+								  c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
 			v3 phased = { 0 };
 			for (int n = 0; n < c->a->n_constituents; n++) {
 				const struct atmo_constituent *kc = &c->a->c[n];
@@ -877,7 +1090,10 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		if (ground) {
 			v3 n = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb, (r0 + dir.z * t_end) / c->rb);
 			double mu_g = dot(n, sun);
-			v3 g = mul(t_ray, transmittance_to_top(c, 0.0, mu_g));
+			double tg_unused;
+			v3 g = mul(t_ray, !c->delta_light ? transmittance_to_top(c, 0.0, mu_g)
+					  : hits_ground(c, 0.0, mu_g, &tg_unused) ? v(0, 0, 0)
+					  : delta_light_transmittance(c, 0.0, mu_g, 0.0));
 			sg = add(sg, scale(mul(g, v(albedo[0], albedo[1], albedo[2])),
 					   (mu_g > 0 ? mu_g : 0) / SKYMAP_PI));
 			/* Every order bounces off the ground (see multiscatter.comp). */
@@ -1040,6 +1256,12 @@ static int compute_multiscatter(const struct ctx *c, const struct state_table_qu
 				uint32_t dirs, double *out)
 {
 	uint32_t steps = state_multiscatter_iterations(c->s);
+	/* Delta-M: the table is the scaled medium's (delta_source). */
+	struct ctx scaled = *c;
+	if (c->delta >= 0) {
+		scaled.a = &c->scaled;
+		scaled.delta_light = true;
+	}
 	v3 *l2_of = steps ? calloc((size_t)q->width * q->height, sizeof(v3)) : NULL;
 	if (steps && !l2_of)
 		return -ENOMEM;
@@ -1049,7 +1271,7 @@ static int compute_multiscatter(const struct ctx *c, const struct state_table_qu
 			v3 psi, escape;
 			skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						    q->width, q->height, &h, &mu_s);
-			ms_texel(c, q->steps, dirs, h, mu_s, &psi, &share, &escape,
+			ms_texel(&scaled, q->steps, dirs, h, mu_s, &psi, &share, &escape,
 				 c->lobe >= 0 ? c->moment + 4 * ((size_t)j * q->width + i) : NULL);
 			put(out + 4 * (j * q->width + i), psi, share);
 			/* L2 as the iteration recovers it from the table. */
@@ -1066,7 +1288,7 @@ static int compute_multiscatter(const struct ctx *c, const struct state_table_qu
  * segment_lit averages the visible part of each light's disk over each step
  * (the sky-view pass); otherwise it is taken at the step's midpoint. */
 static void march(const struct ctx *c, v3 dir, double a, double b, uint32_t n, bool quadratic,
-		  bool segment_lit, v3 *radiance, v3 *tau)
+		  bool segment_lit, v3 *radiance, v3 *tau, v3 *tau_scaled)
 {
 	double r0 = c->rb + c->h0, len = b - a, prev = 0;
 	double sun_x = segment_lit ? light_over_horizon(c, dir, a, c->sun) : 0;
@@ -1091,6 +1313,10 @@ static void march(const struct ctx *c, v3 dir, double a, double b, uint32_t n, b
 										   SKYMAP_PI / 180.0));
 				moon_x = xb;
 			}
+		}
+		if (c->delta >= 0) {
+			delta_step(c, hs, up, dir, dt, vis_sun, vis_moon, m, radiance, tau, tau_scaled);
+			continue;
 		}
 		v3 ground = ground_scattering(c, hs, dot(up, dir));
 		v3 s = light_source(c, hs, up, dir, c->sun, c->s->sun.angular_radius_deg, vis_sun, c->sun_illum,
@@ -1147,11 +1373,11 @@ static void compute_skyview(const struct ctx *c, const struct state_table_qualit
 			double t0, t1;
 			bool sky;
 			v3 dir = skyview_direction(c, (i + 0.5) / q->width, (j + 0.5) / q->height, q->height, &sky);
-			v3 rad = { 0 }, tau = { 0 };
+			v3 rad = { 0 }, tau = { 0 }, tau_s = { 0 };
 			if (ray_in_shell(c, c->h0, dir, &t0, &t1)) {
 				double len = t1 - t0, lo = c->s->quality.skyview_min_steps;
 				double nf = ceil(lo + (q->steps - lo) * skymap_clamp(len / 100.0, 0, 1));
-				march(c, dir, t0, t1, nf < 1 ? 1 : (uint32_t)nf, true, true, &rad, &tau);
+				march(c, dir, t0, t1, nf < 1 ? 1 : (uint32_t)nf, true, true, &rad, &tau, &tau_s);
 			}
 			rad = add(rad, night_sky(c, dir.z, sky, vexp_neg(tau)));
 			put(out + 4 * (j * q->width + i), rad, mean3(vexp_neg(tau)));
@@ -1174,13 +1400,13 @@ static void compute_aerial(const struct ctx *c, const struct state_table_quality
 			v3 dir = scale(d, 1.0 / sqrt(dot(d, d)));
 			double t0, t1, prev = 0;
 			bool inside = ray_in_shell(c, c->h0, dir, &t0, &t1);
-			v3 rad = { 0 }, tau = { 0 };
+			v3 rad = { 0 }, tau = { 0 }, tau_s = { 0 };
 			for (uint32_t k = 0; k < q->depth; k++) {
 				double depth = skymap_aerial_depth_km(k, q->depth, c->s->quality.aerial_range_km, squared);
 				double a = fmax(prev, t0), b = inside ? fmin(depth, t1) : a;
 				prev = depth;
 				if (b > a)
-					march(c, dir, a, b, q->steps, false, false, &rad, &tau);
+					march(c, dir, a, b, q->steps, false, false, &rad, &tau, &tau_s);
 				v3 tr = vexp_neg(tau);
 				v3 night = scale(v(1 - tr.x, 1 - tr.y, 1 - tr.z), c->night_cd_m2 * (1 + c->night_gain / 3));
 				put(out + 4 * ((k * q->height + j) * q->width + i), add(rad, night), mean3(tr));
@@ -1222,7 +1448,7 @@ static void ctx_init(struct ctx *c, const struct sky_state *s, const struct mode
 {
 	double sun[3], moon[3];
 
-	*c = (struct ctx){ .s = s, .a = &s->atmo, .tab = tab, .lobe = -1 };
+	*c = (struct ctx){ .s = s, .a = &s->atmo, .tab = tab, .lobe = -1, .delta = -1 };
 	c->rb = s->atmo.bottom_radius_km;
 	c->rt = s->atmo.top_radius_km;
 	c->shell = c->rt - c->rb;
@@ -1254,12 +1480,22 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	int rc = model_tables_new(s, mask, &m);
 	if (rc < 0)
 		return rc;
-	c.lobe = s->quality.multiscatter_dirs && m.t[1] ? model_moment_constituent(s, NULL) : -1;
+	rc = delta_init(&c, s, &m);
+	if (rc < 0) {
+		model_tables_finish(&m);
+		return rc;
+	}
+	c.lobe = s->quality.multiscatter_dirs && m.t[1] ? model_lobe_constituent(s, NULL) : -1;
 	if (c.lobe >= 0) {
 		c.lobe_g[0] = model_phase_legendre(s->atmo.c[c.lobe].phase, s->atmo.c[c.lobe].g, 1);
 		c.lobe_g[1] = model_phase_legendre(s->atmo.c[c.lobe].phase, s->atmo.c[c.lobe].g, 2);
+		if (c.delta >= 0) {	/* the truncated phase (ms_source in common.glsl) */
+			c.lobe_g[0] = c.delta_g;
+			c.lobe_g[1] = c.delta_g * c.delta_g;
+		}
 		c.moment = calloc(4 * (size_t)m.w[1] * m.h[1], sizeof(double));
 		if (!c.moment) {
+			free(c.delta_col);
 			model_tables_finish(&m);
 			return -ENOMEM;
 		}
@@ -1270,6 +1506,7 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 		rc = compute_multiscatter(&c, &s->quality.t[1],
 					  s->quality.multiscatter_dirs ? s->quality.multiscatter_dirs : 2, m.t[1]);
 	if (rc < 0) {
+		free(c.delta_col);
 		model_tables_finish(&m);
 		return rc;
 	}
@@ -1278,6 +1515,7 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 	if (m.t[3])
 		compute_aerial(&c, &s->quality.t[3], m.t[3]);
 	free(c.moment);
+	free(c.delta_col);
 	*ret = m;
 	return 0;
 }

@@ -92,4 +92,27 @@ double model_phase_legendre(enum atmo_phase kind, double g, int l);
  * constituent of s->atmo if the caller keeps it, else NULL. */
 int model_moment_constituent(const struct sky_state *s, const double *g1_of);
 
+/* Delta-M for the multiply scattered light (multiscatter_delta): the
+ * constituent whose forward peak the higher orders treat as no scattering
+ * at all, or -1. auto: the one model_moment_constituent picks under
+ * multiscatter_moment=auto (Mars' dust, not Earth's Mie); on: the one it
+ * picks under on; off: none; none where the neighbourhood iteration runs
+ * (state_multiscatter_iterations); never a constituent whose mean cosine is not
+ * positive (no forward peak). Where it is on, the shape of
+ * multiscatter_moment is the scaled medium's (model_lobe_constituent). */
+int model_delta_constituent(const struct sky_state *s, const double *g1_of);
+
+/* The constituent whose phase scatters the shape of the multiply scattered
+ * light, as the engine applies the knobs: model_moment_constituent; where
+ * delta-M is on, the scaled medium's shape through the truncated phase, of
+ * the same constituent only (-1 otherwise or under multiscatter_moment=off). */
+int model_lobe_constituent(const struct sky_state *s, const double *g1_of);
+
+/* The delta-M truncation of a phase: the forward fraction f (the phase's
+ * Legendre moment of order MODEL_DELTA_ORDER) and the Henyey-Greenstein
+ * parameter g' = (g1 - f) / (1 - f) of what is left. Cornette-Shanks
+ * g = 0.85: f = 0.416, g' = 0.803. */
+#define MODEL_DELTA_ORDER 6
+void model_delta_truncation(enum atmo_phase kind, double g, double *ret_f, double *ret_g);
+
 #endif

@@ -76,6 +76,7 @@ static const struct key keys[] = {
 	{ "multiscatter_iterations", K_ENUM, OFF(quality.multiscatter_iterations), FROM_M, 0, 0,
 	  iteration_names },
 	{ "multiscatter_moment", K_ENUM, OFF(quality.multiscatter_moment), FROM_M, 0, 0, moment_names },
+	{ "multiscatter_delta", K_ENUM, OFF(quality.multiscatter_delta), FROM_M, 0, 0, moment_names },
 	{ "skyview_width", K_UINT, QT(2, width), S_BIT, 2, 4096, 0 },
 	{ "skyview_height", K_UINT, QT(2, height), S_BIT, 2, 4096, 0 },
 	{ "skyview_steps", K_UINT, QT(2, steps), S_BIT, 1, 4096, 0 },
@@ -161,16 +162,17 @@ struct quality_preset {
 	struct state_quality q;
 };
 
-/* The last two fields: multiscatter_iterations=auto (0), multiscatter_moment=auto. */
+/* The last three fields: multiscatter_iterations=auto (0), multiscatter_moment=auto,
+ * multiscatter_delta=auto. */
 static const struct quality_preset quality_presets[] = {
 	{ "low", { { { 128, 32, 1, 20 }, { 16, 16, 1, 10 }, { 96, 54, 1, 16 }, { 16, 16, 16, 1 } },
-		   2, 4, 128.0, STATE_SQUARED, STATE_F16, 0, STATE_MOMENT_AUTO } },
+		   2, 4, 128.0, STATE_SQUARED, STATE_F16, 0, STATE_MOMENT_AUTO, STATE_MOMENT_AUTO } },
 	{ "medium", { { { 256, 64, 1, 40 }, { 32, 32, 1, 20 }, { 192, 108, 1, 30 }, { 32, 32, 32, 1 } },
-		      64, 4, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO } },
+		      64, 4, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO, STATE_MOMENT_AUTO } },
 	{ "high", { { { 256, 64, 1, 60 }, { 32, 32, 1, 30 }, { 256, 144, 1, 45 }, { 48, 48, 32, 2 } },
-		    64, 6, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO } },
+		    64, 6, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO, STATE_MOMENT_AUTO } },
 	{ "ultra", { { { 512, 128, 1, 80 }, { 64, 64, 1, 40 }, { 384, 216, 1, 60 }, { 64, 64, 64, 2 } },
-		     64, 8, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO } },
+		     64, 8, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO, STATE_MOMENT_AUTO } },
 };
 #define N_QUALITY_PRESETS (sizeof(quality_presets) / sizeof(quality_presets[0]))
 

@@ -75,6 +75,9 @@ struct state_quality {
 	 * depth), else one more than the number of steps (1: none). */
 	int multiscatter_iterations;
 	enum state_moment multiscatter_moment;
+	/* Delta-M scaling of the forward peak for the higher orders
+	 * (model_delta_constituent); auto, off, on as multiscatter_moment. */
+	enum state_moment multiscatter_delta;
 };
 
 /* Who drives a light: the key=value of its angles (manual) or the clock. */

@@ -52,6 +52,7 @@ void main()
 	bool inside = ray_in_shell(h0, dir, en);
 	float t0 = en.t0, t1 = en.t0 + en.len;
 	vec3 radiance = vec3(0.0), tr = vec3(1.0);
+	vec3 tr_scaled = vec3(1.0);	// through the delta-M scaled medium (delta_source)
 	float prev_depth = 0.0;
 	for (int k = 0; k < OUT_D; k++) {
 		float xk = float(k + 1) / float(OUT_D);
@@ -66,9 +67,39 @@ void main()
 				float hs = altitude_along(en.h, en.mu, t - t0, rr);
 				vec3 up = vec3(dir.xy * t, en.ez + dir.z * (t - t0)) / rr;
 				float view_up = dot(up, dir);
+				TAlt ta = t_alt(hs);
+				if (DELTA_CONST >= 0) {
+					// delta_source in common.glsl.
+					Scatter sc, scs;
+					Medium m = medium_parts(hs, sc);
+					vec3 removed = sc.s[max(DELTA_CONST, 0)] * P.C[max(DELTA_CONST, 0)].layer1c.z;
+					scs = sc;
+					scs.s[max(DELTA_CONST, 0)] -= removed;
+					vec3 ground_s = ground_scattering(scs, ground_excess(view_up)), r, rs, ph;
+					float mu_l = dot(up, P.sun_dir.xyz);
+					ph = phased(sc, ph_sun);
+					delta_source(ta, mu_l, light_visible(ta, mu_l, P.sun_dir.w), P.sun_illum.rgb, ph,
+						     delta_phased(ph, sc, ph_sun), m.scattering - removed, ground_s,
+						     scs.s[max(DELTA_CONST, 0)], view_up, sun_v, r, rs);
+					vec3 src = r, src_s = rs;
+					if (MOON_LIT) {
+						mu_l = dot(up, P.moon_dir.xyz);
+						ph = phased(sc, ph_moon);
+						delta_source(ta, mu_l, light_visible(ta, mu_l, P.moon_dir.w), P.moon_illum.rgb,
+							     ph, delta_phased(ph, sc, ph_moon), m.scattering - removed,
+							     ground_s, scs.s[max(DELTA_CONST, 0)], view_up, moon_v, r, rs);
+						src += r;
+						src_s += rs;
+					}
+					vec3 step_t, step_s;
+					radiance += tr * src * step_weight(m.extinction, dt, step_t) +
+						    tr_scaled * src_s * step_weight(m.extinction - removed, dt, step_s);
+					tr *= step_t;
+					tr_scaled *= step_s;
+					continue;
+				}
 				Step st = sample_step(hs, ph_sun, ph_moon, ground_excess(view_up));
 				Medium m = st.m;
-				TAlt ta = t_alt(hs);
 				vec3 s = light_source(ta, dot(up, P.sun_dir.xyz), P.sun_dir.w, P.sun_illum.rgb,
 						      st.phased_sun, m.scattering, st.ground, st.forward, view_up, sun_v);
 				if (MOON_LIT)

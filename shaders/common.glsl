@@ -30,13 +30,16 @@ layout(constant_id = 18) const int EXP_MASK = 15;      // bit i: constituent i h
 // (16, 19, 20, 21: msgrid.glsl, skyview.comp and msiterate.comp declare their own.)
 layout(constant_id = 22) const int MOMENT_LOBE = 0;    // 1 + the constituent whose phase sees the lobe (ms_source), 0 none
 const int MOMENT_CONST = MOMENT_LOBE - 1;
+layout(constant_id = 23) const int DELTA_LOBE = 0;     // 1 + the constituent delta-M scaled for the higher orders (delta_source), 0 none
+const int DELTA_CONST = DELTA_LOBE - 1;
 
 struct Constituent {
 	vec4 scattering;	// rgb 1/km, w = g
 	vec4 absorption;	// rgb 1/km, w = g1, the phase's first Legendre moment (model_phase_g1)
 	vec4 layer0;		// width_km, exp_term, exp_scale_per_km, linear_per_km
 	vec4 layer0c_1;		// constant (layer 0), exp_term, exp_scale_per_km, linear_per_km (layer 1)
-	vec4 layer1c;		// constant (layer 1), y = g2, the phase's second Legendre moment
+	vec4 layer1c;		// constant (layer 1), y = g2, the phase's second Legendre moment,
+				// z = f, w = g' of the delta-M truncation (DELTA_CONST only)
 };
 
 struct Params {
@@ -99,6 +102,8 @@ layout(binding = 6) uniform samplerBuffer MultiscatterTex;
 // Column densities of the transmittance texels, one per constituent
 // (columns.comp): internal, float32 whatever the tables' storage.
 layout(std430, binding = 8) buffer ColumnBuf { vec4 d[]; } CB;
+// The same memory as a lookup (delta-M's scaled transmittance).
+layout(binding = 12) uniform samplerBuffer ColumnTex;
 // The shape of the multiply scattered light (multiscatter.comp, with a lobe
 // constituent): a texel per multi-scattering texel, float32, internal. Written
 // through the storage buffer, read through the texel buffer.
@@ -397,6 +402,7 @@ vec4 multiscatter_at(TAlt a, float mu_s)
 // towards a distant light, so it is evaluated once per ray, not per step.
 struct Phases {
 	float p[4];
+	float truncated;	// DELTA_CONST's truncated phase (Henyey-Greenstein g')
 };
 
 Phases ray_phases(vec3 view_dir, vec3 light_dir)
@@ -405,6 +411,7 @@ Phases ray_phases(vec3 view_dir, vec3 light_dir)
 	float mu = dot(view_dir, light_dir);
 	for (int i = 0; i < 4; i++)
 		ph.p[i] = i < N_CONST && phase_kind(i) != 0 ? phase(phase_kind(i), P.C[i].scattering.w, mu) : 0.0;
+	ph.truncated = DELTA_CONST >= 0 ? phase(3, P.C[max(DELTA_CONST, 0)].layer1c.w, mu) : 0.0;
 	return ph;
 }
 
@@ -531,6 +538,10 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 	float b1 = sh.x * o_z;
 	float b2 = sh.y * (1.5 * o_z * o_z - 0.5) + sh.z * o_x * o_z;
 	vec2 g = vec2(P.C[max(MOMENT_CONST, 0)].absorption.w, P.C[max(MOMENT_CONST, 0)].layer1c.y);
+	// With delta-M the field is the scaled medium's, scattered by the
+	// truncated phase: Henyey-Greenstein g', moments g' and g'^2.
+	if (DELTA_CONST >= 0)
+		g = vec2(P.C[max(DELTA_CONST, 0)].layer1c.w, P.C[max(DELTA_CONST, 0)].layer1c.w * P.C[max(DELTA_CONST, 0)].layer1c.w);
 	// A truncated expansion may go negative where the field is strongly
 	// directed; the light scattered never does.
 	float gl = g.x * g.x;
@@ -601,4 +612,107 @@ bool ray_in_shell(float h0, vec3 dir, out Entry en)
 	en.ez = r * sin_z * sin_z - mu * sq;	// r + mu t0
 	en.len = hits_ground(shell, en.mu, tg) ? tg : 2.0 * sq;
 	return en.len > 0.0;
+}
+
+// ---- Delta-M for the higher orders (DELTA_CONST) ----
+//
+// Wiscombe's delta-M (1977) with a single-scattering correction after
+// Nakajima and Tanaka (1988). The constituent's phase p is split into a
+// forward peak of weight f, taken as no scattering at all, and the rest,
+// (1 - f) p' with p' a Henyey-Greenstein phase of g' = (g1 - f) / (1 - f)
+// (model_delta_truncation). The scaled medium scatters sigma_s' = sigma_s -
+// f sigma_D and has extinction sigma_t' = sigma_t - f sigma_D (sigma_D the
+// constituent's scattering); its multiply scattered light is far less
+// forward-peaked than the real one, which is what psi_ms's isotropic
+// assumption needs. Which transmittance each part takes, so that every
+// path is counted once:
+// - single scattering is exact: the real phase p, the real transmittances
+//   from the light to the point (T_l, the table) and from the point to the
+//   eye (T_v, the march's tr);
+// - the higher orders are the scaled medium's: multiscatter.comp computes
+//   L2 and f_ms in it (the sunlight reaching each point through T_l' =
+//   exp(-sum_k ext'_k L_k), the column densities L_k of the transmittance
+//   texels; first scattering through p'; the walls between points through
+//   sigma_t'), and the march scatters the resulting psi' with sigma_s'
+//   through T_v' (the march's second product, over sigma_t'): light that
+//   the peak scatters on the way to the eye stays on its way;
+// - the scaled medium's first order, sigma_s'' p'' T_l' T_v' (p'' the scaled
+//   mixture), also counts the paths in which the peak scattered the light
+//   one or more times before the one real scattering toward the eye; the
+//   exact single scattering already has those with no peak scattering,
+//   sigma_s'' p'' T_l T_v, so the march adds the difference. Nakajima and
+//   Tanaka's TMS drops the difference altogether: traced exactly otherwise
+//   (tools/pt.c, pt_approx without delta_excess; f = 0.78, sun 30) that
+//   read Mars' day sky 22 % low.
+// f is the phase's 6th Legendre moment, not delta-Eddington's 2nd: the path
+// tracer with the tables' assumptions read Mars (sun 30 / 5, day / horizon)
+// 6.6 / 9.1 and 7.7 / 10.9 % off with f = 0.4 (the 6th moment is 0.416),
+// 8.1 / 25.7 and 13.2 / 42.1 % with the 2nd (0.78): a wide peak taken as
+// undeflected brightens the horizon, where the light changes within the
+// peak's width.
+
+// The scattering that the scaled medium removes, per unit density of
+// DELTA_CONST: f sigma_D.
+vec3 delta_removed()
+{
+	int k = max(DELTA_CONST, 0);
+	return DELTA_CONST >= 0 ? P.C[k].layer1c.z * P.C[k].scattering.rgb : vec3(0.0);
+}
+
+// T_l' / T_l toward mu from the altitude of a: exp(f sigma_D L_D) (removed:
+// delta_removed()), L_D
+// DELTA_CONST's column density from the transmittance texels (ColumnBuf),
+// read with the transmittance lookup's bilinear taps.
+vec3 delta_gain(TAlt a, float mu, vec3 removed)
+{
+	mu = clamp(mu, -1.0, 1.0);
+	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
+	Axis c = axis((d - a.d_min) * a.inv_range, T_W);
+	int r0 = a.t_rows.i0 * T_W, r1 = a.t_rows.i1 * T_W, k = max(DELTA_CONST, 0);
+	float l = mix(mix(texelFetch(ColumnTex, r0 + c.i0)[k], texelFetch(ColumnTex, r0 + c.i1)[k], c.f),
+		      mix(texelFetch(ColumnTex, r1 + c.i0)[k], texelFetch(ColumnTex, r1 + c.i1)[k], c.f), a.t_rows.f);
+	return exp(min(removed * l, vec3(80.0)));
+}
+
+// The column densities of every constituent from the altitude of a toward
+// mu to the top, bilinear at the transmittance lookup's taps: the scaled
+// medium's transmittance is exp(-(ext' * columns)), one lookup as the
+// table's (the multi-scattering pass reads no other).
+vec4 columns_at(TAlt a, float mu)
+{
+	mu = clamp(mu, -1.0, 1.0);
+	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
+	return bilinear(ColumnTex, T_W, (d - a.d_min) * a.inv_range, a.t_rows);
+}
+
+// The scaled medium's phase-weighted scattering from the real one's:
+// DELTA_CONST's sigma_D p becomes (1 - f) sigma_D p'.
+vec3 delta_phased(vec3 phased, Scatter sc, Phases ph)
+{
+	int k = max(DELTA_CONST, 0);
+	return phased + sc.s[k] * ((1.0 - P.C[k].layer1c.z) * ph.truncated - ph.p[k]);
+}
+
+// The march's source for one light with delta-M: ret_real weighs with the
+// real transmittance along the view (tr), ret_scaled with the scaled one.
+// phased / phased_s: the real and scaled phase-weighted scattering;
+// sigma_s / ground: the scaled medium's scattering and ground term.
+// forward: the scaled scattering of DELTA_CONST, for the shape of the
+// field (ms_source) where multiscatter_moment=on keeps it.
+void delta_source(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 phased_s, vec3 sigma_s,
+		  vec3 ground, vec3 forward, float view_up, float view_light, out vec3 ret_real, out vec3 ret_scaled)
+{
+	vec3 t = visible > 0.0 ? visible * transmittance_lookup(a, mu_l) : vec3(0.0);
+	ret_real = (phased - phased_s) * t * illum;
+	ret_scaled = phased_s * t * delta_gain(a, mu_l, delta_removed());
+	if (MULTISCATTER_ON)
+		ret_scaled += ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
+	ret_scaled *= illum;
+}
+
+// The visible part of a light's disk at a point (light_transmittance's).
+float light_visible(TAlt a, float mu, float radius_rad)
+{
+	float e = P.planet.x / a.r * radius_rad, x = mu - a.mu_horizon;
+	return e > 0.0 ? smoothstep(-e, e, x) : (x < 0.0 ? 0.0 : 1.0);
 }

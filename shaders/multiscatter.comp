@@ -2,7 +2,8 @@
 // psi_ms = L2 / (1 - f_ms). Directions: 64 on a grid of 16 rings, denser
 // near the horizon, by 4 azimuths, or 2 (straight up and down). For a
 // forward-peaked phase (MOMENT_CONST) also the shape of that light from L2's
-// moments (MomentBuf).
+// moments (MomentBuf); with delta-M (DELTA_CONST, delta_source in
+// common.glsl) the table is the scaled medium's instead.
 //
 // The rays from a point at altitude h do not depend on the sun, so one
 // invocation marches them once for MS_SUN_GROUP texels of a row (sun angles)
@@ -44,6 +45,15 @@ vec4 phase4(int kind, float g, vec4 mu)
 void main()
 {
 	load_params();
+	// Delta-M (delta_source in common.glsl): the table is the scaled
+	// medium's, whose DELTA_CONST scatters (1 - f) sigma_D through p' and
+	// whose sunlight comes through T_l' = exp(-(ext' * columns_at())).
+	if (DELTA_CONST >= 0)
+		P.C[max(DELTA_CONST, 0)].scattering.rgb -= delta_removed();
+	// The scaled extinctions, times columns_at() the scaled optical depth.
+	mat4x3 ext_scaled = mat4x3(0.0);
+	for (int i = 0; i < N_CONST; i++)
+		ext_scaled[i] = P.C[i].scattering.rgb + P.C[i].absorption.rgb;
 	int x0 = int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, py = int(gl_GlobalInvocationID.y);
 	if (x0 >= OUT_W || py >= OUT_H)
 		return;
@@ -90,7 +100,9 @@ void main()
 			for (int i = 0; i < N_CONST; i++) {
 				if (phase_kind(i) == 0)
 					continue;
-				float c = dot(phase4(phase_kind(i), P.C[i].scattering.w, mu), vec4(0.25));
+				bool truncated = i == DELTA_CONST;
+				float c = dot(phase4(truncated ? 3 : phase_kind(i),
+						     truncated ? P.C[i].layer1c.w : P.C[i].scattering.w, mu), vec4(0.25));
 				cell_sum[(k * 4 + i) * MS_SUN_GROUP + j] = c;
 				total[i][j] += wk * c;
 			}
@@ -157,9 +169,17 @@ void main()
 			vec3 step_t, w = tr * step_weight(scattering + absorption, dt, step_t);
 			TAlt a = t_alt(hs);
 			vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
-			for (int j = 0; j < MS_SUN_GROUP; j++)
-				l2[j] += w * (phased_of[j] * dens) *
-					 light_transmittance(a, dot(up, sun[j]), P.sun_dir.w);
+			for (int j = 0; j < MS_SUN_GROUP; j++) {
+				float mu_l = dot(up, sun[j]);
+				vec3 t_l;
+				if (DELTA_CONST >= 0) {
+					float vis = light_visible(a, mu_l, P.sun_dir.w);
+					t_l = vis > 0.0 ? vis * exp(-(ext_scaled * columns_at(a, mu_l))) : vec3(0.0);
+				} else {
+					t_l = light_transmittance(a, mu_l, P.sun_dir.w);
+				}
+				l2[j] += w * (phased_of[j] * dens) * t_l;
+			}
 			absorbed += w * absorption;
 			tr *= step_t;
 		}
@@ -184,7 +204,10 @@ void main()
 			TAlt a = t_alt(0.0);
 			for (int j = 0; j < MS_SUN_GROUP; j++) {
 				float mu_g = dot(n, sun[j]);
-				sum_ground[j] += tr * transmittance_at(a, mu_g) * max(mu_g, 0.0) * P.albedo.rgb / PI;
+				vec3 t_l = DELTA_CONST < 0 ? transmittance_at(a, mu_g)
+						 : mu_g < a.mu_horizon ? vec3(0.0)
+						 : exp(-(ext_scaled * columns_at(a, mu_g)));
+				sum_ground[j] += tr * t_l * max(mu_g, 0.0) * P.albedo.rgb / PI;
 			}
 			// Under the isotropic field psi the Lambertian ground sends back
 			// albedo times psi: a transfer like scattering, so every order
@@ -248,7 +271,8 @@ void main()
 			float share = l * norm / escape_lum / max(dot(psi, MS_SHARE_LUM), 1e-30);
 			vec2 m = sum_moment[j] / l;
 			vec3 t = sum_second[j] / l;
-			float k = P.C[max(MOMENT_CONST, 0)].absorption.w;
+			float k = DELTA_CONST >= 0 ? P.C[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
+						   : P.C[max(MOMENT_CONST, 0)].absorption.w;
 			float a = clamp(-m.x / max(k * sun[j].x, 1e-3), 0.0, 1.0);
 			MOB.d[py * OUT_W + x0 + j] = share * vec4(3.0 * m.y, 7.5 * t.y - 2.5, 15.0 * t.z, a);
 		}

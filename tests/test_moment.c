@@ -135,6 +135,8 @@ static void mars_state(struct sky_state *s)
 	set(s, "sun_elevation_deg=5");
 	set(s, "sun_azimuth_deg=180");
 	set(s, "altitude_km=0.2");
+	/* The shape is the higher orders' term only where delta-M is off. */
+	set(s, "multiscatter_delta=off");
 }
 
 /* Sky luminance with the shape on over off in mars_dirs, from sky(). */

@@ -60,6 +60,8 @@ struct medium {
 	double sun_u[3], sun_v[3];
 	double sun_one_minus_cos;
 	double illuminance[3];
+	int isotropic;		/* pt_approx.isotropic: orders after the first scatter uniformly */
+	int multi_only;		/* the view ray's first vertex adds no single scattering */
 };
 
 /* ---- vectors ---- */
@@ -574,6 +576,8 @@ static double trace_on(const struct medium *m, const double x0[3], const double 
 			double u1 = rnd(r);
 			from_local(n, sqrt(1.0 - u1), 2.0 * PI * rnd(r), nd);
 			w *= m->albedo[ch];
+		} else if (m->isotropic) {
+			from_local(d, 2.0 * rnd(r) - 1.0, 2.0 * PI * rnd(r), nd);
 		} else {
 			scatter_dir(m, rho, sigma_s, d, ch, r, nd);
 		}
@@ -848,7 +852,8 @@ static double sample_air(const struct medium *m, const struct view *v, enum pt_m
 	double sigma_s = scattering(m, rho, ch);
 	if (sigma_s > 0.0 && pdf > 0.0) {
 		double W = T * sigma_s / pdf;
-		L += W * nee_medium(m, x, v->d, rho, sigma_s, ch, r);
+		if (!m->multi_only)
+			L += W * nee_medium(m, x, v->d, rho, sigma_s, ch, r);
 		if (mode != PT_SINGLE)
 			L += W * trace_on(m, x, v->d, rho, sigma_s, 0, ch, r);
 	}
@@ -980,9 +985,24 @@ static int converged(const struct acc *a, const struct pt_options *opt)
 	return 1;
 }
 
+/* The flags of render(): struct medium's isotropic and multi_only. */
+#define RENDER_ISOTROPIC 1
+#define RENDER_MULTI_ONLY 2
+
+static int render(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+		  const struct pt_dir *dirs, size_t n, const struct pt_options *opt, int flags,
+		  struct pt_result *ret);
+
 int pt_render(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
 	      const struct pt_dir *dirs, size_t n, const struct pt_options *opt,
 	      struct pt_result *ret)
+{
+	return render(a, altitude_km, sun, dirs, n, opt, 0, ret);
+}
+
+static int render(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+		  const struct pt_dir *dirs, size_t n, const struct pt_options *opt, int flags,
+		  struct pt_result *ret)
 {
 	struct medium m;
 	struct job j = { 0 };
@@ -997,6 +1017,8 @@ int pt_render(const struct atmo *a, double altitude_km, const struct pt_sun *sun
 	if (!n)
 		return 0;
 	medium_init(&m, a, sun);
+	m.isotropic = !!(flags & RENDER_ISOTROPIC);
+	m.multi_only = !!(flags & RENDER_MULTI_ONLY);
 	int threads = opt->threads > 0 ? opt->threads : (int)sysconf(_SC_NPROCESSORS_ONLN);
 	if (threads < 1)
 		threads = 1;
@@ -1147,4 +1169,80 @@ int pt_single_scatter_reference(const struct atmo *a, double altitude_km,
 	}
 	memcpy(ret_radiance, L, sizeof(L));
 	return 0;
+}
+
+/* ---- the tables' approximations, traced ---- */
+
+/* ret += sign * part, standard errors in quadrature. */
+static void add_parts(struct pt_result *ret, const struct pt_result *part, size_t n, double sign)
+{
+	for (size_t i = 0; i < n; i++) {
+		ret[i].samples += part[i].samples;
+		for (int ch = 0; ch < 3; ch++) {
+			ret[i].radiance[ch] += sign * part[i].radiance[ch];
+			ret[i].std_error[ch] = hypot(ret[i].std_error[ch], part[i].std_error[ch]);
+		}
+	}
+}
+
+/* Delta-M with the TMS correction (Wiscombe 1977; Nakajima and Tanaka
+ * 1988): the first order exactly, in the real medium, plus every higher
+ * order of the scaled medium, in which the constituent's forward peak f is
+ * no scattering at all (sigma_s' = (1 - f) sigma_s, extinction less f
+ * sigma_s, a Henyey-Greenstein phase of g'). The two parts are traced
+ * separately, so their standard errors add in quadrature. TMS loses the
+ * light that the peak scatters and the rest of the phase scatters once
+ * toward the eye (the scaled medium counts it as single scattering of its
+ * stronger direct beam); ap->delta_excess keeps it: plus the scaled
+ * medium's first order, minus the same through the real transmittances. */
+static int render_delta_m(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+			  const struct pt_dir *dirs, size_t n, const struct pt_options *opt,
+			  const struct pt_approx *ap, struct pt_result *ret)
+{
+	struct atmo scaled = *a;
+	struct pt_options single = *opt, multi = *opt;
+	struct pt_result *part;
+	int k = ap->delta_m - 1, r;
+
+	if (k >= a->n_constituents || !(ap->delta_f >= 0.0 && ap->delta_f < 1.0) ||
+	    !(fabs(ap->delta_g) < 1.0))
+		return -EINVAL;
+	for (int ch = 0; ch < 3; ch++)
+		scaled.c[k].scattering_per_km[ch] *= 1.0 - ap->delta_f;
+	scaled.c[k].phase = ATMO_PHASE_HENYEY_GREENSTEIN;
+	scaled.c[k].g = ap->delta_g;
+	part = calloc(n ? n : 1, sizeof(*part));
+	if (!part)
+		return -ENOMEM;
+	single.mode = PT_SINGLE;
+	multi.mode = PT_SKY;
+	r = render(a, altitude_km, sun, dirs, n, &single, 0, ret);
+	if (r == 0)
+		r = render(&scaled, altitude_km, sun, dirs, n, &multi,
+			   (ap->delta_excess ? 0 : RENDER_MULTI_ONLY) | (ap->isotropic ? RENDER_ISOTROPIC : 0),
+			   part);
+	add_parts(ret, part, n, 1.0);
+	if (r == 0 && ap->delta_excess) {
+		/* The scaled medium's first order through the real medium's
+		 * transmittances: the removed scattering f sigma_s becomes
+		 * absorption, so extinction is the real one. */
+		struct atmo absorbing = scaled;
+		for (int ch = 0; ch < 3; ch++)
+			absorbing.c[k].absorption_per_km[ch] += ap->delta_f * a->c[k].scattering_per_km[ch];
+		r = render(&absorbing, altitude_km, sun, dirs, n, &single, 0, part);
+		add_parts(ret, part, n, -1.0);
+	}
+	free(part);
+	return r;
+}
+
+int pt_render_approx(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+		     const struct pt_dir *dirs, size_t n, const struct pt_options *opt,
+		     const struct pt_approx *ap, struct pt_result *ret)
+{
+	if (!ap || ap->delta_m < 0 || !opt || opt->mode != PT_SKY)
+		return -EINVAL;
+	if (ap->delta_m > 0)
+		return render_delta_m(a, altitude_km, sun, dirs, n, opt, ap, ret);
+	return render(a, altitude_km, sun, dirs, n, opt, ap->isotropic ? RENDER_ISOTROPIC : 0, ret);
 }

@@ -5,6 +5,13 @@
  *   skytruth [key=value ...] [--error 0.01] [--threads N] [--seed S]
  *            [--dirs elevation:azimuth,...] [--mode sky|single|ground]
  *            [--min-samples N] [--max-samples N] [--batch N] [--reference]
+ *            [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]
+ *
+ * --isotropic and --delta-m trace the sky tables' assumptions (pt_approx):
+ * light scattered once already scatters isotropically; the constituent's
+ * phase delta-M scaled for the orders >= 2 (f its second Legendre moment,
+ * g' = (g1 - f) / (1 - f); --delta-f sets another f); --delta-excess keeps the light scattered once
+ * after the forward peak, which the TMS correction drops.
  *
  * The sun of the state lights the sky (sun_illuminance_lx times sun_color per
  * channel); the moon is not traced. Radiance is printed in cd/m2 per
@@ -18,6 +25,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "model.h"
 #include "pt.h"
 #include "state.h"
 
@@ -31,6 +39,7 @@ static void usage(FILE *f)
 		"usage: skytruth [key=value ...] [--error REL] [--threads N] [--seed S]\n"
 		"                [--dirs EL:AZ,...] [--mode sky|single|ground]\n"
 		"                [--min-samples N] [--max-samples N] [--batch N] [--reference]\n"
+		"                [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]\n"
 		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...).\n"
 		"default --dirs %s\n", default_dirs);
 }
@@ -106,6 +115,9 @@ int main(int argc, char **argv)
 	char err[256];
 	size_t n = 0;
 	int reference = 0;
+	struct pt_approx ap = { 0 };
+	uint64_t delta_m = 0;
+	double delta_f = -1.0;
 
 	state_default(&s);
 	pt_options_default(&opt);
@@ -121,6 +133,10 @@ int main(int argc, char **argv)
 			return 0;
 		} else if (strcmp(a, "--reference") == 0) {
 			reference = 1;
+		} else if (strcmp(a, "--isotropic") == 0) {
+			ap.isotropic = 1;
+		} else if (strcmp(a, "--delta-excess") == 0) {
+			ap.delta_excess = 1;
 		} else if (strncmp(a, "--", 2) == 0) {
 			if (!v) {
 				fprintf(stderr, "skytruth: %s needs a value\n", a);
@@ -141,6 +157,10 @@ int main(int argc, char **argv)
 			else if (strcmp(a, "--batch") == 0)
 				bad = parse_u64(v, &u) < 0 || !u || u > (1u << 30) ||
 				      (opt.batch = (uint32_t)u, 0);
+			else if (strcmp(a, "--delta-m") == 0)
+				bad = parse_u64(v, &u) < 0 || u >= ATMO_MAX_CONSTITUENTS || (delta_m = u + 1, 0);
+			else if (strcmp(a, "--delta-f") == 0)
+				bad = parse_double(v, &d) < 0 || !(d >= 0.0 && d < 1.0) || (delta_f = d, 0);
 			else if (strcmp(a, "--dirs") == 0)
 				bad = parse_dirs(v, dirs, &n) < 0;
 			else if (strcmp(a, "--mode") == 0) {
@@ -171,6 +191,17 @@ int main(int argc, char **argv)
 		return 2;
 	}
 
+	if (delta_m) {
+		const struct atmo_constituent *c = &s.atmo.c[delta_m - 1];
+		if ((int)delta_m > s.atmo.n_constituents) {
+			fprintf(stderr, "skytruth: --delta-m: no constituent %d\n", (int)delta_m - 1);
+			return 2;
+		}
+		ap.delta_m = (int)delta_m;
+		ap.delta_f = delta_f >= 0.0 ? delta_f : model_phase_legendre(c->phase, c->g, 2);
+		ap.delta_g = (model_phase_legendre(c->phase, c->g, 1) - ap.delta_f) / (1.0 - ap.delta_f);
+	}
+
 	struct pt_sun sun = { .elevation_deg = s.sun.elevation_deg,
 		.azimuth_deg = s.sun.azimuth_deg,
 		.angular_radius_deg = s.sun.angular_radius_deg };
@@ -179,14 +210,18 @@ int main(int argc, char **argv)
 
 	static const char *const modes[] = { "sky", "single", "ground" };
 	printf("# skytruth: preset %s altitude_km %.9g sun_elevation_deg %.9g "
-	       "sun_azimuth_deg %.9g illuminance %.9g,%.9g,%.9g mode %s error %g seed %llu\n",
+	       "sun_azimuth_deg %.9g illuminance %.9g,%.9g,%.9g mode %s error %g seed %llu"
+	       " isotropic %d delta_m %d f %.6g g' %.6g\n",
 	       s.preset, s.altitude_km, sun.elevation_deg, sun.azimuth_deg,
 	       sun.illuminance[0], sun.illuminance[1], sun.illuminance[2], modes[opt.mode],
-	       opt.rel_error, (unsigned long long)opt.seed);
+	       opt.rel_error, (unsigned long long)opt.seed, ap.isotropic, ap.delta_m - 1, ap.delta_f,
+	       ap.delta_g);
 	fflush(stdout);
 
 	double t0 = now_s();
-	int r = pt_render(&s.atmo, s.altitude_km, &sun, dirs, n, &opt, res);
+	int r = ap.isotropic || ap.delta_m ?
+		pt_render_approx(&s.atmo, s.altitude_km, &sun, dirs, n, &opt, &ap, res) :
+		pt_render(&s.atmo, s.altitude_km, &sun, dirs, n, &opt, res);
 	double elapsed = now_s() - t0;
 	if (r < 0) {
 		fprintf(stderr, "skytruth: path tracing failed: %s\n", strerror(-r));
