@@ -101,13 +101,14 @@ static float *model_sky(const struct sky_state *s)
 	return f;
 }
 
-/* The engine's sky-view table of s as float32 texels (free()). */
+/* The engine's sky-view table of s as float32 texels (free()), computed with the
+ * tables it reads: the shape is the multi-scattering pass's output. */
 static float *engine_sky(struct eng *e, const struct sky_state *s)
 {
 	char err[512];
 	struct eng_timing t;
 	size_t bytes;
-	if (eng_compute(e, s, STATE_BIT(STATE_SKYVIEW), &t, err, sizeof(err)) < 0) {
+	if (eng_compute(e, s, state_closure(STATE_BIT(STATE_SKYVIEW)), &t, err, sizeof(err)) < 0) {
 		FAIL("eng_compute: %s", err);
 		return NULL;
 	}
