@@ -6,20 +6,10 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
 
-#include "eng.h"
-#include "model.h"
-#include "skysample.h"
-#include "test.h"
+#include "sky_probe.h"
 #include "vk_or_skip.h"
 
-static void set(struct sky_state *s, const char *pair)
-{
-	char err[256];
-	if (state_set_pair(s, pair, NULL, err, sizeof(err)) < 0)
-		FAIL("%s", err);
-}
 
 /* Henyey-Greenstein: f = g^6, g' = (g - g^6) / (1 - g^6); Cornette-Shanks
  * 0.85: f = 0.416 (the 6th moment by an independent quadrature). */
@@ -44,114 +34,41 @@ static void test_truncation(void)
  * atmosphere (the neighbourhood iteration runs, auto or on): none. */
 static void test_rule(void)
 {
+	probe_check_rule(model_delta_constituent, "multiscatter_delta");
+	/* Never where the neighbourhood iteration runs, even when asked for. */
 	struct sky_state s;
-	state_default(&s);
-	CHECK(model_delta_constituent(&s, NULL) == -1);
-	set(&s, "multiscatter_delta=on");
-	int mie = model_delta_constituent(&s, NULL);
-	CHECK(mie >= 0 && s.atmo.c[mie].g > 0.5);
-	state_default(&s);
-	set(&s, "preset=mars");
-	int dust = model_delta_constituent(&s, NULL);
-	CHECK(dust >= 0 && s.atmo.c[dust].g > 0.8);
-	set(&s, "multiscatter_delta=off");
-	CHECK(model_delta_constituent(&s, NULL) == -1);
-	set(&s, "multiscatter_delta=on");
-	set(&s, "multiscatter_dirs=2");
-	CHECK(model_delta_constituent(&s, NULL) == -1);
 	state_default(&s);
 	for (int i = 0; i < s.atmo.n_constituents; i++)
 		for (int c = 0; c < 3; c++)
 			s.atmo.c[i].scattering_per_km[c] *= 10.0;
 	CHECK(state_multiscatter_iterations(&s) > 0);
 	CHECK(model_delta_constituent(&s, NULL) == -1);
-	set(&s, "multiscatter_delta=on");
+	probe_set(&s, "multiscatter_delta=on");
 	CHECK(model_delta_constituent(&s, NULL) == -1);
 	/* A backward peak: none (its truncation would make |g'| > 1). */
 	state_default(&s);
-	set(&s, "preset=mars");
-	set(&s, "multiscatter_delta=on");
-	s.atmo.c[dust].g = -0.85;
+	probe_set(&s, "preset=mars");
+	int dust = model_delta_constituent(&s, NULL);
+	CHECK(dust >= 0);
+	probe_set(&s, "multiscatter_delta=on");
+	s.atmo.c[dust < 0 ? 0 : dust].g = -0.85;
 	CHECK(model_delta_constituent(&s, NULL) == -1);
 }
 
-/* Luminance of a float32 sky-view table in a direction, as a client samples it. */
-static double sky_lum(const float *texels, const struct sky_state *s, double el_deg, double az_deg)
-{
-	struct skysample_table t = { .texels = texels, .format = SKY_FORMAT_RGBA32F,
-				     .width = s->quality.t[STATE_SKYVIEW].width,
-				     .height = s->quality.t[STATE_SKYVIEW].height, .depth = 1 };
-	struct sky_shm_state st = { .altitude_km = s->altitude_km, .bottom_radius_km = s->atmo.bottom_radius_km,
-				    .top_radius_km = s->atmo.top_radius_km };
-	double rgb[3];
-	skysample_sky(&t, &st, el_deg * M_PI / 180.0, az_deg * M_PI / 180.0, rgb);
-	return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
-}
-
-static float *model_sky(void *arg, const struct sky_state *s)
-{
-	(void)arg;
-	struct model_tables m;
-	CHECK(model_compute(s, STATE_BIT(STATE_SKYVIEW), &m) == 0);
-	size_t n = 4 * (size_t)m.w[STATE_SKYVIEW] * m.h[STATE_SKYVIEW];
-	float *f = malloc(sizeof(float) * n);
-	if (!f)
-		abort();
-	for (size_t i = 0; i < n; i++)
-		f[i] = (float)m.t[STATE_SKYVIEW][i];
-	model_tables_finish(&m);
-	return f;
-}
-
-static float *engine_sky(void *arg, const struct sky_state *s)
-{
-	char err[512];
-	struct eng_timing t;
-	size_t bytes;
-	/* The engine computes exactly the mask it is given: the knob changes
-	 * the multi-scattering table, so its closure. */
-	if (eng_compute(arg, s, state_closure(STATE_BIT(STATE_SKYVIEW)), &t, err, sizeof(err)) < 0) {
-		FAIL("eng_compute: %s", err);
-		return NULL;
-	}
-	const void *texels = eng_table(arg, STATE_SKYVIEW, &bytes);
-	float *f = malloc(bytes);
-	if (!f)
-		abort();
-	memcpy(f, texels, bytes);
-	return f;
-}
-
+/* The shape off: delta-M against the isotropic phase. */
 static void mars_state(struct sky_state *s)
 {
-	state_default(s);
-	set(s, "preset=mars");
-	set(s, "sun_elevation_deg=5");
-	set(s, "sun_azimuth_deg=180");
-	set(s, "altitude_km=0.2");
-	set(s, "multiscatter_moment=off");	/* off: the isotropic phase */
+	probe_mars_sun5(s, "multiscatter_moment=off");
 }
 
 /* The directions of the checks. */
-static const struct {
-	double el_deg, az_deg;
-} dirs[] = { { 1, 150 }, { 1, 90 }, { 1, 0 }, { 20, 150 }, { 90, 0 } };
+static const struct probe_dir dirs[] = { { 1, 150 }, { 1, 90 }, { 1, 0 }, { 20, 150 }, { 90, 0 } };
 #define N_DIRS (sizeof(dirs) / sizeof(dirs[0]))
 
 /* Sky luminance of s with multiscatter_delta=on over off. */
-static void ratios(float *(*sky)(void *, const struct sky_state *), void *arg, const struct sky_state *s0,
-		   double ret[N_DIRS])
+static void ratios(probe_sky_fn *sky, void *arg, const struct sky_state *s, double ret[N_DIRS])
 {
-	struct sky_state s = *s0;
-	set(&s, "multiscatter_delta=on");
-	float *on = sky(arg, &s);
-	set(&s, "multiscatter_delta=off");
-	float *off = sky(arg, &s);
-	for (size_t i = 0; on && off && i < N_DIRS; i++)
-		ret[i] = sky_lum(on, &s, dirs[i].el_deg, dirs[i].az_deg) /
-			 sky_lum(off, &s, dirs[i].el_deg, dirs[i].az_deg);
-	free(on);
-	free(off);
+	probe_on_off(sky, arg, s, "multiscatter_delta=on", "multiscatter_delta=off", dirs, N_DIRS, ret);
 }
 
 /* The limit of a peak that carries nothing: dust with a Henyey-Greenstein
@@ -160,7 +77,7 @@ static void ratios(float *(*sky)(void *, const struct sky_state *), void *arg, c
  * next to the exact one) or lost (the excess, or psi through the real
  * view transmittance) would move it by the single or the multiple
  * scattering's share, tens of percent. */
-static void test_limit(float *(*sky)(void *, const struct sky_state *), void *arg, const char *who)
+static void test_limit(probe_sky_fn *sky, void *arg, const char *who)
 {
 	struct sky_state s;
 	double r[N_DIRS] = { 0 };
@@ -186,7 +103,7 @@ static void test_limit(float *(*sky)(void *, const struct sky_state *), void *ar
 static double model_ratio[N_DIRS];
 static const double lo[N_DIRS] = { 1.5, 1.1, 1.15, 1.05, 0.85 }, hi[N_DIRS] = { 2.1, 1.45, 1.5, 1.3, 0.99 };
 
-static void test_mars(float *(*sky)(void *, const struct sky_state *), void *arg, const char *who)
+static void test_mars(probe_sky_fn *sky, void *arg, const char *who)
 {
 	struct sky_state s;
 	double r[N_DIRS] = { 0 };
@@ -212,12 +129,12 @@ static void test_mars(float *(*sky)(void *, const struct sky_state *), void *arg
  * through the truncated phase), the engine's ratios against the model's. */
 static double model_shape_ratio[N_DIRS];
 
-static void test_mars_shape(float *(*sky)(void *, const struct sky_state *), void *arg, const char *who)
+static void test_mars_shape(probe_sky_fn *sky, void *arg, const char *who)
 {
 	struct sky_state s;
 	double r[N_DIRS] = { 0 };
 	mars_state(&s);
-	set(&s, "multiscatter_moment=auto");
+	probe_set(&s, "multiscatter_moment=auto");
 	ratios(sky, arg, &s, r);
 	for (size_t i = 0; i < N_DIRS; i++) {
 		printf("%s, mars sun 5 with the shape: elevation %g azimuth %g: on / off %.4f\n", who,
@@ -234,16 +151,16 @@ int main(void)
 {
 	test_truncation();
 	test_rule();
-	test_limit(model_sky, NULL, "model");
-	test_mars(model_sky, NULL, "model");
-	test_mars_shape(model_sky, NULL, "model");
+	test_limit(probe_model_sky, NULL, "model");
+	test_mars(probe_model_sky, NULL, "model");
+	test_mars_shape(probe_model_sky, NULL, "model");
 	/* The engine last: without Vulkan the test is reported skipped. */
 	if (test_failures)
 		return test_report("test_delta");
 	struct eng *e = vk_or_skip();
-	test_limit(engine_sky, e, "engine");
-	test_mars(engine_sky, e, "engine");
-	test_mars_shape(engine_sky, e, "engine");
+	test_limit(probe_engine_sky, e, "engine");
+	test_mars(probe_engine_sky, e, "engine");
+	test_mars_shape(probe_engine_sky, e, "engine");
 	eng_free(e);
 	return test_report("test_delta");
 }

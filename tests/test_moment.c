@@ -7,20 +7,10 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
 
-#include "eng.h"
-#include "model.h"
-#include "skysample.h"
-#include "test.h"
+#include "sky_probe.h"
 #include "vk_or_skip.h"
 
-static void set(struct sky_state *s, const char *pair)
-{
-	char err[256];
-	if (state_set_pair(s, pair, NULL, err, sizeof(err)) < 0)
-		FAIL("%s", err);
-}
 
 static void test_legendre(void)
 {
@@ -55,115 +45,30 @@ static void test_legendre(void)
  * unless asked for. */
 static void test_rule(void)
 {
-	struct sky_state s;
-	state_default(&s);
-	CHECK(model_moment_constituent(&s, NULL) == -1);
-	set(&s, "multiscatter_moment=on");
-	int mie = model_moment_constituent(&s, NULL);
-	CHECK(mie >= 0 && s.atmo.c[mie].phase != ATMO_PHASE_RAYLEIGH && s.atmo.c[mie].g > 0.5);
-	state_default(&s);
-	set(&s, "preset=mars");
-	int dust = model_moment_constituent(&s, NULL);
-	CHECK(dust >= 0 && s.atmo.c[dust].g > 0.8);
-	set(&s, "multiscatter_moment=off");
-	CHECK(model_moment_constituent(&s, NULL) == -1);
-	set(&s, "multiscatter_moment=on");
-	set(&s, "multiscatter_dirs=2");
-	CHECK(model_moment_constituent(&s, NULL) == -1);
+	probe_check_rule(model_moment_constituent, "multiscatter_moment");
 }
 
-/* Luminance of a float32 sky-view table in a direction, sampled as a
- * client does (proto/skysample.h). */
-static double sky_lum(const float *texels, const struct sky_state *s, double el_deg, double az_deg)
-{
-	struct skysample_table t = { .texels = texels, .format = SKY_FORMAT_RGBA32F,
-				     .width = s->quality.t[STATE_SKYVIEW].width,
-				     .height = s->quality.t[STATE_SKYVIEW].height, .depth = 1 };
-	struct sky_shm_state st = { .altitude_km = s->altitude_km, .bottom_radius_km = s->atmo.bottom_radius_km,
-				    .top_radius_km = s->atmo.top_radius_km };
-	double rgb[3];
-	skysample_sky(&t, &st, el_deg * M_PI / 180.0, az_deg * M_PI / 180.0, rgb);
-	return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
-}
-
-/* The model's sky-view table of s as float32 texels (free()). */
-static float *model_sky(const struct sky_state *s)
-{
-	struct model_tables m;
-	CHECK(model_compute(s, STATE_BIT(STATE_SKYVIEW), &m) == 0);
-	size_t n = 4 * (size_t)m.w[STATE_SKYVIEW] * m.h[STATE_SKYVIEW];
-	float *f = malloc(sizeof(float) * n);
-	if (!f)
-		abort();
-	for (size_t i = 0; i < n; i++)
-		f[i] = (float)m.t[STATE_SKYVIEW][i];
-	model_tables_finish(&m);
-	return f;
-}
-
-/* The engine's sky-view table of s as float32 texels (free()), computed with the
- * tables it reads: the shape is the multi-scattering pass's output. */
-static float *engine_sky(struct eng *e, const struct sky_state *s)
-{
-	char err[512];
-	struct eng_timing t;
-	size_t bytes;
-	if (eng_compute(e, s, state_closure(STATE_BIT(STATE_SKYVIEW)), &t, err, sizeof(err)) < 0) {
-		FAIL("eng_compute: %s", err);
-		return NULL;
-	}
-	const void *texels = eng_table(e, STATE_SKYVIEW, &bytes);
-	float *f = malloc(bytes);
-	if (!f)
-		abort();
-	memcpy(f, texels, bytes);
-	return f;
-}
-
-static const struct {
-	double el_deg, az_deg, lo, hi;
-} mars_dirs[] = {
-	{ 1, 150, 1.3, 1.7 },	/* horizon beside the sun */
-	{ 1, 90, 1.05, 1.3 },	/* horizon across */
-	{ 90, 0, 0.6, 0.9 },	/* zenith */
+static const struct probe_dir mars_dirs[] = {
+	{ 1, 150 },	/* horizon beside the sun */
+	{ 1, 90 },	/* horizon across */
+	{ 90, 0 },	/* zenith */
 };
+static const double mars_lo[] = { 1.3, 1.05, 0.6 }, mars_hi[] = { 1.7, 1.3, 0.9 };
 #define N_MARS_DIRS (sizeof(mars_dirs) / sizeof(mars_dirs[0]))
 
+/* The shape is the higher orders' term only where delta-M is off. */
 static void mars_state(struct sky_state *s)
 {
-	state_default(s);
-	set(s, "preset=mars");
-	set(s, "sun_elevation_deg=5");
-	set(s, "sun_azimuth_deg=180");
-	set(s, "altitude_km=0.2");
-	/* The shape is the higher orders' term only where delta-M is off. */
-	set(s, "multiscatter_delta=off");
+	probe_mars_sun5(s, "multiscatter_delta=off");
 }
 
 /* Sky luminance with the shape on over off in mars_dirs, from sky(). */
-static void mars_ratios(float *(*sky)(void *, const struct sky_state *), void *arg, double ret[N_MARS_DIRS])
+static void mars_ratios(probe_sky_fn *sky, void *arg, double ret[N_MARS_DIRS])
 {
 	struct sky_state s;
 	mars_state(&s);
-	float *on = sky(arg, &s);
-	set(&s, "multiscatter_moment=off");
-	float *off = sky(arg, &s);
-	for (size_t i = 0; on && off && i < N_MARS_DIRS; i++)
-		ret[i] = sky_lum(on, &s, mars_dirs[i].el_deg, mars_dirs[i].az_deg) /
-			 sky_lum(off, &s, mars_dirs[i].el_deg, mars_dirs[i].az_deg);
-	free(on);
-	free(off);
-}
-
-static float *model_sky_cb(void *arg, const struct sky_state *s)
-{
-	(void)arg;
-	return model_sky(s);
-}
-
-static float *engine_sky_cb(void *arg, const struct sky_state *s)
-{
-	return engine_sky(arg, s);
+	probe_on_off(sky, arg, &s, "multiscatter_moment=auto", "multiscatter_moment=off", mars_dirs,
+		     N_MARS_DIRS, ret);
 }
 
 /* Mars, sun 5 deg at azimuth 180, 0.2 km: against the path tracer the
@@ -175,14 +80,14 @@ static double model_ratio[N_MARS_DIRS];
 
 static void test_mars_sky(void)
 {
-	mars_ratios(model_sky_cb, NULL, model_ratio);
+	mars_ratios(probe_model_sky, NULL, model_ratio);
 	for (size_t i = 0; i < N_MARS_DIRS; i++) {
 		double r = model_ratio[i];
 		printf("mars sun 5, model: elevation %g azimuth %g: on / off %.3f\n", mars_dirs[i].el_deg,
 		       mars_dirs[i].az_deg, r);
-		if (!(r >= mars_dirs[i].lo && r <= mars_dirs[i].hi))
+		if (!(r >= mars_lo[i] && r <= mars_hi[i]))
 			FAIL("elevation %g azimuth %g: on / off %.3f outside [%g, %g]", mars_dirs[i].el_deg,
-			     mars_dirs[i].az_deg, r, mars_dirs[i].lo, mars_dirs[i].hi);
+			     mars_dirs[i].az_deg, r, mars_lo[i], mars_hi[i]);
 	}
 }
 
@@ -190,7 +95,7 @@ static void test_mars_sky(void)
 static void test_engine_mars_sky(struct eng *e)
 {
 	double r[N_MARS_DIRS] = { 0 };
-	mars_ratios(engine_sky_cb, e, r);
+	mars_ratios(probe_engine_sky, e, r);
 	for (size_t i = 0; i < N_MARS_DIRS; i++) {
 		printf("mars sun 5, engine: elevation %g azimuth %g: on / off %.3f\n", mars_dirs[i].el_deg,
 		       mars_dirs[i].az_deg, r[i]);

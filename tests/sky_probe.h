@@ -1,0 +1,139 @@
+/* sky_probe.h - a scene's sky-view table from the model or the engine, and
+ * its luminance in a direction as a client samples it: what the tests of
+ * the multi-scattering terms (test_moment, test_delta) compare. */
+#ifndef SKYD_SKY_PROBE_H
+#define SKYD_SKY_PROBE_H
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "eng.h"
+#include "model.h"
+#include "skysample.h"
+#include "test.h"
+
+static inline void probe_set(struct sky_state *s, const char *pair)
+{
+	char err[256];
+	if (state_set_pair(s, pair, NULL, err, sizeof(err)) < 0)
+		FAIL("%s", err);
+}
+
+/* Mars at 0.2 km with the sun 5 deg up at azimuth 180: where the
+ * isotropic phase is furthest from the truth (docs/accuracy.md), with
+ * `pair` (the other term's knob) set on top. */
+static inline void probe_mars_sun5(struct sky_state *s, const char *pair)
+{
+	state_default(s);
+	probe_set(s, "preset=mars");
+	probe_set(s, "sun_elevation_deg=5");
+	probe_set(s, "sun_azimuth_deg=180");
+	probe_set(s, "altitude_km=0.2");
+	probe_set(s, pair);
+}
+
+/* The rule of a term that `knob`=auto|off|on switches and pick (model.c)
+ * names the constituent of: none for the default Earth, the Mie layer when
+ * forced on, Mars' dust under auto, none when off or with 2 directions. */
+static inline void probe_check_rule(int (*pick)(const struct sky_state *, const double *),
+				    const char *knob)
+{
+	struct sky_state s;
+	char on[64], off[64];
+	snprintf(on, sizeof(on), "%s=on", knob);
+	snprintf(off, sizeof(off), "%s=off", knob);
+	state_default(&s);
+	CHECK(pick(&s, NULL) == -1);
+	probe_set(&s, on);
+	int mie = pick(&s, NULL);
+	CHECK(mie >= 0 && s.atmo.c[mie].phase != ATMO_PHASE_RAYLEIGH && s.atmo.c[mie].g > 0.5);
+	state_default(&s);
+	probe_set(&s, "preset=mars");
+	int dust = pick(&s, NULL);
+	CHECK(dust >= 0 && s.atmo.c[dust].g > 0.8);
+	probe_set(&s, off);
+	CHECK(pick(&s, NULL) == -1);
+	probe_set(&s, on);
+	probe_set(&s, "multiscatter_dirs=2");
+	CHECK(pick(&s, NULL) == -1);
+}
+
+/* Luminance of a float32 sky-view table of s in a direction. */
+static inline double probe_sky_lum(const float *texels, const struct sky_state *s, double el_deg,
+				   double az_deg)
+{
+	struct skysample_table t = { .texels = texels, .format = SKY_FORMAT_RGBA32F,
+				     .width = s->quality.t[STATE_SKYVIEW].width,
+				     .height = s->quality.t[STATE_SKYVIEW].height, .depth = 1 };
+	struct sky_shm_state st = { .altitude_km = s->altitude_km,
+				    .bottom_radius_km = s->atmo.bottom_radius_km,
+				    .top_radius_km = s->atmo.top_radius_km };
+	double rgb[3];
+	skysample_sky(&t, &st, el_deg * M_PI / 180.0, az_deg * M_PI / 180.0, rgb);
+	return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+}
+
+/* The model's sky-view table of s as float32 texels (free()); arg unused,
+ * so that it and probe_engine_sky fit one callback type. */
+static inline float *probe_model_sky(void *arg, const struct sky_state *s)
+{
+	(void)arg;
+	struct model_tables m;
+	CHECK(model_compute(s, STATE_BIT(STATE_SKYVIEW), &m) == 0);
+	size_t n = 4 * (size_t)m.w[STATE_SKYVIEW] * m.h[STATE_SKYVIEW];
+	float *f = malloc(sizeof(float) * n);
+	if (!f)
+		abort();
+	for (size_t i = 0; i < n; i++)
+		f[i] = (float)m.t[STATE_SKYVIEW][i];
+	model_tables_finish(&m);
+	return f;
+}
+
+/* The engine's (arg: struct eng *) sky-view table of s as float32 texels
+ * (free()), or NULL. The engine computes exactly the mask it is given, and
+ * the terms under test are the multi-scattering pass's: the closure. */
+static inline float *probe_engine_sky(void *arg, const struct sky_state *s)
+{
+	char err[512];
+	struct eng_timing t;
+	size_t bytes;
+	if (eng_compute(arg, s, state_closure(STATE_BIT(STATE_SKYVIEW)), &t, err, sizeof(err)) < 0) {
+		FAIL("eng_compute: %s", err);
+		return NULL;
+	}
+	const void *texels = eng_table(arg, STATE_SKYVIEW, &bytes);
+	float *f = malloc(bytes);
+	if (!f)
+		abort();
+	memcpy(f, texels, bytes);
+	return f;
+}
+
+typedef float *probe_sky_fn(void *arg, const struct sky_state *s);
+
+struct probe_dir {
+	double el_deg, az_deg;
+};
+
+/* Sky luminance of s0 with on_pair over off_pair set on it, in n
+ * directions, from sky (probe_model_sky or probe_engine_sky). */
+static inline void probe_on_off(probe_sky_fn *sky, void *arg, const struct sky_state *s0,
+				const char *on_pair, const char *off_pair, const struct probe_dir *dirs,
+				size_t n, double *ret)
+{
+	struct sky_state s = *s0;
+	probe_set(&s, on_pair);
+	float *on = sky(arg, &s);
+	probe_set(&s, off_pair);
+	float *off = sky(arg, &s);
+	for (size_t i = 0; on && off && i < n; i++)
+		ret[i] = probe_sky_lum(on, &s, dirs[i].el_deg, dirs[i].az_deg) /
+			 probe_sky_lum(off, &s, dirs[i].el_deg, dirs[i].az_deg);
+	free(on);
+	free(off);
+}
+
+#endif
