@@ -111,7 +111,10 @@ int model_lobe_constituent(const struct sky_state *s, const double *g1_of);
 /* The delta-M truncation of a phase: the forward fraction f (the phase's
  * Legendre moment of order MODEL_DELTA_ORDER) and the Henyey-Greenstein
  * parameter g' = (g1 - f) / (1 - f) of what is left. Cornette-Shanks
- * g = 0.85: f = 0.416, g' = 0.803. */
+ * g = 0.85: f = 0.416, g' = 0.803. Swept in the engine with the shape on
+ * (f 0.3 to 0.7, orders 4 to 16) over Mars sun 5, 15 and 30: no other f
+ * reads all three day skies better (0.44: sun 30 -0.13, sun 15 -0.04, sun 5
+ * +0.08 points), and a larger f brightens the horizon band. */
 #define MODEL_DELTA_ORDER 6
 void model_delta_truncation(enum atmo_phase kind, double g, double *ret_f, double *ret_g);
 
