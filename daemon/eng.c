@@ -498,6 +498,32 @@ fail:
 	return rc;
 }
 
+/* An internal float32 vec4 buffer that one pass writes (storage) and later
+ * passes read through a texel view (the column densities, the moments). */
+static void vec4_buffer_free(struct eng *e, struct gpu_buffer *b, VkBufferView *view)
+{
+	if (*view)
+		e->vk.vkDestroyBufferView(e->dev, *view, NULL);
+	*view = VK_NULL_HANDLE;
+	buffer_free(e, b);
+}
+
+static int vec4_buffer_new(struct eng *e, VkDeviceSize bytes, struct gpu_buffer *ret, VkBufferView *ret_view,
+			   char *err, size_t err_size)
+{
+	int rc = buffer_new(e, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
+			    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, ret, err, err_size);
+	if (rc < 0)
+		return rc;
+	VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO, .buffer = ret->buf,
+		.format = VK_FORMAT_R32G32B32A32_SFLOAT, .range = VK_WHOLE_SIZE };
+	VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, ret_view));
+	return 0;
+fail:
+	vec4_buffer_free(e, ret, ret_view);
+	return rc;
+}
+
 static void *waiter_main(void *arg)
 {
 	struct eng *e = arg;
@@ -697,13 +723,9 @@ void eng_free(struct eng *e)
 		}
 		buffer_free(e, &e->params);
 		buffer_free(e, &e->views);
-		if (e->columns_view)
-			e->vk.vkDestroyBufferView(e->dev, e->columns_view, NULL);
-		buffer_free(e, &e->columns);
+		vec4_buffer_free(e, &e->columns, &e->columns_view);
 		buffer_free(e, &e->ms_iterate);
-		if (e->moment_view)
-			e->vk.vkDestroyBufferView(e->dev, e->moment_view, NULL);
-		buffer_free(e, &e->moment);
+		vec4_buffer_free(e, &e->moment, &e->moment_view);
 		if (e->fence)
 			e->vk.vkDestroyFence(e->dev, e->fence, NULL);
 		if (e->queries)
@@ -1105,21 +1127,11 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 	const struct state_table_quality *tq = &s->quality.t[STATE_TRANSMITTANCE];
 	VkDeviceSize column_bytes = (VkDeviceSize)tq->width * tq->height * 4 * sizeof(float);
 	if (!e->columns.buf || e->columns.bytes != column_bytes) {
-		if (e->columns_view) {
-			e->vk.vkDestroyBufferView(e->dev, e->columns_view, NULL);
-			e->columns_view = VK_NULL_HANDLE;
-		}
-		buffer_free(e, &e->columns);
+		vec4_buffer_free(e, &e->columns, &e->columns_view);
 		e->columns_valid = false;
-		rc = buffer_new(e, column_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
-					     VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
-				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->columns, err, err_size);
+		rc = vec4_buffer_new(e, column_bytes, &e->columns, &e->columns_view, err, err_size);
 		if (rc < 0)
 			return rc;
-		VkBufferViewCreateInfo cv = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
-			.buffer = e->columns.buf, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
-			.range = VK_WHOLE_SIZE };
-		VK_TRY(e->vk.vkCreateBufferView(e->dev, &cv, NULL, &e->columns_view));
 		rebind = true;
 	}
 	const struct state_table_quality *mq = &s->quality.t[STATE_MULTISCATTER];
@@ -1136,22 +1148,12 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 	}
 	VkDeviceSize moment_bytes = (VkDeviceSize)mq->width * mq->height * 4 * sizeof(float);
 	if (!e->moment.buf || e->moment.bytes != moment_bytes) {
-		if (e->moment_view) {
-			e->vk.vkDestroyBufferView(e->dev, e->moment_view, NULL);
-			e->moment_view = VK_NULL_HANDLE;
-		}
-		buffer_free(e, &e->moment);
+		vec4_buffer_free(e, &e->moment, &e->moment_view);
 		/* Its contents go with the multi-scattering table's, which is
 		 * recomputed whenever its size (and so this one's) changes. */
-		rc = buffer_new(e, moment_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
-					     VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
-				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->moment, err, err_size);
+		rc = vec4_buffer_new(e, moment_bytes, &e->moment, &e->moment_view, err, err_size);
 		if (rc < 0)
 			return rc;
-		VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
-			.buffer = e->moment.buf, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
-			.range = VK_WHOLE_SIZE };
-		VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->moment_view));
 		rebind = true;
 	}
 	if (rebind) {
