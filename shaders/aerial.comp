@@ -68,46 +68,26 @@ void main()
 				vec3 up = vec3(dir.xy * t, en.ez + dir.z * (t - t0)) / rr;
 				float view_up = dot(up, dir);
 				TAlt ta = t_alt(hs);
-				if (DELTA_CONST >= 0) {
-					// delta_source in common.glsl.
-					Scatter sc, scs;
-					Medium m = medium_parts(hs, sc);
-					vec3 removed = sc.s[max(DELTA_CONST, 0)] * P.C[max(DELTA_CONST, 0)].layer1c.z;
-					scs = sc;
-					scs.s[max(DELTA_CONST, 0)] -= removed;
-					vec3 ground_s = ground_scattering(scs, ground_excess(view_up)), r, rs, ph;
-					float mu_l = dot(up, P.sun_dir.xyz);
-					ph = phased(sc, ph_sun);
-					delta_source(ta, mu_l, light_visible(ta, mu_l, P.sun_dir.w), P.sun_illum.rgb, ph,
-						     delta_phased(ph, sc, ph_sun), m.scattering - removed, ground_s,
-						     scs.s[max(DELTA_CONST, 0)], view_up, sun_v, r, rs);
-					vec3 src = r, src_s = rs;
-					if (MOON_LIT) {
-						mu_l = dot(up, P.moon_dir.xyz);
-						ph = phased(sc, ph_moon);
-						delta_source(ta, mu_l, light_visible(ta, mu_l, P.moon_dir.w), P.moon_illum.rgb,
-							     ph, delta_phased(ph, sc, ph_moon), m.scattering - removed,
-							     ground_s, scs.s[max(DELTA_CONST, 0)], view_up, moon_v, r, rs);
-						src += r;
-						src_s += rs;
-					}
-					vec3 step_t, step_s;
-					radiance += tr * src * step_weight(m.extinction, dt, step_t) +
-						    tr_scaled * src_s * step_weight(m.extinction - removed, dt, step_s);
-					tr *= step_t;
-					tr_scaled *= step_s;
-					continue;
+				Scatter sc;
+				Medium m = medium_parts(hs, sc);
+				vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);
+				Scaled ds = scaled_step(sc, m, view_up);
+				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
+				float mu_l = dot(up, P.sun_dir.xyz);
+				march_source(ta, mu_l, light_visible(ta, mu_l, P.sun_dir.w), P.sun_illum.rgb, sc, ph_sun, m,
+					     ground, forward, ds, view_up, sun_v, s, s_scaled);
+				if (MOON_LIT) {
+					mu_l = dot(up, P.moon_dir.xyz);
+					march_source(ta, mu_l, light_visible(ta, mu_l, P.moon_dir.w), P.moon_illum.rgb, sc,
+						     ph_moon, m, ground, forward, ds, view_up, moon_v, s, s_scaled);
 				}
-				Step st = sample_step(hs, ph_sun, ph_moon, ground_excess(view_up));
-				Medium m = st.m;
-				vec3 s = light_source(ta, dot(up, P.sun_dir.xyz), P.sun_dir.w, P.sun_illum.rgb,
-						      st.phased_sun, m.scattering, st.ground, st.forward, view_up, sun_v);
-				if (MOON_LIT)
-					s += light_source(ta, dot(up, P.moon_dir.xyz), P.moon_dir.w, P.moon_illum.rgb,
-							  st.phased_moon, m.scattering, st.ground, st.forward, view_up,
-							  moon_v);
 				vec3 step_t;
 				radiance += tr * s * step_weight(m.extinction, dt, step_t);
+				if (DELTA_CONST >= 0) {
+					vec3 step_s;
+					radiance += tr_scaled * s_scaled * step_weight(m.extinction - ds.removed, dt, step_s);
+					tr_scaled *= step_s;
+				}
 				tr *= step_t;
 			}
 		}

@@ -305,13 +305,20 @@ TAlt t_alt(float h)
 	return a;
 }
 
+// The transmittance table's unit coordinate along a row for cos-zenith mu
+// from the altitude of a (Bruneton's mapping of the distance to the top).
+float transmittance_x(TAlt a, float mu)
+{
+	mu = clamp(mu, -1.0, 1.0);
+	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
+	return (d - a.d_min) * a.inv_range;
+}
+
 // Transmittance to the top of the atmosphere along mu, whether or not the
 // planet is in the way.
 vec3 transmittance_lookup(TAlt a, float mu)
 {
-	mu = clamp(mu, -1.0, 1.0);
-	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
-	return bilinear(TransmittanceTex, T_W, (d - a.d_min) * a.inv_range, a.t_rows).rgb;
+	return bilinear(TransmittanceTex, T_W, transmittance_x(a, mu), a.t_rows).rgb;
 }
 
 // Transmittance from the altitude of a towards cos-zenith mu, to the top of
@@ -327,10 +334,15 @@ vec3 transmittance_at(TAlt a, float mu)
 // Bruneton 2017: a smoothstep over the radius, in cosine units at the
 // horizon). A point light would switch each sample of a march on or off
 // and the sky would brighten in steps as the sun sets.
-vec3 light_transmittance(TAlt a, float mu, float radius_rad)
+float light_visible(TAlt a, float mu, float radius_rad)
 {
 	float e = P.planet.x / a.r * radius_rad, x = mu - a.mu_horizon;
-	float visible = e > 0.0 ? smoothstep(-e, e, x) : (x < 0.0 ? 0.0 : 1.0);
+	return e > 0.0 ? smoothstep(-e, e, x) : (x < 0.0 ? 0.0 : 1.0);
+}
+
+vec3 light_transmittance(TAlt a, float mu, float radius_rad)
+{
+	float visible = light_visible(a, mu, radius_rad);
 	return visible > 0.0 ? visible * transmittance_lookup(a, mu) : vec3(0.0);
 }
 
@@ -415,45 +427,9 @@ Phases ray_phases(vec3 view_dir, vec3 light_dir)
 	return ph;
 }
 
-// One step of a view ray: the medium and the phase-weighted scattering for
-// the sun and the moon, every density evaluated once.
-struct Step {
-	Medium m;
-	vec3 phased_sun;
-	vec3 phased_moon;
-	vec3 ground;	// ground_scattering() of the step
-	vec3 forward;	// forward_scattering() of the step
-};
-
-// ground_ex: ground_excess() of the view at the step.
-Step sample_step(float h, Phases sun, Phases moon, vec4 ground_ex)
-{
-	Step st;
-	st.m.scattering = vec3(0.0);
-	st.m.absorption = vec3(0.0);
-	st.phased_sun = vec3(0.0);
-	st.phased_moon = vec3(0.0);
-	st.ground = vec3(0.0);
-	st.forward = vec3(0.0);
-	for (int i = 0; i < N_CONST; i++) {
-		float d = density(i, h);
-		vec3 s = d * P.C[i].scattering.rgb;
-		st.m.scattering += s;
-		st.m.absorption += d * P.C[i].absorption.rgb;
-		st.phased_sun += s * sun.p[i];
-		if (MOON_LIT)
-			st.phased_moon += s * moon.p[i];
-		if (!GROUND_BLACK)
-			st.ground += s * ground_ex[i];
-		if (i == MOMENT_CONST)
-			st.forward = s;
-	}
-	st.m.extinction = st.m.scattering + st.m.absorption;
-	return st;
-}
-
-// The scattering of each constituent at a point, for rays that share the
-// point but not the light's phase (the columns of a sky-view row).
+// The scattering of each constituent at a point, every density evaluated
+// once, kept apart so that each light's phases (per column of a sky-view
+// row), the ground's phase factor and delta-M weigh it after the fact.
 struct Scatter {
 	vec3 s[4];
 };
@@ -550,19 +526,10 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 	return max(sigma_s + ms.a * ground + forward * (g.x * b1 + g.y * b2 + lobe), vec3(0.0)) * ms.rgb;
 }
 
-// In-scattered radiance source at a point for one light: single scattering
-// through each constituent's phase plus the higher orders (ms_source).
-vec3 light_source(TAlt a, float mu_l, float radius_rad, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground,
-		  vec3 forward, float view_up, float view_light)
-{
-	vec3 s = phased * light_transmittance(a, mu_l, radius_rad);
-	if (MULTISCATTER_ON)
-		s += ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
-	return s * illum;
-}
-
-// light_source for a march step whose visible fraction of the light is
-// already known (disk_visible_mean): the step's midpoint gives the rest.
+// In-scattered radiance source at a point for one light whose visible
+// fraction is known (light_visible, or disk_visible_mean over a march
+// step): single scattering through each constituent's phase plus the
+// higher orders (ms_source).
 vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground,
 		      vec3 forward, float view_up, float view_light)
 {
@@ -659,30 +626,20 @@ vec3 delta_removed()
 	return DELTA_CONST >= 0 ? P.C[k].layer1c.z * P.C[k].scattering.rgb : vec3(0.0);
 }
 
-// T_l' / T_l toward mu from the altitude of a: exp(f sigma_D L_D) (removed:
-// delta_removed()), L_D
-// DELTA_CONST's column density from the transmittance texels (ColumnBuf),
-// read with the transmittance lookup's bilinear taps.
-vec3 delta_gain(TAlt a, float mu, vec3 removed)
-{
-	mu = clamp(mu, -1.0, 1.0);
-	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
-	Axis c = axis((d - a.d_min) * a.inv_range, T_W);
-	int r0 = a.t_rows.i0 * T_W, r1 = a.t_rows.i1 * T_W, k = max(DELTA_CONST, 0);
-	float l = mix(mix(texelFetch(ColumnTex, r0 + c.i0)[k], texelFetch(ColumnTex, r0 + c.i1)[k], c.f),
-		      mix(texelFetch(ColumnTex, r1 + c.i0)[k], texelFetch(ColumnTex, r1 + c.i1)[k], c.f), a.t_rows.f);
-	return exp(min(removed * l, vec3(80.0)));
-}
-
 // The column densities of every constituent from the altitude of a toward
 // mu to the top, bilinear at the transmittance lookup's taps: the scaled
 // medium's transmittance is exp(-(ext' * columns)), one lookup as the
 // table's (the multi-scattering pass reads no other).
 vec4 columns_at(TAlt a, float mu)
 {
-	mu = clamp(mu, -1.0, 1.0);
-	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
-	return bilinear(ColumnTex, T_W, (d - a.d_min) * a.inv_range, a.t_rows);
+	return bilinear(ColumnTex, T_W, transmittance_x(a, mu), a.t_rows);
+}
+
+// T_l' / T_l toward mu from the altitude of a: exp(f sigma_D L_D), with
+// removed = f sigma_D (delta_removed()) and L_D DELTA_CONST's column density.
+vec3 delta_gain(TAlt a, float mu, vec3 removed)
+{
+	return exp(min(removed * columns_at(a, mu)[max(DELTA_CONST, 0)], vec3(80.0)));
 }
 
 // The scaled medium's phase-weighted scattering from the real one's:
@@ -710,9 +667,43 @@ void delta_source(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, ve
 	ret_scaled *= illum;
 }
 
-// The visible part of a light's disk at a point (light_transmittance's).
-float light_visible(TAlt a, float mu, float radius_rad)
+// What the delta-M scaled medium has at a march step (delta_source's
+// arguments): the scattering it removes, its scattering, ground term and
+// lobe constituent's scattering; zero without delta-M.
+struct Scaled {
+	vec3 removed, sigma_s, ground, forward;
+};
+
+Scaled scaled_step(Scatter sc, Medium m, float view_up)
 {
-	float e = P.planet.x / a.r * radius_rad, x = mu - a.mu_horizon;
-	return e > 0.0 ? smoothstep(-e, e, x) : (x < 0.0 ? 0.0 : 1.0);
+	Scaled d = Scaled(vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
+	if (DELTA_CONST < 0)
+		return d;
+	int k = max(DELTA_CONST, 0);
+	d.removed = sc.s[k] * P.C[k].layer1c.z;
+	Scatter scs = sc;
+	scs.s[k] -= d.removed;
+	d.sigma_s = m.scattering - d.removed;
+	d.ground = ground_scattering(scs, ground_excess(view_up));
+	d.forward = scs.s[k];
+	return d;
+}
+
+// The sky-view and aerial marches' source for one light, added to real
+// (weighed by the view's transmittance) and, with delta-M, to scaled (by the
+// scaled one): light_source_lit, or delta_source where DELTA_CONST is set.
+void march_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Phases ph, Medium m, vec3 ground,
+		  vec3 forward, Scaled ds, float view_up, float view_light, inout vec3 real, inout vec3 scaled)
+{
+	vec3 p = phased(sc, ph);
+	if (DELTA_CONST >= 0) {
+		vec3 r, rs;
+		delta_source(a, mu_l, visible, illum, p, delta_phased(p, sc, ph), ds.sigma_s, ds.ground, ds.forward,
+			     view_up, view_light, r, rs);
+		real += r;
+		scaled += rs;
+	} else {
+		real += light_source_lit(a, mu_l, visible, illum, p, m.scattering, ground, forward, view_up,
+					 view_light);
+	}
 }

@@ -125,50 +125,28 @@ void main()
 			float e_sun = P.planet.x / ta.r * P.sun_dir.w, e_moon = P.planet.x / ta.r * P.moon_dir.w;
 			float sun_k = e_sun > 0.0 ? 0.5 / e_sun : 1e30, moon_k = e_moon > 0.0 ? 0.5 / e_moon : 1e30;
 			vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
-			if (DELTA_CONST >= 0) {
-				// delta_source in common.glsl: the scaled medium's scattering,
-				// ground term and view transmittance.
-				vec3 removed = sc.s[max(DELTA_CONST, 0)] * P.C[max(DELTA_CONST, 0)].layer1c.z;
-				Scatter scs = sc;
-				scs.s[max(DELTA_CONST, 0)] -= removed;
-				vec3 ground_s = ground_scattering(scs, ground_excess(view_up)), step_s;
-				vec3 w_s = tr_scaled * step_weight(m.extinction - removed, dt, step_s);
-				for (int j = 0; j < SV_AZ_GROUP; j++) {
-					float vis = disk_visible_mean(over_horizon(ea, sun_h[j], P.sun_dir.z),
-								      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
-					vec3 ph = phased(sc, ph_sun[j]), r, rs;
-					delta_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, ph,
-						     delta_phased(ph, sc, ph_sun[j]), m.scattering - removed, ground_s,
-						     scs.s[max(DELTA_CONST, 0)], view_up, dot(dir[j], P.sun_dir.xyz), r, rs);
-					radiance[j] += w * r + w_s * rs;
-					if (MOON_LIT) {
-						vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
-									over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon,
-									moon_k);
-						ph = phased(sc, ph_moon[j]);
-						delta_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, ph,
-							     delta_phased(ph, sc, ph_moon[j]), m.scattering - removed, ground_s,
-							     scs.s[max(DELTA_CONST, 0)], view_up, dot(dir[j], P.moon_dir.xyz), r, rs);
-						radiance[j] += w * r + w_s * rs;
-					}
-				}
-				tr_scaled *= step_s;
-			} else
+			Scaled ds = scaled_step(sc, m, view_up);
+			vec3 step_s = vec3(1.0), w_s = vec3(0.0);
+			if (DELTA_CONST >= 0)
+				w_s = tr_scaled * step_weight(m.extinction - ds.removed, dt, step_s);
 			for (int j = 0; j < SV_AZ_GROUP; j++) {
+				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
 				float vis = disk_visible_mean(over_horizon(ea, sun_h[j], P.sun_dir.z),
 							      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
-				vec3 s = light_source_lit(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb,
-							  phased(sc, ph_sun[j]), m.scattering, ground, forward, view_up,
-							  dot(dir[j], P.sun_dir.xyz));
+				march_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, sc, ph_sun[j], m, ground,
+					     forward, ds, view_up, dot(dir[j], P.sun_dir.xyz), s, s_scaled);
 				if (MOON_LIT) {
 					vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
 								over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
-					s += light_source_lit(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb,
-							      phased(sc, ph_moon[j]), m.scattering, ground, forward,
-							      view_up, dot(dir[j], P.moon_dir.xyz));
+					march_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, sc, ph_moon[j], m,
+						     ground, forward, ds, view_up, dot(dir[j], P.moon_dir.xyz), s, s_scaled);
 				}
 				radiance[j] += w * s;
+				if (DELTA_CONST >= 0)
+					radiance[j] += w_s * s_scaled;
 			}
+			if (DELTA_CONST >= 0)
+				tr_scaled *= step_s;
 			ea = eb;
 			tr *= step_t;
 		}
