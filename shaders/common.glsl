@@ -386,12 +386,19 @@ struct MsTaps {
 	vec3 f;
 };
 
+// A row's u for mu_s: the row's horizon cosine mh and 1 / (1 + mh),
+// 1 / (1 - mh), the scales below and above it.
+float ms_u(float mu_s, float mh, float below, float above)
+{
+	float d = clamp(mu_s, -1.0, 1.0) - mh;
+	float sn = clamp(d * (d < 0.0 ? below : above), -1.0, 1.0);
+	return 0.5 + 0.5 * sign(sn) * sqrt(abs(sn));
+}
+
 MsTaps ms_taps(TAlt a, float mu_s)
 {
-	vec2 d = vec2(clamp(mu_s, -1.0, 1.0)) - a.ms_horizon;
-	vec2 sn = clamp(d * mix(a.ms_above, a.ms_below, lessThan(d, vec2(0.0))), -1.0, 1.0);
-	vec2 u = 0.5 + 0.5 * sign(sn) * sqrt(abs(sn));
-	Axis c0 = axis(u.x, M_W), c1 = axis(u.y, M_W);
+	Axis c0 = axis(ms_u(mu_s, a.ms_horizon.x, a.ms_below.x, a.ms_above.x), M_W);
+	Axis c1 = axis(ms_u(mu_s, a.ms_horizon.y, a.ms_below.y, a.ms_above.y), M_W);
 	int r0 = a.ms_rows.i0 * M_W, r1 = a.ms_rows.i1 * M_W;
 	MsTaps t;
 	t.i = ivec4(r0 + c0.i0, r0 + c0.i1, r1 + c1.i0, r1 + c1.i1);

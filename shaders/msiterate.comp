@@ -30,12 +30,13 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = 9) buffer IterBuf { uint d[]; } IB;
 
 // The three rows nearest an altitude for ms_read_quadratic(): the middle
-// one (1 .. M_H - 2), the altitude's offset from it in rows (-1 .. 1) and
-// the horizon cosines of the rows below, at and above it.
+// one (1 .. M_H - 2), the altitude's offset from it in rows (-1 .. 1) and,
+// for the rows below, at and above it, the horizon cosines and ms_u()'s
+// scales.
 struct QuadRows {
 	int i;
 	float f;
-	vec3 horizon;
+	vec3 horizon, below, above;
 };
 
 QuadRows quad_rows(float h)
@@ -47,16 +48,15 @@ QuadRows quad_rows(float h)
 	float dh = P.planet.z / float(M_H - 1);
 	c.horizon = vec3(horizon_cos(float(c.i - 1) * dh), horizon_cos(float(c.i) * dh),
 			 horizon_cos(float(c.i + 1) * dh));
+	c.below = 1.0 / (1.0 + c.horizon);
+	c.above = 1.0 / (1.0 - c.horizon);
 	return c;
 }
 
-// Row row of the table at mu_s, at the row's own u (as ms_taps()); mh is
-// the row's horizon cosine.
-vec3 ms_row_at(int row, float mh, float mu_s)
+// Row row of the table at mu_s, at the row's own u (ms_u(), as ms_taps()).
+vec3 ms_row_at(int row, float mh, float below, float above, float mu_s)
 {
-	float d = clamp(mu_s, -1.0, 1.0) - mh;
-	float sn = clamp(d / (d < 0.0 ? 1.0 + mh : 1.0 - mh), -1.0, 1.0);
-	Axis x = axis(0.5 + 0.5 * sign(sn) * sqrt(abs(sn)), M_W);
+	Axis x = axis(ms_u(mu_s, mh, below, above), M_W);
 	return mix(texelFetch(MultiscatterTex, row * M_W + x.i0).rgb,
 		   texelFetch(MultiscatterTex, row * M_W + x.i1).rgb, x.f);
 }
@@ -72,8 +72,9 @@ vec3 ms_row_at(int row, float mh, float mu_s)
 // iteration's steps cost about 4 ms more (daemon/model.c mirrors it).
 vec3 ms_read_quadratic(QuadRows c, float mu_s)
 {
-	vec3 a = ms_row_at(c.i - 1, c.horizon.x, mu_s), b = ms_row_at(c.i, c.horizon.y, mu_s);
-	vec3 e = ms_row_at(c.i + 1, c.horizon.z, mu_s);
+	vec3 a = ms_row_at(c.i - 1, c.horizon.x, c.below.x, c.above.x, mu_s);
+	vec3 b = ms_row_at(c.i, c.horizon.y, c.below.y, c.above.y, mu_s);
+	vec3 e = ms_row_at(c.i + 1, c.horizon.z, c.below.z, c.above.z, mu_s);
 	float f = c.f;
 	return max(b + 0.5 * f * (e - a) + 0.5 * f * f * (e - 2.0 * b + a), vec3(0.0));
 }
