@@ -588,13 +588,37 @@ static v3 visible_transmittance(const struct ctx *c, double h, double mu, double
 	return scale(bilinear(m->t[0], m->w[0], m->h[0], u, vv), visible);
 }
 
-/* See light_transmittance in common.glsl: the light is a disk of angular
- * radius radius_rad that the horizon covers gradually. */
-static v3 light_transmittance(const struct ctx *c, double h, double mu, double radius_rad)
+/* See light_visible in common.glsl: the light is a disk of angular radius
+ * radius_rad that the horizon covers gradually. */
+static double light_visible(const struct ctx *c, double h, double mu, double radius_rad)
 {
 	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h;
 	double mu_h = h < 0 ? -2.0 : skymap_horizon_cos(c->rb, hc);
-	return visible_transmittance(c, h, mu, disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad)));
+	return disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad));
+}
+
+static v3 light_transmittance(const struct ctx *c, double h, double mu, double radius_rad)
+{
+	return visible_transmittance(c, h, mu, light_visible(c, h, mu, radius_rad));
+}
+
+/* The light reaching a march step: visible is the part of the disk seen,
+ * averaged over the step (disk_visible_mean), or negative to take it at the
+ * point. */
+static v3 step_light(const struct ctx *c, double h, double mu_l, double radius_deg, double visible)
+{
+	return visible < 0 ? light_transmittance(c, h, mu_l, radius_deg * SKYMAP_PI / 180.0)
+			   : visible_transmittance(c, h, mu_l, visible);
+}
+
+/* The bilinear taps of the transmittance texels toward mu from altitude h
+ * (the column table shares them: columns_at in common.glsl). */
+static struct taps transmittance_taps(const struct ctx *c, double h, double mu)
+{
+	const struct model_tables *m = c->tab;
+	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h, u, vv;
+	skymap_transmittance_uv(c->rb, c->rt, hc, mu < -1 ? -1 : mu > 1 ? 1 : mu, m->w[0], m->h[0], &u, &vv);
+	return taps_at(m->w[0], m->h[0], u, vv);
 }
 
 /* The 4 numbers of the multiply scattered light's shape of row tab at u,
@@ -662,41 +686,46 @@ static v3 ground_scattering(const struct ctx *c, double h, double mu_view)
 	return s;
 }
 
-/* visible: the part of the light's disk seen, averaged over the march step
- * (disk_visible_mean); negative to take it at the point instead. ground:
- * ground_scattering() of the step. */
+/* The higher orders at a march step for one light (ms_source in
+ * common.glsl): psi_ms scattered by sigma_s, its ground share by sigma_s +
+ * ground, and with a lobe constituent (scattering fwd, its phase's moments
+ * c->lobe_g) the shape's bands 1 and 2 toward o = -dir, in the frame of the
+ * light's vertical plane, and the sun's aureole. Zero when the higher
+ * orders are switched off (0 directions). */
+static v3 higher_orders(const struct ctx *c, double h, v3 up, v3 dir, v3 light, v3 sigma_s, v3 ground, v3 fwd)
+{
+	if (!c->s->quality.multiscatter_dirs)
+		return v(0, 0, 0);
+	double mu_l = dot(up, light), share, sh[4];
+	v3 psi = multiscatter(c, h, mu_l, &share, sh);
+	v3 sig = add(sigma_s, scale(ground, share));
+	if (c->lobe >= 0) {
+		double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l, o_z = -view_up;
+		double o_x = skymap_clamp((view_up * mu_l - dot(dir, light)) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
+		double b1 = sh[0] * o_z;
+		double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) + sh[2] * o_x * o_z;
+		/* The aureole: a (4 pi HG_{g1 g1}(view . light) - 1). */
+		double gl = c->lobe_g[0] * c->lobe_g[0];
+		double den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - dot(dir, light));
+		double lobe = sh[3] * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);
+		sig = add(sig, scale(fwd, c->lobe_g[0] * b1 + c->lobe_g[1] * b2 + lobe));
+		sig = v(fmax(sig.x, 0.0), fmax(sig.y, 0.0), fmax(sig.z, 0.0));
+	}
+	return mul(sig, psi);
+}
+
+/* visible: see step_light(). ground: ground_scattering() of the step. */
 static v3 light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, double radius_deg,
 			double visible, v3 illum, v3 sigma_s, v3 ground)
 {
-	double mu_l = dot(up, light), radius_rad = radius_deg * SKYMAP_PI / 180.0;
-	v3 t = visible < 0 ? light_transmittance(c, h, mu_l, radius_rad)
-			   : visible_transmittance(c, h, mu_l, visible);
-	v3 s = mul(phased_scattering(c, h, dot(dir, light)), t);
-	if (c->s->quality.multiscatter_dirs) {	/* 0: higher orders switched off */
-		double share, sh[4];
-		v3 psi = multiscatter(c, h, mu_l, &share, sh);
-		v3 sig = add(sigma_s, scale(ground, share));
-		if (c->lobe >= 0) {
-			/* ms_source in common.glsl: the constituent scatters the
-			 * shape's bands 1 and 2 through its g1 and g2 toward
-			 * o = -dir, in the frame of the light's vertical plane,
-			 * and the sun's aureole. */
-			const struct atmo_constituent *k = &c->a->c[c->lobe];
-			v3 fwd = scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
-				       atmo_density(&k->density, h));
-			double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l, o_z = -view_up;
-			double o_x = skymap_clamp((view_up * mu_l - dot(dir, light)) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
-			double b1 = sh[0] * o_z;
-			double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) + sh[2] * o_x * o_z;
-			/* The aureole: a (4 pi HG_{g1 g1}(view . light) - 1). */
-			double gl = c->lobe_g[0] * c->lobe_g[0];
-			double den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - dot(dir, light));
-			double lobe = sh[3] * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);
-			sig = add(sig, scale(fwd, c->lobe_g[0] * b1 + c->lobe_g[1] * b2 + lobe));
-			sig = v(fmax(sig.x, 0.0), fmax(sig.y, 0.0), fmax(sig.z, 0.0));
-		}
-		s = add(s, mul(sig, psi));
+	v3 s = mul(phased_scattering(c, h, dot(dir, light)), step_light(c, h, dot(up, light), radius_deg, visible));
+	v3 fwd = v(0, 0, 0);
+	if (c->lobe >= 0) {
+		const struct atmo_constituent *k = &c->a->c[c->lobe];
+		fwd = scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
+			    atmo_density(&k->density, h));
 	}
+	s = add(s, higher_orders(c, h, up, dir, light, sigma_s, ground, fwd));
 	return mul(s, illum);
 }
 
@@ -724,11 +753,8 @@ static double delta_column(const struct ctx *c, double h, double mu, uint32_t st
  * bilinearly from the column table at the transmittance lookup's taps. */
 static v3 delta_gain(const struct ctx *c, double h, double mu)
 {
-	const struct model_tables *m = c->tab;
 	const struct atmo_constituent *k = &c->s->atmo.c[c->delta];	/* the real sigma_D */
-	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h, u, vv;
-	skymap_transmittance_uv(c->rb, c->rt, hc, mu < -1 ? -1 : mu > 1 ? 1 : mu, m->w[0], m->h[0], &u, &vv);
-	struct taps t = taps_at(m->w[0], m->h[0], u, vv);
+	struct taps t = transmittance_taps(c, h, mu);
 	double l = taps_channel(c->delta_col, &t, 0);
 	return v(exp(fmin(c->delta_f * k->scattering_per_km[0] * l, 80.0)),
 		 exp(fmin(c->delta_f * k->scattering_per_km[1] * l, 80.0)),
@@ -740,14 +766,10 @@ static v3 delta_gain(const struct ctx *c, double h, double mu)
  * the transmittance texels (columns_at in common.glsl). */
 static v3 delta_light_transmittance(const struct ctx *c, double h, double mu, double radius_rad)
 {
-	const struct model_tables *m = c->tab;
-	double hc = h < 0 ? 0 : h > c->shell ? c->shell : h, u, vv;
-	double mu_h = h < 0 ? -2.0 : skymap_horizon_cos(c->rb, hc);
-	double vis = disk_visible(mu - mu_h, disk_halfwidth(c, h, radius_rad));
+	double vis = light_visible(c, h, mu, radius_rad);
 	if (vis <= 0)
 		return v(0, 0, 0);
-	skymap_transmittance_uv(c->rb, c->rt, hc, mu < -1 ? -1 : mu > 1 ? 1 : mu, m->w[0], m->h[0], &u, &vv);
-	struct taps t = taps_at(m->w[0], m->h[0], u, vv);
+	struct taps t = transmittance_taps(c, h, mu);
 	return scale(vexp_neg(v(taps_channel(c->delta_col, &t, 1), taps_channel(c->delta_col, &t, 2),
 				taps_channel(c->delta_col, &t, 3))), vis);
 }
@@ -765,36 +787,18 @@ static v3 delta_sigma(const struct ctx *c, double h)
 static void delta_light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, double radius_deg,
 			       double visible, v3 illum, v3 sigma_s, v3 ground, v3 *ret_real, v3 *ret_scaled)
 {
-	double mu_l = dot(up, light), radius_rad = radius_deg * SKYMAP_PI / 180.0, mu = dot(dir, light);
+	double mu_l = dot(up, light), mu = dot(dir, light);
 	const struct atmo_constituent *k = &c->a->c[c->delta];
-	v3 t = visible < 0 ? light_transmittance(c, h, mu_l, radius_rad)
-			   : visible_transmittance(c, h, mu_l, visible);
+	v3 t = step_light(c, h, mu_l, radius_deg, visible);
 	v3 ph = phased_scattering(c, h, mu);
 	v3 ph_s = add(ph, scale(delta_sigma(c, h), (1.0 - c->delta_f) * phase(ATMO_PHASE_HENYEY_GREENSTEIN,
 										 c->delta_g, mu) -
 						     phase(k->phase, k->g, mu)));
 	*ret_real = mul(mul(add(ph, scale(ph_s, -1.0)), t), illum);
 	v3 s = mul(mul(ph_s, t), delta_gain(c, h, mu_l));
-	if (c->s->quality.multiscatter_dirs) {
-		double share, sh[4];
-		v3 psi = multiscatter(c, h, mu_l, &share, sh);
-		v3 sig = add(sigma_s, scale(ground, share));
-		if (c->lobe >= 0) {
-			/* light_source's shape, scattered by the scaled
-			 * constituent through the truncated phase (lobe_g). */
-			v3 fwd = scale(delta_sigma(c, h), 1.0 - c->delta_f);
-			double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l, o_z = -view_up;
-			double o_x = skymap_clamp((view_up * mu_l - mu) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
-			double b1 = sh[0] * o_z;
-			double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) + sh[2] * o_x * o_z;
-			double gl = c->lobe_g[0] * c->lobe_g[0];
-			double den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - mu);
-			double lobe = sh[3] * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);
-			sig = add(sig, scale(fwd, c->lobe_g[0] * b1 + c->lobe_g[1] * b2 + lobe));
-			sig = v(fmax(sig.x, 0.0), fmax(sig.y, 0.0), fmax(sig.z, 0.0));
-		}
-		s = add(s, mul(sig, psi));
-	}
+	/* The shape through the truncated phase (lobe_g: g', g'^2) of the
+	 * scaled constituent. */
+	s = add(s, higher_orders(c, h, up, dir, light, sigma_s, ground, scale(delta_sigma(c, h), 1.0 - c->delta_f)));
 	*ret_scaled = mul(s, illum);
 }
 
