@@ -42,6 +42,17 @@ vec4 phase4(int kind, float g, vec4 mu)
 		    phase(kind, g, mu.w));
 }
 
+// The sunlight reaching a point toward mu (light_transmittance), or with
+// delta-M the scaled medium's: the disk's visible part times
+// exp(-tau'), tau' = ext_scaled * columns_at().
+vec3 sunlight(TAlt a, float mu, float radius_rad, mat4x3 ext_scaled)
+{
+	if (DELTA_CONST < 0)
+		return light_transmittance(a, mu, radius_rad);
+	float vis = light_visible(a, mu, radius_rad);
+	return vis > 0.0 ? vis * exp(-(ext_scaled * columns_at(a, mu))) : vec3(0.0);
+}
+
 void main()
 {
 	load_params();
@@ -169,17 +180,8 @@ void main()
 			vec3 step_t, w = tr * step_weight(scattering + absorption, dt, step_t);
 			TAlt a = t_alt(hs);
 			vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
-			for (int j = 0; j < MS_SUN_GROUP; j++) {
-				float mu_l = dot(up, sun[j]);
-				vec3 t_l;
-				if (DELTA_CONST >= 0) {
-					float vis = light_visible(a, mu_l, P.sun_dir.w);
-					t_l = vis > 0.0 ? vis * exp(-(ext_scaled * columns_at(a, mu_l))) : vec3(0.0);
-				} else {
-					t_l = light_transmittance(a, mu_l, P.sun_dir.w);
-				}
-				l2[j] += w * (phased_of[j] * dens) * t_l;
-			}
+			for (int j = 0; j < MS_SUN_GROUP; j++)
+				l2[j] += w * (phased_of[j] * dens) * sunlight(a, dot(up, sun[j]), P.sun_dir.w, ext_scaled);
 			absorbed += w * absorption;
 			tr *= step_t;
 		}
@@ -204,10 +206,8 @@ void main()
 			TAlt a = t_alt(0.0);
 			for (int j = 0; j < MS_SUN_GROUP; j++) {
 				float mu_g = dot(n, sun[j]);
-				vec3 t_l = DELTA_CONST < 0 ? transmittance_at(a, mu_g)
-						 : mu_g < a.mu_horizon ? vec3(0.0)
-						 : exp(-(ext_scaled * columns_at(a, mu_g)));
-				sum_ground[j] += tr * t_l * max(mu_g, 0.0) * P.albedo.rgb / PI;
+				// The sun as a point (radius 0), as transmittance_at() takes it.
+				sum_ground[j] += tr * sunlight(a, mu_g, 0.0, ext_scaled) * max(mu_g, 0.0) * P.albedo.rgb / PI;
 			}
 			// Under the isotropic field psi the Lambertian ground sends back
 			// albedo times psi: a transfer like scattering, so every order
