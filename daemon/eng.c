@@ -70,6 +70,8 @@ struct gpu_params {
 	 * of the view's cos-zenith as a polynomial (model_ground_fit), a vec4
 	 * of the constituents per coefficient. */
 	float ground_fit[MODEL_GROUND_FIT][4];
+	/* Delta-M's forward peak (model_delta_peak): h, its spread in rad. */
+	float delta_peak[4];
 };
 
 /* model_ground_excess of one constituent, kept while its phase stays: it
@@ -963,6 +965,9 @@ static void fill_delta(struct eng *e, const struct sky_state *s, int delta, stru
 		p->ground_fit[k][n] = (float)dc->fit[k];
 	p->c[n].layer1c[2] = (float)dc->legendre[0];
 	p->c[n].layer1c[3] = (float)dc->legendre[1];
+	double h, spread;
+	model_delta_peak(a->c[delta].phase, a->c[delta].g, &h, &spread);
+	put4(p->delta_peak, h, spread, 0, 0);
 	base->v[23] = n + 1;
 }
 

@@ -47,7 +47,7 @@ struct ctx {
 	 * whether the sunlight comes through the scaled transmittance (the
 	 * multi-scattering table's context only). */
 	int delta;
-	double delta_f, delta_g;
+	double delta_f, delta_g, delta_h, delta_spread;
 	struct atmo scaled;
 	double *delta_col;
 	bool delta_light;
@@ -188,6 +188,28 @@ void model_delta_truncation(enum atmo_phase kind, double g, double *ret_f, doubl
 	f = f < 0.0 || !(g1 > 0.0) ? 0.0 : f > g1 ? g1 : f;
 	*ret_f = f;
 	*ret_g = f < 1.0 ? (g1 - f) / (1.0 - f) : 0.0;
+}
+
+void model_delta_peak(enum atmo_phase kind, double g, double *ret_h, double *ret_spread_rad)
+{
+	double f, gp;
+	model_delta_truncation(kind, g, &f, &gp);
+	*ret_h = 1.0;
+	*ret_spread_rad = 0.0;
+	if (!(f > 0.0))
+		return;
+	double p2 = (model_phase_legendre(kind, g, 2) - (1.0 - f) * gp * gp) / f;
+	double pn = (f - (1.0 - f) * pow(gp, MODEL_DELTA_ORDER)) / f;
+	*ret_h = pn > 0.0 ? pow(fmin(pn, 1.0), 1.0 / MODEL_DELTA_ORDER) : 0.0;
+	*ret_spread_rad = sqrt(fmax(2.0 / 3.0 * (1.0 - p2), 0.0));
+}
+
+double model_delta_peak_phase(enum atmo_phase kind, double g, double h, double spread_rad, double tau,
+			      double mu_l, double mu)
+{
+	double n = tau < 1e-4 ? 1.0 + 0.5 * tau : tau / (1.0 - exp(-tau));
+	double above = 1.0 / (1.0 + exp(-1.702 * asin(fmax(-1.0, fmin(1.0, mu_l))) / (spread_rad * sqrt(n))));
+	return above * phase(kind, g * pow(h, n), mu);
 }
 
 /* Quadrature of model_ground_excess: midpoints in u with c = 1 - 2 u^2, which
@@ -785,17 +807,21 @@ static v3 delta_sigma(const struct ctx *c, double h)
 /* delta_source: the part weighed by the real view transmittance in
  * ret_real, by the scaled one in ret_scaled. */
 static void delta_light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, double radius_deg,
-			       double visible, v3 illum, v3 sigma_s, v3 ground, v3 *ret_real, v3 *ret_scaled)
+			       double visible, v3 illum, v3 sigma_s, v3 ground, double tau_view, v3 *ret_real,
+			       v3 *ret_scaled)
 {
 	double mu_l = dot(up, light), mu = dot(dir, light);
 	const struct atmo_constituent *k = &c->a->c[c->delta];
 	v3 t = step_light(c, h, mu_l, radius_deg, visible);
 	v3 ph = phased_scattering(c, h, mu);
-	v3 ph_s = add(ph, scale(delta_sigma(c, h), (1.0 - c->delta_f) * phase(ATMO_PHASE_HENYEY_GREENSTEIN,
-										 c->delta_g, mu) -
+	v3 gain = delta_gain(c, h, mu_l);
+	/* The peak's optical depth toward the light: ln(T_l' / T_l). */
+	double tau = tau_view + (log(gain.x) + log(gain.y) + log(gain.z)) / 3.0;
+	v3 ph_s = add(ph, scale(delta_sigma(c, h), model_delta_peak_phase(k->phase, k->g, c->delta_h, c->delta_spread,
+									     tau, mu_l, mu) -
 						     phase(k->phase, k->g, mu)));
 	*ret_real = mul(mul(add(ph, scale(ph_s, -1.0)), t), illum);
-	v3 s = mul(mul(ph_s, t), delta_gain(c, h, mu_l));
+	v3 s = mul(mul(ph_s, t), gain);
 	/* The shape through the truncated phase (lobe_g: g', g'^2) of the
 	 * scaled constituent. */
 	s = add(s, higher_orders(c, h, up, dir, light, sigma_s, ground, scale(delta_sigma(c, h), 1.0 - c->delta_f)));
@@ -813,11 +839,14 @@ static void delta_step(const struct ctx *c, double hs, v3 up, v3 dir, double dt,
 	 * truncated phase's for it (delta_init). */
 	double ex = model_ground_fit_at(c->ground_fit[c->delta], dot(up, dir));
 	v3 ground = add(ground_scattering(c, hs, dot(up, dir)), scale(removed, -ex));
+	/* The peak's optical depth from the eye to the middle of the step. */
+	v3 peak = add(add(*tau, scale(*tau_scaled, -1.0)), scale(removed, 0.5 * dt));
+	double tau_view = (peak.x + peak.y + peak.z) / 3.0;
 	delta_light_source(c, hs, up, dir, c->sun, c->s->sun.angular_radius_deg, vis_sun, c->sun_illum, sig_s,
-			   ground, &r, &rs);
+			   ground, tau_view, &r, &rs);
 	if (c->moon_lit) {
 		delta_light_source(c, hs, up, dir, c->moon, c->s->moon.angular_radius_deg, vis_moon, c->moon_illum,
-				   sig_s, ground, &r2, &rs2);
+				   sig_s, ground, tau_view, &r2, &rs2);
 		r = add(r, r2);
 		rs = add(rs, rs2);
 	}
@@ -839,6 +868,7 @@ static int delta_init(struct ctx *c, const struct sky_state *s, const struct mod
 	double excess[MODEL_GROUND_N];
 	const struct state_table_quality *q = &s->quality.t[0];
 	model_delta_truncation(s->atmo.c[c->delta].phase, s->atmo.c[c->delta].g, &c->delta_f, &c->delta_g);
+	model_delta_peak(s->atmo.c[c->delta].phase, s->atmo.c[c->delta].g, &c->delta_h, &c->delta_spread);
 	c->scaled = s->atmo;
 	for (int ch = 0; ch < 3; ch++)
 		k->scattering_per_km[ch] *= 1.0 - c->delta_f;

@@ -118,4 +118,21 @@ int model_lobe_constituent(const struct sky_state *s, const double *g1_of);
 #define MODEL_DELTA_ORDER 6
 void model_delta_truncation(enum atmo_phase kind, double g, double *ret_f, double *ret_g);
 
+/* The forward peak that the truncation takes out, p_peak = (p - (1 - f)
+ * p') / f, as the light it scatters is widened (common.glsl's
+ * delta_peak_phase): ret_h, the Henyey-Greenstein parameter with its
+ * moment of order MODEL_DELTA_ORDER (n peak scatterings widen a phase of
+ * parameter g to g h^n), and ret_spread_rad, its root-mean-square angle
+ * from its second moment (small angles: 1 - P_2 ~ 3/2 theta^2), which
+ * widens as sqrt(n). Cornette-Shanks g = 0.85: h = 0.924, spread 0.147
+ * (8.4 deg). No peak (f = 0): h = 1, spread 0. */
+void model_delta_peak(enum atmo_phase kind, double g, double *ret_h, double *ret_spread_rad);
+
+/* delta_peak_phase's widened phase for the light that the peak scattered
+ * besides the last deflection: tau the peak's optical depth toward the
+ * light and back to the eye, mu_l the light's cos-zenith at the point, mu
+ * the view's cosine with the light. */
+double model_delta_peak_phase(enum atmo_phase kind, double g, double h, double spread_rad, double tau,
+			      double mu_l, double mu);
+
 #endif

@@ -53,6 +53,7 @@ void main()
 	float t0 = en.t0, t1 = en.t0 + en.len;
 	vec3 radiance = vec3(0.0), tr = vec3(1.0);
 	vec3 tr_scaled = vec3(1.0);	// through the delta-M scaled medium (delta_source)
+	float tau_view = 0.0;		// the peak's optical depth along it (scaled_step)
 	float prev_depth = 0.0;
 	for (int k = 0; k < OUT_D; k++) {
 		float xk = float(k + 1) / float(OUT_D);
@@ -71,7 +72,7 @@ void main()
 				Scatter sc;
 				Medium m = medium_parts(hs, sc);
 				vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);
-				Scaled ds = scaled_step(sc, m, view_up);
+				Scaled ds = scaled_step(sc, m, view_up, dt, tau_view);
 				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
 				float mu_l = dot(up, P.sun_dir.xyz);
 				march_source(ta, mu_l, light_visible(ta, mu_l, P.sun_dir.w), P.sun_illum.rgb, sc, ph_sun, m,

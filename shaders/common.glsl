@@ -57,6 +57,7 @@ struct Params {
 	Constituent C[4];
 	vec4 night;		// night-sky floor: rgb zenith cd/m2, w horizon gain c (daemon/state.h)
 	vec4 ground_fit[8];	// GROUND_FIT coefficients, one component per constituent (ground_excess())
+	vec4 delta_peak;	// DELTA_CONST's forward peak: x = h, y = its angular spread (rad) (delta_peak_phase())
 };
 layout(std140, binding = 0) uniform ParamsBlock { Params params; };
 
@@ -421,7 +422,7 @@ vec4 multiscatter_at(TAlt a, float mu_s)
 // towards a distant light, so it is evaluated once per ray, not per step.
 struct Phases {
 	float p[4];
-	float truncated;	// DELTA_CONST's truncated phase (Henyey-Greenstein g')
+	float mu;		// the view's cosine with the light
 };
 
 Phases ray_phases(vec3 view_dir, vec3 light_dir)
@@ -430,7 +431,7 @@ Phases ray_phases(vec3 view_dir, vec3 light_dir)
 	float mu = dot(view_dir, light_dir);
 	for (int i = 0; i < 4; i++)
 		ph.p[i] = i < N_CONST && phase_kind(i) != 0 ? phase(phase_kind(i), P.C[i].scattering.w, mu) : 0.0;
-	ph.truncated = DELTA_CONST >= 0 ? phase(3, P.C[max(DELTA_CONST, 0)].layer1c.w, mu) : 0.0;
+	ph.mu = mu;
 	return ph;
 }
 
@@ -610,14 +611,15 @@ bool ray_in_shell(float h0, vec3 dir, out Entry en)
 //   sigma_t'), and the march scatters the resulting psi' with sigma_s'
 //   through T_v' (the march's second product, over sigma_t'): light that
 //   the peak scatters on the way to the eye stays on its way;
-// - the scaled medium's first order, sigma_s'' p'' T_l' T_v' (p'' the scaled
-//   mixture), also counts the paths in which the peak scattered the light
-//   one or more times before the one real scattering toward the eye; the
-//   exact single scattering already has those with no peak scattering,
-//   sigma_s'' p'' T_l T_v, so the march adds the difference. Nakajima and
-//   Tanaka's TMS drops the difference altogether: traced exactly otherwise
-//   (tools/pt.c, pt_approx without delta_excess; f = 0.78, sun 30) that
-//   read Mars' day sky 22 % low.
+// - the paths in which the peak scattered the light one or more times,
+//   toward the point or on to the eye, besides one last deflection toward
+//   the eye: T_l' T_v' - T_l T_v of them (the exact single scattering has
+//   those with no peak scattering), so the march adds that difference
+//   scattered by the other constituents' phases and by DELTA_CONST's
+//   widened one (delta_peak_phase()). Nakajima and Tanaka's TMS drops the
+//   difference altogether: traced exactly otherwise (tools/pt.c, pt_approx
+//   without delta_excess; f = 0.78, sun 30) that read Mars' day sky 22 %
+//   low.
 // f is the phase's 6th Legendre moment, not delta-Eddington's 2nd: the path
 // tracer with the tables' assumptions read Mars (sun 30 / 5, day / horizon)
 // 6.6 / 9.1 and 7.7 / 10.9 % off with f = 0.4 (the 6th moment is 0.416),
@@ -642,48 +644,20 @@ vec4 columns_at(TAlt a, float mu)
 	return bilinear(ColumnTex, T_W, transmittance_x(a, mu), a.t_rows);
 }
 
-// T_l' / T_l toward mu from the altitude of a: exp(f sigma_D L_D), with
-// removed = f sigma_D (delta_removed()) and L_D DELTA_CONST's column density.
-vec3 delta_gain(TAlt a, float mu, vec3 removed)
-{
-	return exp(min(removed * columns_at(a, mu)[max(DELTA_CONST, 0)], vec3(80.0)));
-}
-
-// The scaled medium's phase-weighted scattering from the real one's:
-// DELTA_CONST's sigma_D p becomes (1 - f) sigma_D p'.
-vec3 delta_phased(vec3 phased, Scatter sc, Phases ph)
-{
-	int k = max(DELTA_CONST, 0);
-	return phased + sc.s[k] * ((1.0 - P.C[k].layer1c.z) * ph.truncated - ph.p[k]);
-}
-
-// The march's source for one light with delta-M: ret_real weighs with the
-// real transmittance along the view (tr), ret_scaled with the scaled one.
-// phased / phased_s: the real and scaled phase-weighted scattering;
-// sigma_s / ground: the scaled medium's scattering and ground term.
-// forward: the scaled scattering of DELTA_CONST, for the shape of the
-// field (ms_source) where multiscatter_moment=on keeps it.
-void delta_source(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 phased_s, vec3 sigma_s,
-		  vec3 ground, vec3 forward, float view_up, float view_light, out vec3 ret_real, out vec3 ret_scaled)
-{
-	vec3 t = visible > 0.0 ? visible * transmittance_lookup(a, mu_l) : vec3(0.0);
-	ret_real = (phased - phased_s) * t * illum;
-	ret_scaled = phased_s * t * delta_gain(a, mu_l, delta_removed());
-	if (MULTISCATTER_ON)
-		ret_scaled += ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
-	ret_scaled *= illum;
-}
-
 // What the delta-M scaled medium has at a march step (delta_source's
 // arguments): the scattering it removes, its scattering, ground term and
-// lobe constituent's scattering; zero without delta-M.
+// lobe constituent's scattering (for the shape of the field, ms_source);
+// the peak's optical depth from the eye to the middle of the step
+// (delta_peak_phase()), which tau_view carries along the march, dt the
+// step's length; zero without delta-M.
 struct Scaled {
 	vec3 removed, sigma_s, ground, forward;
+	float tau_view;
 };
 
-Scaled scaled_step(Scatter sc, Medium m, float view_up)
+Scaled scaled_step(Scatter sc, Medium m, float view_up, float dt, inout float tau_view)
 {
-	Scaled d = Scaled(vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
+	Scaled d = Scaled(vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), 0.0);
 	if (DELTA_CONST < 0)
 		return d;
 	int k = max(DELTA_CONST, 0);
@@ -693,8 +667,54 @@ Scaled scaled_step(Scatter sc, Medium m, float view_up)
 	d.sigma_s = m.scattering - d.removed;
 	d.ground = ground_scattering(scs, ground_excess(view_up));
 	d.forward = scs.s[k];
+	float dtau = dot(d.removed, vec3(1.0 / 3.0)) * dt;
+	d.tau_view = tau_view + 0.5 * dtau;
+	tau_view += dtau;
 	return d;
 }
+
+// The last deflection of the light that the peak scattered n >= 1 times
+// besides (model_delta_peak_phase). It is the whole phase p, the peak's own
+// share included: with the peak taken as no scattering and only (1 - f) p'
+// here, light that only the peak ever scattered left the sky (Mars, sun 15:
+// the higher orders 10-40 deg from the sun read 15-20 % low). The n peak
+// scatterings widen it: the constituent's phase at g h^n (exact for
+// Henyey-Greenstein, whose moments multiply; h the peak's own, from its
+// 6th moment), with n the mean count given one or more, tau / (1 -
+// exp(-tau)), for the peak's optical depth tau toward the light (column:
+// DELTA_CONST's column density there) and back to the eye (tau_view). The
+// widened beam reaches the point only from above its horizon: the share of
+// it above the local horizontal, a logistic of the light's elevation over
+// the spread sigma sqrt(n). Without that share Mars at sun 5 read its
+// horizon band 10 % high.
+float delta_peak_phase(float mu_l, float column, float tau_view, Phases ph)
+{
+	int k = max(DELTA_CONST, 0);
+	float tau = tau_view + dot(delta_removed(), vec3(1.0 / 3.0)) * column;
+	float n = tau < 1e-4 ? 1.0 + 0.5 * tau : tau / (1.0 - exp(-tau));
+	float above = 1.0 / (1.0 + exp(-1.702 * asin(clamp(mu_l, -1.0, 1.0)) / (P.delta_peak.y * sqrt(n))));
+	return above * phase(phase_kind(k), P.C[k].scattering.w * pow(P.delta_peak.x, n), ph.mu);
+}
+
+// The march's source for one light with delta-M: ret_real weighs with the
+// real transmittance along the view (tr), ret_scaled with the scaled one.
+// phased: the real phase-weighted scattering, sc and ph its parts;
+// ds: the scaled medium at the step (scaled_step()).
+void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Phases ph, vec3 phased, Scaled ds,
+		  float view_up, float view_light, out vec3 ret_real, out vec3 ret_scaled)
+{
+	int k = max(DELTA_CONST, 0);
+	vec3 t = visible > 0.0 ? visible * transmittance_lookup(a, mu_l) : vec3(0.0);
+	// T_l' / T_l = exp(f sigma_D L_D), L_D DELTA_CONST's column density.
+	float column = columns_at(a, mu_l)[k];
+	vec3 phased_s = phased + sc.s[k] * (delta_peak_phase(mu_l, column, ds.tau_view, ph) - ph.p[k]);
+	ret_real = (phased - phased_s) * t * illum;
+	ret_scaled = phased_s * t * exp(min(delta_removed() * column, vec3(80.0)));
+	if (MULTISCATTER_ON)
+		ret_scaled += ms_source(a, mu_l, ds.sigma_s, ds.ground, ds.forward, view_up, view_light);
+	ret_scaled *= illum;
+}
+
 
 // The sky-view and aerial marches' source for one light, added to real
 // (weighed by the view's transmittance) and, with delta-M, to scaled (by the
@@ -705,8 +725,7 @@ void march_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Pha
 	vec3 p = phased(sc, ph);
 	if (DELTA_CONST >= 0) {
 		vec3 r, rs;
-		delta_source(a, mu_l, visible, illum, p, delta_phased(p, sc, ph), ds.sigma_s, ds.ground, ds.forward,
-			     view_up, view_light, r, rs);
+		delta_source(a, mu_l, visible, illum, sc, ph, p, ds, view_up, view_light, r, rs);
 		real += r;
 		scaled += rs;
 	} else {

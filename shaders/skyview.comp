@@ -96,6 +96,7 @@ void main()
 
 	vec3 tr = vec3(1.0);
 	vec3 tr_scaled = vec3(1.0);	// through the delta-M scaled medium (delta_source)
+	float tau_view = 0.0;		// the peak's optical depth along it (scaled_step)
 	Entry en;
 	if (ray_in_shell(h0, dir[0], en)) {
 		float len = en.len;
@@ -125,7 +126,7 @@ void main()
 			float e_sun = P.planet.x / ta.r * P.sun_dir.w, e_moon = P.planet.x / ta.r * P.moon_dir.w;
 			float sun_k = e_sun > 0.0 ? 0.5 / e_sun : 1e30, moon_k = e_moon > 0.0 ? 0.5 / e_moon : 1e30;
 			vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
-			Scaled ds = scaled_step(sc, m, view_up);
+			Scaled ds = scaled_step(sc, m, view_up, dt, tau_view);
 			vec3 step_s = vec3(1.0), w_s = vec3(0.0);
 			if (DELTA_CONST >= 0)
 				w_s = tr_scaled * step_weight(m.extinction - ds.removed, dt, step_s);

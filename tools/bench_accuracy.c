@@ -73,6 +73,7 @@ static const struct config configs[] = {
 	{ "Ssteps15", { "skyview_steps=15" }, false },
 	{ "Ssteps60", { "skyview_steps=60", "skyview_min_steps=8" }, false },
 	{ "f16", { "storage=f16" }, false },
+	{ "Single", { "multiscatter_dirs=0" }, false },
 };
 #define N_CONFIGS (sizeof(configs) / sizeof(configs[0]))
 #define DEFAULT_CONFIG 1
@@ -475,8 +476,9 @@ static enum category category(const struct scene *sc, double el_deg)
 	return el_deg < 3.0 ? CAT_HORIZON : CAT_DAY;
 }
 
+/* Each direction's row goes to dirs (directions.csv) when it is open. */
 static void measure(const struct eng *e, const struct sky_state *s, const struct scene *sc,
-		    const struct gt *g, struct result *res)
+		    const char *config, const struct gt *g, struct result *res, FILE *dirs)
 {
 	static struct err_sample es[N_CAT][MAX_DIRS];
 	size_t n[N_CAT] = { 0 };
@@ -494,6 +496,10 @@ static void measure(const struct eng *e, const struct sky_state *s, const struct
 			     : g->lum[i] > 0 ? (y - g->lum[i]) / g->lum[i] : (y > 0 ? INFINITY : 0);
 		enum category c = category(sc, g->dir[i].elevation_deg);
 		struct stats *st = &res->cat[c];
+		if (dirs)
+			fprintf(dirs, "%s,%s,%s,%g,%g,%g,%.6g,%.6g,%.6g,%.6g\n", config, sc->name,
+				cat_names[c], g->dir[i].elevation_deg, g->dir[i].azimuth_deg, w, y,
+				g->lum[i], g->lum_se[i], rel);
 		es[c][n[c]++] = (struct err_sample){ fabs(rel), w };
 		st->weight += w;
 		st->mean_rel += w * fabs(rel);
@@ -1129,6 +1135,13 @@ int bench_accuracy_main(int argc, char **argv)
 	for (size_t c = 0; c < N_CONFIGS; c++)
 		for (size_t i = 0; i < n_sc; i++)
 			todo += runs_on(&o, c, &sc[i]);
+	char dirs_path[4096];
+	FILE *dirs = NULL;
+	if (FITS(dirs_path, "%s/directions.csv", o.out))
+		dirs = fopen(dirs_path, "w");
+	if (dirs)
+		fprintf(dirs, "config,scene,category,elevation_deg,azimuth_deg,weight,tables_cd_m2,"
+			      "truth_cd_m2,truth_se_cd_m2,rel\n");
 	double t1 = now_s();
 	for (size_t c = 0; c < N_CONFIGS && rc == 0; c++)
 		for (size_t i = 0; i < n_sc && rc == 0; i++) {
@@ -1144,10 +1157,12 @@ int bench_accuracy_main(int argc, char **argv)
 			if (rc == 0)
 				rc = time_tables(e, &s, o.runs, &x->time_ms);
 			if (rc == 0) {
-				measure(e, &s, &sc[i], &gts[i], x);
+				measure(e, &s, &sc[i], configs[c].name, &gts[i], x, dirs);
 				x->done = true;
 			}
 		}
+	if (dirs && fclose(dirs) != 0)
+		fprintf(stderr, "skybench: cannot write '%s'\n", dirs_path);
 	if (rc == 0)
 		progress("tables", todo, todo, "", t1);
 	/* 3. Images of the default preset against the truth. */
@@ -1180,7 +1195,7 @@ int bench_accuracy_main(int argc, char **argv)
 		       s.n_scenes, 100 * s.mean[0], 100 * s.max_mean[0], 100 * s.mean[1],
 		       100 * s.max_mean[1], 100 * s.mean[2], 100 * s.max_mean[2], s.time_ms, gt_s,
 		       total_s);
-		printf("report: %s/accuracy.md, %s/accuracy.csv\n", o.out, o.out);
+		printf("report: %s/accuracy.md, %s/accuracy.csv, %s/directions.csv\n", o.out, o.out, o.out);
 		if (o.limits) {
 			int bad = check_limits(o.limits, sc, n_sc, res);
 			if (bad < 0) {
