@@ -208,7 +208,7 @@ double model_delta_peak_phase(enum atmo_phase kind, double g, double h, double s
 			      double mu_l, double mu)
 {
 	double n = tau < 1e-4 ? 1.0 + 0.5 * tau : tau / (1.0 - exp(-tau));
-	double above = 1.0 / (1.0 + exp(-1.702 * asin(fmax(-1.0, fmin(1.0, mu_l))) / (spread_rad * sqrt(n))));
+	double above = 1.0 / (1.0 + exp(-1.702 * asin(fmax(-1.0, fmin(1.0, mu_l))) / fmax(spread_rad * sqrt(n), 1e-6)));
 	return above * phase(kind, g * pow(h, n), mu);
 }
 

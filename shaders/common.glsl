@@ -692,7 +692,7 @@ float delta_peak_phase(float mu_l, float column, float tau_view, Phases ph)
 	int k = max(DELTA_CONST, 0);
 	float tau = tau_view + dot(delta_removed(), vec3(1.0 / 3.0)) * column;
 	float n = tau < 1e-4 ? 1.0 + 0.5 * tau : tau / (1.0 - exp(-tau));
-	float above = 1.0 / (1.0 + exp(-1.702 * asin(clamp(mu_l, -1.0, 1.0)) / (P.delta_peak.y * sqrt(n))));
+	float above = 1.0 / (1.0 + exp(-1.702 * asin(clamp(mu_l, -1.0, 1.0)) / max(P.delta_peak.y * sqrt(n), 1e-6)));
 	return above * phase(phase_kind(k), P.C[k].scattering.w * pow(P.delta_peak.x, n), ph.mu);
 }
 
