@@ -771,16 +771,15 @@ static double delta_column(const struct ctx *c, double h, double mu, uint32_t st
 	return column * dt;
 }
 
-/* T_l' / T_l toward mu from altitude h: exp(f sigma_D L_D), L_D read
- * bilinearly from the column table at the transmittance lookup's taps. */
-static v3 delta_gain(const struct ctx *c, double h, double mu)
+/* The peak's optical depth toward mu from altitude h, f sigma_D L_D (T_l' /
+ * T_l is exp of it), L_D read bilinearly from the column table at the
+ * transmittance lookup's taps. */
+static v3 delta_depth(const struct ctx *c, double h, double mu)
 {
 	const struct atmo_constituent *k = &c->s->atmo.c[c->delta];	/* the real sigma_D */
 	struct taps t = transmittance_taps(c, h, mu);
-	double l = taps_channel(c->delta_col, &t, 0);
-	return v(exp(fmin(c->delta_f * k->scattering_per_km[0] * l, 80.0)),
-		 exp(fmin(c->delta_f * k->scattering_per_km[1] * l, 80.0)),
-		 exp(fmin(c->delta_f * k->scattering_per_km[2] * l, 80.0)));
+	return scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
+		     c->delta_f * taps_channel(c->delta_col, &t, 0));
 }
 
 /* The scaled medium's light_transmittance: the visible part of the disk
@@ -814,13 +813,13 @@ static void delta_light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 
 	const struct atmo_constituent *k = &c->a->c[c->delta];
 	v3 t = step_light(c, h, mu_l, radius_deg, visible);
 	v3 ph = phased_scattering(c, h, mu);
-	v3 gain = delta_gain(c, h, mu_l);
-	/* The peak's optical depth toward the light: ln(T_l' / T_l). */
-	double tau = tau_view + (log(gain.x) + log(gain.y) + log(gain.z)) / 3.0;
+	v3 depth = delta_depth(c, h, mu_l);
+	double tau = tau_view + (depth.x + depth.y + depth.z) / 3.0;
 	v3 ph_s = add(ph, scale(delta_sigma(c, h), model_delta_peak_phase(k->phase, k->g, c->delta_h, c->delta_spread,
 									     tau, mu_l, mu) -
 						     phase(k->phase, k->g, mu)));
 	*ret_real = mul(mul(add(ph, scale(ph_s, -1.0)), t), illum);
+	v3 gain = v(exp(fmin(depth.x, 80.0)), exp(fmin(depth.y, 80.0)), exp(fmin(depth.z, 80.0)));	/* T_l' / T_l */
 	v3 s = mul(mul(ph_s, t), gain);
 	/* The shape through the truncated phase (lobe_g: g', g'^2) of the
 	 * scaled constituent. */

@@ -681,16 +681,15 @@ Scaled scaled_step(Scatter sc, Medium m, float view_up, float dt, inout float ta
 // scatterings widen it: the constituent's phase at g h^n (exact for
 // Henyey-Greenstein, whose moments multiply; h the peak's own, from its
 // 6th moment), with n the mean count given one or more, tau / (1 -
-// exp(-tau)), for the peak's optical depth tau toward the light (column:
-// DELTA_CONST's column density there) and back to the eye (tau_view). The
+// exp(-tau)), for the peak's optical depth tau toward the light and back
+// to the eye (delta_source). The
 // widened beam reaches the point only from above its horizon: the share of
 // it above the local horizontal, a logistic of the light's elevation over
 // the spread sigma sqrt(n). Without that share Mars at sun 5 read its
 // horizon band 10 % high.
-float delta_peak_phase(float mu_l, float column, float tau_view, Phases ph)
+float delta_peak_phase(float mu_l, float tau, Phases ph)
 {
 	int k = max(DELTA_CONST, 0);
-	float tau = tau_view + dot(delta_removed(), vec3(1.0 / 3.0)) * column;
 	float n = tau < 1e-4 ? 1.0 + 0.5 * tau : tau / (1.0 - exp(-tau));
 	float above = 1.0 / (1.0 + exp(-1.702 * asin(clamp(mu_l, -1.0, 1.0)) / max(P.delta_peak.y * sqrt(n), 1e-6)));
 	return above * phase(phase_kind(k), P.C[k].scattering.w * pow(P.delta_peak.x, n), ph.mu);
@@ -705,11 +704,13 @@ void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Pha
 {
 	int k = max(DELTA_CONST, 0);
 	vec3 t = visible > 0.0 ? visible * transmittance_lookup(a, mu_l) : vec3(0.0);
-	// T_l' / T_l = exp(f sigma_D L_D), L_D DELTA_CONST's column density.
-	float column = columns_at(a, mu_l)[k];
-	vec3 phased_s = phased + sc.s[k] * (delta_peak_phase(mu_l, column, ds.tau_view, ph) - ph.p[k]);
+	// The peak's optical depth toward the light, f sigma_D L_D (L_D
+	// DELTA_CONST's column density): T_l' / T_l = exp of it.
+	vec3 depth = delta_removed() * columns_at(a, mu_l)[k];
+	float tau = ds.tau_view + dot(depth, vec3(1.0 / 3.0));
+	vec3 phased_s = phased + sc.s[k] * (delta_peak_phase(mu_l, tau, ph) - ph.p[k]);
 	ret_real = (phased - phased_s) * t * illum;
-	ret_scaled = phased_s * t * exp(min(delta_removed() * column, vec3(80.0)));
+	ret_scaled = phased_s * t * exp(min(depth, vec3(80.0)));
 	if (MULTISCATTER_ON)
 		ret_scaled += ms_source(a, mu_l, ds.sigma_s, ds.ground, ds.forward, view_up, view_light);
 	ret_scaled *= illum;

@@ -1,8 +1,8 @@
 /* test_delta.c - delta-M for the multiply scattered light (delta_source in
  * shaders/common.glsl): the truncation against closed forms, the rule that
  * switches it on, the peak's widened light, the limit where the peak
- * vanishes (nothing counted twice or lost), what it does to Mars' sky in the model, and the engine doing
- * the same. */
+ * vanishes (nothing counted twice or lost), what it does to Mars' sky in
+ * the model, and the engine doing the same. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -58,15 +58,14 @@ static void test_peak(void)
 	double p2 = (0.64 - (1.0 - f) * gp * gp) / f, p6 = (f - (1.0 - f) * pow(gp, 6)) / f;
 	if (!(fabs(h - pow(p6, 1.0 / 6.0)) < 1e-12 && fabs(spread - sqrt(2.0 / 3.0 * (1.0 - p2))) < 1e-12))
 		FAIL("HG 0.8: peak h %.9f spread %.9f", h, spread);
+	model_delta_peak(ATMO_PHASE_HENYEY_GREENSTEIN, 0.0, &h, &spread);
+	if (!(h == 1.0 && spread == 0.0))
+		FAIL("no peak: h %g spread %g", h, spread);
 	model_delta_peak(ATMO_PHASE_CORNETTE_SHANKS, 0.85, &h, &spread);
 	printf("Cornette-Shanks 0.85: peak h %.6f spread %.6f rad\n", h, spread);
 	if (!(fabs(h - 0.9245) < 2e-3 && fabs(spread - 0.1465) < 2e-3))
 		FAIL("Cornette-Shanks 0.85: peak h %.6f spread %.6f", h, spread);
-	model_delta_peak(ATMO_PHASE_HENYEY_GREENSTEIN, 0.0, &h, &spread);
-	if (!(h == 1.0 && spread == 0.0))
-		FAIL("no peak: h %g spread %g", h, spread);
 
-	model_delta_peak(ATMO_PHASE_CORNETTE_SHANKS, 0.85, &h, &spread);
 	static const double taus[] = { 0.0, 0.5, 2.0 };
 	for (size_t i = 0; i < sizeof(taus) / sizeof(taus[0]); i++) {
 		double up = sphere_integral(ATMO_PHASE_CORNETTE_SHANKS, 0.85, h, spread, taus[i], 1.0);
@@ -154,7 +153,7 @@ static void test_limit(probe_sky_fn *sky, void *arg, const char *who)
  * 1.78, 1.28, 1.34, 1.14 and 0.94 without). The engine's ratios within 2 %
  * of the model's. */
 static double model_ratio[N_DIRS];
-static const double lo[N_DIRS] = { 1.5, 1.1, 1.15, 1.05, 0.85 }, hi[N_DIRS] = { 2.4, 1.45, 1.5, 1.3, 0.99 };
+static const double lo[N_DIRS] = { 1.5, 1.1, 1.15, 1.05, 0.85 }, hi[N_DIRS] = { 2.1, 1.45, 1.5, 1.3, 0.99 };
 
 static void test_mars(probe_sky_fn *sky, void *arg, const char *who)
 {

@@ -971,7 +971,8 @@ static void usage(FILE *f)
 		"         [--max-samples N] [--fisheye-n N] [--fisheye-error REL] [--no-images]\n"
 		"         [--presets-only] [--reduced] [--scenes TEXT] [--configs A,B]\n"
 		"         [--limits FILE]\n"
-		"  --out DIR        where the CSV, Markdown, plot and images go (accuracy-out)\n"
+		"  --out DIR        where the CSVs (directions.csv: every direction), Markdown,\n"
+		"                   plot and images go (accuracy-out)\n"
 		"  --cache DIR      ground-truth cache, read and written (OUT/gt-cache)\n"
 		"  --cache-ro DIR   a cache read first and never written (e.g. committed truth)\n"
 		"  --list-truth     print each scene's ground-truth cache file name and exit\n"
@@ -1139,7 +1140,9 @@ int bench_accuracy_main(int argc, char **argv)
 	FILE *dirs = NULL;
 	if (FITS(dirs_path, "%s/directions.csv", o.out))
 		dirs = fopen(dirs_path, "w");
-	if (dirs)
+	if (!dirs)
+		fprintf(stderr, "skybench: cannot write '%s/directions.csv'\n", o.out);
+	else
 		fprintf(dirs, "config,scene,category,elevation_deg,azimuth_deg,weight,tables_cd_m2,"
 			      "truth_cd_m2,truth_se_cd_m2,rel\n");
 	double t1 = now_s();
