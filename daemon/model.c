@@ -21,6 +21,11 @@ static v3 vexp_neg(v3 a) { return v(exp(-a.x), exp(-a.y), exp(-a.z)); }
 static double dot(v3 a, v3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 static double mean3(v3 a) { return (a.x + a.y + a.z) / 3.0; }
 
+/* The numbers of the multiply scattered light's shape per multi-scattering
+ * texel: multiscatter.comp's two texels, (3 m_z, 5 <P2(w_z)>, 15 T_xz, a)
+ * and 3.75 (T_xx - T_yy) less the aureole's. */
+#define SHAPE_N 5
+
 /* The model's view of a state: what the shaders get as uniforms. */
 struct ctx {
 	const struct sky_state *s;
@@ -35,7 +40,7 @@ struct ctx {
 	double ground_fit[ATMO_MAX_CONSTITUENTS][MODEL_GROUND_FIT];
 	/* The shape of the multiply scattered light for the constituent
 	 * model_moment_constituent names (-1 none): per multi-scattering
-	 * texel the 4 numbers of multiscatter.comp's texel; that
+	 * texel the SHAPE_N numbers of multiscatter.comp's two texels; that
 	 * constituent's g1 and g2. */
 	int lobe;
 	double *moment;
@@ -643,22 +648,22 @@ static struct taps transmittance_taps(const struct ctx *c, double h, double mu)
 	return taps_at(m->w[0], m->h[0], u, vv);
 }
 
-/* The 4 numbers of the multiply scattered light's shape of row tab at u,
- * linear between texel centres. */
-static void shape_row(const double *tab, uint32_t w, double u, double ret[4])
+/* The SHAPE_N numbers of the multiply scattered light's shape of row tab at
+ * u, linear between texel centres. */
+static void shape_row(const double *tab, uint32_t w, double u, double ret[SHAPE_N])
 {
 	double p = u * w - 0.5, f = p - floor(p);
 	int i = (int)floor(p);
 	int i0 = i < 0 ? 0 : i > (int)w - 1 ? (int)w - 1 : i;
 	int i1 = i + 1 < 0 ? 0 : i + 1 > (int)w - 1 ? (int)w - 1 : i + 1;
-	for (int k = 0; k < 4; k++)
-		ret[k] = tab[4 * i0 + k] + (tab[4 * i1 + k] - tab[4 * i0 + k]) * f;
+	for (int k = 0; k < SHAPE_N; k++)
+		ret[k] = tab[SHAPE_N * i0 + k] + (tab[SHAPE_N * i1 + k] - tab[SHAPE_N * i0 + k]) * f;
 }
 
 /* Each of the two rows at its own altitude's u, blended in altitude (see
  * multiscatter_at in common.glsl); the A channel (the ground's share) in
  * ret_share. */
-static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, double ret_shape[4])
+static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, double ret_shape[SHAPE_N])
 {
 	double u, vv;
 	const struct model_tables *m = c->tab;
@@ -669,7 +674,7 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 	int y0 = iy < 0 ? 0 : iy > (int)n - 1 ? (int)n - 1 : iy;
 	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)n - 1 ? (int)n - 1 : iy + 1;
 	v3 row[2];
-	double mrow[2][4] = { { 0 }, { 0 } };
+	double mrow[2][SHAPE_N] = { { 0 }, { 0 } };
 	double share[2];
 	for (int k = 0; k < 2; k++) {
 		int y = k ? y1 : y0;
@@ -685,10 +690,10 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 		row[k] = bilinear(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 		share[k] = bilinear_a(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 		if (c->lobe >= 0)
-			shape_row(c->moment + 4 * (size_t)y * w, w, skymap_unit_to_tex(0.5 + 0.5 * a, w), mrow[k]);
+			shape_row(c->moment + SHAPE_N * (size_t)y * w, w, skymap_unit_to_tex(0.5 + 0.5 * a, w), mrow[k]);
 	}
 	*ret_share = share[0] + (share[1] - share[0]) * fy;
-	for (int i = 0; i < 4; i++)
+	for (int i = 0; i < SHAPE_N; i++)
 		ret_shape[i] = mrow[0][i] + (mrow[1][i] - mrow[0][i]) * fy;
 	return add(row[0], scale(add(row[1], scale(row[0], -1.0)), fy));
 }
@@ -718,14 +723,15 @@ static v3 higher_orders(const struct ctx *c, double h, v3 up, v3 dir, v3 light, 
 {
 	if (!c->s->quality.multiscatter_dirs)
 		return v(0, 0, 0);
-	double mu_l = dot(up, light), share, sh[4];
+	double mu_l = dot(up, light), share, sh[SHAPE_N];
 	v3 psi = multiscatter(c, h, mu_l, &share, sh);
 	v3 sig = add(sigma_s, scale(ground, share));
 	if (c->lobe >= 0) {
 		double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l, o_z = -view_up;
 		double o_x = skymap_clamp((view_up * mu_l - dot(dir, light)) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
 		double b1 = sh[0] * o_z;
-		double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) + sh[2] * o_x * o_z;
+		double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) + sh[2] * o_x * o_z +
+			    sh[4] * (2.0 * o_x * o_x + o_z * o_z - 1.0);	/* o_x^2 - o_y^2 */
 		/* The aureole: a (4 pi HG_{g1 g1}(view . light) - 1). */
 		double gl = c->lobe_g[0] * c->lobe_g[0];
 		double den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - dot(dir, light));
@@ -1029,20 +1035,26 @@ static double ms_cell_weight(uint32_t k, uint32_t n)
 /* The mean over direction k's cell of constituent kc's phase toward the sun,
  * from MS_PHASE_SUB^2 equal-area sub-samples (see multiscatter.comp). The
  * cells: MS_RINGS rings (ms_ring_edge()) by MS_COLS azimuth columns, or for
- * two directions the upper and lower hemispheres. */
-static double ms_cell_phase(const struct atmo_constituent *kc, uint32_t k, uint32_t n, v3 sun)
+ * two directions the upper and lower hemispheres. With ret_xy2, also the
+ * sub-samples' mean x^2 - y^2 weighted by the phase (cell_xy2 in
+ * multiscatter.comp). */
+static double ms_cell_phase(const struct atmo_constituent *kc, uint32_t k, uint32_t n, v3 sun, double *ret_xy2)
 {
 	uint32_t col = n == 2 ? 0 : k % MS_COLS;
-	double dphi = n == 2 ? 2.0 * SKYMAP_PI : 2.0 * SKYMAP_PI / MS_COLS, sum = 0, top, bot;
+	double dphi = n == 2 ? 2.0 * SKYMAP_PI : 2.0 * SKYMAP_PI / MS_COLS, sum = 0, xy2 = 0, top, bot;
 	ms_ring(k, n, &top, &bot);
 	for (int a = 0; a < MS_PHASE_SUB; a++) {
 		double ct = top + (bot - top) * (a + 0.5) / MS_PHASE_SUB;
 		double st = skymap_safe_sqrt(1.0 - ct * ct);
 		for (int b = 0; b < MS_PHASE_SUB; b++) {
 			double ph = dphi * (col + (b + 0.5) / MS_PHASE_SUB);
-			sum += phase(kc->phase, kc->g, st * cos(ph) * sun.x + ct * sun.z);
+			double p = phase(kc->phase, kc->g, st * cos(ph) * sun.x + ct * sun.z);
+			sum += p;
+			xy2 += p * st * st * cos(2.0 * ph);
 		}
 	}
+	if (ret_xy2)
+		*ret_xy2 = xy2 / fmax(sum, 1e-30);
 	return sum / (MS_PHASE_SUB * MS_PHASE_SUB);
 }
 
@@ -1061,11 +1073,12 @@ static v3 ms_direction(uint32_t k, uint32_t n)
 /* One texel of the multi-scattering table at altitude h and sun cosine
  * mu_s: psi, the ground's share of it (A) and the escape 1 - f_ms. */
 static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double h, double mu_s,
-		     v3 *ret_psi, double *ret_share, v3 *ret_escape, double ret_shape[4])
+		     v3 *ret_psi, double *ret_share, v3 *ret_escape, double ret_shape[SHAPE_N])
 {
 	const double albedo[3] = { c->a->ground_albedo[0], c->a->ground_albedo[1], c->a->ground_albedo[2] };
 	v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
 	v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 }, sm = { 0 }, s2 = { 0 };
+	double sxy2 = 0;
 	double r0 = c->rb + h;
 	/* The first scattering of L2 with each constituent's own phase,
 	 * the cells' means normalised to sum to exactly 1 over the
@@ -1077,15 +1090,17 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 			continue;
 		double sum = 0;
 		for (uint32_t k = 0; k < dirs; k++)
-			sum += ms_cell_weight(k, dirs) * ms_cell_phase(kc, k, dirs, sun);
+			sum += ms_cell_weight(k, dirs) * ms_cell_phase(kc, k, dirs, sun, NULL);
 		norm_phase[n] = 1.0 / (4.0 * SKYMAP_PI * sum / dirs);
 	}
 	for (uint32_t k = 0; k < dirs; k++) {
 		v3 dir = ms_direction(k, dirs);
-		double cell_phase[ATMO_MAX_CONSTITUENTS] = { 0 };
+		double cell_phase[ATMO_MAX_CONSTITUENTS] = { 0 }, cell_xy2 = 0;
 		for (int n = 0; n < c->a->n_constituents; n++)
 			if (c->a->c[n].phase != ATMO_PHASE_NONE)
-				cell_phase[n] = ms_cell_phase(&c->a->c[n], k, dirs, sun) * norm_phase[n];
+				cell_phase[n] = ms_cell_phase(&c->a->c[n], k, dirs, sun,
+							      n == c->lobe && c->delta >= 0 ? &cell_xy2 : NULL) *
+					norm_phase[n];
 		double tg, t_end = distance_to_top(c, h, dir.z);
 		bool ground = hits_ground(c, h, dir.z, &tg);
 		if (ground)
@@ -1138,6 +1153,7 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		double l2_lum = dot(l2, SHARE_LUM);
 		sm = add(sm, scale(dir, -l2_lum));
 		s2 = add(s2, scale(v(dir.x * dir.x, dir.z * dir.z, dir.x * dir.z), l2_lum));
+		sxy2 += cell_xy2 * l2_lum;
 		sr = add(sr, returned);
 		se = add(se, add(add(t_ray, scale(returned, -1.0)), absorbed));
 	}
@@ -1165,6 +1181,10 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		ret_shape[1] = k * (7.5 * s2.y / l - 2.5);
 		ret_shape[2] = k * 15.0 * s2.z / l;
 		ret_shape[3] = k * a;
+		/* The aureole's own x^2 - y^2 is the lobe term's; delta-M only
+		 * (see multiscatter.comp). */
+		ret_shape[4] = c->delta < 0 ? 0.0
+			     : k * 3.75 * (sxy2 / l - a * c->lobe_g[0] * c->lobe_g[0] * sun.x * sun.x);
 	}
 }
 
@@ -1189,7 +1209,7 @@ static v3 multiscatter_quadratic(const struct ctx *c, double h, double mu_s)
 {
 	int n = (int)c->tab->h[1];
 	if (n < 3) {
-		double share, shape[4];
+		double share, shape[SHAPE_N];
 		return multiscatter(c, h, mu_s, &share, shape);
 	}
 	double p = skymap_clamp(h / c->shell, 0.0, 1.0) * (n - 1);
@@ -1229,7 +1249,7 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 	for (uint32_t it = 0; it < steps; it++) {
 		for (uint32_t j = 0; j < q->height; j++)
 			for (uint32_t i = 0; i < q->width; i++) {
-				double h, mu_s, share, shape[4];
+				double h, mu_s, share, shape[SHAPE_N];
 				skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width,
 							    (j + 0.5) / q->height, q->width, q->height, &h, &mu_s);
 				v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s), g = { 0 }, first = { 0 };
@@ -1276,8 +1296,8 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 				put(next + 4 * at, psi, skymap_clamp(own[3] * kept, 0.0, 1.0));
 				/* The shape, relative to psi, keeps its absolute size as A does. */
 				if (c->lobe >= 0)
-					for (int k = 0; k < 4; k++)
-						c->moment[4 * at + k] *= kept;
+					for (int k = 0; k < SHAPE_N; k++)
+						c->moment[SHAPE_N * at + k] *= kept;
 			}
 		memcpy(out, next, 4 * n * sizeof(double));
 	}
@@ -1305,7 +1325,7 @@ static int compute_multiscatter(const struct ctx *c, const struct state_table_qu
 			skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						    q->width, q->height, &h, &mu_s);
 			ms_texel(&scaled, q->steps, dirs, h, mu_s, &psi, &share, &escape,
-				 c->lobe >= 0 ? c->moment + 4 * ((size_t)j * q->width + i) : NULL);
+				 c->lobe >= 0 ? c->moment + SHAPE_N * ((size_t)j * q->width + i) : NULL);
 			put(out + 4 * (j * q->width + i), psi, share);
 			/* L2 as the iteration recovers it from the table. */
 			if (l2_of)
@@ -1526,7 +1546,7 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 			c.lobe_g[0] = c.delta_g;
 			c.lobe_g[1] = c.delta_g * c.delta_g;
 		}
-		c.moment = calloc(4 * (size_t)m.w[1] * m.h[1], sizeof(double));
+		c.moment = calloc(SHAPE_N * (size_t)m.w[1] * m.h[1], sizeof(double));
 		if (!c.moment) {
 			free(c.delta_col);
 			model_tables_finish(&m);

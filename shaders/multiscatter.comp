@@ -23,16 +23,19 @@ layout(local_size_x = 8, local_size_y = 8) in;
 // sun.z is their cosine to a sun in the x-z plane. Cells: ring
 // k / MS_HALF_COLS by azimuth column k % MS_HALF_COLS (of MS_COLS), or for 2
 // directions the upper and lower hemispheres. Shared by the constituents
-// and the suns (cos and sqrt were most of the phase cost).
-void cell_subsamples(int k, vec2 ring, out vec4 ret_cp, out vec4 ret_ct)
+// and the suns (cos and sqrt were most of the phase cost). ret_xy2: their
+// x^2 - y^2 (the band-2 harmonic of azimuth 2 phi, the shape's).
+void cell_subsamples(int k, vec2 ring, out vec4 ret_cp, out vec4 ret_ct, out vec4 ret_xy2)
 {
 	float col = float(MS_DIRS == 2 ? 0 : k % MS_HALF_COLS);
 	float dphi = MS_DIRS == 2 ? 2.0 * PI : 2.0 * PI / float(MS_COLS);
 	vec2 ct = mix(ring.xx, ring.yy, vec2(0.25, 0.75));
 	vec2 st = sqrt(max(1.0 - ct * ct, 0.0));
-	vec2 cphi = cos(dphi * (col + vec2(0.25, 0.75)));
+	vec2 phi = dphi * (col + vec2(0.25, 0.75));
+	vec2 cphi = cos(phi), c2phi = cos(2.0 * phi);
 	ret_cp = vec4(st.x * cphi, st.y * cphi);
 	ret_ct = vec4(ct.xx, ct.yy);
+	ret_xy2 = vec4(st.x * st.x * c2phi, st.y * st.y * c2phi);
 }
 
 // phase() for four cosines at once.
@@ -97,23 +100,30 @@ void main()
 	// when the main loop evaluated them again); phase_norm: 1 / (4 pi norm
 	// total) makes the cells' phases integrate to exactly 1 over the sphere.
 	float cell_sum[32 * 4 * MS_SUN_GROUP];	// n_dirs <= 32 marched cells
+	// The lobe constituent's light across each cell (MOMENT_CONST): the
+	// mean of x^2 - y^2 over its sub-samples weighted by that phase, for
+	// the shape's azimuthal band 2 (see the end of main()).
+	float cell_xy2[32 * MS_SUN_GROUP];
 	float total[4][MS_SUN_GROUP];
 	for (int i = 0; i < 4; i++)
 		for (int j = 0; j < MS_SUN_GROUP; j++)
 			total[i][j] = 0.0;
 	for (int k = 0; k < n_dirs; k++) {
-		vec4 cp, ct;
+		vec4 cp, ct, xy2;
 		vec2 ring = cell_ring(k);
 		float wk = cell_weight(ring);
-		cell_subsamples(k, ring, cp, ct);
+		cell_subsamples(k, ring, cp, ct, xy2);
 		for (int j = 0; j < MS_SUN_GROUP; j++) {
 			vec4 mu = cp * sun[j].x + ct * sun[j].z;
 			for (int i = 0; i < N_CONST; i++) {
 				if (phase_kind(i) == 0)
 					continue;
 				bool truncated = i == DELTA_CONST;
-				float c = dot(phase4(truncated ? 3 : phase_kind(i),
-						     truncated ? P.C[i].layer1c.w : P.C[i].scattering.w, mu), vec4(0.25));
+				vec4 p = phase4(truncated ? 3 : phase_kind(i),
+						truncated ? P.C[i].layer1c.w : P.C[i].scattering.w, mu);
+				float c = dot(p, vec4(0.25));
+				if (i == MOMENT_CONST && truncated)
+					cell_xy2[k * MS_SUN_GROUP + j] = dot(p, xy2) / max(4.0 * c, 1e-30);
 				cell_sum[(k * 4 + i) * MS_SUN_GROUP + j] = c;
 				total[i][j] += wk * c;
 			}
@@ -137,11 +147,13 @@ void main()
 	// component across the sun's vertical plane cancels).
 	vec2 sum_moment[MS_SUN_GROUP];
 	vec3 sum_second[MS_SUN_GROUP];	// the second moments xx, zz, xz
+	float sum_xy2[MS_SUN_GROUP];	// and xx - yy from the sub-samples (cell_xy2)
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		sum_l2[j] = vec3(0.0);
 		sum_ground[j] = vec3(0.0);
 		sum_moment[j] = vec2(0.0);
 		sum_second[j] = vec3(0.0);
+		sum_xy2[j] = 0.0;
 	}
 	// psi takes 1 - f_ms from sum_escape (what leaves or is absorbed).
 	vec3 sum_escape = vec3(0.0), sum_returned = vec3(0.0);
@@ -198,6 +210,7 @@ void main()
 				float l = wk * dot(l2[j], MS_SHARE_LUM);
 				sum_moment[j] -= dir.xz * l;
 				sum_second[j] += vec3(dir.x * dir.x, dir.z * dir.z, dir.x * dir.z) * l;
+				sum_xy2[j] += cell_xy2[k * MS_SUN_GROUP + j] * l;
 			}
 		vec3 returned = vec3(0.0);
 		if (ground && !GROUND_BLACK) {
@@ -251,13 +264,27 @@ void main()
 		//   toward the sun's side (m_x = -a k sin(theta_s));
 		// - band 1 of the vertical flux, 3 m_z o_z, m the net flux over
 		//   the scalar flux;
-		// - band 2, 5 (1.5 o T o - 0.5) with T the second moments, taken
-		//   symmetric about the vertical (T_xx = T_yy, which the 4
-		//   azimuth columns cannot tell apart anyway: the aureole holds
-		//   the sun's side): 5 <P2(w_z)> P2(o_z) + 15 T_xz o_x o_z. It is
-		//   the horizon's brightness: long near-horizontal paths send
-		//   most light there, which a forward phase passes on to a
-		//   horizontal view.
+		// - band 2, 5 (1.5 o T o - 0.5) with T the second moments (T_xy =
+		//   T_yz = 0 by symmetry): 5 <P2(w_z)> P2(o_z) + 15 T_xz o_x o_z +
+		//   3.75 (T_xx - T_yy) (o_x^2 - o_y^2). The first two are the
+		//   horizon's brightness: long near-horizontal paths send most
+		//   light there, which a forward phase passes on to a horizontal
+		//   view. The last is how much of it lies in the sun's vertical
+		//   plane rather than across it. The marched directions (azimuths
+		//   45 and 135 deg) have x^2 = y^2, so it comes from the cells'
+		//   sub-samples weighted by the lobe constituent's phase
+		//   (cell_xy2), less the aureole's own part, a k^2 sin^2(theta_s),
+		//   which the lobe term carries already. Taken symmetric (T_xx =
+		//   T_yy), Mars read 8-16 % high at 90 deg from the sun near the
+		//   horizon and 6-10 % low toward it and away from it: day 3.00 /
+		//   3.43 / 3.48 % at sun 30 / 5 / 15; with it 2.56 / 2.70 / 2.59 %
+		//   (horizon 4.76 / 5.78 / 6.05 -> 3.92 / 3.44 / 4.21 %). With
+		//   the aureole's part kept it read 4.8-5.8 %; the other moments
+		//   from the sub-samples too, 3.7-4.4 %; every band's aureole part
+		//   taken out, 2.7-3.7 %. Only with delta-M: 2 x 2 sub-samples
+		//   tell the truncated phase's structure across a cell, not the
+		//   whole phase's narrow peak, with which (delta-M off) Mars'
+		//   horizon, already low, read 1.4-2.3 points lower.
 		// L2's shape stands for the higher orders' too, scaled like psi
 		// (1 / (1 - f_ms)): on Mars that read 1-4 points better than L2's
 		// moments alone. Measured on Mars (sun 5 / 30, 0.2 km): band 1
@@ -265,7 +292,9 @@ void main()
 		// against 19 / 13 %): the aureole is narrow, and a cosine that
 		// brightens the sun's side darkens the opposite one as much; so
 		// did a lobe about the flux's own direction (24 / 17 %) and the
-		// aureole's band 2 taken out of T (18 / 14 %).
+		// aureole's band 2 taken out of T (18 / 14 %). The shape is two
+		// texels: (3 m_z, 5 <P2(w_z)>, 15 T_xz, a) and (3.75 (T_xx - T_yy)
+		// less the aureole's, 0, 0, 0).
 		if (MOMENT_CONST >= 0) {
 			float l = max(dot(sum_l2[j], MS_SHARE_LUM), 1e-30);
 			float share = l * norm / escape_lum / max(dot(psi, MS_SHARE_LUM), 1e-30);
@@ -274,7 +303,10 @@ void main()
 			float k = DELTA_CONST >= 0 ? P.C[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
 						   : P.C[max(MOMENT_CONST, 0)].absorption.w;
 			float a = clamp(-m.x / max(k * sun[j].x, 1e-3), 0.0, 1.0);
-			MOB.d[py * OUT_W + x0 + j] = share * vec4(3.0 * m.y, 7.5 * t.y - 2.5, 15.0 * t.z, a);
+			float xy2 = DELTA_CONST >= 0 ? sum_xy2[j] / l - a * k * k * sun[j].x * sun[j].x : 0.0;
+			int at = 2 * (py * OUT_W + x0 + j);
+			MOB.d[at] = share * vec4(3.0 * m.y, 7.5 * t.y - 2.5, 15.0 * t.z, a);
+			MOB.d[at + 1] = share * vec4(3.75 * xy2, 0.0, 0.0, 0.0);
 		}
 	}
 }
