@@ -1151,7 +1151,7 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 			return rc;
 		rebind = true;
 	}
-	VkDeviceSize moment_bytes = (VkDeviceSize)mq->width * mq->height * 8 * sizeof(float);
+	VkDeviceSize moment_bytes = (VkDeviceSize)mq->width * mq->height * 4 * sizeof(float);
 	if (!e->moment.buf || e->moment.bytes != moment_bytes) {
 		vec4_buffer_free(e, &e->moment, &e->moment_view);
 		/* Its contents go with the multi-scattering table's, which is

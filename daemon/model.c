@@ -21,11 +21,6 @@ static v3 vexp_neg(v3 a) { return v(exp(-a.x), exp(-a.y), exp(-a.z)); }
 static double dot(v3 a, v3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 static double mean3(v3 a) { return (a.x + a.y + a.z) / 3.0; }
 
-/* The numbers of the multiply scattered light's shape per multi-scattering
- * texel: multiscatter.comp's two texels, (3 m_z, 5 <P2(w_z)>, 15 T_xz, a)
- * and 3.75 (T_xx - T_yy) less the aureole's. */
-#define SHAPE_N 5
-
 /* The model's view of a state: what the shaders get as uniforms. */
 struct ctx {
 	const struct sky_state *s;
@@ -40,7 +35,7 @@ struct ctx {
 	double ground_fit[ATMO_MAX_CONSTITUENTS][MODEL_GROUND_FIT];
 	/* The shape of the multiply scattered light for the constituent
 	 * model_moment_constituent names (-1 none): per multi-scattering
-	 * texel the SHAPE_N numbers of multiscatter.comp's two texels; that
+	 * texel the 4 numbers of multiscatter.comp's texel; that
 	 * constituent's g1 and g2. */
 	int lobe;
 	double *moment;
@@ -648,22 +643,22 @@ static struct taps transmittance_taps(const struct ctx *c, double h, double mu)
 	return taps_at(m->w[0], m->h[0], u, vv);
 }
 
-/* The SHAPE_N numbers of the multiply scattered light's shape of row tab at
- * u, linear between texel centres. */
-static void shape_row(const double *tab, uint32_t w, double u, double ret[SHAPE_N])
+/* The 4 numbers of the multiply scattered light's shape of row tab at u,
+ * linear between texel centres. */
+static void shape_row(const double *tab, uint32_t w, double u, double ret[4])
 {
 	double p = u * w - 0.5, f = p - floor(p);
 	int i = (int)floor(p);
 	int i0 = i < 0 ? 0 : i > (int)w - 1 ? (int)w - 1 : i;
 	int i1 = i + 1 < 0 ? 0 : i + 1 > (int)w - 1 ? (int)w - 1 : i + 1;
-	for (int k = 0; k < SHAPE_N; k++)
-		ret[k] = tab[SHAPE_N * i0 + k] + (tab[SHAPE_N * i1 + k] - tab[SHAPE_N * i0 + k]) * f;
+	for (int k = 0; k < 4; k++)
+		ret[k] = tab[4 * i0 + k] + (tab[4 * i1 + k] - tab[4 * i0 + k]) * f;
 }
 
 /* Each of the two rows at its own altitude's u, blended in altitude (see
  * multiscatter_at in common.glsl); the A channel (the ground's share) in
  * ret_share. */
-static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, double ret_shape[SHAPE_N])
+static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_share, double ret_shape[4])
 {
 	double u, vv;
 	const struct model_tables *m = c->tab;
@@ -674,7 +669,7 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 	int y0 = iy < 0 ? 0 : iy > (int)n - 1 ? (int)n - 1 : iy;
 	int y1 = iy + 1 < 0 ? 0 : iy + 1 > (int)n - 1 ? (int)n - 1 : iy + 1;
 	v3 row[2];
-	double mrow[2][SHAPE_N] = { { 0 }, { 0 } };
+	double mrow[2][4] = { { 0 }, { 0 } };
 	double share[2];
 	for (int k = 0; k < 2; k++) {
 		int y = k ? y1 : y0;
@@ -690,10 +685,10 @@ static v3 multiscatter(const struct ctx *c, double h, double mu_s, double *ret_s
 		row[k] = bilinear(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 		share[k] = bilinear_a(m->t[1] + 4 * (size_t)y * w, w, 1, skymap_unit_to_tex(0.5 + 0.5 * a, w), 0.5);
 		if (c->lobe >= 0)
-			shape_row(c->moment + SHAPE_N * (size_t)y * w, w, skymap_unit_to_tex(0.5 + 0.5 * a, w), mrow[k]);
+			shape_row(c->moment + 4 * (size_t)y * w, w, skymap_unit_to_tex(0.5 + 0.5 * a, w), mrow[k]);
 	}
 	*ret_share = share[0] + (share[1] - share[0]) * fy;
-	for (int i = 0; i < SHAPE_N; i++)
+	for (int i = 0; i < 4; i++)
 		ret_shape[i] = mrow[0][i] + (mrow[1][i] - mrow[0][i]) * fy;
 	return add(row[0], scale(add(row[1], scale(row[0], -1.0)), fy));
 }
@@ -723,15 +718,17 @@ static v3 higher_orders(const struct ctx *c, double h, v3 up, v3 dir, v3 light, 
 {
 	if (!c->s->quality.multiscatter_dirs)
 		return v(0, 0, 0);
-	double mu_l = dot(up, light), share, sh[SHAPE_N];
+	double mu_l = dot(up, light), share, sh[4];
 	v3 psi = multiscatter(c, h, mu_l, &share, sh);
 	v3 sig = add(sigma_s, scale(ground, share));
 	if (c->lobe >= 0) {
 		double view_up = dot(up, dir), s2 = 1.0 - mu_l * mu_l, o_z = -view_up;
 		double o_x = skymap_clamp((view_up * mu_l - dot(dir, light)) / sqrt(fmax(s2, 1e-12)), -1.0, 1.0);
 		double b1 = sh[0] * o_z;
-		double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) + sh[2] * o_x * o_z +
-			    sh[4] * (2.0 * o_x * o_x + o_z * o_z - 1.0);	/* o_x^2 - o_y^2 */
+		/* sh[2]: the (T_xx - T_yy) term under delta-M, T_xz's without;
+		 * o_x^2 - o_y^2 = 2 o_x^2 + o_z^2 - 1. */
+		double b2 = sh[1] * (1.5 * o_z * o_z - 0.5) +
+			    sh[2] * (c->delta >= 0 ? 2.0 * o_x * o_x + o_z * o_z - 1.0 : o_x * o_z);
 		/* The aureole: a (4 pi HG_{g1 g1}(view . light) - 1). */
 		double gl = c->lobe_g[0] * c->lobe_g[0];
 		double den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - dot(dir, light));
@@ -1073,7 +1070,7 @@ static v3 ms_direction(uint32_t k, uint32_t n)
 /* One texel of the multi-scattering table at altitude h and sun cosine
  * mu_s: psi, the ground's share of it (A) and the escape 1 - f_ms. */
 static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double h, double mu_s,
-		     v3 *ret_psi, double *ret_share, v3 *ret_escape, double ret_shape[SHAPE_N])
+		     v3 *ret_psi, double *ret_share, v3 *ret_escape, double ret_shape[4])
 {
 	const double albedo[3] = { c->a->ground_albedo[0], c->a->ground_albedo[1], c->a->ground_albedo[2] };
 	v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
@@ -1099,8 +1096,7 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		for (int n = 0; n < c->a->n_constituents; n++)
 			if (c->a->c[n].phase != ATMO_PHASE_NONE)
 				cell_phase[n] = ms_cell_phase(&c->a->c[n], k, dirs, sun,
-							      n == c->lobe && c->delta >= 0 ? &cell_xy2 : NULL) *
-					norm_phase[n];
+							      n == c->lobe ? &cell_xy2 : NULL) * norm_phase[n];
 		double tg, t_end = distance_to_top(c, h, dir.z);
 		bool ground = hits_ground(c, h, dir.z, &tg);
 		if (ground)
@@ -1179,12 +1175,11 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		double a = skymap_clamp(-(sm.x / l) / fmax(c->lobe_g[0] * sun.x, 1e-3), 0.0, 1.0);
 		ret_shape[0] = k * 3.0 * sm.z / l;
 		ret_shape[1] = k * (7.5 * s2.y / l - 2.5);
-		ret_shape[2] = k * 15.0 * s2.z / l;
+		/* Under delta-M the (T_xx - T_yy) term less the aureole's, whose
+		 * own is the lobe term's, in T_xz's place (multiscatter.comp). */
+		double g = c->lobe_g[0];
+		ret_shape[2] = k * (c->delta >= 0 ? 3.75 * (sxy2 / l - a * g * g * sun.x * sun.x) : 15.0 * s2.z / l);
 		ret_shape[3] = k * a;
-		/* The aureole's own x^2 - y^2 is the lobe term's; delta-M only
-		 * (see multiscatter.comp). */
-		ret_shape[4] = c->delta < 0 ? 0.0
-			     : k * 3.75 * (sxy2 / l - a * c->lobe_g[0] * c->lobe_g[0] * sun.x * sun.x);
 	}
 }
 
@@ -1209,7 +1204,7 @@ static v3 multiscatter_quadratic(const struct ctx *c, double h, double mu_s)
 {
 	int n = (int)c->tab->h[1];
 	if (n < 3) {
-		double share, shape[SHAPE_N];
+		double share, shape[4];
 		return multiscatter(c, h, mu_s, &share, shape);
 	}
 	double p = skymap_clamp(h / c->shell, 0.0, 1.0) * (n - 1);
@@ -1249,7 +1244,7 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 	for (uint32_t it = 0; it < steps; it++) {
 		for (uint32_t j = 0; j < q->height; j++)
 			for (uint32_t i = 0; i < q->width; i++) {
-				double h, mu_s, share, shape[SHAPE_N];
+				double h, mu_s, share, shape[4];
 				skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width,
 							    (j + 0.5) / q->height, q->width, q->height, &h, &mu_s);
 				v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s), g = { 0 }, first = { 0 };
@@ -1296,8 +1291,8 @@ static int iterate_multiscatter(const struct ctx *c, const struct state_table_qu
 				put(next + 4 * at, psi, skymap_clamp(own[3] * kept, 0.0, 1.0));
 				/* The shape, relative to psi, keeps its absolute size as A does. */
 				if (c->lobe >= 0)
-					for (int k = 0; k < SHAPE_N; k++)
-						c->moment[SHAPE_N * at + k] *= kept;
+					for (int k = 0; k < 4; k++)
+						c->moment[4 * at + k] *= kept;
 			}
 		memcpy(out, next, 4 * n * sizeof(double));
 	}
@@ -1325,7 +1320,7 @@ static int compute_multiscatter(const struct ctx *c, const struct state_table_qu
 			skymap_multiscatter_inverse(c->rb, c->rt, (i + 0.5) / q->width, (j + 0.5) / q->height,
 						    q->width, q->height, &h, &mu_s);
 			ms_texel(&scaled, q->steps, dirs, h, mu_s, &psi, &share, &escape,
-				 c->lobe >= 0 ? c->moment + SHAPE_N * ((size_t)j * q->width + i) : NULL);
+				 c->lobe >= 0 ? c->moment + 4 * ((size_t)j * q->width + i) : NULL);
 			put(out + 4 * (j * q->width + i), psi, share);
 			/* L2 as the iteration recovers it from the table. */
 			if (l2_of)
@@ -1546,7 +1541,7 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 			c.lobe_g[0] = c.delta_g;
 			c.lobe_g[1] = c.delta_g * c.delta_g;
 		}
-		c.moment = calloc(SHAPE_N * (size_t)m.w[1] * m.h[1], sizeof(double));
+		c.moment = calloc(4 * (size_t)m.w[1] * m.h[1], sizeof(double));
 		if (!c.moment) {
 			free(c.delta_col);
 			model_tables_finish(&m);

@@ -106,7 +106,7 @@ layout(std430, binding = 8) buffer ColumnBuf { vec4 d[]; } CB;
 // The same memory as a lookup (delta-M's scaled transmittance).
 layout(binding = 12) uniform samplerBuffer ColumnTex;
 // The shape of the multiply scattered light (multiscatter.comp, with a lobe
-// constituent): two texels per multi-scattering texel, float32, internal. Written
+// constituent): a texel per multi-scattering texel, float32, internal. Written
 // through the storage buffer, read through the texel buffer.
 layout(std430, binding = 10) buffer MomentBuf { vec4 d[]; } MOB;
 layout(binding = 11) uniform samplerBuffer MomentTex;
@@ -484,15 +484,11 @@ vec3 forward_scattering(Scatter sc)
 	return MOMENT_CONST >= 0 ? sc.s[max(MOMENT_CONST, 0)] : vec3(0.0);
 }
 
-// multiscatter_at and the shape of the same texels (MomentTex: two texels
-// each, ret_shape and ret_shape2).
-vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_shape, out vec4 ret_shape2)
+// multiscatter_at and the shape of the same texels (MomentTex).
+vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_shape)
 {
-	MsTaps t = ms_taps(a, mu_s), s = t;
-	s.i = 2 * t.i;
-	ret_shape = ms_read(MomentTex, s);
-	s.i += 1;
-	ret_shape2 = DELTA_CONST >= 0 ? ms_read(MomentTex, s) : vec4(0.0);
+	MsTaps t = ms_taps(a, mu_s);
+	ret_shape = ms_read(MomentTex, t);
 	return ms_read(MultiscatterTex, t);
 }
 
@@ -516,9 +512,10 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 		vec4 ms = multiscatter_at(a, mu_l);
 		return (sigma_s + ms.a * ground) * ms.rgb;
 	}
-	vec4 sh;	// 3 m_z, 5 <P2(w_z)>, 15 T_xz, a (multiscatter.comp)
-	vec4 sh2;	// 3.75 (T_xx - T_yy) less the aureole's, 0, 0, 0 (delta-M only)
-	vec4 ms = multiscatter_shape_at(a, mu_l, sh, sh2);
+	// 3 m_z, 5 <P2(w_z)>, z, a with z = 3.75 (T_xx - T_yy) less the
+	// aureole's under delta-M, 15 T_xz without (multiscatter.comp).
+	vec4 sh;
+	vec4 ms = multiscatter_shape_at(a, mu_l, sh);
 	// o = -view in the frame of the light's vertical plane: along the
 	// light's horizontal direction (undefined with the light at the
 	// zenith, where the field has no such part by symmetry), and up.
@@ -526,7 +523,8 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 	float o_x = clamp((view_up * mu_l - view_light) * inversesqrt(max(s2, 1e-12)), -1.0, 1.0), o_z = -view_up;
 	float b1 = sh.x * o_z;
 	// o_x^2 - o_y^2 = 2 o_x^2 + o_z^2 - 1.
-	float b2 = sh.y * (1.5 * o_z * o_z - 0.5) + sh.z * o_x * o_z + sh2.x * (2.0 * o_x * o_x + o_z * o_z - 1.0);
+	float b2 = sh.y * (1.5 * o_z * o_z - 0.5) +
+		   sh.z * (DELTA_CONST >= 0 ? 2.0 * o_x * o_x + o_z * o_z - 1.0 : o_x * o_z);
 	vec2 g = vec2(P.C[max(MOMENT_CONST, 0)].absorption.w, P.C[max(MOMENT_CONST, 0)].layer1c.y);
 	// With delta-M the field is the scaled medium's, scattered by the
 	// truncated phase: Henyey-Greenstein g', moments g' and g'^2.

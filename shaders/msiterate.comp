@@ -189,13 +189,11 @@ void main()
 		vec3 psi = l2 + gathered[j] * norm;
 		float kept = dot(own.rgb, MS_SHARE_LUM) / max(dot(psi, MS_SHARE_LUM), 1e-30);
 		STORE_TEXEL(IB, i, vec4(psi, clamp(own.a * kept, 0.0, 1.0)));
-		// The shape (multiscatter.comp's MomentBuf, two texels) is L2's,
-		// stored relative to psi: it stays what it was in absolute terms,
-		// as A does. Each texel is only ever touched by its own
-		// invocation, so it is rescaled in place.
-		if (MOMENT_CONST >= 0) {
-			MOB.d[2 * i] *= kept;
-			MOB.d[2 * i + 1] *= kept;
-		}
+		// The shape (multiscatter.comp's MomentBuf) is L2's, stored
+		// relative to psi: it stays what it was in absolute terms, as A
+		// does. Each texel is only ever touched by its own invocation, so
+		// it is rescaled in place.
+		if (MOMENT_CONST >= 0)
+			MOB.d[i] *= kept;
 	}
 }

@@ -266,7 +266,7 @@ void main()
 		//   the scalar flux;
 		// - band 2, 5 (1.5 o T o - 0.5) with T the second moments (T_xy =
 		//   T_yz = 0 by symmetry): 5 <P2(w_z)> P2(o_z) + 15 T_xz o_x o_z +
-		//   3.75 (T_xx - T_yy) (o_x^2 - o_y^2). The first two are the
+		//   3.75 (T_xx - T_yy) (o_x^2 - o_y^2). The first is the
 		//   horizon's brightness: long near-horizontal paths send most
 		//   light there, which a forward phase passes on to a horizontal
 		//   view. The last is how much of it lies in the sun's vertical
@@ -274,17 +274,25 @@ void main()
 		//   45 and 135 deg) have x^2 = y^2, so it comes from the cells'
 		//   sub-samples weighted by the lobe constituent's phase
 		//   (cell_xy2), less the aureole's own part, a k^2 sin^2(theta_s),
-		//   which the lobe term carries already. Taken symmetric (T_xx =
-		//   T_yy), Mars read 8-16 % high at 90 deg from the sun near the
-		//   horizon and 6-10 % low toward it and away from it: day 3.00 /
-		//   3.43 / 3.48 % at sun 30 / 5 / 15; with it 2.56 / 2.70 / 2.59 %
-		//   (horizon 4.76 / 5.78 / 6.05 -> 3.92 / 3.44 / 4.21 %). With
-		//   the aureole's part kept it read 4.8-5.8 %; the other moments
-		//   from the sub-samples too, 3.7-4.4 %; every band's aureole part
-		//   taken out, 2.7-3.7 %. Only with delta-M: 2 x 2 sub-samples
-		//   tell the truncated phase's structure across a cell, not the
-		//   whole phase's narrow peak, with which (delta-M off) Mars'
-		//   horizon, already low, read 1.4-2.3 points lower.
+		//   which the lobe term carries already.
+		// The texel holds (3 m_z, 5 <P2(w_z)>, z, a): with delta-M z is
+		// the (T_xx - T_yy) term, without it the T_xz term. Mars' default
+		// quality (delta-M), day / horizon at sun 30 / 5 / 15, 0.2 km:
+		// - band 2 symmetric about the vertical (5 <P2> and T_xz only),
+		//   as before: 3.00 / 4.76, 3.43 / 5.78, 3.48 / 6.05 %, the sky
+		//   5-16 % high 90 deg from the sun below 4 deg and 4-10 % low
+		//   opposite the sun and 30 deg from it at 6-20 deg;
+		// - with T_xx - T_yy as well: 2.56 / 3.92, 2.70 / 3.44,
+		//   2.59 / 4.21 %, but a second texel per lookup cost the
+		//   sky-view and aerial passes 20-50 % on lavapipe;
+		// - T_xx - T_yy in T_xz's place (kept): 2.78 / 4.08, 2.65 / 3.56,
+		//   2.19 / 4.35 %;
+		// - T_xx - T_yy with the aureole's part kept: 4.8-5.8 % by day;
+		//   with the other moments from the sub-samples too, 3.7-4.4 %;
+		//   every band's aureole part taken out, 2.7-3.7 %.
+		// Without delta-M the sub-samples cannot tell the whole phase's
+		// narrow peak across a cell: there T_xx - T_yy read Mars' horizon,
+		// already low, 1.4-2.3 points lower.
 		// L2's shape stands for the higher orders' too, scaled like psi
 		// (1 / (1 - f_ms)): on Mars that read 1-4 points better than L2's
 		// moments alone. Measured on Mars (sun 5 / 30, 0.2 km): band 1
@@ -292,9 +300,7 @@ void main()
 		// against 19 / 13 %): the aureole is narrow, and a cosine that
 		// brightens the sun's side darkens the opposite one as much; so
 		// did a lobe about the flux's own direction (24 / 17 %) and the
-		// aureole's band 2 taken out of T (18 / 14 %). The shape is two
-		// texels: (3 m_z, 5 <P2(w_z)>, 15 T_xz, a) and (3.75 (T_xx - T_yy)
-		// less the aureole's, 0, 0, 0).
+		// aureole's band 2 taken out of T (18 / 14 %).
 		if (MOMENT_CONST >= 0) {
 			float l = max(dot(sum_l2[j], MS_SHARE_LUM), 1e-30);
 			float share = l * norm / escape_lum / max(dot(psi, MS_SHARE_LUM), 1e-30);
@@ -303,10 +309,9 @@ void main()
 			float k = DELTA_CONST >= 0 ? P.C[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
 						   : P.C[max(MOMENT_CONST, 0)].absorption.w;
 			float a = clamp(-m.x / max(k * sun[j].x, 1e-3), 0.0, 1.0);
-			float xy2 = DELTA_CONST >= 0 ? sum_xy2[j] / l - a * k * k * sun[j].x * sun[j].x : 0.0;
-			int at = 2 * (py * OUT_W + x0 + j);
-			MOB.d[at] = share * vec4(3.0 * m.y, 7.5 * t.y - 2.5, 15.0 * t.z, a);
-			MOB.d[at + 1] = share * vec4(3.75 * xy2, 0.0, 0.0, 0.0);
+			float z = DELTA_CONST >= 0 ? 3.75 * (sum_xy2[j] / l - a * k * k * sun[j].x * sun[j].x)
+						   : 15.0 * t.z;
+			MOB.d[py * OUT_W + x0 + j] = share * vec4(3.0 * m.y, 7.5 * t.y - 2.5, z, a);
 		}
 	}
 }
