@@ -283,8 +283,8 @@ void main()
 		//   5-16 % high 90 deg from the sun below 4 deg and 4-10 % low
 		//   opposite the sun and 30 deg from it at 6-20 deg;
 		// - with T_xx - T_yy as well: 2.56 / 3.92, 2.70 / 3.44,
-		//   2.59 / 4.21 %, but a second texel per lookup cost the
-		//   sky-view and aerial passes 20-50 % on lavapipe;
+		//   2.59 / 4.21 %, but a second texel per lookup made the
+		//   sky-view and aerial passes 19-111 % slower on lavapipe;
 		// - T_xx - T_yy in T_xz's place (kept): 2.78 / 4.08, 2.65 / 3.56,
 		//   2.19 / 4.35 %;
 		// - T_xx - T_yy with the aureole's part kept: 4.8-5.8 % by day;
