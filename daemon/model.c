@@ -1074,8 +1074,8 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 {
 	const double albedo[3] = { c->a->ground_albedo[0], c->a->ground_albedo[1], c->a->ground_albedo[2] };
 	v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
+	/* s2: L2's second moments zz, xz and, from the sub-samples, xx - yy. */
 	v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 }, sm = { 0 }, s2 = { 0 };
-	double sxy2 = 0;
 	double r0 = c->rb + h;
 	/* The first scattering of L2 with each constituent's own phase,
 	 * the cells' means normalised to sum to exactly 1 over the
@@ -1096,7 +1096,8 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		for (int n = 0; n < c->a->n_constituents; n++)
 			if (c->a->c[n].phase != ATMO_PHASE_NONE)
 				cell_phase[n] = ms_cell_phase(&c->a->c[n], k, dirs, sun,
-							      n == c->lobe ? &cell_xy2 : NULL) * norm_phase[n];
+							      n == c->lobe && c->delta >= 0 ? &cell_xy2 : NULL) *
+					norm_phase[n];
 		double tg, t_end = distance_to_top(c, h, dir.z);
 		bool ground = hits_ground(c, h, dir.z, &tg);
 		if (ground)
@@ -1148,8 +1149,7 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		 * has it by now: its light travels along -dir. */
 		double l2_lum = dot(l2, SHARE_LUM);
 		sm = add(sm, scale(dir, -l2_lum));
-		s2 = add(s2, scale(v(dir.x * dir.x, dir.z * dir.z, dir.x * dir.z), l2_lum));
-		sxy2 += cell_xy2 * l2_lum;
+		s2 = add(s2, scale(v(dir.z * dir.z, dir.x * dir.z, cell_xy2), l2_lum));
 		sr = add(sr, returned);
 		se = add(se, add(add(t_ray, scale(returned, -1.0)), absorbed));
 	}
@@ -1174,11 +1174,11 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		double k = l / dirs / fmax(dot(se, SHARE_LUM), 1e-6) / fmax(dot(psi, SHARE_LUM), 1e-30);
 		double a = skymap_clamp(-(sm.x / l) / fmax(c->lobe_g[0] * sun.x, 1e-3), 0.0, 1.0);
 		ret_shape[0] = k * 3.0 * sm.z / l;
-		ret_shape[1] = k * (7.5 * s2.y / l - 2.5);
+		ret_shape[1] = k * (7.5 * s2.x / l - 2.5);
 		/* Under delta-M the (T_xx - T_yy) term less the aureole's, whose
 		 * own is the lobe term's, in T_xz's place (multiscatter.comp). */
 		double g = c->lobe_g[0];
-		ret_shape[2] = k * (c->delta >= 0 ? 3.75 * (sxy2 / l - a * g * g * sun.x * sun.x) : 15.0 * s2.z / l);
+		ret_shape[2] = k * (c->delta >= 0 ? 3.75 * (s2.z / l - a * g * g * sun.x * sun.x) : 15.0 * s2.y / l);
 		ret_shape[3] = k * a;
 	}
 }

@@ -122,8 +122,8 @@ void main()
 				vec4 p = phase4(truncated ? 3 : phase_kind(i),
 						truncated ? P.C[i].layer1c.w : P.C[i].scattering.w, mu);
 				float c = dot(p, vec4(0.25));
-				if (i == MOMENT_CONST && truncated)
-					cell_xy2[k * MS_SUN_GROUP + j] = dot(p, xy2) / max(4.0 * c, 1e-30);
+				if (i == MOMENT_CONST)	// only delta-M uses it (see the end of main())
+					cell_xy2[k * MS_SUN_GROUP + j] = truncated ? dot(p, xy2) / max(4.0 * c, 1e-30) : 0.0;
 				cell_sum[(k * 4 + i) * MS_SUN_GROUP + j] = c;
 				total[i][j] += wk * c;
 			}
@@ -146,14 +146,13 @@ void main()
 	// azimuth, y up (the marched half of the azimuths counts twice, so the
 	// component across the sun's vertical plane cancels).
 	vec2 sum_moment[MS_SUN_GROUP];
-	vec3 sum_second[MS_SUN_GROUP];	// the second moments xx, zz, xz
-	float sum_xy2[MS_SUN_GROUP];	// and xx - yy from the sub-samples (cell_xy2)
+	// The second moments zz, xz and, from the sub-samples (cell_xy2), xx - yy.
+	vec3 sum_second[MS_SUN_GROUP];
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		sum_l2[j] = vec3(0.0);
 		sum_ground[j] = vec3(0.0);
 		sum_moment[j] = vec2(0.0);
 		sum_second[j] = vec3(0.0);
-		sum_xy2[j] = 0.0;
 	}
 	// psi takes 1 - f_ms from sum_escape (what leaves or is absorbed).
 	vec3 sum_escape = vec3(0.0), sum_returned = vec3(0.0);
@@ -209,8 +208,7 @@ void main()
 			for (int j = 0; j < MS_SUN_GROUP; j++) {
 				float l = wk * dot(l2[j], MS_SHARE_LUM);
 				sum_moment[j] -= dir.xz * l;
-				sum_second[j] += vec3(dir.x * dir.x, dir.z * dir.z, dir.x * dir.z) * l;
-				sum_xy2[j] += cell_xy2[k * MS_SUN_GROUP + j] * l;
+				sum_second[j] += vec3(dir.z * dir.z, dir.x * dir.z, cell_xy2[k * MS_SUN_GROUP + j]) * l;
 			}
 		vec3 returned = vec3(0.0);
 		if (ground && !GROUND_BLACK) {
@@ -309,9 +307,8 @@ void main()
 			float k = DELTA_CONST >= 0 ? P.C[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
 						   : P.C[max(MOMENT_CONST, 0)].absorption.w;
 			float a = clamp(-m.x / max(k * sun[j].x, 1e-3), 0.0, 1.0);
-			float z = DELTA_CONST >= 0 ? 3.75 * (sum_xy2[j] / l - a * k * k * sun[j].x * sun[j].x)
-						   : 15.0 * t.z;
-			MOB.d[py * OUT_W + x0 + j] = share * vec4(3.0 * m.y, 7.5 * t.y - 2.5, z, a);
+			float z = DELTA_CONST >= 0 ? 3.75 * (t.z - a * k * k * sun[j].x * sun[j].x) : 15.0 * t.y;
+			MOB.d[py * OUT_W + x0 + j] = share * vec4(3.0 * m.y, 7.5 * t.x - 2.5, z, a);
 		}
 	}
 }
