@@ -70,14 +70,14 @@ Params P;
 void load_params() { P = params; }
 
 // The ground's first bounce through each constituent's phase
-// (model_ground_excess in daemon/model.c): k - 1 for a view of cos-zenith
+// (phase_ground_excess in daemon/model.c): k - 1 for a view of cos-zenith
 // mu_view at the scattering point, a component per constituent. The
 // multi-scattering table scatters the sunlit ground's light isotropically
 // (its share of psi_ms is the table's A); a forward-peaked phase sends
 // little of that upwelling light back to a viewer looking up (k = 0.07 at
 // the zenith for g = 0.8) and much to one looking down, which read the
 // albedo 0.3 day sky 4.7 % high with the sun at the zenith. Evaluated as
-// model_ground_fit's polynomial in sqrt|mu| (powers 2 to 9): the table it
+// phase_ground_fit's polynomial in sqrt|mu| (powers 2 to 9): the table it
 // fits, read with a different index in every lane, was 8 % of the sky-view
 // pass.
 const int GROUND_FIT = 8;
@@ -599,7 +599,7 @@ bool ray_in_shell(float h0, vec3 dir, out Entry en)
 // Nakajima and Tanaka (1988). The constituent's phase p is split into a
 // forward peak of weight f, taken as no scattering at all, and the rest,
 // (1 - f) p' with p' a Henyey-Greenstein phase of g' = (g1 - f) / (1 - f)
-// (model_delta_truncation). The scaled medium scatters sigma_s' = sigma_s -
+// (phase_delta_truncation). The scaled medium scatters sigma_s' = sigma_s -
 // f sigma_D and has extinction sigma_t' = sigma_t - f sigma_D (sigma_D the
 // constituent's scattering); its multiply scattered light is far less
 // forward-peaked than the real one, which is what psi_ms's isotropic
@@ -678,7 +678,7 @@ Scaled scaled_step(Scatter sc, Medium m, float view_up, float dt, inout float ta
 }
 
 // The last deflection of the light that the peak scattered n >= 1 times
-// besides (model_delta_peak_phase). It is the whole phase p, the peak's own
+// besides (phase_delta_peak_phase). It is the whole phase p, the peak's own
 // share included: with the peak taken as no scattering and only (1 - f) p'
 // here, light that only the peak ever scattered left the sky (Mars, sun 15:
 // the higher orders 10-40 deg from the sun read 15-20 % low). The n peak

@@ -154,15 +154,10 @@ static void test_events_hit_their_thresholds(void)
 /* Every row of NREL's reference data, within SPA's own +-0.0003 degrees. */
 static void test_spa_reference_csv(void)
 {
-	const char *dir = getenv("SKYD_SHARED");
-	char path[4096], line[512];
+	const char *path = SKYD_TEST_DATA "/spa_reference.csv";
+	char line[512];
 	FILE *f;
 
-	if (!dir) {
-		FAIL("SKYD_SHARED is not set");
-		return;
-	}
-	snprintf(path, sizeof(path), "%s/data/spa_reference.csv", dir);
 	f = fopen(path, "re");
 	if (!f) {
 		FAIL("cannot open %s", path);

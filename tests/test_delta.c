@@ -16,16 +16,16 @@
 static void test_truncation(void)
 {
 	double f, g;
-	model_delta_truncation(ATMO_PHASE_HENYEY_GREENSTEIN, 0.8, &f, &g);
-	double want_f = pow(0.8, MODEL_DELTA_ORDER);
+	phase_delta_truncation(ATMO_PHASE_HENYEY_GREENSTEIN, 0.8, &f, &g);
+	double want_f = pow(0.8, PHASE_DELTA_ORDER);
 	if (!(fabs(f - want_f) < 1e-12 && fabs(g - (0.8 - want_f) / (1.0 - want_f)) < 1e-12))
 		FAIL("HG 0.8: f %.9f g' %.9f", f, g);
-	model_delta_truncation(ATMO_PHASE_CORNETTE_SHANKS, 0.85, &f, &g);
+	phase_delta_truncation(ATMO_PHASE_CORNETTE_SHANKS, 0.85, &f, &g);
 	printf("Cornette-Shanks 0.85: f %.6f g' %.6f\n", f, g);
 	if (!(fabs(f - 0.4159) < 2e-3 && g > 0.79 && g < 0.82))
 		FAIL("Cornette-Shanks 0.85: f %.6f g' %.6f", f, g);
 	/* The truncated phase keeps the mean cosine: f + (1 - f) g' = g1. */
-	double g1 = model_phase_legendre(ATMO_PHASE_CORNETTE_SHANKS, 0.85, 1);
+	double g1 = phase_legendre(ATMO_PHASE_CORNETTE_SHANKS, 0.85, 1);
 	if (!(fabs(f + (1.0 - f) * g - g1) < 1e-12))
 		FAIL("f + (1 - f) g' = %.9f, g1 %.9f", f + (1.0 - f) * g, g1);
 }
@@ -35,7 +35,7 @@ static void test_truncation(void)
  * h = ((f - (1 - f) g'^6) / f)^(1/6) and the spread sqrt(2/3 (1 - chi_2')),
  * in closed form; Cornette-Shanks 0.85: h 0.9245, spread 0.1465 (an
  * independent quadrature of its moments). The widened phase
- * (model_delta_peak_phase) integrates to the share above the horizon: 1
+ * (phase_delta_peak_phase) integrates to the share above the horizon: 1
  * with the light at the zenith, 1/2 with it on the horizon (at depths up
  * to 2: deeper, the logistic share leaves 0.3 % below a zenith light);
  * and it widens with depth: less light straight ahead. */
@@ -45,7 +45,7 @@ static double sphere_integral(enum atmo_phase kind, double g, double h, double s
 	double sum = 0.0;
 	for (int i = 0; i < n; i++) {
 		double th = (i + 0.5) * M_PI / n;
-		sum += model_delta_peak_phase(kind, g, h, spread, tau, mu_l, cos(th)) * sin(th);
+		sum += phase_delta_peak_phase(kind, g, h, spread, tau, mu_l, cos(th)) * sin(th);
 	}
 	return 2.0 * M_PI * sum * M_PI / n;
 }
@@ -53,15 +53,15 @@ static double sphere_integral(enum atmo_phase kind, double g, double h, double s
 static void test_peak(void)
 {
 	double f, gp, h, spread;
-	model_delta_truncation(ATMO_PHASE_HENYEY_GREENSTEIN, 0.8, &f, &gp);
-	model_delta_peak(ATMO_PHASE_HENYEY_GREENSTEIN, 0.8, &h, &spread);
+	phase_delta_truncation(ATMO_PHASE_HENYEY_GREENSTEIN, 0.8, &f, &gp);
+	phase_delta_peak(ATMO_PHASE_HENYEY_GREENSTEIN, 0.8, &h, &spread);
 	double p2 = (0.64 - (1.0 - f) * gp * gp) / f, p6 = (f - (1.0 - f) * pow(gp, 6)) / f;
 	if (!(fabs(h - pow(p6, 1.0 / 6.0)) < 1e-12 && fabs(spread - sqrt(2.0 / 3.0 * (1.0 - p2))) < 1e-12))
 		FAIL("HG 0.8: peak h %.9f spread %.9f", h, spread);
-	model_delta_peak(ATMO_PHASE_HENYEY_GREENSTEIN, 0.0, &h, &spread);
+	phase_delta_peak(ATMO_PHASE_HENYEY_GREENSTEIN, 0.0, &h, &spread);
 	if (!(h == 1.0 && spread == 0.0))
 		FAIL("no peak: h %g spread %g", h, spread);
-	model_delta_peak(ATMO_PHASE_CORNETTE_SHANKS, 0.85, &h, &spread);
+	phase_delta_peak(ATMO_PHASE_CORNETTE_SHANKS, 0.85, &h, &spread);
 	printf("Cornette-Shanks 0.85: peak h %.6f spread %.6f rad\n", h, spread);
 	if (!(fabs(h - 0.9245) < 2e-3 && fabs(spread - 0.1465) < 2e-3))
 		FAIL("Cornette-Shanks 0.85: peak h %.6f spread %.6f", h, spread);
@@ -75,8 +75,8 @@ static void test_peak(void)
 		if (!(fabs(up - 1.0) < 1e-3 && fabs(flat - 0.5) < 1e-3))
 			FAIL("widened phase, tau %g: %.6f, %.6f", taus[i], up, flat);
 	}
-	double narrow = model_delta_peak_phase(ATMO_PHASE_CORNETTE_SHANKS, 0.85, h, spread, 0.1, 1.0, 1.0);
-	double wide = model_delta_peak_phase(ATMO_PHASE_CORNETTE_SHANKS, 0.85, h, spread, 3.0, 1.0, 1.0);
+	double narrow = phase_delta_peak_phase(ATMO_PHASE_CORNETTE_SHANKS, 0.85, h, spread, 0.1, 1.0, 1.0);
+	double wide = phase_delta_peak_phase(ATMO_PHASE_CORNETTE_SHANKS, 0.85, h, spread, 3.0, 1.0, 1.0);
 	if (!(wide < narrow))
 		FAIL("widened phase straight ahead: tau 3 %g, tau 0.1 %g", wide, narrow);
 }
@@ -85,7 +85,7 @@ static void test_peak(void)
  * atmosphere (the neighbourhood iteration runs, auto or on): none. */
 static void test_rule(void)
 {
-	probe_check_rule(model_delta_constituent, "multiscatter_delta");
+	probe_check_rule(phase_delta_constituent, "multiscatter_delta");
 	/* Never where the neighbourhood iteration runs, even when asked for. */
 	struct sky_state s;
 	state_default(&s);
@@ -93,17 +93,17 @@ static void test_rule(void)
 		for (int c = 0; c < 3; c++)
 			s.atmo.c[i].scattering_per_km[c] *= 10.0;
 	CHECK(state_multiscatter_iterations(&s) > 0);
-	CHECK(model_delta_constituent(&s, NULL) == -1);
+	CHECK(phase_delta_constituent(&s, NULL) == -1);
 	probe_set(&s, "multiscatter_delta=on");
-	CHECK(model_delta_constituent(&s, NULL) == -1);
+	CHECK(phase_delta_constituent(&s, NULL) == -1);
 	/* A backward peak: none (its truncation would make |g'| > 1). */
 	state_default(&s);
 	probe_set(&s, "preset=mars");
-	int dust = model_delta_constituent(&s, NULL);
+	int dust = phase_delta_constituent(&s, NULL);
 	CHECK(dust >= 0);
 	probe_set(&s, "multiscatter_delta=on");
 	s.atmo.c[dust < 0 ? 0 : dust].g = -0.85;
-	CHECK(model_delta_constituent(&s, NULL) == -1);
+	CHECK(phase_delta_constituent(&s, NULL) == -1);
 }
 
 /* The shape off: delta-M against the isotropic phase. */

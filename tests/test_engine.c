@@ -128,7 +128,7 @@ static void test_thick_against_model(void)
 	set(&s, "ground_albedo=0.3");
 	CHECK(state_multiscatter_iterations(&s) == 2);
 	/* and the shape (auto: Mie's g1 tau 0.04), rescaled by the iteration */
-	CHECK(model_moment_constituent(&s, NULL) == 1);
+	CHECK(phase_moment_constituent(&s, NULL) == 1);
 	if (compute(&s, &t) < 0)
 		return;
 	check_texels("earth x10 sun 30", &s);

@@ -28,7 +28,7 @@ static double phase(enum atmo_phase kind, double g, double mu)
 
 /* k(mu_view) = 2 * the integral of p(-d . view) over upward d, on a plain
  * midpoint grid in (cos-zenith, azimuth) of d: a different quadrature from
- * model_ground_excess's single integral over the scattering angle. */
+ * phase_ground_excess's single integral over the scattering angle. */
 static double brute_k(enum atmo_phase kind, double g, double mu_view)
 {
 	const int n = 1500, m = 1500;
@@ -54,12 +54,12 @@ static void check_excess(void)
 		{ ATMO_PHASE_HENYEY_GREENSTEIN, -0.6 },
 		{ ATMO_PHASE_CORNETTE_SHANKS, 0.0 },
 	};
-	double e[MODEL_GROUND_N];
+	double e[PHASE_GROUND_N];
 	for (size_t c = 0; c < sizeof(cases) / sizeof(cases[0]); c++) {
-		model_ground_excess(cases[c].kind, cases[c].g, e);
+		phase_ground_excess(cases[c].kind, cases[c].g, e);
 		CHECK(e[0] == 0.0);
-		for (int i = 1; i < MODEL_GROUND_N; i += 6) {
-			double mu = (double)i / (MODEL_GROUND_N - 1), ref = brute_k(cases[c].kind, cases[c].g, mu);
+		for (int i = 1; i < PHASE_GROUND_N; i += 6) {
+			double mu = (double)i / (PHASE_GROUND_N - 1), ref = brute_k(cases[c].kind, cases[c].g, mu);
 			printf("kind %d g %+.1f mu %.3f: k %.5f, brute force %.5f\n", cases[c].kind, cases[c].g,
 			       mu, 1.0 + e[i], ref);
 			if (!(fabs(1.0 + e[i] - ref) < 2e-3))
@@ -71,8 +71,8 @@ static void check_excess(void)
 		}
 	}
 	/* Rayleigh's phase is exactly isotropic over any hemisphere. */
-	model_ground_excess(ATMO_PHASE_RAYLEIGH, 0.0, e);
-	for (int i = 0; i < MODEL_GROUND_N; i++)
+	phase_ground_excess(ATMO_PHASE_RAYLEIGH, 0.0, e);
+	for (int i = 0; i < PHASE_GROUND_N; i++)
 		CHECK(e[i] == 0.0);
 }
 
@@ -93,20 +93,20 @@ static void check_fit(void)
 		{ ATMO_PHASE_RAYLEIGH, 0.0, 1e-6 },	/* the brute force's own error: 3e-8 */
 	};
 	static const double between[] = { 0.25, 0.5, 1.5, 5.5, 15.5, 30.5 };	/* in table steps */
-	double e[MODEL_GROUND_N], coef[MODEL_GROUND_FIT];
+	double e[PHASE_GROUND_N], coef[PHASE_GROUND_FIT];
 	for (size_t c = 0; c < sizeof(cases) / sizeof(cases[0]); c++) {
-		model_ground_excess(cases[c].kind, cases[c].g, e);
-		model_ground_fit(e, coef);
+		phase_ground_excess(cases[c].kind, cases[c].g, e);
+		phase_ground_fit(e, coef);
 		double at_points = 0, off_points = 0;
-		for (int i = 0; i < MODEL_GROUND_N; i++) {
-			double mu = (double)i / (MODEL_GROUND_N - 1);
-			at_points = fmax(at_points, fabs(model_ground_fit_at(coef, mu) - e[i]));
-			CHECK(model_ground_fit_at(coef, -mu) == -model_ground_fit_at(coef, mu));
+		for (int i = 0; i < PHASE_GROUND_N; i++) {
+			double mu = (double)i / (PHASE_GROUND_N - 1);
+			at_points = fmax(at_points, fabs(phase_ground_fit_at(coef, mu) - e[i]));
+			CHECK(phase_ground_fit_at(coef, -mu) == -phase_ground_fit_at(coef, mu));
 		}
 		for (size_t i = 0; i < sizeof(between) / sizeof(between[0]); i++) {
-			double mu = between[i] / (MODEL_GROUND_N - 1);
+			double mu = between[i] / (PHASE_GROUND_N - 1);
 			double ref = brute_k(cases[c].kind, cases[c].g, mu) - 1.0;
-			off_points = fmax(off_points, fabs(model_ground_fit_at(coef, mu) - ref));
+			off_points = fmax(off_points, fabs(phase_ground_fit_at(coef, mu) - ref));
 		}
 		printf("kind %d g %+.2f: fit within %.1e of the table at its points, %.1e of k between them "
 		       "(limit %.0e)\n", cases[c].kind, cases[c].g, at_points, off_points, cases[c].limit);
@@ -140,7 +140,7 @@ static void check_thin(const char *name, const char *zero, const char *scatter, 
 {
 	struct sky_state s;
 	struct model_tables with, without;
-	double e[MODEL_GROUND_N], tau[3];
+	double e[PHASE_GROUND_N], tau[3];
 
 	state_default(&s);
 	set(&s, "rayleigh_scattering_per_km=0");
@@ -164,15 +164,15 @@ static void check_thin(const char *name, const char *zero, const char *scatter, 
 		FAIL("%s: no scattering constituent of kind %d", name, kind);
 		return;
 	}
-	model_ground_excess(kind, c->g, e);
+	phase_ground_excess(kind, c->g, e);
 	/* The vertical optical depth is the extinction's: scattering only. */
 	model_optical_depth(&s.atmo, 0.0, 1.0, 200, tau);
 	double l_g = 0.3 / SKYMAP_PI * s.sun.illuminance_lx * s.sun.color[1] * exp(-tau[1]);
 	static const double elevations[] = { 90, 30 };
 	for (int i = 0; i < 2; i++) {
 		double mu = sin(elevations[i] * SKYMAP_PI / 180.0);
-		double x = mu * (MODEL_GROUND_N - 1), fl = floor(x);
-		int j = (int)fl, j1 = j + 1 < MODEL_GROUND_N ? j + 1 : j;
+		double x = mu * (PHASE_GROUND_N - 1), fl = floor(x);
+		int j = (int)fl, j1 = j + 1 < PHASE_GROUND_N ? j + 1 : j;
 		double k = 1.0 + e[j] + (e[j1] - e[j]) * (x - fl);
 		double delta = skyview_green(&with, &s, elevations[i]) - skyview_green(&without, &s, elevations[i]);
 		double r = delta / (tau[1] / mu * 0.5 * l_g);

@@ -15,8 +15,8 @@
 static void test_legendre(void)
 {
 	/* Henyey-Greenstein: g^l exactly. */
-	CHECK(model_phase_legendre(ATMO_PHASE_HENYEY_GREENSTEIN, 0.85, 1) == 0.85);
-	CHECK(fabs(model_phase_legendre(ATMO_PHASE_HENYEY_GREENSTEIN, 0.85, 2) - 0.7225) < 1e-12);
+	CHECK(phase_legendre(ATMO_PHASE_HENYEY_GREENSTEIN, 0.85, 1) == 0.85);
+	CHECK(fabs(phase_legendre(ATMO_PHASE_HENYEY_GREENSTEIN, 0.85, 2) - 0.7225) < 1e-12);
 	/* Cornette-Shanks by quadrature against its closed-form mean cosine
 	 * 3 g (4 + g^2) / (5 (2 + g^2)), forward and backward, and its
 	 * g2 against an adaptive quadrature in 30 digits (mpmath's quad). */
@@ -26,26 +26,26 @@ static void test_legendre(void)
 	};
 	for (size_t i = 0; i < sizeof(gs) / sizeof(gs[0]); i++) {
 		double g = gs[i][0], want = 3.0 * g * (4.0 + g * g) / (5.0 * (2.0 + g * g));
-		double got = model_phase_legendre(ATMO_PHASE_CORNETTE_SHANKS, g, 1);
+		double got = phase_legendre(ATMO_PHASE_CORNETTE_SHANKS, g, 1);
 		if (!(fabs(got - want) < 1e-7))
 			FAIL("Cornette-Shanks g %.2f: g1 %.9f, closed form %.9f", g, got, want);
-		got = model_phase_legendre(ATMO_PHASE_CORNETTE_SHANKS, g, 2);
+		got = phase_legendre(ATMO_PHASE_CORNETTE_SHANKS, g, 2);
 		if (!(fabs(got - gs[i][1]) < 1e-7))
 			FAIL("Cornette-Shanks g %.2f: g2 %.9f, want %.9f", g, got, gs[i][1]);
 	}
 	/* Rayleigh: 3/4 (1 + mu^2) = 1 + P2 / 2, so g1 = 0 and g2 = 1/10. */
-	CHECK(model_phase_legendre(ATMO_PHASE_RAYLEIGH, 0, 1) == 0.0);
-	double r2 = model_phase_legendre(ATMO_PHASE_RAYLEIGH, 0, 2);
+	CHECK(phase_legendre(ATMO_PHASE_RAYLEIGH, 0, 1) == 0.0);
+	double r2 = phase_legendre(ATMO_PHASE_RAYLEIGH, 0, 2);
 	if (!(fabs(r2 - 0.1) < 1e-6))
 		FAIL("Rayleigh g2 %.8f, want 0.1", r2);
-	CHECK(model_phase_legendre(ATMO_PHASE_NONE, 0.8, 1) == 0.0);
+	CHECK(phase_legendre(ATMO_PHASE_NONE, 0.8, 1) == 0.0);
 }
 
 /* Which constituent the rule picks: Mars' dust, not Earth's thin Mie layer,
  * unless asked for. */
 static void test_rule(void)
 {
-	probe_check_rule(model_moment_constituent, "multiscatter_moment");
+	probe_check_rule(phase_moment_constituent, "multiscatter_moment");
 }
 
 static const struct probe_dir mars_dirs[] = {

@@ -179,7 +179,7 @@ static size_t build_scenes(struct scene *sc, size_t max, bool reduced)
 	ADD("mars-s30-h0.2", "mars", 0.2, 30, -1, 1, true, false);
 	ADD("mars-s5-h0.2", "mars", 0.2, 5, -1, 1, true, false);
 	/* Not in the reduced matrix: a Mars sky that no constant was chosen
-	 * by, to check one (MODEL_DELTA_ORDER). */
+	 * by, to check one (PHASE_DELTA_ORDER). */
 	ADD("mars-s15-h0.2", "mars", 0.2, 15, -1, 1, true, false);
 	ADD("earth10x-s30-h0.2-a0.3", "earth", 0.2, 30, 0.3, 10, true, false);
 #undef ADD

@@ -198,8 +198,8 @@ int main(int argc, char **argv)
 			return 2;
 		}
 		ap.delta_m = (int)delta_m;
-		ap.delta_f = delta_f >= 0.0 ? delta_f : model_phase_legendre(c->phase, c->g, 2);
-		ap.delta_g = (model_phase_legendre(c->phase, c->g, 1) - ap.delta_f) / (1.0 - ap.delta_f);
+		ap.delta_f = delta_f >= 0.0 ? delta_f : phase_legendre(c->phase, c->g, 2);
+		ap.delta_g = (phase_legendre(c->phase, c->g, 1) - ap.delta_f) / (1.0 - ap.delta_f);
 	}
 
 	struct pt_sun sun = { .elevation_deg = s.sun.elevation_deg,

@@ -76,7 +76,7 @@ struct state_quality {
 	int multiscatter_iterations;
 	enum state_moment multiscatter_moment;
 	/* Delta-M scaling of the forward peak for the higher orders
-	 * (model_delta_constituent); auto, off, on as multiscatter_moment. */
+	 * (phase_delta_constituent); auto, off, on as multiscatter_moment. */
 	enum state_moment multiscatter_delta;
 };
 

@@ -16,7 +16,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "model.h"
+#include "phase.h"
 #include "shaders.h"
 #include "skymap.h"
 #include "vkfn.h"
@@ -67,21 +67,21 @@ struct gpu_params {
 	struct gpu_constituent c[ATMO_MAX_CONSTITUENTS];
 	float night[4];		/* night-sky floor, after the constituents as in common.glsl */
 	/* The ground's first bounce through each constituent's phase, k - 1
-	 * of the view's cos-zenith as a polynomial (model_ground_fit), a vec4
+	 * of the view's cos-zenith as a polynomial (phase_ground_fit), a vec4
 	 * of the constituents per coefficient. */
-	float ground_fit[MODEL_GROUND_FIT][4];
-	/* Delta-M's forward peak (model_delta_peak): h, its spread in rad. */
+	float ground_fit[PHASE_GROUND_FIT][4];
+	/* Delta-M's forward peak (phase_delta_peak): h, its spread in rad. */
 	float delta_peak[4];
 };
 
-/* model_ground_excess of one constituent, kept while its phase stays: it
+/* phase_ground_excess of one constituent, kept while its phase stays: it
  * costs about 30000 phase evaluations, more than a sun change's tables. */
 struct ground_cache {
 	bool valid;
 	enum atmo_phase kind;
 	double g;
-	double fit[MODEL_GROUND_FIT];	/* model_ground_fit of model_ground_excess */
-	double legendre[2];	/* model_phase_legendre, l = 1 and 2: a quadrature too */
+	double fit[PHASE_GROUND_FIT];	/* phase_ground_fit of phase_ground_excess */
+	double legendre[2];	/* phase_legendre, l = 1 and 2: a quadrature too */
 };
 
 /* Specialization constants, by constant_id. */
@@ -887,11 +887,11 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 		struct ground_cache *gc = &e->ground[n];
 		enum atmo_phase kind = constituent_scatters(c) ? c->phase : ATMO_PHASE_NONE;
 		if (!gc->valid || gc->kind != kind || gc->g != c->g) {
-			double excess[MODEL_GROUND_N];
-			model_ground_excess(kind, c->g, excess);
-			model_ground_fit(excess, gc->fit);
-			gc->legendre[0] = model_phase_legendre(kind, c->g, 1);
-			gc->legendre[1] = model_phase_legendre(kind, c->g, 2);
+			double excess[PHASE_GROUND_N];
+			phase_ground_excess(kind, c->g, excess);
+			phase_ground_fit(excess, gc->fit);
+			gc->legendre[0] = phase_legendre(kind, c->g, 1);
+			gc->legendre[1] = phase_legendre(kind, c->g, 2);
 			gc->valid = true;
 			gc->kind = kind;
 			gc->g = c->g;
@@ -904,7 +904,7 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 		put4(g->layer1c, l1->constant, gc->legendre[1], 0, 0);
 		/* A constituent that scatters nothing needs no phase function. */
 		base->v[1 + n] = constituent_scatters(c) ? (int32_t)c->phase : 0;
-		for (int k = 0; k < MODEL_GROUND_FIT; k++)
+		for (int k = 0; k < PHASE_GROUND_FIT; k++)
 			p->ground_fit[k][n] = (float)gc->fit[k];
 		/* Profiles without an exponential term (ozone's tent) skip exp(). */
 		if (l0->exp_term != 0.0 || l1->exp_term != 0.0)
@@ -925,8 +925,8 @@ static void fill_params(struct eng *e, const struct sky_state *s, struct gpu_par
 	base->v[16] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
 	base->v[17] = s->quality.multiscatter_dirs != 0;
 	/* The lobe constituent (common.glsl's ms_source) by its index among those in the shaders, plus 1. */
-	int delta = s->quality.multiscatter_dirs ? model_delta_constituent(s, g1) : -1;
-	int lobe = s->quality.multiscatter_dirs ? model_lobe_constituent(s, g1) : -1;
+	int delta = s->quality.multiscatter_dirs ? phase_delta_constituent(s, g1) : -1;
+	int lobe = s->quality.multiscatter_dirs ? phase_lobe_constituent(s, g1) : -1;
 	if (lobe >= 0 && constituent_active(&a->c[lobe])) {
 		int before = 0;
 		for (int i = 0; i < lobe; i++)
@@ -953,20 +953,20 @@ static void fill_delta(struct eng *e, const struct sky_state *s, int delta, stru
 		n += constituent_active(&a->c[i]);
 	struct ground_cache *dc = &e->delta;
 	if (!dc->valid || dc->kind != a->c[delta].phase || dc->g != a->c[delta].g) {
-		double excess[MODEL_GROUND_N];
-		model_delta_truncation(a->c[delta].phase, a->c[delta].g, &dc->legendre[0], &dc->legendre[1]);
-		model_ground_excess(ATMO_PHASE_HENYEY_GREENSTEIN, dc->legendre[1], excess);
-		model_ground_fit(excess, dc->fit);
+		double excess[PHASE_GROUND_N];
+		phase_delta_truncation(a->c[delta].phase, a->c[delta].g, &dc->legendre[0], &dc->legendre[1]);
+		phase_ground_excess(ATMO_PHASE_HENYEY_GREENSTEIN, dc->legendre[1], excess);
+		phase_ground_fit(excess, dc->fit);
 		dc->valid = true;
 		dc->kind = a->c[delta].phase;
 		dc->g = a->c[delta].g;
 	}
-	for (int k = 0; k < MODEL_GROUND_FIT; k++)
+	for (int k = 0; k < PHASE_GROUND_FIT; k++)
 		p->ground_fit[k][n] = (float)dc->fit[k];
 	p->c[n].layer1c[2] = (float)dc->legendre[0];
 	p->c[n].layer1c[3] = (float)dc->legendre[1];
 	double h, spread;
-	model_delta_peak(a->c[delta].phase, a->c[delta].g, &h, &spread);
+	phase_delta_peak(a->c[delta].phase, a->c[delta].g, &h, &spread);
 	put4(p->delta_peak, h, spread, 0, 0);
 	base->v[23] = n + 1;
 }
