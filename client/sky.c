@@ -12,10 +12,6 @@
 
 #include "sky_internal.h"
 
-const char *const sky_table_names[SKY_SHM_MAX_TABLES] = {
-	"transmittance", "multiscatter", "skyview", "aerial",
-};
-
 unsigned sky_version(void)
 {
 	return SKY_VERSION;
@@ -94,18 +90,6 @@ int sky_left_ms(int64_t deadline)
 	return d < 0 ? 0 : d > INT_MAX ? INT_MAX : (int)d;
 }
 
-static char *dup_n(const char *s, size_t n)
-{
-	char *d = malloc(n + 1);
-	if (d) {
-		memcpy(d, s, n);
-		d[n] = 0;
-	}
-	return d;
-}
-
-/* ---- replies ------------------------------------------------------------ */
-
 sky_reply *sky_reply_alloc(void)
 {
 	sky_reply *r = calloc(1, sizeof(*r));
@@ -130,28 +114,32 @@ void sky_reply_free(sky_reply *r)
 	free(r);
 }
 
-int sky_reply_add_line(sky_reply *r, const char *line, size_t len)
+/* Grows the key and value arrays to hold one more line. */
+static int reply_reserve(sky_reply *r)
 {
 	if (r->n >= SKY_MAX_REPLY_LINES)
 		return -EPROTO;
-	if (r->n == r->cap) {
-		size_t cap = r->cap ? r->cap * 2 : 16;
-		char **k = realloc(r->keys, cap * sizeof(*k));
-		if (!k)
-			return -ENOMEM;
-		r->keys = k;
-		char **v = realloc(r->values, cap * sizeof(*v));
-		if (!v)
-			return -ENOMEM;
-		r->values = v;
-		r->cap = cap;
-	}
-	const char *colon = memchr(line, ':', len);
-	size_t kl = colon ? (size_t)(colon - line) : len;
-	const char *val = colon ? colon + 1 : line + len;
-	while (val < line + len && *val == ' ')
-		val++;
-	char *k = dup_n(line, kl), *v = dup_n(val, (size_t)(line + len - val));
+	if (r->n < r->cap)
+		return 0;
+	size_t cap = r->cap ? r->cap * 2 : 16;
+	char **k = realloc(r->keys, cap * sizeof(*k));
+	if (!k)
+		return -ENOMEM;
+	r->keys = k;
+	char **v = realloc(r->values, cap * sizeof(*v));
+	if (!v)
+		return -ENOMEM;
+	r->values = v;
+	r->cap = cap;
+	return 0;
+}
+
+int sky_reply_add_pair(sky_reply *r, const char *key, const char *value)
+{
+	int e = reply_reserve(r);
+	if (e < 0)
+		return e;
+	char *k = strdup(key), *v = strdup(value);
 	if (!k || !v) {
 		free(k);
 		free(v);
@@ -160,6 +148,19 @@ int sky_reply_add_line(sky_reply *r, const char *line, size_t len)
 	r->keys[r->n] = k;
 	r->values[r->n] = v;
 	r->n++;
+	return 0;
+}
+
+int sky_reply_set_ack(sky_reply *r, int code, const char *verb, const char *message)
+{
+	size_t n = strlen(verb) + strlen(message) + 4;
+	char *m = malloc(n);
+	if (!m)
+		return -ENOMEM;
+	snprintf(m, n, *message ? "{%s} %s" : "{%s}%s", verb, message);
+	free(r->message);
+	r->message = m;
+	r->ack = code;
 	return 0;
 }
 

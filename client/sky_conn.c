@@ -11,6 +11,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include "proto.h"
 #include "sky_internal.h"
 
 static void close_fds(sky_client *c)
@@ -422,7 +423,7 @@ static int subscribe_line(uint32_t tables, unsigned flags, char *buf, size_t siz
 	for (unsigned i = 0; i < SKY_SHM_MAX_TABLES; i++) {
 		if (!(tables & SKY_TABLE_BIT(i)))
 			continue;
-		n += snprintf(buf + n, size - (size_t)n, "%s%s", first ? "" : ",", sky_table_names[i]);
+		n += snprintf(buf + n, size - (size_t)n, "%s%s", first ? "" : ",", proto_table_name(i));
 		first = false;
 	}
 	if (flags & SKY_SUBSCRIBE_EVENTS)

@@ -3,10 +3,10 @@
  * sky_dispatch() hands out. Works on the bytes sky_conn.c has read; does no
  * I/O of its own. */
 #include <errno.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "proto.h"
 #include "sky_internal.h"
 
 sky_client *sky_client_alloc(void)
@@ -61,71 +61,48 @@ void sky_events_clear(sky_client *c)
 	c->handed_out = NULL;
 }
 
-static bool is_event_line(const char *line, size_t len)
+/* Takes the oldest descriptor that came with the stream, -1 if none. Each
+ * arrives with the first byte of the line that needs it, so the oldest is
+ * the one of the line being handled. */
+static int take_fd(sky_client *c)
 {
-	static const char *const pfx[] = { "changed: ", "failed: ", "layout: " };
-	for (size_t i = 0; i < sizeof(pfx) / sizeof(pfx[0]); i++) {
-		size_t n = strlen(pfx[i]);
-		if (len >= n && memcmp(line, pfx[i], n) == 0)
-			return true;
-	}
-	return false;
+	if (!c->n_fds)
+		return -1;
+	int fd = c->fds[0];
+	memmove(c->fds, c->fds + 1, --c->n_fds * sizeof(int));
+	return fd;
 }
 
-static uint32_t parse_tables(char *list)
+/* An event line (key and value from proto_parse_reply) -> a queued event;
+ * a layout line maps the region that came with it first. */
+static int handle_event(sky_client *c, const char *key, char *value)
 {
-	uint32_t mask = 0;
-	char *save = NULL;
-	for (char *t = strtok_r(list, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
-		for (unsigned i = 0; i < SKY_SHM_MAX_TABLES; i++)
-			if (strcmp(t, sky_table_names[i]) == 0)
-				mask |= SKY_TABLE_BIT(i);
-		if (strcmp(t, "all") == 0)
-			mask = SKY_TABLES_ALL;
-	}
-	return mask;
-}
-
-/* "changed: generation=N tables=a,b", "failed: generation=N message=text",
- * "layout: generation=N bytes=B" (with the new memfd) -> events. Unknown
- * words are ignored: a later protocol may add some. */
-static int handle_event_line(sky_client *c, const char *line, size_t len)
-{
-	struct sky_event ev = { .type = SKY_EVENT_CHANGED };
-	sky_reply *owned = NULL;
-	char buf[512];
-	size_t n = len < sizeof(buf) - 1 ? len : sizeof(buf) - 1;
-	memcpy(buf, line, n);
-	buf[n] = 0;
-	char *colon = strchr(buf, ':');
-	*colon = 0;
-	if (strcmp(buf, "failed") == 0)
+	struct proto_event pe;
+	if (proto_parse_event(key, value, &pe) < 0)
+		return -EPROTO;
+	struct sky_event ev = { .type = SKY_EVENT_CHANGED, .generation = (uint32_t)pe.generation };
+	if (pe.kind == PROTO_EVENT_FAILED)
 		ev.type = SKY_EVENT_FAILED;
-	else if (strcmp(buf, "layout") == 0)
-		ev.type = SKY_EVENT_LAYOUT;
-	char *save = NULL;
-	for (char *w = strtok_r(colon + 1, " ", &save); w; w = strtok_r(NULL, " ", &save)) {
-		if (strncmp(w, "generation=", 11) == 0) {
-			ev.generation = (uint32_t)strtoull(w + 11, NULL, 10);
-		} else if (strncmp(w, "tables=", 7) == 0) {
-			ev.tables = parse_tables(w + 7);
-		} else if (strncmp(w, "message=", 8) == 0 && !owned) {
-			if (!(owned = sky_reply_alloc()) || !(owned->message = strdup(w + 8))) {
-				sky_reply_free(owned);
-				return -ENOMEM;
-			}
-			ev.message = owned->message;
-		}
-	}
-	if (ev.type == SKY_EVENT_LAYOUT) {
+	if (pe.tables)
+		ev.tables = proto_table_mask(pe.tables);
+	if (pe.kind == PROTO_EVENT_LAYOUT) {
 		/* The new region came with the line; without it the line is garbage. */
-		if (!c->n_fds)
+		int fd = take_fd(c);
+		if (fd < 0)
 			return -EPROTO;
-		int fd = c->fds[0];
-		memmove(c->fds, c->fds + 1, --c->n_fds * sizeof(int));
 		int r = sky_map_memfd(c, fd);
 		if (r < 0)
 			return r;
+		ev.type = SKY_EVENT_LAYOUT;
+	}
+	sky_reply *owned = NULL;
+	if (pe.message) {
+		/* The message lives as long as the event: in a reply freed with it. */
+		if (!(owned = sky_reply_alloc()) || !(owned->message = strdup(pe.message))) {
+			sky_reply_free(owned);
+			return -ENOMEM;
+		}
+		ev.message = owned->message;
 	}
 	int r = sky_event_push(c, &ev, owned);
 	if (r < 0)
@@ -145,13 +122,8 @@ static int complete_reply(sky_client *c)
 	c->pend_head = (c->pend_head + 1) % SKY_MAX_PENDING;
 	c->pend_count--;
 	if (p.subscribe && r->ack == 0) {
-		if (c->n_fds) {
-			int fd = c->fds[0];
-			memmove(c->fds, c->fds + 1, --c->n_fds * sizeof(int));
-			c->map_error = sky_map_memfd(c, fd);
-		} else {
-			c->map_error = -EPROTO;
-		}
+		int fd = take_fd(c);
+		c->map_error = fd < 0 ? -EPROTO : sky_map_memfd(c, fd);
 	}
 	if (p.sync) {
 		c->sync_reply = r;
@@ -166,42 +138,53 @@ static int complete_reply(sky_client *c)
 	return e;
 }
 
-static int handle_line(sky_client *c, char *line, size_t len)
+/* The greeting "OK skyd <version>": libsky speaks to a daemon of its own
+ * major version (what precedes the first '.'). */
+static int handle_greeting(sky_client *c, char *line)
 {
-	if (len && line[len - 1] == '\r')
-		line[--len] = 0;
-	if (!c->greeted) {
-		/* "OK skyd <version>" */
-		if (len < 8 || memcmp(line, "OK skyd ", 8) != 0 || len - 8 >= sizeof(c->proto_version))
-			return -EPROTO;
-		memcpy(c->proto_version, line + 8, len - 8);
-		c->proto_version[len - 8] = 0;
-		size_t a = strcspn(c->proto_version, "."), b = strcspn(SKY_PROTO_VERSION, ".");
-		if (a != b || memcmp(c->proto_version, SKY_PROTO_VERSION, a) != 0)
-			return -EPROTONOSUPPORT;
-		c->greeted = true;
-		return 0;
-	}
-	if ((!c->cur || c->cur->n == 0) && is_event_line(line, len))
-		return handle_event_line(c, line, len);
+	struct proto_reply rep;
+	if (proto_parse_reply(line, &rep) < 0 || rep.kind != PROTO_OK ||
+	    strncmp(rep.value, "skyd ", 5) != 0)
+		return -EPROTO;
+	const char *v = rep.value + 5;
+	size_t len = strlen(v);
+	if (len >= sizeof(c->proto_version))
+		return -EPROTO;
+	memcpy(c->proto_version, v, len + 1);
+	size_t a = strcspn(v, "."), b = strcspn(SKY_PROTO_VERSION, ".");
+	if (a != b || memcmp(v, SKY_PROTO_VERSION, a) != 0)
+		return -EPROTONOSUPPORT;
+	c->greeted = true;
+	return 0;
+}
+
+/* One line from skyd, parsed by proto's reply grammar. Event lines may come
+ * between replies only, and no reply uses their keys, so they are events
+ * wherever they arrive. */
+static int handle_line(sky_client *c, char *line)
+{
+	struct proto_reply rep;
+	if (!c->greeted)
+		return handle_greeting(c, line);
+	if (proto_parse_reply(line, &rep) < 0)
+		return -EPROTO;
+	if (rep.kind == PROTO_EVENT)
+		return handle_event(c, rep.key, line + (rep.value - line));
 	if (!c->cur && !(c->cur = sky_reply_alloc()))
 		return -ENOMEM;
-	if (len == 2 && memcmp(line, "OK", 2) == 0)
+	switch (rep.kind) {
+	case PROTO_OK:
 		return complete_reply(c);
-	if (len >= 5 && memcmp(line, "ACK [", 5) == 0) {
-		char *end;
-		long code = strtol(line + 5, &end, 10);
-		if (end == line + 5 || *end != ']' || code <= 0 || code > 9999)
+	case PROTO_ACK:
+		/* An ACK without a code would read as success. */
+		if (rep.ack_code <= 0)
 			return -EPROTO;
-		end++;
-		while (*end == ' ')
-			end++;
-		c->cur->ack = (int)code;
-		if (!(c->cur->message = strdup(end)))
+		if (sky_reply_set_ack(c->cur, rep.ack_code, rep.ack_verb, rep.ack_message) < 0)
 			return -ENOMEM;
 		return complete_reply(c);
+	default:
+		return sky_reply_add_pair(c->cur, rep.key, rep.value);
 	}
-	return sky_reply_add_line(c->cur, line, len);
 }
 
 int sky_input_lines(sky_client *c)
@@ -213,7 +196,7 @@ int sky_input_lines(sky_client *c)
 		if (!nl)
 			break;
 		*nl = 0;
-		r = handle_line(c, c->in + start, (size_t)(nl - (c->in + start)));
+		r = handle_line(c, c->in + start);
 		start = (size_t)(nl - c->in) + 1;
 		if (r < 0)
 			break;

@@ -90,12 +90,14 @@ int sky_left_ms(int64_t deadline);
 /* An empty reply (OK, no lines, no descriptor), or NULL without memory. */
 sky_reply *sky_reply_alloc(void);
 
-/* Appends the line "key: value" (len bytes) to r. Returns 0, -EPROTO past
+/* Appends the line "key: value" to r. Returns 0, -EPROTO past
  * SKY_MAX_REPLY_LINES or -ENOMEM. */
-int sky_reply_add_line(sky_reply *r, const char *line, size_t len);
+int sky_reply_add_pair(sky_reply *r, const char *key, const char *value);
 
-/* The protocol's table names, by enum sky_shm_table_id. */
-extern const char *const sky_table_names[SKY_SHM_MAX_TABLES];
+/* Makes r the refusal "ACK [code] {verb} message": sky_reply_ack() gives
+ * code, sky_reply_message() "{verb} message" as the line said it. Returns 0
+ * or -ENOMEM. */
+int sky_reply_set_ack(sky_reply *r, int code, const char *verb, const char *message);
 
 /* ---- sky_input.c: lines from skyd --------------------------------------- */
 
