@@ -14,6 +14,7 @@
 #include "proto.h"
 #include "sky_internal.h"
 
+/* Closes descriptors that came with the stream and were never used. */
 static void close_fds(sky_client *c)
 {
 	for (unsigned i = 0; i < c->n_fds; i++)
@@ -38,6 +39,8 @@ static void drop_connection(sky_client *c)
 	c->greeted = false;
 }
 
+/* The peer is gone: drops the connection and queues one SKY_EVENT_HANGUP
+ * (not a second for a connection already dropped). */
 static void hang_up(sky_client *c)
 {
 	if (c->fd < 0 && c->hung_up)
@@ -48,8 +51,9 @@ static void hang_up(sky_client *c)
 	(void)sky_event_push(c, &ev, NULL);
 }
 
-/* The unsolicited lines of the protocol: "changed: ", "failed: " and
- * "layout: ". They come only between whole replies. */
+/* Reads what the socket holds without blocking, keeping the descriptors
+ * that come with it in c->fds. 1 if bytes came, 0 if none, -ECONNRESET on
+ * end of stream, other -errno. */
 static int read_some(sky_client *c)
 {
 	if (c->in_cap - c->in_len < 4096) {
@@ -131,6 +135,7 @@ static int pump_input(sky_client *c)
 	}
 }
 
+/* A blocking, close-on-exec socket connected to path. 0 or -errno. */
 static int open_socket(const char *path, int *ret_fd)
 {
 	struct sockaddr_un sa = { .sun_family = AF_UNIX };
@@ -199,6 +204,8 @@ static bool sync_done(const sky_client *c)
 	return c->sync_done;
 }
 
+/* Connects to c->path and waits (c->timeout_ms) for the greeting. 0 or
+ * -errno; on failure the client is left hung up, without a socket. */
 static int do_connect(sky_client *c)
 {
 	int fd = -1;
@@ -217,6 +224,16 @@ static int do_connect(sky_client *c)
 		return r;
 	}
 	return 0;
+}
+
+sky_client *sky_client_alloc(void)
+{
+	sky_client *c = calloc(1, sizeof(*c));
+	if (c) {
+		c->fd = -1;
+		c->timeout_ms = SKY_DEFAULT_TIMEOUT_MS;
+	}
+	return c;
 }
 
 int sky_connect(const char *path, sky_client **ret_client)
@@ -272,6 +289,8 @@ void sky_set_timeout(sky_client *c, int timeout_ms)
 		c->timeout_ms = timeout_ms;
 }
 
+/* The length of a request line fit to send: printable, not empty, shorter
+ * than SKY_PROTO_LINE_MAX. -EINVAL otherwise. */
 static int check_line(const char *line)
 {
 	size_t n = 0;
@@ -281,6 +300,7 @@ static int check_line(const char *line)
 	return n == 0 || n >= SKY_PROTO_LINE_MAX ? -EINVAL : (int)n;
 }
 
+/* True if line's first word is verb. */
 static bool is_verb(const char *line, const char *verb)
 {
 	size_t n = strlen(verb);
@@ -416,6 +436,7 @@ int sky_dispatch(sky_client *c, struct sky_event *ret_event)
 	return 1;
 }
 
+/* Writes "subscribe tables=a,b[ events=1]" into buf; its length. */
 static int subscribe_line(uint32_t tables, unsigned flags, char *buf, size_t size)
 {
 	int n = snprintf(buf, size, "subscribe tables=");
@@ -431,6 +452,8 @@ static int subscribe_line(uint32_t tables, unsigned flags, char *buf, size_t siz
 	return n;
 }
 
+/* Subscribes and maps the memfd of the reply. 0, the ACK code, or -errno
+ * (the mapping's failure included). */
 static int subscribe_now(sky_client *c, uint32_t tables, unsigned flags)
 {
 	char line[256];

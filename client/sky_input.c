@@ -9,16 +9,6 @@
 #include "proto.h"
 #include "sky_internal.h"
 
-sky_client *sky_client_alloc(void)
-{
-	sky_client *c = calloc(1, sizeof(*c));
-	if (c) {
-		c->fd = -1;
-		c->timeout_ms = SKY_DEFAULT_TIMEOUT_MS;
-	}
-	return c;
-}
-
 int sky_pending_push(sky_client *c, uint64_t userdata, bool sync, bool subscribe)
 {
 	if (c->pend_count >= SKY_MAX_PENDING)
@@ -110,6 +100,9 @@ static int handle_event(sky_client *c, const char *key, char *value)
 	return r;
 }
 
+/* OK or ACK closed c->cur: hands it to the oldest request that waits for a
+ * reply (sky_request() or an event for sky_dispatch()), mapping the memfd a
+ * successful subscribe brings. -EPROTO when no request waits. */
 static int complete_reply(sky_client *c)
 {
 	sky_reply *r = c->cur;
@@ -207,6 +200,3 @@ int sky_input_lines(sky_client *c)
 		r = -EPROTO;
 	return r;
 }
-
-/* Reads what the socket holds without blocking. 1 if bytes came, 0 if none,
- * -ECONNRESET on end of stream, other -errno. */

@@ -101,10 +101,6 @@ int sky_reply_set_ack(sky_reply *r, int code, const char *verb, const char *mess
 
 /* ---- sky_input.c: lines from skyd --------------------------------------- */
 
-/* A client with no connection, no mapping and the default timeout, or NULL
- * without memory. Free with sky_disconnect(). */
-sky_client *sky_client_alloc(void);
-
 /* Parses the whole lines in c->in (the greeting, reply lines, event lines)
  * and keeps the incomplete tail. Returns 0, or -EPROTO (garbled, or a line
  * over SKY_IN_MAX), -EPROTONOSUPPORT (another major protocol version) or
@@ -123,6 +119,10 @@ int sky_event_push(sky_client *c, const struct sky_event *ev, sky_reply *owned);
 void sky_events_clear(sky_client *c);
 
 /* ---- sky_conn.c: the socket ------------------------------------------- */
+
+/* A client with no connection, no mapping and the default timeout, or NULL
+ * without memory. Free with sky_disconnect(). */
+sky_client *sky_client_alloc(void);
 
 /* Blocks (up to timeout_ms, < 0 forever) until cond holds, writing what is
  * queued and reading what comes. A request that times out drops the
