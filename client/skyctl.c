@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 
 #include "dump.h"
+#include "proto.h"
 #include "sky.h"
 
 /* Exit codes, documented in usage() and client/README-skyctl.md. */
@@ -25,10 +26,6 @@ struct cmd {
 	const char *name;
 	const char *usage;
 	int (*run)(const struct opts *o, int argc, char **argv);
-};
-
-static const char *const table_names[SKY_SHM_MAX_TABLES] = {
-	"transmittance", "multiscatter", "skyview", "aerial",
 };
 
 static int connect_or_complain(const struct opts *o, sky_client **ret)
@@ -225,7 +222,7 @@ static void print_tables(uint32_t mask)
 	bool first = true;
 	for (unsigned i = 0; i < SKY_SHM_MAX_TABLES; i++) {
 		if (mask & SKY_TABLE_BIT(i)) {
-			printf("%s%s", first ? "" : ",", table_names[i]);
+			printf("%s%s", first ? "" : ",", proto_table_name(i));
 			first = false;
 		}
 	}
@@ -352,7 +349,7 @@ static int cmd_dump(const struct opts *o, int argc, char **argv)
 		if (!(v.valid_tables & SKY_TABLE_BIT(t->id)))
 			continue;
 		struct dump_table dt = {
-			.name = table_names[t->id], .width = t->width, .height = t->height,
+			.name = proto_table_name(t->id), .width = t->width, .height = t->height,
 			.depth = t->depth, .format = t->format,
 			.texels = (const unsigned char *)v.slot_base + t->offset,
 		};

@@ -127,6 +127,73 @@ int proto_is_event(const char *key)
 	       strcmp(key, "failed") == 0;
 }
 
+/* A decimal number without sign, as skyd prints generations and sizes. */
+static int parse_u64(const char *s, uint64_t *ret)
+{
+	char *end;
+
+	if (!s || *s < '0' || *s > '9')
+		return -EINVAL;
+	errno = 0;
+	unsigned long long v = strtoull(s, &end, 10);
+	if (*end || errno)
+		return -EINVAL;
+	*ret = v;
+	return 0;
+}
+
+int proto_parse_event(const char *key, char *value, struct proto_event *ret)
+{
+	struct proto_arg args[16];
+	int n;
+
+	memset(ret, 0, sizeof(*ret));
+	if (strcmp(key, "changed") == 0)
+		ret->kind = PROTO_EVENT_CHANGED;
+	else if (strcmp(key, "layout") == 0)
+		ret->kind = PROTO_EVENT_LAYOUT;
+	else if (strcmp(key, "failed") == 0)
+		ret->kind = PROTO_EVENT_FAILED;
+	else
+		return -EINVAL;
+	n = proto_split_args(value, args, (int)(sizeof(args) / sizeof(args[0])));
+	if (n < 0 || parse_u64(proto_arg_value(args, n, "generation"), &ret->generation) < 0)
+		return -EINVAL;
+	ret->tables = proto_arg_value(args, n, "tables");
+	ret->message = proto_arg_value(args, n, "message");
+	if (proto_arg_value(args, n, "bytes") &&
+	    parse_u64(proto_arg_value(args, n, "bytes"), &ret->bytes) < 0)
+		return -EINVAL;
+	return 0;
+}
+
+static const char *const table_names[SKY_SHM_MAX_TABLES] = {
+	"transmittance", "multiscatter", "skyview", "aerial",
+};
+
+const char *proto_table_name(unsigned id)
+{
+	return id < SKY_SHM_MAX_TABLES ? table_names[id] : NULL;
+}
+
+uint32_t proto_table_mask(const char *list)
+{
+	uint32_t mask = 0;
+
+	while (*list) {
+		size_t n = strcspn(list, ",");
+		if (n == 3 && strncmp(list, "all", 3) == 0)
+			mask |= (1u << SKY_SHM_MAX_TABLES) - 1;
+		for (unsigned i = 0; i < SKY_SHM_MAX_TABLES; i++)
+			if (strlen(table_names[i]) == n && strncmp(list, table_names[i], n) == 0)
+				mask |= 1u << i;
+		list += n;
+		if (*list == ',')
+			list++;
+	}
+	return mask;
+}
+
 int proto_parse_reply(char *line, struct proto_reply *ret)
 {
 	size_t len = strlen(line);

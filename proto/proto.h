@@ -12,6 +12,7 @@
 #define SKYD_PROTO_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "skyproto.h"
 
@@ -63,6 +64,36 @@ int proto_parse_reply(char *line, struct proto_reply *ret);
 
 /* 1 if key names an event line. */
 int proto_is_event(const char *key);
+
+enum proto_event_kind {
+	PROTO_EVENT_CHANGED,		/* changed: generation=N tables=LIST */
+	PROTO_EVENT_LAYOUT,		/* layout: generation=N bytes=B (a new region's fd with it) */
+	PROTO_EVENT_FAILED,		/* failed: generation=N message=TEXT (spaces as '_') */
+};
+
+struct proto_event {
+	enum proto_event_kind kind;
+	uint64_t generation;
+	const char *tables;		/* changed: the comma list; NULL when absent */
+	uint64_t bytes;			/* layout: the new region's size; 0 when absent */
+	const char *message;		/* failed: why; NULL when absent */
+};
+
+/* Parses the value of an event line (key and value as proto_parse_reply
+ * gave them, value writable) in place. Keys it does not know are skipped,
+ * so that a later protocol may add some. Returns 0, or -EINVAL when key is
+ * no event, value is not a k=v list or generation= is missing or not a
+ * decimal number. */
+int proto_parse_event(const char *key, char *value, struct proto_event *ret);
+
+/* The protocol's name of table id (enum sky_shm_table_id), NULL past the
+ * last. */
+const char *proto_table_name(unsigned id);
+
+/* The bits (1 << id) of the tables a comma list names, "all" for every one.
+ * Names it does not know add nothing: in an event they may be a later
+ * protocol's tables. */
+uint32_t proto_table_mask(const char *list);
 
 /* Writes "ACK [code] {verb} message\n" into buf, replacing any byte of the
  * message that could break the line (control, non-ASCII) with '?'. Returns

@@ -110,7 +110,7 @@ static inline void skymap_transmittance_inverse(double rb, double rt, double u, 
  * a few degrees as the earth's shadow rises: with mu_h the horizon cosine at
  * the altitude and s = (mu_s - mu_h) / (1 + mu_h) below it, (mu_s - mu_h) /
  * (1 - mu_h) above it (both in [-1, 1]), u = 0.5 + 0.5 sign(s) sqrt(|s|).
- * Version 1 (u linear in mu_s) read 30 % high in twilight at 32 texels
+ * A u linear in mu_s spends too few texels there and reads high in twilight
  * (docs/accuracy.md). */
 static inline void skymap_multiscatter_uv(double rb, double rt, double altitude_km, double mu_s,
 					  unsigned w, unsigned h, double *ret_u, double *ret_v)
