@@ -156,7 +156,7 @@ void main()
 	vec4 lay0[4], lay1[4];
 	float width[4];
 	for (int k = 0; k < N_CONST; k++) {
-		Constituent c = P.C[k];
+		Constituent c = P.c[k];
 		lay0[k] = vec4(c.layer0.yzw, c.layer0c_1.x);
 		lay1[k] = vec4(c.layer0c_1.yzw, c.layer1c.x);
 		width[k] = c.layer0.x;

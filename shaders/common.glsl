@@ -5,61 +5,38 @@
 // coefficients in 1/km, directions in the observer's east-north-up frame
 // with the planet centre at (0, 0, -(Rb + altitude)).
 
+#include "sky_params.h"
 
 const float PI = 3.14159265358979;
 
 // Specialization constants: what a scene does not need is compiled out.
-layout(constant_id = 0) const int N_CONST = 3;        // constituents that are not all zero
-layout(constant_id = 1) const int PHASE_0 = 1;        // 0 none, 1 Rayleigh, 2 Cornette-Shanks, 3 HG
-layout(constant_id = 2) const int PHASE_1 = 2;
-layout(constant_id = 3) const int PHASE_2 = 0;
-layout(constant_id = 4) const int PHASE_3 = 0;
-layout(constant_id = 5) const bool STORAGE_F16 = false;
-layout(constant_id = 6) const bool MOON_LIT = false;
-layout(constant_id = 7) const bool GROUND_BLACK = false;
-layout(constant_id = 8) const int T_W = 256;
-layout(constant_id = 9) const int T_H = 64;
-layout(constant_id = 10) const int M_W = 32;
-layout(constant_id = 11) const int M_H = 32;
-layout(constant_id = 12) const int OUT_W = 1;
-layout(constant_id = 13) const int OUT_H = 1;
-layout(constant_id = 14) const int OUT_D = 1;
-layout(constant_id = 15) const int STEPS = 1;
-layout(constant_id = 17) const bool MULTISCATTER_ON = true;
-layout(constant_id = 18) const int EXP_MASK = 15;      // bit i: constituent i has an exponential term
-// (16, 19, 20, 21: msgrid.glsl, skyview.comp and msiterate.comp declare their own.)
-layout(constant_id = 22) const int MOMENT_LOBE = 0;    // 1 + the constituent whose phase sees the lobe (ms_source), 0 none
+layout(constant_id = SPEC_N_CONST) const int N_CONST = 3;        // constituents that are not all zero
+layout(constant_id = SPEC_PHASE_0) const int PHASE_0 = 1;        // 0 none, 1 Rayleigh, 2 Cornette-Shanks, 3 HG
+layout(constant_id = SPEC_PHASE_1) const int PHASE_1 = 2;
+layout(constant_id = SPEC_PHASE_2) const int PHASE_2 = 0;
+layout(constant_id = SPEC_PHASE_3) const int PHASE_3 = 0;
+layout(constant_id = SPEC_STORAGE_F16) const bool STORAGE_F16 = false;
+layout(constant_id = SPEC_MOON_LIT) const bool MOON_LIT = false;
+layout(constant_id = SPEC_GROUND_BLACK) const bool GROUND_BLACK = false;
+layout(constant_id = SPEC_T_W) const int T_W = 256;
+layout(constant_id = SPEC_T_H) const int T_H = 64;
+layout(constant_id = SPEC_M_W) const int M_W = 32;
+layout(constant_id = SPEC_M_H) const int M_H = 32;
+layout(constant_id = SPEC_OUT_W) const int OUT_W = 1;
+layout(constant_id = SPEC_OUT_H) const int OUT_H = 1;
+layout(constant_id = SPEC_OUT_D) const int OUT_D = 1;
+layout(constant_id = SPEC_STEPS) const int STEPS = 1;
+layout(constant_id = SPEC_MULTISCATTER_ON) const bool MULTISCATTER_ON = true;
+layout(constant_id = SPEC_EXP_MASK) const int EXP_MASK = 15;      // bit i: constituent i has an exponential term
+// (SPEC_MS_DIRS, SPEC_MS_SUN_GROUP: msgrid.glsl; SPEC_SV_AZ_GROUP: skyview.comp;
+// SPEC_ITER_FIRST: msiterate.comp.)
+layout(constant_id = SPEC_MOMENT_LOBE) const int MOMENT_LOBE = 0;    // 1 + the constituent whose phase sees the lobe (ms_source), 0 none
 const int MOMENT_CONST = MOMENT_LOBE - 1;
-layout(constant_id = 23) const int DELTA_LOBE = 0;     // 1 + the constituent delta-M scaled for the higher orders (delta_source), 0 none
+layout(constant_id = SPEC_DELTA_LOBE) const int DELTA_LOBE = 0;     // 1 + the constituent delta-M scaled for the higher orders (delta_source), 0 none
 const int DELTA_CONST = DELTA_LOBE - 1;
 
-struct Constituent {
-	vec4 scattering;	// rgb 1/km, w = g
-	vec4 absorption;	// rgb 1/km, w = g1, the phase's first Legendre moment (model_phase_g1)
-	vec4 layer0;		// width_km, exp_term, exp_scale_per_km, linear_per_km
-	vec4 layer0c_1;		// constant (layer 0), exp_term, exp_scale_per_km, linear_per_km (layer 1)
-	vec4 layer1c;		// constant (layer 1), y = g2, the phase's second Legendre moment,
-				// z = f, w = g' of the delta-M truncation (DELTA_CONST only)
-};
-
-struct Params {
-	vec4 planet;		// bottom radius, top radius, shell thickness, observer altitude
-	vec4 albedo;		// ground albedo rgb
-	vec4 sun_dir;		// unit, w = angular radius (radians)
-	vec4 sun_illum;		// lx per channel at the top of the atmosphere
-	vec4 moon_dir;
-	vec4 moon_illum;
-	vec4 cam_fwd;		// w = tan(vfov / 2)
-	vec4 cam_right;		// w = aspect
-	vec4 cam_up;		// w = aerial range km
-	vec4 misc;		// x horizon cos of the observer, y skyview min steps, z aerial squared (1/0),
-				// w H = sqrt(top^2 - bottom^2), the horizontal distance to the top from the ground
-	Constituent C[4];
-	vec4 night;		// night-sky floor: rgb zenith cd/m2, w horizon gain c (daemon/state.h)
-	vec4 ground_fit[8];	// GROUND_FIT coefficients, one component per constituent (ground_excess())
-	vec4 delta_peak;	// DELTA_CONST's forward peak: x = h, y = its angular spread (rad) (delta_peak_phase())
-};
-layout(std140, binding = 0) uniform ParamsBlock { Params params; };
+// struct Constituent and struct Params: sky_params.h.
+layout(std140, binding = BINDING_PARAMS) uniform ParamsBlock { Params params; };
 
 // A private copy that every main() makes first (load_params()): lavapipe's
 // LLVM passes do no loop-invariant code motion, so each read of the uniform
@@ -80,7 +57,7 @@ void load_params() { P = params; }
 // phase_ground_fit's polynomial in sqrt|mu| (powers 2 to 9): the table it
 // fits, read with a different index in every lane, was 8 % of the sky-view
 // pass.
-const int GROUND_FIT = 8;
+const int GROUND_FIT = SKY_GROUND_FIT;
 
 vec4 ground_excess(float mu_view)
 {
@@ -92,24 +69,24 @@ vec4 ground_excess(float mu_view)
 	return mu_view < 0.0 ? -e : e;
 }
 
-layout(std430, binding = 1) buffer TransmittanceBuf { uint d[]; } TB;
-layout(std430, binding = 2) buffer MultiscatterBuf { uint d[]; } MB;
-layout(std430, binding = 3) buffer SkyviewBuf { uint d[]; } SB;
-layout(std430, binding = 4) buffer AerialBuf { uint d[]; } AB;
+layout(std430, binding = BINDING_TRANSMITTANCE) buffer TransmittanceBuf { uint d[]; } TB;
+layout(std430, binding = BINDING_MULTISCATTER) buffer MultiscatterBuf { uint d[]; } MB;
+layout(std430, binding = BINDING_SKYVIEW) buffer SkyviewBuf { uint d[]; } SB;
+layout(std430, binding = BINDING_AERIAL) buffer AerialBuf { uint d[]; } AB;
 // The same transmittance and multi-scattering memory, read through texel
 // buffers: the format converts f16, and the gathers are vectorized.
-layout(binding = 5) uniform samplerBuffer TransmittanceTex;
-layout(binding = 6) uniform samplerBuffer MultiscatterTex;
+layout(binding = BINDING_TRANSMITTANCE_TEX) uniform samplerBuffer TransmittanceTex;
+layout(binding = BINDING_MULTISCATTER_TEX) uniform samplerBuffer MultiscatterTex;
 // Column densities of the transmittance texels, one per constituent
 // (columns.comp): internal, float32 whatever the tables' storage.
-layout(std430, binding = 8) buffer ColumnBuf { vec4 d[]; } CB;
+layout(std430, binding = BINDING_COLUMNS) buffer ColumnBuf { vec4 d[]; } CB;
 // The same memory as a lookup (delta-M's scaled transmittance).
-layout(binding = 12) uniform samplerBuffer ColumnTex;
+layout(binding = BINDING_COLUMNS_TEX) uniform samplerBuffer ColumnTex;
 // The shape of the multiply scattered light (multiscatter.comp, with a lobe
 // constituent): a texel per multi-scattering texel, float32, internal. Written
 // through the storage buffer, read through the texel buffer.
-layout(std430, binding = 10) buffer MomentBuf { vec4 d[]; } MOB;
-layout(binding = 11) uniform samplerBuffer MomentTex;
+layout(std430, binding = BINDING_MOMENT) buffer MomentBuf { vec4 d[]; } MOB;
+layout(binding = BINDING_MOMENT_TEX) uniform samplerBuffer MomentTex;
 
 // Texels are RGBA: four 32-bit words, or two words of packed halves.
 #define STORE_TEXEL(B, i, v) do { \
@@ -141,7 +118,7 @@ vec4 layer_at(Constituent c, float h)
 
 float density(int i, float h)
 {
-	vec4 l = layer_at(P.C[i], h);
+	vec4 l = layer_at(P.c[i], h);
 	float e = (EXP_MASK & (1 << i)) != 0 ? l.x * exp(l.y * h) : 0.0;
 	return clamp(e + l.z * h + l.w, 0.0, 1.0);
 }
@@ -187,8 +164,8 @@ Medium medium(float h)
 	m.absorption = vec3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
 		float d = density(i, h);
-		m.scattering += d * P.C[i].scattering.rgb;
-		m.absorption += d * P.C[i].absorption.rgb;
+		m.scattering += d * P.c[i].scattering.rgb;
+		m.absorption += d * P.c[i].absorption.rgb;
 	}
 	m.extinction = m.scattering + m.absorption;
 	return m;
@@ -430,7 +407,7 @@ Phases ray_phases(vec3 view_dir, vec3 light_dir)
 	Phases ph;
 	float mu = dot(view_dir, light_dir);
 	for (int i = 0; i < 4; i++)
-		ph.p[i] = i < N_CONST && phase_kind(i) != 0 ? phase(phase_kind(i), P.C[i].scattering.w, mu) : 0.0;
+		ph.p[i] = i < N_CONST && phase_kind(i) != 0 ? phase(phase_kind(i), P.c[i].scattering.w, mu) : 0.0;
 	ph.mu = mu;
 	return ph;
 }
@@ -451,9 +428,9 @@ Medium medium_parts(float h, out Scatter ret)
 		ret.s[i] = vec3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
 		float d = density(i, h);
-		ret.s[i] = d * P.C[i].scattering.rgb;
+		ret.s[i] = d * P.c[i].scattering.rgb;
 		m.scattering += ret.s[i];
-		m.absorption += d * P.C[i].absorption.rgb;
+		m.absorption += d * P.c[i].absorption.rgb;
 	}
 	m.extinction = m.scattering + m.absorption;
 	return m;
@@ -525,11 +502,11 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 	// o_x^2 - o_y^2 = 2 o_x^2 + o_z^2 - 1.
 	float b2 = sh.y * (1.5 * o_z * o_z - 0.5) +
 		   sh.z * (DELTA_CONST >= 0 ? 2.0 * o_x * o_x + o_z * o_z - 1.0 : o_x * o_z);
-	vec2 g = vec2(P.C[max(MOMENT_CONST, 0)].absorption.w, P.C[max(MOMENT_CONST, 0)].layer1c.y);
+	vec2 g = vec2(P.c[max(MOMENT_CONST, 0)].absorption.w, P.c[max(MOMENT_CONST, 0)].layer1c.y);
 	// With delta-M the field is the scaled medium's, scattered by the
 	// truncated phase: Henyey-Greenstein g', moments g' and g'^2.
 	if (DELTA_CONST >= 0)
-		g = vec2(P.C[max(DELTA_CONST, 0)].layer1c.w, P.C[max(DELTA_CONST, 0)].layer1c.w * P.C[max(DELTA_CONST, 0)].layer1c.w);
+		g = vec2(P.c[max(DELTA_CONST, 0)].layer1c.w, P.c[max(DELTA_CONST, 0)].layer1c.w * P.c[max(DELTA_CONST, 0)].layer1c.w);
 	// A truncated expansion may go negative where the field is strongly
 	// directed; the light scattered never does.
 	float gl = g.x * g.x;
@@ -636,7 +613,7 @@ bool ray_in_shell(float h0, vec3 dir, out Entry en)
 vec3 delta_removed()
 {
 	int k = max(DELTA_CONST, 0);
-	return DELTA_CONST >= 0 ? P.C[k].layer1c.z * P.C[k].scattering.rgb : vec3(0.0);
+	return DELTA_CONST >= 0 ? P.c[k].layer1c.z * P.c[k].scattering.rgb : vec3(0.0);
 }
 
 // The column densities of every constituent from the altitude of a toward
@@ -665,7 +642,7 @@ Scaled scaled_step(Scatter sc, Medium m, float view_up, float dt, inout float ta
 	if (DELTA_CONST < 0)
 		return d;
 	int k = max(DELTA_CONST, 0);
-	d.removed = sc.s[k] * P.C[k].layer1c.z;
+	d.removed = sc.s[k] * P.c[k].layer1c.z;
 	Scatter scs = sc;
 	scs.s[k] -= d.removed;
 	d.sigma_s = m.scattering - d.removed;
@@ -696,7 +673,7 @@ float delta_peak_phase(float mu_l, float tau, Phases ph)
 	int k = max(DELTA_CONST, 0);
 	float n = tau < 1e-4 ? 1.0 + 0.5 * tau : tau / (1.0 - exp(-tau));
 	float above = 1.0 / (1.0 + exp(-1.702 * asin(clamp(mu_l, -1.0, 1.0)) / max(P.delta_peak.y * sqrt(n), 1e-6)));
-	return above * phase(phase_kind(k), P.C[k].scattering.w * pow(P.delta_peak.x, n), ph.mu);
+	return above * phase(phase_kind(k), P.c[k].scattering.w * pow(P.delta_peak.x, n), ph.mu);
 }
 
 // The march's source for one light with delta-M: ret_real weighs with the

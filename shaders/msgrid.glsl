@@ -5,7 +5,7 @@
 // msiterate recovers L2 = psi (1 - f_ms) from the table on its first step.
 // Included after common.glsl.
 
-layout(constant_id = 16) const int MS_DIRS = 64;
+layout(constant_id = SPEC_MS_DIRS) const int MS_DIRS = 64;
 // The 64-direction grid: rings of cos-zenith by azimuth columns. A ray's
 // path through the shell depends on its zenith angle only, and near the
 // horizon that path grows by a factor of ten within a few degrees, so the
@@ -27,7 +27,7 @@ layout(constant_id = 16) const int MS_DIRS = 64;
 // skybench accuracy measures it; test_msgrid checks the rings' weights.
 const int MS_RINGS = 16, MS_COLS = 4, MS_HALF_COLS = MS_COLS / 2;
 const float MS_RING_POW = 1.2;
-layout(constant_id = 19) const int MS_SUN_GROUP = 4;
+layout(constant_id = SPEC_MS_SUN_GROUP) const int MS_SUN_GROUP = 4;
 
 // The cosine of ring edge e (0: zenith, MS_RINGS: nadir).
 float ring_edge(int e)

@@ -22,12 +22,12 @@
 #include "common.glsl"
 #include "msgrid.glsl"
 
-layout(constant_id = 21) const bool ITER_FIRST = true;
+layout(constant_id = SPEC_ITER_FIRST) const bool ITER_FIRST = true;
 layout(local_size_x = 8, local_size_y = 8) in;
 
 // The next psi in the table's storage format (copied over the table after
 // the pass), then L2 as float32 RGBA per texel.
-layout(std430, binding = 9) buffer IterBuf { uint d[]; } IB;
+layout(std430, binding = BINDING_ITERATE) buffer IterBuf { uint d[]; } IB;
 
 // The three rows nearest an altitude for ms_read_quadratic(): the middle
 // one (1 .. M_H - 2), the altitude's offset from it in rows (-1 .. 1) and,
@@ -110,8 +110,8 @@ void main()
 	float r0 = P.planet.x + h;
 	mat4x3 scattering_of = mat4x3(0.0), absorption_of = mat4x3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
-		scattering_of[i] = P.C[i].scattering.rgb;
-		absorption_of[i] = P.C[i].absorption.rgb;
+		scattering_of[i] = P.c[i].scattering.rgb;
+		absorption_of[i] = P.c[i].absorption.rgb;
 	}
 
 	// The light scattered toward x per sun (gathered), and 1 - f as in

@@ -63,11 +63,11 @@ void main()
 	// medium's, whose DELTA_CONST scatters (1 - f) sigma_D through p' and
 	// whose sunlight comes through T_l' = exp(-(ext' * columns_at())).
 	if (DELTA_CONST >= 0)
-		P.C[max(DELTA_CONST, 0)].scattering.rgb -= delta_removed();
+		P.c[max(DELTA_CONST, 0)].scattering.rgb -= delta_removed();
 	// The scaled extinctions, times columns_at() the scaled optical depth.
 	mat4x3 ext_scaled = mat4x3(0.0);
 	for (int i = 0; i < N_CONST; i++)
-		ext_scaled[i] = P.C[i].scattering.rgb + P.C[i].absorption.rgb;
+		ext_scaled[i] = P.c[i].scattering.rgb + P.c[i].absorption.rgb;
 	int x0 = int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, py = int(gl_GlobalInvocationID.y);
 	if (x0 >= OUT_W || py >= OUT_H)
 		return;
@@ -120,7 +120,7 @@ void main()
 					continue;
 				bool truncated = i == DELTA_CONST;
 				vec4 p = phase4(truncated ? 3 : phase_kind(i),
-						truncated ? P.C[i].layer1c.w : P.C[i].scattering.w, mu);
+						truncated ? P.c[i].layer1c.w : P.c[i].scattering.w, mu);
 				float c = dot(p, vec4(0.25));
 				if (i == MOMENT_CONST)	// only delta-M uses it (see the end of main())
 					cell_xy2[k * MS_SUN_GROUP + j] = truncated ? dot(p, xy2) / max(4.0 * c, 1e-30) : 0.0;
@@ -137,8 +137,8 @@ void main()
 	// (densities(), a vec4) they give the medium of a step.
 	mat4x3 scattering_of = mat4x3(0.0), absorption_of = mat4x3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
-		scattering_of[i] = P.C[i].scattering.rgb;
-		absorption_of[i] = P.C[i].absorption.rgb;
+		scattering_of[i] = P.c[i].scattering.rgb;
+		absorption_of[i] = P.c[i].absorption.rgb;
 	}
 	vec3 sum_l2[MS_SUN_GROUP], sum_ground[MS_SUN_GROUP];
 	// The first two moments of L2 (a lobe constituent): the luminance of each direction's
@@ -177,7 +177,7 @@ void main()
 			if (phase_kind(i) == 0)
 				continue;
 			for (int j = 0; j < MS_SUN_GROUP; j++)
-				phased_of[j][i] = P.C[i].scattering.rgb *
+				phased_of[j][i] = P.c[i].scattering.rgb *
 						  (cell_sum[(k * 4 + i) * MS_SUN_GROUP + j] * phase_norm[i][j]);
 		}
 		vec3 l2[MS_SUN_GROUP];
@@ -304,8 +304,8 @@ void main()
 			float share = l * norm / escape_lum / max(dot(psi, MS_SHARE_LUM), 1e-30);
 			vec2 m = sum_moment[j] / l;
 			vec3 t = sum_second[j] / l;
-			float k = DELTA_CONST >= 0 ? P.C[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
-						   : P.C[max(MOMENT_CONST, 0)].absorption.w;
+			float k = DELTA_CONST >= 0 ? P.c[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
+						   : P.c[max(MOMENT_CONST, 0)].absorption.w;
 			float a = clamp(-m.x / max(k * sun[j].x, 1e-3), 0.0, 1.0);
 			float z = DELTA_CONST >= 0 ? 3.75 * (t.z - a * k * k * sun[j].x * sun[j].x) : 15.0 * t.y;
 			MOB.d[py * OUT_W + x0 + j] = share * vec4(3.0 * m.y, 7.5 * t.x - 2.5, z, a);

@@ -372,9 +372,9 @@ VkDescriptorType eng_binding_type(int binding)
 {
 	if (binding == 0)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-	if (binding == MOMENT_TEX_BINDING || binding == COLUMNS_TEX_BINDING)
+	if (binding == BINDING_MOMENT_TEX || binding == BINDING_COLUMNS_TEX)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
-	return binding <= STATE_N_TABLES || binding >= VIEWS_BINDING
+	return binding <= STATE_N_TABLES || binding >= BINDING_VIEWS
 		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
 		       : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 }

@@ -14,58 +14,36 @@
 #include "phase.h"
 #include "vkfn.h"
 
+#include "sky_params.h"
+
 #define MAX_PIPELINES 32	/* cached variants per pass */
-#define N_SPEC 24
+#define N_SPEC SPEC_COUNT
 /* Texels of a row one invocation shares its rays between: sun angles of
- * multi-scattering, azimuths of sky-view. 12 azimuths took the time-of-day
- * change from 35.0-36.3 to 34.1-34.9 % of a full recompute against 8 once
- * the ground's phase term added to each step (skybench demand, three
- * paired runs each); 16 was slower in session 2 (register pressure). */
+ * multi-scattering, azimuths of sky-view (more azimuths share more work
+ * until the registers run out; docs/findings.d/engine.md). */
 #define MS_SUN_GROUP 4
 #define SV_AZ_GROUP 12
 /* The state's camera and STATE_MAX_VIEWS views, 3 vec4 each. */
 #define VIEW_BUFFER_BYTES ((1 + STATE_MAX_VIEWS) * 3 * 4 * sizeof(float))
 
-/* The uniform block of shaders/common.glsl, std140: vec4s only. */
-struct gpu_constituent {
-	float scattering[4], absorption[4], layer0[4], layer0c_1[4], layer1c[4];
-};
 /* The tables later passes look up: transmittance and multi-scattering. */
 #define N_LOOKUPS 2
-/* Bindings: 0 parameters, 1-4 the tables (storage), 5-6 the lookups,
- * 7 the cameras of the aerial volumes (storage), 8 the column densities of
- * the transmittance texels (storage), 9 the scratch of the iteration of
- * psi_ms (storage: the next table, then L2). */
-#define VIEWS_BINDING (1 + STATE_N_TABLES + N_LOOKUPS)
-#define COLUMNS_BINDING (VIEWS_BINDING + 1)
-#define ITERATE_BINDING (COLUMNS_BINDING + 1)
-/* 10 the shape of the multiply scattered light (storage, written by the
- * multi-scattering pass, rescaled by the iteration), 11 the same memory as
- * a lookup. */
-#define MOMENT_BINDING (ITERATE_BINDING + 1)
-#define MOMENT_TEX_BINDING (MOMENT_BINDING + 1)
-/* 12 the column densities again, as a lookup: the delta-M passes read
- * them at every step (a texel buffer read cost half a storage read). */
-#define COLUMNS_TEX_BINDING (MOMENT_TEX_BINDING + 1)
-#define N_BINDINGS (COLUMNS_TEX_BINDING + 1)
+/* The bindings (sky_params.h): the tables in state_table order, then the
+ * lookups, then the engine's internal buffers. */
+#define N_BINDINGS BINDING_COUNT
+_Static_assert(BINDING_TRANSMITTANCE + STATE_TRANSMITTANCE == 1 &&
+	       BINDING_TRANSMITTANCE + STATE_AERIAL == BINDING_AERIAL &&
+	       BINDING_TRANSMITTANCE_TEX == 1 + STATE_N_TABLES &&
+	       BINDING_TRANSMITTANCE_TEX + STATE_MULTISCATTER == BINDING_MULTISCATTER_TEX &&
+	       BINDING_VIEWS == BINDING_TRANSMITTANCE_TEX + N_LOOKUPS,
+	       "sky_params.h's bindings follow enum state_table");
+_Static_assert(SKY_MAX_CONSTITUENTS == ATMO_MAX_CONSTITUENTS && SKY_GROUND_FIT == PHASE_GROUND_FIT,
+	       "sky_params.h's array lengths");
 /* Compute passes: one per table, then the column densities (SHADER_COLUMNS)
  * and the iteration of psi_ms (SHADER_MSITERATE). */
 #define PASS_COLUMNS STATE_N_TABLES
 #define PASS_MSITERATE (STATE_N_TABLES + 1)
 #define N_PASSES (STATE_N_TABLES + 2)
-
-struct gpu_params {
-	float planet[4], albedo[4], sun_dir[4], sun_illum[4], moon_dir[4], moon_illum[4];
-	float cam_fwd[4], cam_right[4], cam_up[4], misc[4];
-	struct gpu_constituent c[ATMO_MAX_CONSTITUENTS];
-	float night[4];		/* night-sky floor, after the constituents as in common.glsl */
-	/* The ground's first bounce through each constituent's phase, k - 1
-	 * of the view's cos-zenith as a polynomial (phase_ground_fit), a vec4
-	 * of the constituents per coefficient. */
-	float ground_fit[PHASE_GROUND_FIT][4];
-	/* Delta-M's forward peak (phase_delta_peak): h, its spread in rad. */
-	float delta_peak[4];
-};
 
 /* phase_ground_excess of one constituent, kept while its phase stays: it
  * costs about 30000 phase evaluations, more than a sun change's tables. */
@@ -77,7 +55,7 @@ struct ground_cache {
 	double legendre[2];	/* phase_legendre, l = 1 and 2: a quadrature too */
 };
 
-/* Specialization constants, by constant_id. */
+/* Specialization constants, by constant_id (SPEC_* in sky_params.h). */
 struct spec {
 	int32_t v[N_SPEC];
 };

@@ -93,27 +93,27 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params
 		put4(g->layer0c_1, l0->constant, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km);
 		put4(g->layer1c, l1->constant, gc->legendre[1], 0, 0);
 		/* A constituent that scatters nothing needs no phase function. */
-		base->v[1 + n] = constituent_scatters(c) ? (int32_t)c->phase : 0;
+		base->v[SPEC_PHASE_0 + n] = constituent_scatters(c) ? (int32_t)c->phase : 0;
 		for (int k = 0; k < PHASE_GROUND_FIT; k++)
 			p->ground_fit[k][n] = (float)gc->fit[k];
 		/* Profiles without an exponential term (ozone's tent) skip exp(). */
 		if (l0->exp_term != 0.0 || l1->exp_term != 0.0)
-			base->v[18] |= 1 << n;
+			base->v[SPEC_EXP_MASK] |= 1 << n;
 		n++;
 	}
-	base->v[0] = n;
-	base->v[5] = s->quality.storage == STATE_F16;
-	base->v[6] = s->moon.illuminance_lx > 0.0;
-	base->v[7] = a->ground_albedo[0] == 0 && a->ground_albedo[1] == 0 && a->ground_albedo[2] == 0;
-	base->v[8] = (int32_t)s->quality.t[STATE_TRANSMITTANCE].width;
-	base->v[9] = (int32_t)s->quality.t[STATE_TRANSMITTANCE].height;
-	base->v[10] = (int32_t)s->quality.t[STATE_MULTISCATTER].width;
-	base->v[11] = (int32_t)s->quality.t[STATE_MULTISCATTER].height;
+	base->v[SPEC_N_CONST] = n;
+	base->v[SPEC_STORAGE_F16] = s->quality.storage == STATE_F16;
+	base->v[SPEC_MOON_LIT] = s->moon.illuminance_lx > 0.0;
+	base->v[SPEC_GROUND_BLACK] = a->ground_albedo[0] == 0 && a->ground_albedo[1] == 0 && a->ground_albedo[2] == 0;
+	base->v[SPEC_T_W] = (int32_t)s->quality.t[STATE_TRANSMITTANCE].width;
+	base->v[SPEC_T_H] = (int32_t)s->quality.t[STATE_TRANSMITTANCE].height;
+	base->v[SPEC_M_W] = (int32_t)s->quality.t[STATE_MULTISCATTER].width;
+	base->v[SPEC_M_H] = (int32_t)s->quality.t[STATE_MULTISCATTER].height;
 	/* multiscatter_dirs=0 switches the higher orders off: sky-view and
 	 * aerial perspective drop the term, and the multi-scattering table, if
 	 * asked for at all, is computed with the cheapest quadrature. */
-	base->v[16] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
-	base->v[17] = s->quality.multiscatter_dirs != 0;
+	base->v[SPEC_MS_DIRS] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
+	base->v[SPEC_MULTISCATTER_ON] = s->quality.multiscatter_dirs != 0;
 	/* The lobe constituent (common.glsl's ms_source) by its index among those in the shaders, plus 1. */
 	int delta = s->quality.multiscatter_dirs ? phase_delta_constituent(s, g1) : -1;
 	int lobe = s->quality.multiscatter_dirs ? phase_lobe_constituent(s, g1) : -1;
@@ -121,7 +121,7 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params
 		int before = 0;
 		for (int i = 0; i < lobe; i++)
 			before += constituent_active(&a->c[i]);
-		base->v[22] = before + 1;
+		base->v[SPEC_MOMENT_LOBE] = before + 1;
 	}
 	fill_delta(e, s, delta, p, base);
 }
@@ -158,7 +158,7 @@ static void fill_delta(struct eng *e, const struct sky_state *s, int delta, stru
 	double h, spread;
 	phase_delta_peak(a->c[delta].phase, a->c[delta].g, &h, &spread);
 	put4(p->delta_peak, h, spread, 0, 0);
-	base->v[23] = n + 1;
+	base->v[SPEC_DELTA_LOBE] = n + 1;
 }
 
 /* The cameras of the aerial volumes: the state's, then each view's. */
@@ -184,26 +184,27 @@ struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, in
 	struct spec k = *base;
 	const struct state_table_quality *q = &s->quality.t[t];
 
-	k.v[12] = (int32_t)q->width;
-	k.v[13] = (int32_t)q->height;
-	k.v[14] = (int32_t)q->depth;
-	k.v[15] = (int32_t)q->steps;
+	k.v[SPEC_OUT_W] = (int32_t)q->width;
+	k.v[SPEC_OUT_H] = (int32_t)q->height;
+	k.v[SPEC_OUT_D] = (int32_t)q->depth;
+	k.v[SPEC_STEPS] = (int32_t)q->steps;
 	if (t == STATE_TRANSMITTANCE) {
-		k.v[1] = k.v[2] = k.v[3] = k.v[4] = 0;	/* extinction only */
-		k.v[6] = k.v[7] = 0;
-		k.v[10] = k.v[11] = k.v[16] = 0;
-		k.v[15] = k.v[18] = 0;	/* steps and profiles: the column pass's */
+		for (int i = 0; i < 4; i++)
+			k.v[SPEC_PHASE_0 + i] = 0;	/* extinction only */
+		k.v[SPEC_MOON_LIT] = k.v[SPEC_GROUND_BLACK] = 0;
+		k.v[SPEC_M_W] = k.v[SPEC_M_H] = k.v[SPEC_MS_DIRS] = 0;
+		k.v[SPEC_STEPS] = k.v[SPEC_EXP_MASK] = 0;	/* steps and profiles: the column pass's */
 	}
 	if (t != STATE_MULTISCATTER)
-		k.v[16] = 0;
-	k.v[19] = t == STATE_MULTISCATTER ? MS_SUN_GROUP : 0;
-	k.v[20] = t == STATE_SKYVIEW ? SV_AZ_GROUP : 0;
+		k.v[SPEC_MS_DIRS] = 0;
+	k.v[SPEC_MS_SUN_GROUP] = t == STATE_MULTISCATTER ? MS_SUN_GROUP : 0;
+	k.v[SPEC_SV_AZ_GROUP] = t == STATE_SKYVIEW ? SV_AZ_GROUP : 0;
 	if (t == STATE_MULTISCATTER)
-		k.v[6] = k.v[17] = 0;	/* the table is the term itself */
+		k.v[SPEC_MOON_LIT] = k.v[SPEC_MULTISCATTER_ON] = 0;	/* the table is the term itself */
 	if (t == STATE_TRANSMITTANCE)
-		k.v[17] = k.v[22] = k.v[23] = 0;
+		k.v[SPEC_MULTISCATTER_ON] = k.v[SPEC_MOMENT_LOBE] = k.v[SPEC_DELTA_LOBE] = 0;
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
-		k.v[7] = 0;	/* the ground enters through the multiscatter table */
+		k.v[SPEC_GROUND_BLACK] = 0;	/* the ground enters through the multiscatter table */
 	return k;
 }
 
@@ -214,11 +215,11 @@ struct spec eng_column_spec(const struct spec *base, const struct sky_state *s)
 	const struct state_table_quality *q = &s->quality.t[STATE_TRANSMITTANCE];
 	struct spec k = { { 0 } };
 
-	k.v[0] = base->v[0];
-	k.v[12] = (int32_t)q->width;
-	k.v[13] = (int32_t)q->height;
-	k.v[15] = (int32_t)q->steps;
-	k.v[18] = base->v[18];
+	k.v[SPEC_N_CONST] = base->v[SPEC_N_CONST];
+	k.v[SPEC_OUT_W] = (int32_t)q->width;
+	k.v[SPEC_OUT_H] = (int32_t)q->height;
+	k.v[SPEC_STEPS] = (int32_t)q->steps;
+	k.v[SPEC_EXP_MASK] = base->v[SPEC_EXP_MASK];
 	return k;
 }
 
@@ -228,7 +229,7 @@ void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,
 	memset(ret, 0, sizeof(*ret));
 	memcpy(ret->planet, p->planet, sizeof(ret->planet));
 	ret->h_top = p->misc[3];
-	for (int i = 0; i < column_spec->v[0]; i++) {
+	for (int i = 0; i < column_spec->v[SPEC_N_CONST]; i++) {
 		memcpy(ret->layers[i], p->c[i].layer0, 4 * sizeof(float));
 		memcpy(ret->layers[i] + 4, p->c[i].layer0c_1, 4 * sizeof(float));
 		memcpy(ret->layers[i] + 8, p->c[i].layer1c, 4 * sizeof(float));

@@ -30,8 +30,8 @@ static int get_pipeline(struct eng *e, int t, const struct spec *key, VkPipeline
 	VkSpecializationMapEntry map[N_SPEC];
 	for (uint32_t i = 0; i < N_SPEC; i++)
 		map[i] = (VkSpecializationMapEntry){ i, i * 4, 4 };
-	/* constant_id 16 is declared only in the multiscatter shader; unused
-	 * entries are ignored by Vulkan. */
+	/* Every constant for every pass: Vulkan ignores the ids a shader does
+	 * not declare. */
 	VkSpecializationInfo si = { N_SPEC, map, sizeof(key->v), key->v };
 	VkComputePipelineCreateInfo ci = { .sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO,
 		.stage = { .sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
@@ -58,25 +58,25 @@ static void bind_buffers(struct eng *e)
 		w[i] = (VkWriteDescriptorSet){ .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
 			.dstSet = e->set, .dstBinding = (uint32_t)i, .descriptorCount = 1,
 			.descriptorType = eng_binding_type(i) };
-		if (i > STATE_N_TABLES && i < VIEWS_BINDING) {
+		if (i > STATE_N_TABLES && i < BINDING_VIEWS) {
 			w[i].pTexelBufferView = &e->lookup_view[i - 1 - STATE_N_TABLES];
 			continue;
 		}
-		if (i == MOMENT_TEX_BINDING) {
+		if (i == BINDING_MOMENT_TEX) {
 			w[i].pTexelBufferView = &e->moment_view;
 			continue;
 		}
-		if (i == COLUMNS_TEX_BINDING) {
+		if (i == BINDING_COLUMNS_TEX) {
 			w[i].pTexelBufferView = &e->columns_view;
 			continue;
 		}
-		if (i == VIEWS_BINDING)
+		if (i == BINDING_VIEWS)
 			bi[i] = (VkDescriptorBufferInfo){ e->views.buf, 0, VK_WHOLE_SIZE };
-		else if (i == COLUMNS_BINDING)
+		else if (i == BINDING_COLUMNS)
 			bi[i] = (VkDescriptorBufferInfo){ e->columns.buf, 0, VK_WHOLE_SIZE };
-		else if (i == ITERATE_BINDING)
+		else if (i == BINDING_ITERATE)
 			bi[i] = (VkDescriptorBufferInfo){ e->ms_iterate.buf, 0, VK_WHOLE_SIZE };
-		else if (i == MOMENT_BINDING)
+		else if (i == BINDING_MOMENT)
 			bi[i] = (VkDescriptorBufferInfo){ e->moment.buf, 0, VK_WHOLE_SIZE };
 		else if (i > 0)
 			bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
@@ -293,11 +293,11 @@ static int make_plan(struct eng *e, const struct sky_state *s, uint32_t mask, st
 				return rc;
 		}
 	/* The iteration of psi_ms: its first step recovers L2 from the table,
-	 * the later ones read it back (constant_id 21). */
+	 * the later ones read it back (SPEC_ITER_FIRST). */
 	ret->iterations = (mask & STATE_BIT(STATE_MULTISCATTER)) ? state_multiscatter_iterations(s) : 0;
 	for (int i = 0; i < 2 && ret->iterations > 0; i++) {
 		struct spec k = eng_pass_spec(&base, s, STATE_MULTISCATTER);
-		k.v[21] = i == 0;
+		k.v[SPEC_ITER_FIRST] = i == 0;
 		rc = get_pipeline(e, PASS_MSITERATE, &k, &ret->iterate_pipes[i], err, err_size);
 		if (rc < 0)
 			return rc;
