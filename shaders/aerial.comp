@@ -15,7 +15,7 @@ layout(std430, binding = BINDING_VIEWS) readonly buffer ViewBuf { vec4 v[]; } VB
 
 // The aerial table again, a texel per element: lavapipe stores a vector
 // with one loop over the lanes where STORE_TEXEL's four words take four,
-// and a column stores OUT_D texels (the stores were 40 % of the pass).
+// and a column stores OUT_D texels.
 layout(std430, binding = BINDING_AERIAL) writeonly buffer AerialTexels { uvec4 d[]; } AT;
 layout(std430, binding = BINDING_AERIAL) writeonly buffer AerialHalves { uvec2 d[]; } AH;
 

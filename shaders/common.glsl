@@ -1,6 +1,6 @@
 // common.glsl - parameters, table storage and the physics every pass shares.
 //
-// Mirrors daemon/model.c (the double-precision oracle) and proto/skymap.h
+// Mirrors truth/model.c (the double-precision oracle) and proto/skymap.h
 // (the mappings): a change here is a change there. Lengths in km,
 // coefficients in 1/km, directions in the observer's east-north-up frame
 // with the planet centre at (0, 0, -(Rb + altitude)).
@@ -47,16 +47,14 @@ Params P;
 void load_params() { P = params; }
 
 // The ground's first bounce through each constituent's phase
-// (phase_ground_excess in daemon/model.c): k - 1 for a view of cos-zenith
-// mu_view at the scattering point, a component per constituent. The
-// multi-scattering table scatters the sunlit ground's light isotropically
-// (its share of psi_ms is the table's A); a forward-peaked phase sends
-// little of that upwelling light back to a viewer looking up (k = 0.07 at
-// the zenith for g = 0.8) and much to one looking down, which read the
-// albedo 0.3 day sky 4.7 % high with the sun at the zenith. Evaluated as
-// phase_ground_fit's polynomial in sqrt|mu| (powers 2 to 9): the table it
-// fits, read with a different index in every lane, was 8 % of the sky-view
-// pass.
+// (phase_ground_excess in daemon/engine/phase.c): k - 1 for a view of
+// cos-zenith mu_view at the scattering point, a component per constituent.
+// The multi-scattering table carries the sunlit ground's light as an
+// isotropic share of psi_ms (its A), but a forward-peaked phase sends
+// little of that upwelling light to a viewer looking up and much to one
+// looking down. A polynomial in sqrt|mu| (phase_ground_fit, powers 2 to 9),
+// because a table read with a different index in every lane is slow on
+// lavapipe.
 const int GROUND_FIT = SKY_GROUND_FIT;
 
 vec4 ground_excess(float mu_view)
@@ -354,8 +352,8 @@ float disk_visible_mean(float xa, float xb, float e, float half_inv_e)
 // skymap.h: u packs texels around the horizon of the row's altitude. The
 // two rows are read at the same mu_s, each at its own u, and blended in
 // altitude: one u for both would read the lower row at a sun higher above
-// the earth's shadow than the point's (mu_h grows as sqrt(h) between rows),
-// which put the sky in the shadow up to 60 % high near the horizon.
+// the earth's shadow than the point's (mu_h grows as sqrt(h) between rows)
+// and brighten the sky in the shadow near the horizon.
 // The four texels a multi-scattering lookup blends (i: the lower row's
 // two, the upper row's two) and the weights (x, y: within each row; z:
 // between the rows).
@@ -479,10 +477,10 @@ vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_shape)
 // By Funk-Hecke a phase of Legendre moments g1, g2 scatters the bands
 // toward the eye, o, as g1 b1(o) + g2 b2(o); two Henyey-Greenstein lobes
 // convolve into one of parameter g1 g1 (their moments multiply), seen at
-// o . sunlight = view . light. Mars' dust (g = 0.85) sees a field that is
-// brightest near the horizon and around the sun, where the isotropic phase
-// read the sky 20-60 % low. view_up and view_light: the view's cosines
-// with the local vertical and with the light.
+// o . sunlight = view . light. A forward phase (Mars' dust, g = 0.85) sees
+// a field brightest near the horizon and around the sun, which the
+// isotropic assumption reads far too dark. view_up and view_light: the
+// view's cosines with the local vertical and with the light.
 vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, float view_up, float view_light)
 {
 	if (MOMENT_CONST < 0) {
@@ -598,15 +596,11 @@ bool ray_in_shell(float h0, vec3 dir, out Entry en)
 //   those with no peak scattering), so the march adds that difference
 //   scattered by the other constituents' phases and by DELTA_CONST's
 //   widened one (delta_peak_phase()). Nakajima and Tanaka's TMS drops the
-//   difference altogether: traced exactly otherwise (tools/pt.c, pt_approx
-//   without delta_excess; f = 0.78, sun 30) that read Mars' day sky 22 %
-//   low.
-// f is the phase's 6th Legendre moment, not delta-Eddington's 2nd: the path
-// tracer with the tables' assumptions read Mars (sun 30 / 5, day / horizon)
-// 6.6 / 9.1 and 7.7 / 10.9 % off with f = 0.4 (the 6th moment is 0.416),
-// 8.1 / 25.7 and 13.2 / 42.1 % with the 2nd (0.78): a wide peak taken as
-// undeflected brightens the horizon, where the light changes within the
-// peak's width.
+//   difference, which leaves Mars' day sky far too dark.
+// f is the phase's 6th Legendre moment, not delta-Eddington's 2nd: a wide
+// peak taken as undeflected brightens the horizon, where the light changes
+// within the peak's width. docs/physics.md derives the split; the figures
+// are in docs/findings.d/engine.md.
 
 // The scattering that the scaled medium removes, per unit density of
 // DELTA_CONST: f sigma_D.
@@ -656,18 +650,16 @@ Scaled scaled_step(Scatter sc, Medium m, float view_up, float dt, inout float ta
 
 // The last deflection of the light that the peak scattered n >= 1 times
 // besides (phase_delta_peak_phase). It is the whole phase p, the peak's own
-// share included: with the peak taken as no scattering and only (1 - f) p'
-// here, light that only the peak ever scattered left the sky (Mars, sun 15:
-// the higher orders 10-40 deg from the sun read 15-20 % low). The n peak
+// share included: with only (1 - f) p' here, light that only the peak ever
+// scattered would leave the sky. The n peak
 // scatterings widen it: the constituent's phase at g h^n (exact for
 // Henyey-Greenstein, whose moments multiply; h the peak's own, from its
 // 6th moment), with n the mean count given one or more, tau / (1 -
 // exp(-tau)), for the peak's optical depth tau toward the light and back
-// to the eye (delta_source). The
-// widened beam reaches the point only from above its horizon: the share of
-// it above the local horizontal, a logistic of the light's elevation over
-// the spread sigma sqrt(n). Without that share Mars at sun 5 read its
-// horizon band 10 % high.
+// to the eye (delta_source). The widened beam reaches the point only from
+// above its horizon: the share of it above the local horizontal, a
+// logistic of the light's elevation over the spread sigma sqrt(n), keeps a
+// low sun from brightening the horizon band.
 float delta_peak_phase(float mu_l, float tau, Phases ph)
 {
 	int k = max(DELTA_CONST, 0);

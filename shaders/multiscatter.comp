@@ -193,30 +193,20 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 
 // The shape of the multiply scattered light for ms_source, texel i of sun
 // j, from L2's moments in the frame of the sun's vertical plane (x toward
-// the sun's azimuth, z up; y across, where the field is symmetric),
-// relative to psi (msiterate.comp rescales it as psi grows, like A):
-// - the sun's aureole, a Henyey-Greenstein lobe of parameter k = g1 (light
-//   scattered once by the same phase) about the sunlight's direction, of
-//   share a, which carries the flux toward the sun's side
-//   (m_x = -a k sin(theta_s));
-// - band 1 of the vertical flux, 3 m_z o_z, m the net flux over the scalar
-//   flux;
-// - band 2, 5 (1.5 o T o - 0.5) with T the second moments (T_xy = T_yz = 0
-//   by symmetry): 5 <P2(w_z)> P2(o_z) + 15 T_xz o_x o_z + 3.75 (T_xx -
-//   T_yy) (o_x^2 - o_y^2). The first is the horizon's brightness: long
-//   near-horizontal paths send most light there, which a forward phase
-//   passes on to a horizontal view. The last is how much of it lies in
-//   the sun's vertical plane rather than across it. The marched directions
-//   (azimuths 45 and 135 deg) have x^2 = y^2, so it comes from the cells'
-//   sub-samples weighted by the lobe constituent's phase (cell_xy2), less
-//   the aureole's own part, a k^2 sin^2(theta_s), which the lobe term
-//   carries already.
-// The texel holds (3 m_z, 5 <P2(w_z)>, z, a): with delta-M z is the
-// (T_xx - T_yy) term, which takes T_xz's channel so that a lookup stays one
-// texel; without delta-M the sub-samples cannot resolve the whole phase's
-// narrow peak, and z is the T_xz term. L2's shape stands for the higher
-// orders' too, scaled like psi. The variants measured on Mars are in
-// docs/findings.d/engine.md.
+// the sun's azimuth, z up), relative to psi (msiterate.comp rescales it as
+// psi grows, like A): the texel holds (3 m_z, 5 <P2(w_z)>, z, a).
+// - a: the share of the sun's aureole, a Henyey-Greenstein lobe of
+//   parameter k = g1 about the sunlight, which carries the flux toward the
+//   sun's side (m_x = -a k sin(theta_s));
+// - 3 m_z: band 1 of the vertical flux (m the net over the scalar flux);
+// - 5 <P2(w_z)>: band 2 about the vertical, the horizon's brightness;
+// - z: with delta-M 3.75 (T_xx - T_yy), how much of the light lies in the
+//   sun's vertical plane rather than across it, from the cells'
+//   sub-samples (cell_xy2) less the aureole's own part a k^2 sin^2(theta_s);
+//   without delta-M the sub-samples cannot resolve the phase's narrow peak
+//   and z is 15 T_xz. One texel keeps a lookup to one fetch.
+// L2's shape stands for the higher orders' too. docs/physics.md derives the
+// bands; docs/findings.d/engine.md has the variants measured on Mars.
 void store_shape(int i, int j, vec3 psi, vec3 sun_j, float escape_lum)
 {
 	float l = max(dot(sum_l2[j], MS_SHARE_LUM), 1e-30);

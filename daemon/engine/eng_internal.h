@@ -116,7 +116,7 @@ struct eng {
 	/* Transmittance and multi-scattering are read by the later passes
 	 * through texel buffers: the sampler's gathers are vectorized, where a
 	 * storage-buffer load with a varying index is a loop over the lanes on
-	 * lavapipe (measured: about half of the sky-view pass). */
+	 * lavapipe. */
 	VkBufferView lookup_view[N_LOOKUPS];
 	VkFormat lookup_format[N_LOOKUPS];
 	/* Column densities per transmittance texel (vec4, one per constituent):
