@@ -11,13 +11,13 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 // Per view, three vec4: forward (w = tan(vfov / 2)), right (w = aspect),
 // up (w = the view's altitude in km).
-layout(std430, binding = 7) readonly buffer ViewBuf { vec4 v[]; } VB;
+layout(std430, binding = BINDING_VIEWS) readonly buffer ViewBuf { vec4 v[]; } VB;
 
 // The aerial table again, a texel per element: lavapipe stores a vector
 // with one loop over the lanes where STORE_TEXEL's four words take four,
-// and a column stores OUT_D texels (the stores were 40 % of the pass).
-layout(std430, binding = 4) writeonly buffer AerialTexels { uvec4 d[]; } AT;
-layout(std430, binding = 4) writeonly buffer AerialHalves { uvec2 d[]; } AH;
+// and a column stores OUT_D texels.
+layout(std430, binding = BINDING_AERIAL) writeonly buffer AerialTexels { uvec4 d[]; } AT;
+layout(std430, binding = BINDING_AERIAL) writeonly buffer AerialHalves { uvec2 d[]; } AH;
 
 void store_texel(int i, vec4 v)
 {

@@ -5,7 +5,7 @@
 // Optical depth is linear in the coefficients, tau = sum_k ext_k L_k, so
 // transmittance.comp weighs these columns by the extinctions and a change of
 // coefficients alone (the weather) does not repeat this pass. Mirrors
-// optical_depth() and column_linear() in daemon/model.c.
+// optical_depth() and column_linear() in truth/model.c.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
@@ -149,14 +149,14 @@ void main()
 	d = max(d, 0.0);
 
 	// Profiles with an exponential term: each step integrates every layer
-	// exactly for a linear change of altitude (mean_exp); a midpoint rule
-	// at 2.5 km steps would read a 1.2 km scale height 16 % thin.
+	// exactly for a linear change of altitude (mean_exp): a midpoint rule
+	// at 2.5 km steps reads a thin layer's column short.
 	// Loop invariants by hand: lavapipe's LLVM passes do not hoist them.
 	float column[4];
 	vec4 lay0[4], lay1[4];
 	float width[4];
 	for (int k = 0; k < N_CONST; k++) {
-		Constituent c = P.C[k];
+		Constituent c = P.c[k];
 		lay0[k] = vec4(c.layer0.yzw, c.layer0c_1.x);
 		lay1[k] = vec4(c.layer0c_1.yzw, c.layer1c.x);
 		width[k] = c.layer0.x;

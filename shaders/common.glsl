@@ -1,65 +1,42 @@
 // common.glsl - parameters, table storage and the physics every pass shares.
 //
-// Mirrors daemon/model.c (the double-precision oracle) and proto/skymap.h
+// Mirrors truth/model.c (the double-precision oracle) and proto/skymap.h
 // (the mappings): a change here is a change there. Lengths in km,
 // coefficients in 1/km, directions in the observer's east-north-up frame
 // with the planet centre at (0, 0, -(Rb + altitude)).
 
+#include "sky_params.h"
 
 const float PI = 3.14159265358979;
 
 // Specialization constants: what a scene does not need is compiled out.
-layout(constant_id = 0) const int N_CONST = 3;        // constituents that are not all zero
-layout(constant_id = 1) const int PHASE_0 = 1;        // 0 none, 1 Rayleigh, 2 Cornette-Shanks, 3 HG
-layout(constant_id = 2) const int PHASE_1 = 2;
-layout(constant_id = 3) const int PHASE_2 = 0;
-layout(constant_id = 4) const int PHASE_3 = 0;
-layout(constant_id = 5) const bool STORAGE_F16 = false;
-layout(constant_id = 6) const bool MOON_LIT = false;
-layout(constant_id = 7) const bool GROUND_BLACK = false;
-layout(constant_id = 8) const int T_W = 256;
-layout(constant_id = 9) const int T_H = 64;
-layout(constant_id = 10) const int M_W = 32;
-layout(constant_id = 11) const int M_H = 32;
-layout(constant_id = 12) const int OUT_W = 1;
-layout(constant_id = 13) const int OUT_H = 1;
-layout(constant_id = 14) const int OUT_D = 1;
-layout(constant_id = 15) const int STEPS = 1;
-layout(constant_id = 17) const bool MULTISCATTER_ON = true;
-layout(constant_id = 18) const int EXP_MASK = 15;      // bit i: constituent i has an exponential term
-// (16, 19, 20, 21: msgrid.glsl, skyview.comp and msiterate.comp declare their own.)
-layout(constant_id = 22) const int MOMENT_LOBE = 0;    // 1 + the constituent whose phase sees the lobe (ms_source), 0 none
+layout(constant_id = SPEC_N_CONST) const int N_CONST = 3;        // constituents that are not all zero
+layout(constant_id = SPEC_PHASE_0) const int PHASE_0 = 1;        // 0 none, 1 Rayleigh, 2 Cornette-Shanks, 3 HG
+layout(constant_id = SPEC_PHASE_1) const int PHASE_1 = 2;
+layout(constant_id = SPEC_PHASE_2) const int PHASE_2 = 0;
+layout(constant_id = SPEC_PHASE_3) const int PHASE_3 = 0;
+layout(constant_id = SPEC_STORAGE_F16) const bool STORAGE_F16 = false;
+layout(constant_id = SPEC_MOON_LIT) const bool MOON_LIT = false;
+layout(constant_id = SPEC_GROUND_BLACK) const bool GROUND_BLACK = false;
+layout(constant_id = SPEC_T_W) const int T_W = 256;
+layout(constant_id = SPEC_T_H) const int T_H = 64;
+layout(constant_id = SPEC_M_W) const int M_W = 32;
+layout(constant_id = SPEC_M_H) const int M_H = 32;
+layout(constant_id = SPEC_OUT_W) const int OUT_W = 1;
+layout(constant_id = SPEC_OUT_H) const int OUT_H = 1;
+layout(constant_id = SPEC_OUT_D) const int OUT_D = 1;
+layout(constant_id = SPEC_STEPS) const int STEPS = 1;
+layout(constant_id = SPEC_MULTISCATTER_ON) const bool MULTISCATTER_ON = true;
+layout(constant_id = SPEC_EXP_MASK) const int EXP_MASK = 15;      // bit i: constituent i has an exponential term
+// (SPEC_MS_DIRS, SPEC_MS_SUN_GROUP: msgrid.glsl; SPEC_SV_AZ_GROUP: skyview.comp;
+// SPEC_ITER_FIRST: msiterate.comp.)
+layout(constant_id = SPEC_MOMENT_LOBE) const int MOMENT_LOBE = 0;    // 1 + the constituent whose phase sees the lobe (ms_source), 0 none
 const int MOMENT_CONST = MOMENT_LOBE - 1;
-layout(constant_id = 23) const int DELTA_LOBE = 0;     // 1 + the constituent delta-M scaled for the higher orders (delta_source), 0 none
+layout(constant_id = SPEC_DELTA_LOBE) const int DELTA_LOBE = 0;     // 1 + the constituent delta-M scaled for the higher orders (delta_source), 0 none
 const int DELTA_CONST = DELTA_LOBE - 1;
 
-struct Constituent {
-	vec4 scattering;	// rgb 1/km, w = g
-	vec4 absorption;	// rgb 1/km, w = g1, the phase's first Legendre moment (model_phase_g1)
-	vec4 layer0;		// width_km, exp_term, exp_scale_per_km, linear_per_km
-	vec4 layer0c_1;		// constant (layer 0), exp_term, exp_scale_per_km, linear_per_km (layer 1)
-	vec4 layer1c;		// constant (layer 1), y = g2, the phase's second Legendre moment,
-				// z = f, w = g' of the delta-M truncation (DELTA_CONST only)
-};
-
-struct Params {
-	vec4 planet;		// bottom radius, top radius, shell thickness, observer altitude
-	vec4 albedo;		// ground albedo rgb
-	vec4 sun_dir;		// unit, w = angular radius (radians)
-	vec4 sun_illum;		// lx per channel at the top of the atmosphere
-	vec4 moon_dir;
-	vec4 moon_illum;
-	vec4 cam_fwd;		// w = tan(vfov / 2)
-	vec4 cam_right;		// w = aspect
-	vec4 cam_up;		// w = aerial range km
-	vec4 misc;		// x horizon cos of the observer, y skyview min steps, z aerial squared (1/0),
-				// w H = sqrt(top^2 - bottom^2), the horizontal distance to the top from the ground
-	Constituent C[4];
-	vec4 night;		// night-sky floor: rgb zenith cd/m2, w horizon gain c (daemon/state.h)
-	vec4 ground_fit[8];	// GROUND_FIT coefficients, one component per constituent (ground_excess())
-	vec4 delta_peak;	// DELTA_CONST's forward peak: x = h, y = its angular spread (rad) (delta_peak_phase())
-};
-layout(std140, binding = 0) uniform ParamsBlock { Params params; };
+// struct Constituent and struct Params: sky_params.h.
+layout(std140, binding = BINDING_PARAMS) uniform ParamsBlock { Params params; };
 
 // A private copy that every main() makes first (load_params()): lavapipe's
 // LLVM passes do no loop-invariant code motion, so each read of the uniform
@@ -70,17 +47,15 @@ Params P;
 void load_params() { P = params; }
 
 // The ground's first bounce through each constituent's phase
-// (phase_ground_excess in daemon/model.c): k - 1 for a view of cos-zenith
-// mu_view at the scattering point, a component per constituent. The
-// multi-scattering table scatters the sunlit ground's light isotropically
-// (its share of psi_ms is the table's A); a forward-peaked phase sends
-// little of that upwelling light back to a viewer looking up (k = 0.07 at
-// the zenith for g = 0.8) and much to one looking down, which read the
-// albedo 0.3 day sky 4.7 % high with the sun at the zenith. Evaluated as
-// phase_ground_fit's polynomial in sqrt|mu| (powers 2 to 9): the table it
-// fits, read with a different index in every lane, was 8 % of the sky-view
-// pass.
-const int GROUND_FIT = 8;
+// (phase_ground_excess in daemon/engine/phase.c): k - 1 for a view of
+// cos-zenith mu_view at the scattering point, a component per constituent.
+// The multi-scattering table carries the sunlit ground's light as an
+// isotropic share of psi_ms (its A), but a forward-peaked phase sends
+// little of that upwelling light to a viewer looking up and much to one
+// looking down. A polynomial in sqrt|mu| (phase_ground_fit, powers 2 to 9),
+// because a table read with a different index in every lane is slow on
+// lavapipe.
+const int GROUND_FIT = SKY_GROUND_FIT;
 
 vec4 ground_excess(float mu_view)
 {
@@ -92,24 +67,24 @@ vec4 ground_excess(float mu_view)
 	return mu_view < 0.0 ? -e : e;
 }
 
-layout(std430, binding = 1) buffer TransmittanceBuf { uint d[]; } TB;
-layout(std430, binding = 2) buffer MultiscatterBuf { uint d[]; } MB;
-layout(std430, binding = 3) buffer SkyviewBuf { uint d[]; } SB;
-layout(std430, binding = 4) buffer AerialBuf { uint d[]; } AB;
+layout(std430, binding = BINDING_TRANSMITTANCE) buffer TransmittanceBuf { uint d[]; } TB;
+layout(std430, binding = BINDING_MULTISCATTER) buffer MultiscatterBuf { uint d[]; } MB;
+layout(std430, binding = BINDING_SKYVIEW) buffer SkyviewBuf { uint d[]; } SB;
+layout(std430, binding = BINDING_AERIAL) buffer AerialBuf { uint d[]; } AB;
 // The same transmittance and multi-scattering memory, read through texel
 // buffers: the format converts f16, and the gathers are vectorized.
-layout(binding = 5) uniform samplerBuffer TransmittanceTex;
-layout(binding = 6) uniform samplerBuffer MultiscatterTex;
+layout(binding = BINDING_TRANSMITTANCE_TEX) uniform samplerBuffer TransmittanceTex;
+layout(binding = BINDING_MULTISCATTER_TEX) uniform samplerBuffer MultiscatterTex;
 // Column densities of the transmittance texels, one per constituent
 // (columns.comp): internal, float32 whatever the tables' storage.
-layout(std430, binding = 8) buffer ColumnBuf { vec4 d[]; } CB;
+layout(std430, binding = BINDING_COLUMNS) buffer ColumnBuf { vec4 d[]; } CB;
 // The same memory as a lookup (delta-M's scaled transmittance).
-layout(binding = 12) uniform samplerBuffer ColumnTex;
+layout(binding = BINDING_COLUMNS_TEX) uniform samplerBuffer ColumnTex;
 // The shape of the multiply scattered light (multiscatter.comp, with a lobe
 // constituent): a texel per multi-scattering texel, float32, internal. Written
 // through the storage buffer, read through the texel buffer.
-layout(std430, binding = 10) buffer MomentBuf { vec4 d[]; } MOB;
-layout(binding = 11) uniform samplerBuffer MomentTex;
+layout(std430, binding = BINDING_MOMENT) buffer MomentBuf { vec4 d[]; } MOB;
+layout(binding = BINDING_MOMENT_TEX) uniform samplerBuffer MomentTex;
 
 // Texels are RGBA: four 32-bit words, or two words of packed halves.
 #define STORE_TEXEL(B, i, v) do { \
@@ -141,7 +116,7 @@ vec4 layer_at(Constituent c, float h)
 
 float density(int i, float h)
 {
-	vec4 l = layer_at(P.C[i], h);
+	vec4 l = layer_at(P.c[i], h);
 	float e = (EXP_MASK & (1 << i)) != 0 ? l.x * exp(l.y * h) : 0.0;
 	return clamp(e + l.z * h + l.w, 0.0, 1.0);
 }
@@ -187,8 +162,8 @@ Medium medium(float h)
 	m.absorption = vec3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
 		float d = density(i, h);
-		m.scattering += d * P.C[i].scattering.rgb;
-		m.absorption += d * P.C[i].absorption.rgb;
+		m.scattering += d * P.c[i].scattering.rgb;
+		m.absorption += d * P.c[i].absorption.rgb;
 	}
 	m.extinction = m.scattering + m.absorption;
 	return m;
@@ -377,8 +352,8 @@ float disk_visible_mean(float xa, float xb, float e, float half_inv_e)
 // skymap.h: u packs texels around the horizon of the row's altitude. The
 // two rows are read at the same mu_s, each at its own u, and blended in
 // altitude: one u for both would read the lower row at a sun higher above
-// the earth's shadow than the point's (mu_h grows as sqrt(h) between rows),
-// which put the sky in the shadow up to 60 % high near the horizon.
+// the earth's shadow than the point's (mu_h grows as sqrt(h) between rows)
+// and brighten the sky in the shadow near the horizon.
 // The four texels a multi-scattering lookup blends (i: the lower row's
 // two, the upper row's two) and the weights (x, y: within each row; z:
 // between the rows).
@@ -430,7 +405,7 @@ Phases ray_phases(vec3 view_dir, vec3 light_dir)
 	Phases ph;
 	float mu = dot(view_dir, light_dir);
 	for (int i = 0; i < 4; i++)
-		ph.p[i] = i < N_CONST && phase_kind(i) != 0 ? phase(phase_kind(i), P.C[i].scattering.w, mu) : 0.0;
+		ph.p[i] = i < N_CONST && phase_kind(i) != 0 ? phase(phase_kind(i), P.c[i].scattering.w, mu) : 0.0;
 	ph.mu = mu;
 	return ph;
 }
@@ -451,9 +426,9 @@ Medium medium_parts(float h, out Scatter ret)
 		ret.s[i] = vec3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
 		float d = density(i, h);
-		ret.s[i] = d * P.C[i].scattering.rgb;
+		ret.s[i] = d * P.c[i].scattering.rgb;
 		m.scattering += ret.s[i];
-		m.absorption += d * P.C[i].absorption.rgb;
+		m.absorption += d * P.c[i].absorption.rgb;
 	}
 	m.extinction = m.scattering + m.absorption;
 	return m;
@@ -502,10 +477,10 @@ vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_shape)
 // By Funk-Hecke a phase of Legendre moments g1, g2 scatters the bands
 // toward the eye, o, as g1 b1(o) + g2 b2(o); two Henyey-Greenstein lobes
 // convolve into one of parameter g1 g1 (their moments multiply), seen at
-// o . sunlight = view . light. Mars' dust (g = 0.85) sees a field that is
-// brightest near the horizon and around the sun, where the isotropic phase
-// read the sky 20-60 % low. view_up and view_light: the view's cosines
-// with the local vertical and with the light.
+// o . sunlight = view . light. A forward phase (Mars' dust, g = 0.85) sees
+// a field brightest near the horizon and around the sun, which the
+// isotropic assumption reads far too dark. view_up and view_light: the
+// view's cosines with the local vertical and with the light.
 vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, float view_up, float view_light)
 {
 	if (MOMENT_CONST < 0) {
@@ -525,11 +500,11 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 	// o_x^2 - o_y^2 = 2 o_x^2 + o_z^2 - 1.
 	float b2 = sh.y * (1.5 * o_z * o_z - 0.5) +
 		   sh.z * (DELTA_CONST >= 0 ? 2.0 * o_x * o_x + o_z * o_z - 1.0 : o_x * o_z);
-	vec2 g = vec2(P.C[max(MOMENT_CONST, 0)].absorption.w, P.C[max(MOMENT_CONST, 0)].layer1c.y);
+	vec2 g = vec2(P.c[max(MOMENT_CONST, 0)].absorption.w, P.c[max(MOMENT_CONST, 0)].layer1c.y);
 	// With delta-M the field is the scaled medium's, scattered by the
 	// truncated phase: Henyey-Greenstein g', moments g' and g'^2.
 	if (DELTA_CONST >= 0)
-		g = vec2(P.C[max(DELTA_CONST, 0)].layer1c.w, P.C[max(DELTA_CONST, 0)].layer1c.w * P.C[max(DELTA_CONST, 0)].layer1c.w);
+		g = vec2(P.c[max(DELTA_CONST, 0)].layer1c.w, P.c[max(DELTA_CONST, 0)].layer1c.w * P.c[max(DELTA_CONST, 0)].layer1c.w);
 	// A truncated expansion may go negative where the field is strongly
 	// directed; the light scattered never does.
 	float gl = g.x * g.x;
@@ -621,22 +596,18 @@ bool ray_in_shell(float h0, vec3 dir, out Entry en)
 //   those with no peak scattering), so the march adds that difference
 //   scattered by the other constituents' phases and by DELTA_CONST's
 //   widened one (delta_peak_phase()). Nakajima and Tanaka's TMS drops the
-//   difference altogether: traced exactly otherwise (tools/pt.c, pt_approx
-//   without delta_excess; f = 0.78, sun 30) that read Mars' day sky 22 %
-//   low.
-// f is the phase's 6th Legendre moment, not delta-Eddington's 2nd: the path
-// tracer with the tables' assumptions read Mars (sun 30 / 5, day / horizon)
-// 6.6 / 9.1 and 7.7 / 10.9 % off with f = 0.4 (the 6th moment is 0.416),
-// 8.1 / 25.7 and 13.2 / 42.1 % with the 2nd (0.78): a wide peak taken as
-// undeflected brightens the horizon, where the light changes within the
-// peak's width.
+//   difference, which leaves Mars' day sky far too dark.
+// f is the phase's 6th Legendre moment, not delta-Eddington's 2nd: a wide
+// peak taken as undeflected brightens the horizon, where the light changes
+// within the peak's width. docs/physics.md derives the split; the figures
+// are in docs/findings.d/engine.md.
 
 // The scattering that the scaled medium removes, per unit density of
 // DELTA_CONST: f sigma_D.
 vec3 delta_removed()
 {
 	int k = max(DELTA_CONST, 0);
-	return DELTA_CONST >= 0 ? P.C[k].layer1c.z * P.C[k].scattering.rgb : vec3(0.0);
+	return DELTA_CONST >= 0 ? P.c[k].layer1c.z * P.c[k].scattering.rgb : vec3(0.0);
 }
 
 // The column densities of every constituent from the altitude of a toward
@@ -665,7 +636,7 @@ Scaled scaled_step(Scatter sc, Medium m, float view_up, float dt, inout float ta
 	if (DELTA_CONST < 0)
 		return d;
 	int k = max(DELTA_CONST, 0);
-	d.removed = sc.s[k] * P.C[k].layer1c.z;
+	d.removed = sc.s[k] * P.c[k].layer1c.z;
 	Scatter scs = sc;
 	scs.s[k] -= d.removed;
 	d.sigma_s = m.scattering - d.removed;
@@ -679,24 +650,22 @@ Scaled scaled_step(Scatter sc, Medium m, float view_up, float dt, inout float ta
 
 // The last deflection of the light that the peak scattered n >= 1 times
 // besides (phase_delta_peak_phase). It is the whole phase p, the peak's own
-// share included: with the peak taken as no scattering and only (1 - f) p'
-// here, light that only the peak ever scattered left the sky (Mars, sun 15:
-// the higher orders 10-40 deg from the sun read 15-20 % low). The n peak
+// share included: with only (1 - f) p' here, light that only the peak ever
+// scattered would leave the sky. The n peak
 // scatterings widen it: the constituent's phase at g h^n (exact for
 // Henyey-Greenstein, whose moments multiply; h the peak's own, from its
 // 6th moment), with n the mean count given one or more, tau / (1 -
 // exp(-tau)), for the peak's optical depth tau toward the light and back
-// to the eye (delta_source). The
-// widened beam reaches the point only from above its horizon: the share of
-// it above the local horizontal, a logistic of the light's elevation over
-// the spread sigma sqrt(n). Without that share Mars at sun 5 read its
-// horizon band 10 % high.
+// to the eye (delta_source). The widened beam reaches the point only from
+// above its horizon: the share of it above the local horizontal, a
+// logistic of the light's elevation over the spread sigma sqrt(n), keeps a
+// low sun from brightening the horizon band.
 float delta_peak_phase(float mu_l, float tau, Phases ph)
 {
 	int k = max(DELTA_CONST, 0);
 	float n = tau < 1e-4 ? 1.0 + 0.5 * tau : tau / (1.0 - exp(-tau));
 	float above = 1.0 / (1.0 + exp(-1.702 * asin(clamp(mu_l, -1.0, 1.0)) / max(P.delta_peak.y * sqrt(n), 1e-6)));
-	return above * phase(phase_kind(k), P.C[k].scattering.w * pow(P.delta_peak.x, n), ph.mu);
+	return above * phase(phase_kind(k), P.c[k].scattering.w * pow(P.delta_peak.x, n), ph.mu);
 }
 
 // The march's source for one light with delta-M: ret_real weighs with the

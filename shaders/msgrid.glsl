@@ -5,29 +5,20 @@
 // msiterate recovers L2 = psi (1 - f_ms) from the table on its first step.
 // Included after common.glsl.
 
-layout(constant_id = 16) const int MS_DIRS = 64;
-// The 64-direction grid: rings of cos-zenith by azimuth columns. A ray's
-// path through the shell depends on its zenith angle only, and near the
-// horizon that path grows by a factor of ten within a few degrees, so the
-// rings carry most of the quadrature's error: 8 rings x 8 azimuths read the
-// day sky 3 % low and twilight from 10 km 23 % low, 16 x 4 equal-area rings
-// 2 % and 11 % at the same cost (32 x 2 has too few azimuths for the
-// earth's shadow: 32 % low in twilight). The ring edges are
-// mu = sign(s) |s|^MS_RING_POW for s uniform in [-1, 1] (ring_edge()): the
-// rings at the horizon are 0.66 of the mean cell's solid angle, those at the
-// zenith and nadir 1.18 of it, each weighted by its exact solid angle. 1.2
-// took twilight from 10 km, sun -6, from 10.6 to 5.5 % (43 scenes: day
-// 3.22 -> 3.16 %, horizon 4.84 -> 4.75 %, twilight 4.40 -> 3.46 %); 1.1,
-// 1.3, 1.5 and 2 read worse. Edges that follow each altitude's own horizon
-// come closer to a converged grid (64 x 32) in twilight but read 0.2 km,
-// albedo 0.3, sun -6 12.5 % high: the converged grid itself reads 13.1 %
-// there (black ground 10.0 %: the method, not its quadrature), and these
-// rings keep part of a cancellation (8.3 %). Steps in proportion to each
-// direction's path did not help.
-// skybench accuracy measures it; test_msgrid checks the rings' weights.
+layout(constant_id = SPEC_MS_DIRS) const int MS_DIRS = 64;
+// The 64-direction grid: 16 rings of cos-zenith by 4 azimuth columns. A
+// ray's path through the shell depends on its zenith angle only, and near
+// the horizon that path grows tenfold within a few degrees, so the rings
+// carry most of the quadrature's error and get most of the directions. The
+// ring edges are mu = sign(s) |s|^MS_RING_POW for s uniform in [-1, 1]
+// (ring_edge()): the rings at the horizon are 0.66 of the mean cell's solid
+// angle, those at the zenith and nadir 1.18 of it, each weighted by its
+// exact solid angle. The grids and powers compared are in
+// docs/findings.d/engine.md; skybench accuracy measures it and test_msgrid
+// checks the rings' weights.
 const int MS_RINGS = 16, MS_COLS = 4, MS_HALF_COLS = MS_COLS / 2;
 const float MS_RING_POW = 1.2;
-layout(constant_id = 19) const int MS_SUN_GROUP = 4;
+layout(constant_id = SPEC_MS_SUN_GROUP) const int MS_SUN_GROUP = 4;
 
 // The cosine of ring edge e (0: zenith, MS_RINGS: nadir).
 float ring_edge(int e)

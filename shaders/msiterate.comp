@@ -6,8 +6,7 @@
 // Hillaire's psi = L2 / (1 - f_ms) assumes that every point around x sees
 // the same psi as x. Where the air is optically thick that fails: the
 // sunlight dies with depth, so the air above a low point is lit far more
-// than the point itself and psi near the ground comes out low (Earth with
-// ten times the scattering: the horizon 29 % dark, the day sky 14 %). psi
+// than the point itself and psi near the ground comes out low. psi
 // depends on altitude and sun angle only (a spherical planet under a
 // distant sun), so the table itself tells what every y sees, and a few
 // steps of this iteration converge to the transfer's fixed point. The
@@ -22,12 +21,12 @@
 #include "common.glsl"
 #include "msgrid.glsl"
 
-layout(constant_id = 21) const bool ITER_FIRST = true;
+layout(constant_id = SPEC_ITER_FIRST) const bool ITER_FIRST = true;
 layout(local_size_x = 8, local_size_y = 8) in;
 
 // The next psi in the table's storage format (copied over the table after
 // the pass), then L2 as float32 RGBA per texel.
-layout(std430, binding = 9) buffer IterBuf { uint d[]; } IB;
+layout(std430, binding = BINDING_ITERATE) buffer IterBuf { uint d[]; } IB;
 
 // The three rows nearest an altitude for ms_read_quadratic(): the middle
 // one (1 .. M_H - 2), the altitude's offset from it in rows (-1 .. 1) and,
@@ -62,14 +61,10 @@ vec3 ms_row_at(int row, float mh, float below, float above, float mu_s)
 }
 
 // psi where a neighbour of x lies: the parabola through the three nearest
-// rows. Where the sunlight dies within a few rows (Earth x10: 3.2 km
-// between rows, blue's optical length 3 km at the ground) psi is concave
-// in altitude, and the linear blend of multiscatter_at() read every
-// neighbour low; the iteration carried that into every texel: up to 3.5 %
-// low at 32 rows against 94 (the model, sun 30 and 60, test_msgrid), within
-// 1.2 % with this above the ground row (blue there: +5.2 %, linear +2.1 %).
-// Earth x10, sun 30: day 3.37 -> 2.66 %, horizon 4.65 -> 3.08 %; the
-// iteration's steps cost about 4 ms more (daemon/model.c mirrors it).
+// rows. Where the sunlight dies within a few rows psi is concave in
+// altitude, and the linear blend of multiscatter_at() reads every neighbour
+// low, an error the iteration carries into every texel (truth/model.c
+// mirrors it).
 vec3 ms_read_quadratic(QuadRows c, float mu_s)
 {
 	vec3 a = ms_row_at(c.i - 1, c.horizon.x, c.below.x, c.above.x, mu_s);
@@ -85,11 +80,8 @@ vec3 ms_read_quadratic(QuadRows c, float mu_s)
 // ground itself, whose radiance is albedo (sunlit + sky), so psi_g = (sky +
 // albedo (sunlit + sky)) / 2 with the sky's radiance taken uniform over the
 // upper half. Returning albedo psi_g instead, as Hillaire's series does,
-// counts half the sky and the ground twice: at albedo 0.3 the ground sent
-// back about 0.6 of the sky's light it receives, which in a thick
-// atmosphere (where the sky, not the sun, lights the ground) is most of the
-// ground's light. Earth x10, sun 30, albedo 0.3: day 6.27 -> 3.37 %,
-// horizon 10.35 -> 4.65 % (bias -6.1 -> -2.5 %, -10.4 -> -4.7 %).
+// counts half the sky and the ground twice, which matters in a thick
+// atmosphere, where the sky, not the sun, lights the ground.
 vec3 ground_sky(vec3 psi_g, vec3 sunlit)
 {
 	return max(2.0 * psi_g - P.albedo.rgb * sunlit, vec3(0.0)) / (1.0 + P.albedo.rgb);
@@ -110,8 +102,8 @@ void main()
 	float r0 = P.planet.x + h;
 	mat4x3 scattering_of = mat4x3(0.0), absorption_of = mat4x3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
-		scattering_of[i] = P.C[i].scattering.rgb;
-		absorption_of[i] = P.C[i].absorption.rgb;
+		scattering_of[i] = P.c[i].scattering.rgb;
+		absorption_of[i] = P.c[i].absorption.rgb;
 	}
 
 	// The light scattered toward x per sun (gathered), and 1 - f as in

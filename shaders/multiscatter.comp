@@ -56,59 +56,38 @@ vec3 sunlight(TAlt a, float mu, float radius_rad, mat4x3 ext_scaled)
 	return vis > 0.0 ? vis * exp(-(ext_scaled * columns_at(a, mu))) : vec3(0.0);
 }
 
-void main()
+// What one invocation keeps across its row's cells, per marched cell k,
+// constituent i and sun j: the cell's mean phase (cell_sum), the lobe
+// constituent's x^2 - y^2 across it (cell_xy2, delta-M only) and the
+// normalisation that makes the cells' phases integrate to 1 (phase_norm).
+// Module-scope, so that the functions below share them without copies.
+float cell_sum[32 * 4 * MS_SUN_GROUP];	// MS_MARCHED <= 32 cells
+float cell_xy2[32 * MS_SUN_GROUP];
+float phase_norm[4][MS_SUN_GROUP];
+
+// The sums over the marched cells: L2 and the ground's first bounce per sun,
+// L2's first moments (x toward the sun's azimuth, z up) and second moments
+// (zz, xz and, from the sub-samples, xx - yy) for the shape, and 1 - f_ms
+// as what leaves or is absorbed (sum_escape) with the ground's share of it.
+vec3 sum_l2[MS_SUN_GROUP], sum_ground[MS_SUN_GROUP];
+vec2 sum_moment[MS_SUN_GROUP];
+vec3 sum_second[MS_SUN_GROUP];
+vec3 sum_escape, sum_returned;
+
+// L2's first scattering (at y, from the sun toward x) takes each
+// constituent's own phase, not the isotropic one: a forward lobe toward a
+// low sun lies along long near-horizontal paths that the isotropic phase
+// undercounts. A point value is a poor quadrature of such a lobe over a
+// 0.2 sr cell, so each cell takes its 2 x 2 sub-samples' mean, normalised
+// so that the cells' phases sum to exactly 1 over the sphere and no energy
+// is made or lost. Fills cell_sum, cell_xy2 and phase_norm for the suns.
+void cell_phases(vec3 sun[MS_SUN_GROUP])
 {
-	load_params();
-	// Delta-M (delta_source in common.glsl): the table is the scaled
-	// medium's, whose DELTA_CONST scatters (1 - f) sigma_D through p' and
-	// whose sunlight comes through T_l' = exp(-(ext' * columns_at())).
-	if (DELTA_CONST >= 0)
-		P.C[max(DELTA_CONST, 0)].scattering.rgb -= delta_removed();
-	// The scaled extinctions, times columns_at() the scaled optical depth.
-	mat4x3 ext_scaled = mat4x3(0.0);
-	for (int i = 0; i < N_CONST; i++)
-		ext_scaled[i] = P.C[i].scattering.rgb + P.C[i].absorption.rgb;
-	int x0 = int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, py = int(gl_GlobalInvocationID.y);
-	if (x0 >= OUT_W || py >= OUT_H)
-		return;
-
-	float h = ms_row_altitude(py);
-	vec3 sun[MS_SUN_GROUP];
-	ms_row_suns(x0, h, sun);
-	const int n_dirs = MS_MARCHED;
-	const float norm = MS_NORM;
-	float r0 = P.planet.x + h;
-
-	// Per direction: L2 and the escape 1 - f written as what leaves or is
-	// absorbed, so that 1 - f_ms never comes from a cancelling subtraction.
-	//
-	// L2's first scattering (at y, from the sun toward x) takes each
-	// constituent's own phase, not the isotropic one: a forward lobe
-	// (g = 0.8 - 0.85) toward a low sun lies along long near-horizontal
-	// paths, and the isotropic phase undercounts them. The phase depends on
-	// the direction and the sun only, so it is a per-direction weight of
-	// each constituent's scattering (q), not a per-step cost. A point value
-	// is a poor quadrature of such a lobe over a 0.2 sr cell: q is the
-	// cell's mean (2 x 2 sub-samples, cell_subsamples(); 2 x 2 reads within 0.1 % of
-	// 4 x 4 on Earth, 0.6 % on Mars), normalised so that the cells' phases
-	// sum to exactly 1 over the sphere (each weighted by its solid angle)
-	// and no energy is made or lost.
-	// Only the scattering at x and beyond stays isotropic (Hillaire's
-	// assumption).
-	// cell_sum: each marched cell's mean phase per constituent and sun,
-	// evaluated once and kept (the phase functions were 1.9 ms of the pass
-	// when the main loop evaluated them again); phase_norm: 1 / (4 pi norm
-	// total) makes the cells' phases integrate to exactly 1 over the sphere.
-	float cell_sum[32 * 4 * MS_SUN_GROUP];	// n_dirs <= 32 marched cells
-	// The lobe constituent's light across each cell (MOMENT_CONST): the
-	// mean of x^2 - y^2 over its sub-samples weighted by that phase, for
-	// the shape's azimuthal band 2 (see the end of main()).
-	float cell_xy2[32 * MS_SUN_GROUP];
 	float total[4][MS_SUN_GROUP];
 	for (int i = 0; i < 4; i++)
 		for (int j = 0; j < MS_SUN_GROUP; j++)
 			total[i][j] = 0.0;
-	for (int k = 0; k < n_dirs; k++) {
+	for (int k = 0; k < MS_MARCHED; k++) {
 		vec4 cp, ct, xy2;
 		vec2 ring = cell_ring(k);
 		float wk = cell_weight(ring);
@@ -120,195 +99,186 @@ void main()
 					continue;
 				bool truncated = i == DELTA_CONST;
 				vec4 p = phase4(truncated ? 3 : phase_kind(i),
-						truncated ? P.C[i].layer1c.w : P.C[i].scattering.w, mu);
+						truncated ? P.c[i].layer1c.w : P.c[i].scattering.w, mu);
 				float c = dot(p, vec4(0.25));
-				if (i == MOMENT_CONST)	// only delta-M uses it (see the end of main())
+				if (i == MOMENT_CONST)	// only delta-M uses it (store_shape())
 					cell_xy2[k * MS_SUN_GROUP + j] = truncated ? dot(p, xy2) / max(4.0 * c, 1e-30) : 0.0;
 				cell_sum[(k * 4 + i) * MS_SUN_GROUP + j] = c;
 				total[i][j] += wk * c;
 			}
 		}
 	}
-	float phase_norm[4][MS_SUN_GROUP];
 	for (int i = 0; i < N_CONST; i++)
 		for (int j = 0; j < MS_SUN_GROUP; j++)
-			phase_norm[i][j] = 1.0 / (4.0 * PI * norm * max(total[i][j], 1e-30));
-	// The constituents' coefficients as matrices: times the densities
-	// (densities(), a vec4) they give the medium of a step.
+			phase_norm[i][j] = 1.0 / (4.0 * PI * MS_NORM * max(total[i][j], 1e-30));
+}
+
+// Marches cell k's direction from altitude h (r0 = Rb + h) and adds its
+// L2, moments, ground bounce and escape to the sums. scattering_of,
+// absorption_of: the constituents' coefficients as matrices, times the
+// step's densities the medium.
+void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_scaled, mat4x3 scattering_of,
+		mat4x3 absorption_of)
+{
+	vec2 ring = cell_ring(k);
+	float wk = cell_weight(ring);
+	vec3 dir = cell_direction(k, ring);
+	float tg, t_end = distance_to_top(h, dir.z);
+	bool ground = hits_ground(h, dir.z, tg);
+	if (ground)
+		t_end = tg;
+	float dt = t_end / float(STEPS);
+	vec3 tr = vec3(1.0), absorbed = vec3(0.0);
+	// Per sun, the phase-weighted scattering per unit density of each
+	// constituent: a matrix times the step's densities (arrays of
+	// constituents indexed in loops leave the registers on lavapipe).
+	mat4x3 phased_of[MS_SUN_GROUP];
+	for (int j = 0; j < MS_SUN_GROUP; j++)
+		phased_of[j] = mat4x3(0.0);
+	for (int i = 0; i < N_CONST; i++) {
+		if (phase_kind(i) == 0)
+			continue;
+		for (int j = 0; j < MS_SUN_GROUP; j++)
+			phased_of[j][i] = P.c[i].scattering.rgb *
+					  (cell_sum[(k * 4 + i) * MS_SUN_GROUP + j] * phase_norm[i][j]);
+	}
+	vec3 l2[MS_SUN_GROUP];
+	for (int j = 0; j < MS_SUN_GROUP; j++)
+		l2[j] = vec3(0.0);
+	for (int s = 0; s < STEPS; s++) {
+		float t = (float(s) + 0.5) * dt, rr;
+		float hs = altitude_along(h, dir.z, t, rr);
+		vec4 dens = densities(hs);
+		vec3 scattering = scattering_of * dens, absorption = absorption_of * dens;
+		vec3 step_t, w = tr * step_weight(scattering + absorption, dt, step_t);
+		TAlt a = t_alt(hs);
+		vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
+		for (int j = 0; j < MS_SUN_GROUP; j++)
+			l2[j] += w * (phased_of[j] * dens) * sunlight(a, dot(up, sun[j]), P.sun_dir.w, ext_scaled);
+		absorbed += w * absorption;
+		tr *= step_t;
+	}
+	// The cell's solid angle over the mean cell's: every term below is
+	// linear in these four.
+	tr *= wk;
+	absorbed *= wk;
+	for (int j = 0; j < MS_SUN_GROUP; j++)
+		sum_l2[j] += wk * l2[j];
+	// The moments take the cell's weight as L2 does, so that they
+	// integrate over the sphere with psi's quadrature.
+	if (MOMENT_CONST >= 0)
+		for (int j = 0; j < MS_SUN_GROUP; j++) {
+			float l = wk * dot(l2[j], MS_SHARE_LUM);
+			sum_moment[j] -= dir.xz * l;
+			sum_second[j] += vec3(dir.z * dir.z, dir.x * dir.z, cell_xy2[k * MS_SUN_GROUP + j]) * l;
+		}
+	vec3 returned = vec3(0.0);
+	if (ground && !GROUND_BLACK) {
+		// Lambertian ground lit by the sun: albedo / pi times the cosine.
+		vec3 n = vec3(dir.xy * t_end, r0 + dir.z * t_end) / P.planet.x;
+		TAlt a = t_alt(0.0);
+		for (int j = 0; j < MS_SUN_GROUP; j++) {
+			float mu_g = dot(n, sun[j]);
+			// The sun as a point (radius 0), as transmittance_at() takes it.
+			sum_ground[j] += tr * sunlight(a, mu_g, 0.0, ext_scaled) * max(mu_g, 0.0) * P.albedo.rgb / PI;
+		}
+		// Under the isotropic field psi the Lambertian ground sends back
+		// albedo times psi: a transfer like scattering, so every order
+		// bounces off the ground, not only the second.
+		returned = tr * P.albedo.rgb;
+	}
+	sum_escape += tr - returned + absorbed;
+	sum_returned += returned;
+}
+
+// The shape of the multiply scattered light for ms_source, texel i of sun
+// j, from L2's moments in the frame of the sun's vertical plane (x toward
+// the sun's azimuth, z up), relative to psi (msiterate.comp rescales it as
+// psi grows, like A): the texel holds (3 m_z, 5 <P2(w_z)>, z, a).
+// - a: the share of the sun's aureole, a Henyey-Greenstein lobe of
+//   parameter k = g1 about the sunlight, which carries the flux toward the
+//   sun's side (m_x = -a k sin(theta_s));
+// - 3 m_z: band 1 of the vertical flux (m the net over the scalar flux);
+// - 5 <P2(w_z)>: band 2 about the vertical, the horizon's brightness;
+// - z: with delta-M 3.75 (T_xx - T_yy), how much of the light lies in the
+//   sun's vertical plane rather than across it, from the cells'
+//   sub-samples (cell_xy2) less the aureole's own part a k^2 sin^2(theta_s);
+//   without delta-M the sub-samples cannot resolve the phase's narrow peak
+//   and z is 15 T_xz. One texel keeps a lookup to one fetch.
+// L2's shape stands for the higher orders' too. docs/physics.md derives the
+// bands; docs/findings.d/engine.md has the variants measured on Mars.
+void store_shape(int i, int j, vec3 psi, vec3 sun_j, float escape_lum)
+{
+	float l = max(dot(sum_l2[j], MS_SHARE_LUM), 1e-30);
+	float share = l * MS_NORM / escape_lum / max(dot(psi, MS_SHARE_LUM), 1e-30);
+	vec2 m = sum_moment[j] / l;
+	vec3 t = sum_second[j] / l;
+	float k = DELTA_CONST >= 0 ? P.c[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
+				   : P.c[max(MOMENT_CONST, 0)].absorption.w;
+	float a = clamp(-m.x / max(k * sun_j.x, 1e-3), 0.0, 1.0);
+	float z = DELTA_CONST >= 0 ? 3.75 * (t.z - a * k * k * sun_j.x * sun_j.x) : 15.0 * t.y;
+	MOB.d[i] = share * vec4(3.0 * m.y, 7.5 * t.x - 2.5, z, a);
+}
+
+void main()
+{
+	load_params();
+	// Delta-M (delta_source in common.glsl): the table is the scaled
+	// medium's, whose DELTA_CONST scatters (1 - f) sigma_D through p' and
+	// whose sunlight comes through T_l' = exp(-(ext' * columns_at())).
+	if (DELTA_CONST >= 0)
+		P.c[max(DELTA_CONST, 0)].scattering.rgb -= delta_removed();
+	// The scaled extinctions, times columns_at() the scaled optical depth.
+	mat4x3 ext_scaled = mat4x3(0.0);
+	for (int i = 0; i < N_CONST; i++)
+		ext_scaled[i] = P.c[i].scattering.rgb + P.c[i].absorption.rgb;
+	int x0 = int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, py = int(gl_GlobalInvocationID.y);
+	if (x0 >= OUT_W || py >= OUT_H)
+		return;
+
+	float h = ms_row_altitude(py);
+	vec3 sun[MS_SUN_GROUP];
+	ms_row_suns(x0, h, sun);
+	float r0 = P.planet.x + h;
+	// Only the scattering at x and beyond stays isotropic (Hillaire's
+	// assumption); the first scattering's phases are per cell and sun.
+	cell_phases(sun);
 	mat4x3 scattering_of = mat4x3(0.0), absorption_of = mat4x3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
-		scattering_of[i] = P.C[i].scattering.rgb;
-		absorption_of[i] = P.C[i].absorption.rgb;
+		scattering_of[i] = P.c[i].scattering.rgb;
+		absorption_of[i] = P.c[i].absorption.rgb;
 	}
-	vec3 sum_l2[MS_SUN_GROUP], sum_ground[MS_SUN_GROUP];
-	// The first two moments of L2 (a lobe constituent): the luminance of each direction's
-	// light times the direction it travels (-dir), x toward the sun's
-	// azimuth, y up (the marched half of the azimuths counts twice, so the
-	// component across the sun's vertical plane cancels).
-	vec2 sum_moment[MS_SUN_GROUP];
-	// The second moments zz, xz and, from the sub-samples (cell_xy2), xx - yy.
-	vec3 sum_second[MS_SUN_GROUP];
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		sum_l2[j] = vec3(0.0);
 		sum_ground[j] = vec3(0.0);
 		sum_moment[j] = vec2(0.0);
 		sum_second[j] = vec3(0.0);
 	}
-	// psi takes 1 - f_ms from sum_escape (what leaves or is absorbed).
-	vec3 sum_escape = vec3(0.0), sum_returned = vec3(0.0);
-	for (int k = 0; k < n_dirs; k++) {
-		vec2 ring = cell_ring(k);
-		float wk = cell_weight(ring);
-		vec3 dir = cell_direction(k, ring);
-		float tg, t_end = distance_to_top(h, dir.z);
-		bool ground = hits_ground(h, dir.z, tg);
-		if (ground)
-			t_end = tg;
-		float dt = t_end / float(STEPS);
-		vec3 tr = vec3(1.0), absorbed = vec3(0.0);
-		// Per sun, the phase-weighted scattering per unit density of each
-		// constituent: a matrix times the step's densities. Arrays of
-		// constituents indexed in loops left the registers on lavapipe
-		// (1.8 ms of a 6.5 ms pass); matrices and vectors stay.
-		mat4x3 phased_of[MS_SUN_GROUP];
-		for (int j = 0; j < MS_SUN_GROUP; j++)
-			phased_of[j] = mat4x3(0.0);
-		for (int i = 0; i < N_CONST; i++) {
-			if (phase_kind(i) == 0)
-				continue;
-			for (int j = 0; j < MS_SUN_GROUP; j++)
-				phased_of[j][i] = P.C[i].scattering.rgb *
-						  (cell_sum[(k * 4 + i) * MS_SUN_GROUP + j] * phase_norm[i][j]);
-		}
-		vec3 l2[MS_SUN_GROUP];
-		for (int j = 0; j < MS_SUN_GROUP; j++)
-			l2[j] = vec3(0.0);
-		for (int s = 0; s < STEPS; s++) {
-			float t = (float(s) + 0.5) * dt, rr;
-			float hs = altitude_along(h, dir.z, t, rr);
-			vec4 dens = densities(hs);
-			vec3 scattering = scattering_of * dens, absorption = absorption_of * dens;
-			vec3 step_t, w = tr * step_weight(scattering + absorption, dt, step_t);
-			TAlt a = t_alt(hs);
-			vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
-			for (int j = 0; j < MS_SUN_GROUP; j++)
-				l2[j] += w * (phased_of[j] * dens) * sunlight(a, dot(up, sun[j]), P.sun_dir.w, ext_scaled);
-			absorbed += w * absorption;
-			tr *= step_t;
-		}
-		// The cell's solid angle over the mean cell's: every term below
-		// is linear in these four.
-		tr *= wk;
-		absorbed *= wk;
-		for (int j = 0; j < MS_SUN_GROUP; j++)
-			sum_l2[j] += wk * l2[j];
-		// The moments take the cell's weight as L2 does, so that they
-		// integrate over the sphere with psi's quadrature.
-		if (MOMENT_CONST >= 0)
-			for (int j = 0; j < MS_SUN_GROUP; j++) {
-				float l = wk * dot(l2[j], MS_SHARE_LUM);
-				sum_moment[j] -= dir.xz * l;
-				sum_second[j] += vec3(dir.z * dir.z, dir.x * dir.z, cell_xy2[k * MS_SUN_GROUP + j]) * l;
-			}
-		vec3 returned = vec3(0.0);
-		if (ground && !GROUND_BLACK) {
-			// Lambertian ground lit by the sun: albedo / pi times the cosine.
-			vec3 n = vec3(dir.xy * t_end, r0 + dir.z * t_end) / P.planet.x;
-			TAlt a = t_alt(0.0);
-			for (int j = 0; j < MS_SUN_GROUP; j++) {
-				float mu_g = dot(n, sun[j]);
-				// The sun as a point (radius 0), as transmittance_at() takes it.
-				sum_ground[j] += tr * sunlight(a, mu_g, 0.0, ext_scaled) * max(mu_g, 0.0) * P.albedo.rgb / PI;
-			}
-			// Under the isotropic field psi the Lambertian ground sends back
-			// albedo times psi: a transfer like scattering, so every order
-			// bounces off the ground, not only the second.
-			returned = tr * P.albedo.rgb;
-		}
-		sum_escape += tr - returned + absorbed;
-		sum_returned += returned;
-	}
-	vec3 escape = sum_escape * norm;
-	// The ground's first bounce G travels up: the next order of it is only
-	// what the air scatters, never a reflection straight off the ground
-	// again, so its higher orders take f - f_ground (f_ground = the mean of
-	// the returned transfer), not f: G (1 - f_ground) / (1 - f_ms) in all.
-	// Counting the impossible ground-to-ground return read the albedo 0.3
-	// day sky 12 % of the ground's part high (sun 90: +3.9 % at 0.2 km,
-	// +2.2 % at 10 km).
-	vec3 ground_kept = 1.0 - sum_returned * norm;
+	sum_escape = vec3(0.0);
+	sum_returned = vec3(0.0);
+	for (int k = 0; k < MS_MARCHED; k++)
+		march_cell(k, h, r0, sun, ext_scaled, scattering_of, absorption_of);
+	vec3 escape = sum_escape * MS_NORM;
+	// The ground's first bounce G travels up: its next order is only what
+	// the air scatters, never a reflection straight off the ground again,
+	// so its higher orders take f - f_ground (f_ground the mean of the
+	// returned transfer), not f: G (1 - f_ground) / (1 - f_ms) in all.
+	vec3 ground_kept = 1.0 - sum_returned * MS_NORM;
 	float escape_lum = max(dot(escape, MS_SHARE_LUM), 1e-6);
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		if (x0 + j >= OUT_W)
 			break;
-		// Guard: 1 - f_ms is a sum of non-negative terms; the floor of 1e-6
-		// only keeps 0 / 0 away (where the escape is 0, L2 is 0 too).
-		vec3 psi = (sum_l2[j] + sum_ground[j] * ground_kept) * norm / max(escape, vec3(1e-6));
-		// A: the ground's first bounce G (the sunlit ground's light at the
-		// point, its mean over the sphere) as a share of psi, which the
-		// sky-view and aerial passes scatter through each constituent's
-		// phase (ground_excess() in common.glsl); its higher orders
-		// G (f_ms - f_ground) / (1 - f_ms) stay isotropic. One share for the three
-		// channels, weighted by luminance (Rec. 709), since A is one value.
-		float share = dot(sum_ground[j], MS_SHARE_LUM) * norm / max(dot(psi, MS_SHARE_LUM), 1e-30);
+		// 1 - f_ms is a sum of non-negative terms; the floor only keeps
+		// 0 / 0 away (where the escape is 0, L2 is 0 too).
+		vec3 psi = (sum_l2[j] + sum_ground[j] * ground_kept) * MS_NORM / max(escape, vec3(1e-6));
+		// A: the ground's first bounce G (its mean over the sphere) as a
+		// share of psi, which sky-view and aerial perspective scatter
+		// through each constituent's phase (ground_excess()); its higher
+		// orders stay isotropic. One share for the three channels,
+		// weighted by luminance, since A is one value.
+		float share = dot(sum_ground[j], MS_SHARE_LUM) * MS_NORM / max(dot(psi, MS_SHARE_LUM), 1e-30);
 		STORE_TEXEL(MB, py * OUT_W + x0 + j, vec4(psi, clamp(share, 0.0, 1.0)));
-		// The multiply scattered light's shape for ms_source, from L2's
-		// moments, in the frame of the sun's vertical plane (x toward the
-		// sun's azimuth, z up; y across, where the field is symmetric),
-		// relative to psi (msiterate.comp rescales it as psi grows, like A):
-		// - the sun's aureole, a Henyey-Greenstein lobe of parameter
-		//   k = g1 (light scattered once by the same phase) about the
-		//   sunlight's direction, of share a, which carries the flux
-		//   toward the sun's side (m_x = -a k sin(theta_s));
-		// - band 1 of the vertical flux, 3 m_z o_z, m the net flux over
-		//   the scalar flux;
-		// - band 2, 5 (1.5 o T o - 0.5) with T the second moments (T_xy =
-		//   T_yz = 0 by symmetry): 5 <P2(w_z)> P2(o_z) + 15 T_xz o_x o_z +
-		//   3.75 (T_xx - T_yy) (o_x^2 - o_y^2). The first is the
-		//   horizon's brightness: long near-horizontal paths send most
-		//   light there, which a forward phase passes on to a horizontal
-		//   view. The last is how much of it lies in the sun's vertical
-		//   plane rather than across it. The marched directions (azimuths
-		//   45 and 135 deg) have x^2 = y^2, so it comes from the cells'
-		//   sub-samples weighted by the lobe constituent's phase
-		//   (cell_xy2), less the aureole's own part, a k^2 sin^2(theta_s),
-		//   which the lobe term carries already.
-		// The texel holds (3 m_z, 5 <P2(w_z)>, z, a): with delta-M z is
-		// the (T_xx - T_yy) term, without it the T_xz term. Mars' default
-		// quality (delta-M), day / horizon at sun 30 / 5 / 15, 0.2 km:
-		// - band 2 symmetric about the vertical (5 <P2> and T_xz only),
-		//   as before: 3.00 / 4.76, 3.43 / 5.78, 3.48 / 6.05 %, the sky
-		//   5-16 % high 90 deg from the sun below 4 deg and 4-10 % low
-		//   opposite the sun and 30 deg from it at 6-20 deg;
-		// - with T_xx - T_yy as well: 2.56 / 3.92, 2.70 / 3.44,
-		//   2.59 / 4.21 %, but a second texel per lookup made the
-		//   sky-view and aerial passes 19-111 % slower on lavapipe;
-		// - T_xx - T_yy in T_xz's place (kept): 2.78 / 4.08, 2.65 / 3.56,
-		//   2.19 / 4.35 %;
-		// - T_xx - T_yy with the aureole's part kept: 4.8-5.8 % by day;
-		//   with the other moments from the sub-samples too, 3.7-4.4 %;
-		//   every band's aureole part taken out, 2.7-3.7 %.
-		// Without delta-M the sub-samples cannot tell the whole phase's
-		// narrow peak across a cell: there T_xx - T_yy read Mars' horizon,
-		// already low, 1.4-2.3 points lower.
-		// L2's shape stands for the higher orders' too, scaled like psi
-		// (1 / (1 - f_ms)): on Mars that read 1-4 points better than L2's
-		// moments alone. Measured on Mars (sun 5 / 30, 0.2 km): band 1
-		// alone along the flux read worse than isotropic (day 23 / 17 %
-		// against 19 / 13 %): the aureole is narrow, and a cosine that
-		// brightens the sun's side darkens the opposite one as much; so
-		// did a lobe about the flux's own direction (24 / 17 %) and the
-		// aureole's band 2 taken out of T (18 / 14 %).
-		if (MOMENT_CONST >= 0) {
-			float l = max(dot(sum_l2[j], MS_SHARE_LUM), 1e-30);
-			float share = l * norm / escape_lum / max(dot(psi, MS_SHARE_LUM), 1e-30);
-			vec2 m = sum_moment[j] / l;
-			vec3 t = sum_second[j] / l;
-			float k = DELTA_CONST >= 0 ? P.C[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
-						   : P.C[max(MOMENT_CONST, 0)].absorption.w;
-			float a = clamp(-m.x / max(k * sun[j].x, 1e-3), 0.0, 1.0);
-			float z = DELTA_CONST >= 0 ? 3.75 * (t.z - a * k * k * sun[j].x * sun[j].x) : 15.0 * t.y;
-			MOB.d[py * OUT_W + x0 + j] = share * vec4(3.0 * m.y, 7.5 * t.x - 2.5, z, a);
-		}
+		if (MOMENT_CONST >= 0)
+			store_shape(py * OUT_W + x0 + j, j, psi, sun[j], escape_lum);
 	}
 }

@@ -10,7 +10,7 @@
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
-layout(constant_id = 20) const int SV_AZ_GROUP = 12;
+layout(constant_id = SPEC_SV_AZ_GROUP) const int SV_AZ_GROUP = 12;
 layout(local_size_x = 8, local_size_y = 8) in;
 
 // The local vertical (its horizontal part along the row's columns, up_h,

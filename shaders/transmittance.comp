@@ -18,6 +18,6 @@ void main()
 	vec4 column = CB.d[i];
 	vec3 tau = vec3(0.0);
 	for (int k = 0; k < N_CONST; k++)
-		tau += (P.C[k].scattering.rgb + P.C[k].absorption.rgb) * column[k];
+		tau += (P.c[k].scattering.rgb + P.c[k].absorption.rgb) * column[k];
 	STORE_TEXEL(TB, i, vec4(exp(-tau), 1.0));
 }

@@ -86,9 +86,9 @@ int phase_delta_constituent(const struct sky_state *s, const double *g1_of)
 	struct sky_state t;
 	/* Not where the neighbourhood iteration runs (msiterate.comp): it
 	 * transports psi through the real medium, and the two together
-	 * disagreed with the model (test_engine, Mars with 1 step: A off by
-	 * 0.015, 40 dB). Forced on, Earth x10 read 6.3 / 10.5 -> 5.7 / 8.8 %
-	 * (day / horizon), so the pair is worth making consistent. */
+	 * disagree with the model (test_engine); forced on, the pair reads
+	 * thick atmospheres better, so it is worth making consistent one day
+	 * (docs/findings.d/engine.md). */
 	if (s->quality.multiscatter_delta == STATE_MOMENT_OFF || state_multiscatter_iterations(s) > 0)
 		return -1;
 	t = *s;

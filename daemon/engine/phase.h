@@ -29,9 +29,9 @@ void phase_ground_excess(enum atmo_phase kind, double g, double ret_excess[PHASE
 
 /* What the marches evaluate instead of the table: a least-squares fit of
  * k - 1 over the table's mu by sum_{j=2..PHASE_GROUND_FIT+1} c_j s^j with
- * s = sqrt(|mu|), odd in mu like the table. A table lookup with a different
- * index in every lane was 8 % of the sky-view pass on lavapipe; the
- * polynomial is a few multiply-adds. Between the table's points it is
+ * s = sqrt(|mu|), odd in mu like the table: a table lookup with a different
+ * index in every lane is slow on lavapipe, the polynomial is a few
+ * multiply-adds. Between the table's points it is
  * closer to the exact k than the table's linear interpolation: within
  * 1.4e-3 for Cornette-Shanks g = 0.8 and 5.3e-3 for Henyey-Greenstein
  * g = 0.95 (test_ground). ret_coef[j] multiplies s^(j + 2). */

@@ -1,0 +1,571 @@
+/* eng_device.c - the engine's device: the Vulkan loader and instance, the
+ * choice of device, its memory and buffers, the descriptor set, and the
+ * waiter thread that turns the fence into an eventfd. */
+#include "eng_internal.h"
+
+#include <dlfcn.h>
+#include <errno.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+#include "shaders.h"
+
+void eng_set_err(char *err, size_t n, const char *fmt, ...)
+{
+	va_list ap;
+	if (!err || !n)
+		return;
+	va_start(ap, fmt);
+	vsnprintf(err, n, fmt, ap);
+	va_end(ap);
+}
+
+const char *eng_vk_result_name(VkResult r)
+{
+	switch (r) {
+	case VK_SUCCESS: return "VK_SUCCESS";
+	case VK_NOT_READY: return "VK_NOT_READY";
+	case VK_TIMEOUT: return "VK_TIMEOUT";
+	case VK_INCOMPLETE: return "VK_INCOMPLETE";
+	case VK_ERROR_OUT_OF_HOST_MEMORY: return "VK_ERROR_OUT_OF_HOST_MEMORY";
+	case VK_ERROR_OUT_OF_DEVICE_MEMORY: return "VK_ERROR_OUT_OF_DEVICE_MEMORY";
+	case VK_ERROR_INITIALIZATION_FAILED: return "VK_ERROR_INITIALIZATION_FAILED";
+	case VK_ERROR_DEVICE_LOST: return "VK_ERROR_DEVICE_LOST";
+	case VK_ERROR_MEMORY_MAP_FAILED: return "VK_ERROR_MEMORY_MAP_FAILED";
+	case VK_ERROR_EXTENSION_NOT_PRESENT: return "VK_ERROR_EXTENSION_NOT_PRESENT";
+	case VK_ERROR_FEATURE_NOT_PRESENT: return "VK_ERROR_FEATURE_NOT_PRESENT";
+	case VK_ERROR_INCOMPATIBLE_DRIVER: return "VK_ERROR_INCOMPATIBLE_DRIVER";
+	case VK_ERROR_TOO_MANY_OBJECTS: return "VK_ERROR_TOO_MANY_OBJECTS";
+	default: return "VkResult";
+	}
+}
+
+/* Loader and instance ------------------------------------------------------ */
+
+static int load_loader(struct vkfn *vk, void **ret_handle, char *err, size_t err_size)
+{
+	void *h = dlopen("libvulkan.so.1", RTLD_NOW | RTLD_LOCAL);
+	if (!h)
+		h = dlopen("libvulkan.so", RTLD_NOW | RTLD_LOCAL);
+	if (!h) {
+		eng_set_err(err, err_size,
+			"no Vulkan loader (libvulkan.so.1): install the Debian package libvulkan1 "
+			"(and mesa-vulkan-drivers for lavapipe)");
+		return -ENOENT;
+	}
+	vk->vkGetInstanceProcAddr = (PFN_vkGetInstanceProcAddr)dlsym(h, "vkGetInstanceProcAddr");
+	if (!vk->vkGetInstanceProcAddr) {
+		dlclose(h);
+		eng_set_err(err, err_size, "libvulkan.so.1 has no vkGetInstanceProcAddr: broken loader");
+		return -ENOENT;
+	}
+#define LOAD_GLOBAL(name) vk->name = (PFN_##name)vk->vkGetInstanceProcAddr(NULL, #name);
+	VKFN_GLOBAL(LOAD_GLOBAL)
+#undef LOAD_GLOBAL
+	*ret_handle = h;
+	return 0;
+}
+
+static int load_instance_fns(struct vkfn *vk, VkInstance inst, char *err, size_t err_size)
+{
+#define LOAD_INSTANCE(name)                                                          \
+	vk->name = (PFN_##name)vk->vkGetInstanceProcAddr(inst, #name);               \
+	if (!vk->name) {                                                             \
+		eng_set_err(err, err_size, "Vulkan loader lacks %s (Vulkan 1.1 needed)", #name); \
+		return -ENOSYS;                                                      \
+	}
+	VKFN_INSTANCE(LOAD_INSTANCE)
+#undef LOAD_INSTANCE
+	return 0;
+}
+
+static int create_instance(struct vkfn *vk, VkInstance *ret, char *err, size_t err_size)
+{
+	VkApplicationInfo app = { .sType = VK_STRUCTURE_TYPE_APPLICATION_INFO,
+		.pApplicationName = "skyd", .apiVersion = VK_API_VERSION_1_1 };
+	VkInstanceCreateInfo ci = { .sType = VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO,
+		.pApplicationInfo = &app };
+	const char *ext[1];
+	uint32_t n = 0;
+	int rc = 0;
+
+	/* Portability enumeration lists non-conformant drivers too, where present. */
+	if (vk->vkEnumerateInstanceExtensionProperties(NULL, &n, NULL) == VK_SUCCESS && n) {
+		VkExtensionProperties *props = calloc(n, sizeof(*props));
+		if (props && vk->vkEnumerateInstanceExtensionProperties(NULL, &n, props) == VK_SUCCESS)
+			for (uint32_t i = 0; i < n; i++)
+				if (!strcmp(props[i].extensionName,
+					    VK_KHR_PORTABILITY_ENUMERATION_EXTENSION_NAME)) {
+					ext[0] = VK_KHR_PORTABILITY_ENUMERATION_EXTENSION_NAME;
+					ci.enabledExtensionCount = 1;
+					ci.ppEnabledExtensionNames = ext;
+					ci.flags |= VK_INSTANCE_CREATE_ENUMERATE_PORTABILITY_BIT_KHR;
+				}
+		free(props);
+	}
+	VK_TRY(vk->vkCreateInstance(&ci, NULL, ret));
+	return load_instance_fns(vk, *ret, err, err_size);
+fail:
+	if (rc == -EIO)
+		eng_set_err(err, err_size,
+			"cannot create a Vulkan instance: no driver; install mesa-vulkan-drivers "
+			"(lavapipe) or your GPU's Vulkan driver");
+	return rc;
+}
+
+static const char *type_name(VkPhysicalDeviceType t)
+{
+	switch (t) {
+	case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return "discrete";
+	case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return "integrated";
+	case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return "virtual";
+	case VK_PHYSICAL_DEVICE_TYPE_CPU: return "cpu";
+	default: return "other";
+	}
+}
+
+static int type_rank(int t)
+{
+	switch (t) {
+	case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return 4;
+	case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return 3;
+	case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return 2;
+	case VK_PHYSICAL_DEVICE_TYPE_CPU: return 1;
+	default: return 0;
+	}
+}
+
+static void describe(struct vkfn *vk, VkPhysicalDevice pd, uint32_t index, struct eng_device *ret)
+{
+	VkPhysicalDeviceDriverProperties drv = { .sType =
+		VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES };
+	VkPhysicalDeviceProperties2 p2 = { .sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2,
+		.pNext = &drv };
+	VkPhysicalDeviceProperties p;
+
+	vk->vkGetPhysicalDeviceProperties(pd, &p);
+	memset(ret, 0, sizeof(*ret));
+	ret->index = index;
+	ret->type = p.deviceType;
+	ret->vendor_id = p.vendorID;
+	ret->device_id = p.deviceID;
+	snprintf(ret->name, sizeof(ret->name), "%s", p.deviceName);
+	snprintf(ret->type_name, sizeof(ret->type_name), "%s", type_name(p.deviceType));
+	if (p.apiVersion >= VK_API_VERSION_1_2) {
+		vk->vkGetPhysicalDeviceProperties2(pd, &p2);
+		snprintf(ret->driver, sizeof(ret->driver), "%s %s", drv.driverName, drv.driverInfo);
+	} else {
+		snprintf(ret->driver, sizeof(ret->driver), "driver %u", p.driverVersion);
+	}
+}
+
+static int enumerate(struct vkfn *vk, VkInstance inst, VkPhysicalDevice **ret, uint32_t *ret_n,
+		     char *err, size_t err_size)
+{
+	uint32_t n = 0;
+	int rc = 0;
+	VkPhysicalDevice *pds = NULL;
+
+	VK_TRY(vk->vkEnumeratePhysicalDevices(inst, &n, NULL));
+	pds = calloc(n ? n : 1, sizeof(*pds));
+	if (!pds)
+		return -ENOMEM;
+	VK_TRY(vk->vkEnumeratePhysicalDevices(inst, &n, pds));
+	*ret = pds;
+	*ret_n = n;
+	return 0;
+fail:
+	free(pds);
+	return rc;
+}
+
+int eng_list_devices(struct eng_device *ret, size_t max, char *err, size_t err_size)
+{
+	struct vkfn vk = { 0 };
+	void *loader = NULL;
+	VkInstance inst = VK_NULL_HANDLE;
+	VkPhysicalDevice *pds = NULL;
+	uint32_t n = 0;
+	int rc = load_loader(&vk, &loader, err, err_size);
+
+	if (rc < 0)
+		return rc;
+	rc = create_instance(&vk, &inst, err, err_size);
+	if (rc == 0)
+		rc = enumerate(&vk, inst, &pds, &n, err, err_size);
+	if (rc == 0) {
+		for (uint32_t i = 0; i < n && i < max; i++)
+			describe(&vk, pds[i], i, &ret[i]);
+		rc = (int)n;
+	}
+	free(pds);
+	if (inst)
+		vk.vkDestroyInstance(inst, NULL);
+	dlclose(loader);
+	return rc;
+}
+
+/* Picks a device: selector (or $SKYD_DEVICE) as an index or a name substring,
+ * else the best type. */
+static int pick_device(struct eng *e, const char *selector, char *err, size_t err_size)
+{
+	VkPhysicalDevice *pds = NULL;
+	uint32_t n = 0;
+	int rc = enumerate(&e->vk, e->instance, &pds, &n, err, err_size), best = -1;
+
+	if (rc < 0)
+		return rc;
+	if (n == 0) {
+		free(pds);
+		eng_set_err(err, err_size,
+			"no Vulkan device found: install mesa-vulkan-drivers (lavapipe) or a GPU driver");
+		return -ENODEV;
+	}
+	if (!selector || !*selector)
+		selector = getenv("SKYD_DEVICE");
+	struct eng_device d;
+	if (selector && *selector) {
+		char *end;
+		unsigned long idx = strtoul(selector, &end, 10);
+		for (uint32_t i = 0; i < n && best < 0; i++) {
+			describe(&e->vk, pds[i], i, &d);
+			if ((!*end && idx == i) || strcasestr(d.name, selector))
+				best = (int)i;
+		}
+		if (best < 0) {
+			free(pds);
+			eng_set_err(err, err_size, "device '%s': no such Vulkan device (see skyd --list-devices)",
+				selector);
+			return -ENODEV;
+		}
+	} else {
+		int best_rank = -1;
+		for (uint32_t i = 0; i < n; i++) {
+			describe(&e->vk, pds[i], i, &d);
+			if (type_rank(d.type) > best_rank) {
+				best_rank = type_rank(d.type);
+				best = (int)i;
+			}
+		}
+	}
+	e->phys = pds[best];
+	describe(&e->vk, e->phys, (uint32_t)best, &e->info);
+	free(pds);
+	return 0;
+}
+
+/* Device objects ------------------------------------------------------------ */
+
+static int find_memory(struct eng *e, uint32_t type_bits, VkMemoryPropertyFlags want,
+		       VkMemoryPropertyFlags prefer)
+{
+	int fallback = -1;
+	for (uint32_t i = 0; i < e->mem_props.memoryTypeCount; i++) {
+		VkMemoryPropertyFlags f = e->mem_props.memoryTypes[i].propertyFlags;
+		if (!(type_bits & (1u << i)) || (f & want) != want)
+			continue;
+		if ((f & prefer) == prefer)
+			return (int)i;
+		if (fallback < 0)
+			fallback = (int)i;
+	}
+	return fallback;
+}
+
+void eng_buffer_free(struct eng *e, struct gpu_buffer *b)
+{
+	if (b->buf)
+		e->vk.vkDestroyBuffer(e->dev, b->buf, NULL);
+	if (b->mem)
+		e->vk.vkFreeMemory(e->dev, b->mem, NULL);	/* unmaps implicitly */
+	memset(b, 0, sizeof(*b));
+}
+
+int eng_buffer_new(struct eng *e, VkDeviceSize bytes, VkBufferUsageFlags usage,
+		      VkMemoryPropertyFlags want, VkMemoryPropertyFlags prefer,
+		      struct gpu_buffer *ret, char *err, size_t err_size)
+{
+	struct gpu_buffer b = { .bytes = bytes };
+	VkBufferCreateInfo bi = { .sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO, .size = bytes,
+		.usage = usage, .sharingMode = VK_SHARING_MODE_EXCLUSIVE };
+	VkMemoryRequirements req;
+	int rc = 0;
+
+	VK_TRY(e->vk.vkCreateBuffer(e->dev, &bi, NULL, &b.buf));
+	e->vk.vkGetBufferMemoryRequirements(e->dev, b.buf, &req);
+	int type = find_memory(e, req.memoryTypeBits, want, prefer);
+	if (type < 0) {
+		eng_set_err(err, err_size, "no Vulkan memory type with flags 0x%x", want);
+		rc = -ENOMEM;
+		goto fail;
+	}
+	VkMemoryAllocateInfo ai = { .sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO,
+		.allocationSize = req.size, .memoryTypeIndex = (uint32_t)type };
+	VK_TRY(e->vk.vkAllocateMemory(e->dev, &ai, NULL, &b.mem));
+	VK_TRY(e->vk.vkBindBufferMemory(e->dev, b.buf, b.mem, 0));
+	if (want & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT)
+		VK_TRY(e->vk.vkMapMemory(e->dev, b.mem, 0, VK_WHOLE_SIZE, 0, &b.map));
+	*ret = b;
+	return 0;
+fail:
+	eng_buffer_free(e, &b);
+	return rc;
+}
+
+/* An internal float32 vec4 buffer that one pass writes (storage) and later
+ * passes read through a texel view (the column densities, the moments). */
+void eng_vec4_buffer_free(struct eng *e, struct gpu_buffer *b, VkBufferView *view)
+{
+	if (*view)
+		e->vk.vkDestroyBufferView(e->dev, *view, NULL);
+	*view = VK_NULL_HANDLE;
+	eng_buffer_free(e, b);
+}
+
+int eng_vec4_buffer_new(struct eng *e, VkDeviceSize bytes, struct gpu_buffer *ret, VkBufferView *ret_view,
+			   char *err, size_t err_size)
+{
+	int rc = eng_buffer_new(e, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
+			    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, ret, err, err_size);
+	if (rc < 0)
+		return rc;
+	VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO, .buffer = ret->buf,
+		.format = VK_FORMAT_R32G32B32A32_SFLOAT, .range = VK_WHOLE_SIZE };
+	VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, ret_view));
+	return 0;
+fail:
+	eng_vec4_buffer_free(e, ret, ret_view);
+	return rc;
+}
+
+static void *waiter_main(void *arg)
+{
+	struct eng *e = arg;
+
+	pthread_mutex_lock(&e->lock);
+	for (;;) {
+		while (!e->pending && !e->quit)
+			pthread_cond_wait(&e->cond, &e->lock);
+		if (e->quit)
+			break;
+		pthread_mutex_unlock(&e->lock);
+		VkResult r = e->vk.vkWaitForFences(e->dev, 1, &e->fence, VK_TRUE, UINT64_MAX);
+		pthread_mutex_lock(&e->lock);
+		e->wait_result = r;
+		e->pending = false;
+		e->finished = true;
+		uint64_t one = 1;
+		if (write(e->event_fd, &one, sizeof(one)) < 0) {
+			/* The counter cannot overflow at one write per computation. */
+		}
+	}
+	pthread_mutex_unlock(&e->lock);
+	return NULL;
+}
+
+VkDescriptorType eng_binding_type(int binding)
+{
+	if (binding == 0)
+		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+	if (binding == BINDING_MOMENT_TEX || binding == BINDING_COLUMNS_TEX)
+		return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+	return binding <= STATE_N_TABLES || binding >= BINDING_VIEWS
+		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
+		       : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+}
+
+static int create_device(struct eng *e, char *err, size_t err_size)
+{
+	VkPhysicalDeviceProperties props;
+	uint32_t nq = 0;
+	int rc = 0;
+
+	e->vk.vkGetPhysicalDeviceProperties(e->phys, &props);
+	e->limits = props.limits;
+	e->timestamp_period_ns = props.limits.timestampPeriod;
+	e->vk.vkGetPhysicalDeviceMemoryProperties(e->phys, &e->mem_props);
+	e->vk.vkGetPhysicalDeviceQueueFamilyProperties(e->phys, &nq, NULL);
+	VkQueueFamilyProperties *qf = calloc(nq ? nq : 1, sizeof(*qf));
+	if (!qf)
+		return -ENOMEM;
+	e->vk.vkGetPhysicalDeviceQueueFamilyProperties(e->phys, &nq, qf);
+	e->queue_family = UINT32_MAX;
+	for (uint32_t i = 0; i < nq; i++)
+		if (qf[i].queueFlags & VK_QUEUE_COMPUTE_BIT) {
+			/* Prefer a compute queue without graphics: it runs beside rendering. */
+			if (e->queue_family == UINT32_MAX || !(qf[i].queueFlags & VK_QUEUE_GRAPHICS_BIT))
+				e->queue_family = i;
+		}
+	if (e->queue_family != UINT32_MAX)
+		e->timestamps = qf[e->queue_family].timestampValidBits > 0 &&
+				e->timestamp_period_ns > 0;
+	free(qf);
+	if (e->queue_family == UINT32_MAX) {
+		eng_set_err(err, err_size, "device '%s' has no compute queue", e->info.name);
+		return -ENODEV;
+	}
+
+	float prio = 1.0f;
+	VkDeviceQueueCreateInfo qi = { .sType = VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO,
+		.queueFamilyIndex = e->queue_family, .queueCount = 1, .pQueuePriorities = &prio };
+	VkDeviceCreateInfo di = { .sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO,
+		.queueCreateInfoCount = 1, .pQueueCreateInfos = &qi };
+	VK_TRY(e->vk.vkCreateDevice(e->phys, &di, NULL, &e->dev));
+#define LOAD_DEVICE(name)                                                       \
+	e->vk.name = (PFN_##name)e->vk.vkGetDeviceProcAddr(e->dev, #name);      \
+	if (!e->vk.name) {                                                      \
+		eng_set_err(err, err_size, "Vulkan device lacks %s", #name);        \
+		return -ENOSYS;                                                 \
+	}
+	VKFN_DEVICE(LOAD_DEVICE)
+#undef LOAD_DEVICE
+	e->vk.vkGetDeviceQueue(e->dev, e->queue_family, 0, &e->queue);
+
+	VkDescriptorSetLayoutBinding b[N_BINDINGS];
+	for (int i = 0; i < N_BINDINGS; i++)
+		b[i] = (VkDescriptorSetLayoutBinding){ .binding = (uint32_t)i,
+			.descriptorType = eng_binding_type(i), .descriptorCount = 1,
+			.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT };
+	VkDescriptorSetLayoutCreateInfo li = { .sType =
+		VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO, .bindingCount = N_BINDINGS,
+		.pBindings = b };
+	VK_TRY(e->vk.vkCreateDescriptorSetLayout(e->dev, &li, NULL, &e->set_layout));
+	VkPipelineLayoutCreateInfo pli = { .sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
+		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
+	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
+	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
+		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 4 },
+		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 2 } };
+	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
+		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
+	VK_TRY(e->vk.vkCreateDescriptorPool(e->dev, &dpi, NULL, &e->desc_pool));
+	VkDescriptorSetAllocateInfo dai = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO,
+		.descriptorPool = e->desc_pool, .descriptorSetCount = 1, .pSetLayouts = &e->set_layout };
+	VK_TRY(e->vk.vkAllocateDescriptorSets(e->dev, &dai, &e->set));
+
+	for (int t = 0; t < N_PASSES; t++) {
+		VkShaderModuleCreateInfo si = { .sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO,
+			.codeSize = shader_code[t].bytes, .pCode = shader_code[t].words };
+		VK_TRY(e->vk.vkCreateShaderModule(e->dev, &si, NULL, &e->modules[t]));
+	}
+	VkCommandPoolCreateInfo cpi = { .sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO,
+		.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT,
+		.queueFamilyIndex = e->queue_family };
+	VK_TRY(e->vk.vkCreateCommandPool(e->dev, &cpi, NULL, &e->cmd_pool));
+	VkCommandBufferAllocateInfo cai = { .sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO,
+		.commandPool = e->cmd_pool, .level = VK_COMMAND_BUFFER_LEVEL_PRIMARY,
+		.commandBufferCount = 1 };
+	VK_TRY(e->vk.vkAllocateCommandBuffers(e->dev, &cai, &e->cmd));
+	if (e->timestamps) {
+		VkQueryPoolCreateInfo qpi = { .sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO,
+			.queryType = VK_QUERY_TYPE_TIMESTAMP, .queryCount = 2 * N_PASSES };
+		VK_TRY(e->vk.vkCreateQueryPool(e->dev, &qpi, NULL, &e->queries));
+	}
+	VkFenceCreateInfo fi = { .sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO };
+	VK_TRY(e->vk.vkCreateFence(e->dev, &fi, NULL, &e->fence));
+	rc = eng_buffer_new(e, sizeof(struct gpu_params), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
+			VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT, 0,
+			&e->params, err, err_size);
+	if (rc == 0)
+		rc = eng_buffer_new(e, VIEW_BUFFER_BYTES, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+				VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT,
+				0, &e->views, err, err_size);
+fail:
+	return rc;
+}
+
+int eng_new(const char *selector, char *err, size_t err_size, struct eng **ret)
+{
+	struct eng *e = calloc(1, sizeof(*e));
+	int rc;
+
+	if (!e)
+		return -ENOMEM;
+	e->event_fd = -1;
+	pthread_mutex_init(&e->lock, NULL);
+	pthread_cond_init(&e->cond, NULL);
+	rc = load_loader(&e->vk, &e->loader, err, err_size);
+	if (rc == 0)
+		rc = create_instance(&e->vk, &e->instance, err, err_size);
+	if (rc == 0)
+		rc = pick_device(e, selector, err, err_size);
+	if (rc == 0)
+		rc = create_device(e, err, err_size);
+	if (rc == 0) {
+		e->event_fd = eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+		if (e->event_fd < 0)
+			rc = -errno;
+	}
+	if (rc == 0) {
+		rc = -pthread_create(&e->waiter, NULL, waiter_main, e);
+		e->waiter_started = rc == 0;
+	}
+	if (rc < 0) {
+		eng_free(e);
+		return rc;
+	}
+	*ret = e;
+	return 0;
+}
+
+void eng_free(struct eng *e)
+{
+	if (!e)
+		return;
+	if (e->waiter_started) {
+		pthread_mutex_lock(&e->lock);
+		e->quit = true;
+		pthread_cond_signal(&e->cond);
+		pthread_mutex_unlock(&e->lock);
+		/* The waiter may be inside vkWaitForFences: the GPU finishes first. */
+		pthread_join(e->waiter, NULL);
+	}
+	if (e->dev) {
+		e->vk.vkDeviceWaitIdle(e->dev);
+		for (int i = 0; i < N_LOOKUPS; i++)
+			if (e->lookup_view[i])
+				e->vk.vkDestroyBufferView(e->dev, e->lookup_view[i], NULL);
+		for (int t = 0; t < N_PASSES; t++) {
+			if (t < STATE_N_TABLES) {
+				eng_buffer_free(e, &e->table[t]);
+				eng_buffer_free(e, &e->readback[t]);
+			}
+			for (int i = 0; i < e->n_pipes[t]; i++)
+				e->vk.vkDestroyPipeline(e->dev, e->pipes[t][i].pipe, NULL);
+			if (e->modules[t])
+				e->vk.vkDestroyShaderModule(e->dev, e->modules[t], NULL);
+		}
+		eng_buffer_free(e, &e->params);
+		eng_buffer_free(e, &e->views);
+		eng_vec4_buffer_free(e, &e->columns, &e->columns_view);
+		eng_buffer_free(e, &e->ms_iterate);
+		eng_vec4_buffer_free(e, &e->moment, &e->moment_view);
+		if (e->fence)
+			e->vk.vkDestroyFence(e->dev, e->fence, NULL);
+		if (e->queries)
+			e->vk.vkDestroyQueryPool(e->dev, e->queries, NULL);
+		if (e->cmd_pool)
+			e->vk.vkDestroyCommandPool(e->dev, e->cmd_pool, NULL);
+		if (e->desc_pool)
+			e->vk.vkDestroyDescriptorPool(e->dev, e->desc_pool, NULL);
+		if (e->pipe_layout)
+			e->vk.vkDestroyPipelineLayout(e->dev, e->pipe_layout, NULL);
+		if (e->set_layout)
+			e->vk.vkDestroyDescriptorSetLayout(e->dev, e->set_layout, NULL);
+		e->vk.vkDestroyDevice(e->dev, NULL);
+	}
+	if (e->instance)
+		e->vk.vkDestroyInstance(e->instance, NULL);
+	if (e->loader)
+		dlclose(e->loader);
+	if (e->event_fd >= 0)
+		close(e->event_fd);
+	pthread_cond_destroy(&e->cond);
+	pthread_mutex_destroy(&e->lock);
+	free(e);
+}

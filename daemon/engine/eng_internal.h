@@ -1,0 +1,196 @@
+/* eng_internal.h - what the files of the engine (eng_*.c) share: struct eng,
+ * the device's buffers, the specialization key and the internal helpers. */
+#ifndef SKYD_ENG_INTERNAL_H
+#define SKYD_ENG_INTERNAL_H
+
+#include <errno.h>
+#include <pthread.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <time.h>
+
+#include "eng.h"
+#include "phase.h"
+#include "vkfn.h"
+
+#include "sky_params.h"
+
+#define MAX_PIPELINES 32	/* cached variants per pass */
+#define N_SPEC SPEC_COUNT
+/* Texels of a row one invocation shares its rays between: sun angles of
+ * multi-scattering, azimuths of sky-view (more azimuths share more work
+ * until the registers run out; docs/findings.d/engine.md). */
+#define MS_SUN_GROUP 4
+#define SV_AZ_GROUP 12
+/* The state's camera and STATE_MAX_VIEWS views, 3 vec4 each. */
+#define VIEW_BUFFER_BYTES ((1 + STATE_MAX_VIEWS) * 3 * 4 * sizeof(float))
+
+/* The tables later passes look up: transmittance and multi-scattering. */
+#define N_LOOKUPS 2
+/* The bindings (sky_params.h): the tables in state_table order, then the
+ * lookups, then the engine's internal buffers. */
+#define N_BINDINGS BINDING_COUNT
+_Static_assert(BINDING_TRANSMITTANCE + STATE_TRANSMITTANCE == 1 &&
+	       BINDING_TRANSMITTANCE + STATE_AERIAL == BINDING_AERIAL &&
+	       BINDING_TRANSMITTANCE_TEX == 1 + STATE_N_TABLES &&
+	       BINDING_TRANSMITTANCE_TEX + STATE_MULTISCATTER == BINDING_MULTISCATTER_TEX &&
+	       BINDING_VIEWS == BINDING_TRANSMITTANCE_TEX + N_LOOKUPS,
+	       "sky_params.h's bindings follow enum state_table");
+_Static_assert(SKY_MAX_CONSTITUENTS == ATMO_MAX_CONSTITUENTS && SKY_GROUND_FIT == PHASE_GROUND_FIT,
+	       "sky_params.h's array lengths");
+/* Compute passes: one per table, then the column densities (SHADER_COLUMNS)
+ * and the iteration of psi_ms (SHADER_MSITERATE). */
+#define PASS_COLUMNS STATE_N_TABLES
+#define PASS_MSITERATE (STATE_N_TABLES + 1)
+#define N_PASSES (STATE_N_TABLES + 2)
+
+/* phase_ground_excess of one constituent, kept while its phase stays: it
+ * costs about 30000 phase evaluations, more than a sun change's tables. */
+struct ground_cache {
+	bool valid;
+	enum atmo_phase kind;
+	double g;
+	double fit[PHASE_GROUND_FIT];	/* phase_ground_fit of phase_ground_excess */
+	double legendre[2];	/* phase_legendre, l = 1 and 2: a quadrature too */
+};
+
+/* Specialization constants, by constant_id (SPEC_* in sky_params.h). */
+struct spec {
+	int32_t v[N_SPEC];
+};
+
+struct pipeline {
+	struct spec key;
+	VkPipeline pipe;
+};
+
+struct gpu_buffer {
+	VkBuffer buf;
+	VkDeviceMemory mem;
+	void *map;		/* host-visible buffers only */
+	VkDeviceSize bytes;
+};
+
+/* What the column densities depend on: the shell's geometry, the density
+ * profiles of the constituents in the shaders, the table's size and steps
+ * (the column pass's specialization). Coefficients are not in it. */
+struct column_key {
+	float planet[3];	/* bottom, top, shell: the observer left out */
+	float h_top;		/* misc.w */
+	float layers[ATMO_MAX_CONSTITUENTS][12];
+	struct spec spec;
+};
+
+struct eng {
+	struct vkfn vk;
+	void *loader;
+	VkInstance instance;
+	VkPhysicalDevice phys;
+	struct eng_device info;
+	VkPhysicalDeviceMemoryProperties mem_props;
+	VkPhysicalDeviceLimits limits;
+	uint32_t queue_family;
+	float timestamp_period_ns;
+	bool timestamps;
+	VkDevice dev;
+	VkQueue queue;
+	VkDescriptorSetLayout set_layout;
+	VkPipelineLayout pipe_layout;
+	VkDescriptorPool desc_pool;
+	VkDescriptorSet set;
+	VkShaderModule modules[N_PASSES];
+	struct pipeline pipes[N_PASSES][MAX_PIPELINES];
+	int n_pipes[N_PASSES];
+	uint64_t pipelines_created;
+	VkCommandPool cmd_pool;
+	VkCommandBuffer cmd;
+	VkQueryPool queries;
+	VkFence fence;
+
+	struct gpu_buffer params;
+	struct gpu_buffer views;			/* 3 vec4 per aerial volume */
+	struct gpu_buffer table[STATE_N_TABLES];	/* device memory */
+	struct gpu_buffer readback[STATE_N_TABLES];	/* host memory */
+	size_t table_bytes[STATE_N_TABLES];
+	/* Transmittance and multi-scattering are read by the later passes
+	 * through texel buffers: the sampler's gathers are vectorized, where a
+	 * storage-buffer load with a varying index is a loop over the lanes on
+	 * lavapipe. */
+	VkBufferView lookup_view[N_LOOKUPS];
+	VkFormat lookup_format[N_LOOKUPS];
+	/* Column densities per transmittance texel (vec4, one per constituent):
+	 * recomputed only when column_key changes, so that a change of the
+	 * coefficients alone runs the tiny transmittance pass only. */
+	struct gpu_buffer columns;
+	/* The shape of the multiply scattered light, an RGBA float32 texel
+	 * per multi-scattering texel (ms_source in common.glsl). */
+	struct gpu_buffer moment;
+	VkBufferView moment_view;
+	VkBufferView columns_view;	/* COLUMNS_TEX_BINDING */
+	struct ground_cache ground[ATMO_MAX_CONSTITUENTS];	/* by gpu constituent */
+	struct ground_cache delta;	/* fill_delta's: the truncated phase's fit, f and g' in legendre */
+	struct column_key column_key;
+	bool columns_valid;
+	bool columns_in_flight;
+	/* The iteration of psi_ms (shaders/msiterate.comp): its output in the
+	 * table's format, copied over the table after each step, then L2 as
+	 * float32 RGBA per texel. */
+	struct gpu_buffer ms_iterate;
+	uint32_t iterations_in_flight;
+
+	/* Completion: a waiter thread waits on the fence, then writes the eventfd. */
+	int event_fd;
+	pthread_t waiter;
+	bool waiter_started;
+	pthread_mutex_t lock;
+	pthread_cond_t cond;
+	bool pending, finished, quit;
+	VkResult wait_result;
+	uint32_t in_flight_mask;
+	struct timespec submit_time;
+};
+
+void eng_set_err(char *err, size_t n, const char *fmt, ...)
+	__attribute__((format(printf, 3, 4)));
+const char *eng_vk_result_name(VkResult r);
+
+/* Every Vulkan call goes through VK_TRY: on failure it names the call and
+ * the result in err and jumps to the function's one cleanup label. */
+#define VK_TRY(call)                                                                 \
+	do {                                                                         \
+		VkResult vk_r_ = (call);                                             \
+		if (vk_r_ != VK_SUCCESS) {                                           \
+			eng_set_err(err, err_size, "%s failed: %s (%d) at %s:%d", #call, \
+				    eng_vk_result_name(vk_r_), (int)vk_r_, __FILE_NAME__, \
+				    __LINE__);                                       \
+			rc = vk_r_ == VK_ERROR_OUT_OF_HOST_MEMORY ? -ENOMEM : -EIO;  \
+			goto fail;                                                   \
+		}                                                                    \
+	} while (0)
+
+/* eng_device.c: device memory. buffer_new maps host-visible memory; the
+ * vec4 buffers are float32 RGBA storage with a texel view on them. */
+int eng_buffer_new(struct eng *e, VkDeviceSize bytes, VkBufferUsageFlags usage,
+		   VkMemoryPropertyFlags want, VkMemoryPropertyFlags prefer,
+		   struct gpu_buffer *ret, char *err, size_t err_size);
+void eng_buffer_free(struct eng *e, struct gpu_buffer *b);
+int eng_vec4_buffer_new(struct eng *e, VkDeviceSize bytes, struct gpu_buffer *ret,
+			VkBufferView *ret_view, char *err, size_t err_size);
+void eng_vec4_buffer_free(struct eng *e, struct gpu_buffer *b, VkBufferView *view);
+/* The descriptor type of a binding of the one descriptor set. */
+VkDescriptorType eng_binding_type(int binding);
+
+/* eng_params.c: the uniform block and the specialization of the passes. */
+/* Fills the uniform block and the constants every pass starts from for s;
+ * keeps the phases' fits in e while a constituent's phase stays. */
+void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p,
+		     struct spec *base);
+/* The cameras of the aerial volumes, 3 vec4 each (VIEW_BUFFER_BYTES). */
+void eng_fill_views(const struct sky_state *s, float *out);
+struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t);
+struct spec eng_column_spec(const struct spec *base, const struct sky_state *s);
+void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,
+		    struct column_key *ret);
+
+#endif

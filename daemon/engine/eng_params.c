@@ -1,0 +1,238 @@
+/* eng_params.c - what the engine uploads for a state: the uniform block
+ * (struct gpu_params), the aerial views, the specialization constants of
+ * each pass and the key of the kept column densities. */
+#include "eng_internal.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "skymap.h"
+
+static bool constituent_active(const struct atmo_constituent *c)
+{
+	for (int i = 0; i < 3; i++)
+		if (c->scattering_per_km[i] > 0.0 || c->absorption_per_km[i] > 0.0)
+			return true;
+	return false;
+}
+
+static bool constituent_scatters(const struct atmo_constituent *c)
+{
+	return c->scattering_per_km[0] > 0 || c->scattering_per_km[1] > 0 || c->scattering_per_km[2] > 0;
+}
+
+static void put4(float d[4], double a, double b, double c, double w)
+{
+	d[0] = (float)a;
+	d[1] = (float)b;
+	d[2] = (float)c;
+	d[3] = (float)w;
+}
+
+static void fill_delta(struct eng *e, const struct sky_state *s, int delta, struct gpu_params *p,
+		       struct spec *base);
+
+void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p, struct spec *base)
+{
+	const struct atmo *a = &s->atmo;
+	double sun[3], moon[3], fwd[3], right[3], up[3];
+	double h0 = s->altitude_km > 0.0 ? s->altitude_km : 0.0;
+	double shell = a->top_radius_km - a->bottom_radius_km;
+
+	memset(p, 0, sizeof(*p));
+	memset(base, 0, sizeof(*base));
+	put4(p->planet, a->bottom_radius_km, a->top_radius_km, shell, h0);
+	put4(p->albedo, a->ground_albedo[0], a->ground_albedo[1], a->ground_albedo[2], 0);
+	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, sun);
+	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, moon);
+	put4(p->sun_dir, sun[0], sun[1], sun[2], s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
+	put4(p->moon_dir, moon[0], moon[1], moon[2], s->moon.angular_radius_deg * SKYMAP_PI / 180.0);
+	put4(p->sun_illum, s->sun.illuminance_lx * s->sun.color[0],
+	     s->sun.illuminance_lx * s->sun.color[1], s->sun.illuminance_lx * s->sun.color[2], 0);
+	put4(p->moon_illum, s->moon.illuminance_lx * s->moon.color[0],
+	     s->moon.illuminance_lx * s->moon.color[1], s->moon.illuminance_lx * s->moon.color[2], 0);
+	state_camera_basis(&s->camera, fwd, right, up);
+	put4(p->cam_fwd, fwd[0], fwd[1], fwd[2], tan(s->camera.vfov_deg * SKYMAP_PI / 360.0));
+	put4(p->cam_right, right[0], right[1], right[2], s->camera.aspect);
+	put4(p->cam_up, up[0], up[1], up[2], s->quality.aerial_range_km);
+	put4(p->misc, skymap_horizon_cos(a->bottom_radius_km, h0), s->quality.skyview_min_steps,
+	     s->quality.aerial_spacing == STATE_SQUARED ? 1.0 : 0.0,
+	     sqrt(shell * (2.0 * a->bottom_radius_km + shell)));
+
+	double night_cd_m2, night_gain;
+	state_night_floor(s, &night_cd_m2, &night_gain);
+	put4(p->night, night_cd_m2, night_cd_m2, night_cd_m2, night_gain);
+
+	/* Constituents that are zero everywhere are left out of the shaders. */
+	double g1[ATMO_MAX_CONSTITUENTS] = { 0 };	/* by index in a */
+	int n = 0;
+	for (int i = 0; i < a->n_constituents; i++) {
+		const struct atmo_constituent *c = &a->c[i];
+		if (!constituent_active(c))
+			continue;
+		struct gpu_constituent *g = &p->c[n];
+		const struct atmo_layer *l0 = &c->density.layers[0], *l1 = &c->density.layers[1];
+		put4(g->scattering, c->scattering_per_km[0], c->scattering_per_km[1],
+		     c->scattering_per_km[2], c->g);
+		struct ground_cache *gc = &e->ground[n];
+		enum atmo_phase kind = constituent_scatters(c) ? c->phase : ATMO_PHASE_NONE;
+		if (!gc->valid || gc->kind != kind || gc->g != c->g) {
+			double excess[PHASE_GROUND_N];
+			phase_ground_excess(kind, c->g, excess);
+			phase_ground_fit(excess, gc->fit);
+			gc->legendre[0] = phase_legendre(kind, c->g, 1);
+			gc->legendre[1] = phase_legendre(kind, c->g, 2);
+			gc->valid = true;
+			gc->kind = kind;
+			gc->g = c->g;
+		}
+		g1[i] = gc->legendre[0];
+		put4(g->absorption, c->absorption_per_km[0], c->absorption_per_km[1],
+		     c->absorption_per_km[2], gc->legendre[0]);
+		put4(g->layer0, l0->width_km, l0->exp_term, l0->exp_scale_per_km, l0->linear_per_km);
+		put4(g->layer0c_1, l0->constant, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km);
+		put4(g->layer1c, l1->constant, gc->legendre[1], 0, 0);
+		/* A constituent that scatters nothing needs no phase function. */
+		base->v[SPEC_PHASE_0 + n] = constituent_scatters(c) ? (int32_t)c->phase : 0;
+		for (int k = 0; k < PHASE_GROUND_FIT; k++)
+			p->ground_fit[k][n] = (float)gc->fit[k];
+		/* Profiles without an exponential term (ozone's tent) skip exp(). */
+		if (l0->exp_term != 0.0 || l1->exp_term != 0.0)
+			base->v[SPEC_EXP_MASK] |= 1 << n;
+		n++;
+	}
+	base->v[SPEC_N_CONST] = n;
+	base->v[SPEC_STORAGE_F16] = s->quality.storage == STATE_F16;
+	base->v[SPEC_MOON_LIT] = s->moon.illuminance_lx > 0.0;
+	base->v[SPEC_GROUND_BLACK] = a->ground_albedo[0] == 0 && a->ground_albedo[1] == 0 && a->ground_albedo[2] == 0;
+	base->v[SPEC_T_W] = (int32_t)s->quality.t[STATE_TRANSMITTANCE].width;
+	base->v[SPEC_T_H] = (int32_t)s->quality.t[STATE_TRANSMITTANCE].height;
+	base->v[SPEC_M_W] = (int32_t)s->quality.t[STATE_MULTISCATTER].width;
+	base->v[SPEC_M_H] = (int32_t)s->quality.t[STATE_MULTISCATTER].height;
+	/* multiscatter_dirs=0 switches the higher orders off: sky-view and
+	 * aerial perspective drop the term, and the multi-scattering table, if
+	 * asked for at all, is computed with the cheapest quadrature. */
+	base->v[SPEC_MS_DIRS] = s->quality.multiscatter_dirs ? (int32_t)s->quality.multiscatter_dirs : 2;
+	base->v[SPEC_MULTISCATTER_ON] = s->quality.multiscatter_dirs != 0;
+	/* The lobe constituent (common.glsl's ms_source) by its index among those in the shaders, plus 1. */
+	int delta = s->quality.multiscatter_dirs ? phase_delta_constituent(s, g1) : -1;
+	int lobe = s->quality.multiscatter_dirs ? phase_lobe_constituent(s, g1) : -1;
+	if (lobe >= 0 && constituent_active(&a->c[lobe])) {
+		int before = 0;
+		for (int i = 0; i < lobe; i++)
+			before += constituent_active(&a->c[i]);
+		base->v[SPEC_MOMENT_LOBE] = before + 1;
+	}
+	fill_delta(e, s, delta, p, base);
+}
+
+/* Delta-M for the higher orders (common.glsl's delta_source): the
+ * constituent's index among those in the shaders plus 1 in constant 23,
+ * its forward fraction f and the truncated phase's g' in layer1c.zw, and
+ * the ground's first bounce through the truncated phase, which is what
+ * scatters psi_ms in the scaled medium. Kept while the phase stays (a
+ * quadrature and 30000 phase evaluations, more than a sun change's tables). */
+static void fill_delta(struct eng *e, const struct sky_state *s, int delta, struct gpu_params *p,
+		       struct spec *base)
+{
+	const struct atmo *a = &s->atmo;
+	if (delta < 0 || !constituent_active(&a->c[delta]))
+		return;
+	int n = 0;
+	for (int i = 0; i < delta; i++)
+		n += constituent_active(&a->c[i]);
+	struct ground_cache *dc = &e->delta;
+	if (!dc->valid || dc->kind != a->c[delta].phase || dc->g != a->c[delta].g) {
+		double excess[PHASE_GROUND_N];
+		phase_delta_truncation(a->c[delta].phase, a->c[delta].g, &dc->legendre[0], &dc->legendre[1]);
+		phase_ground_excess(ATMO_PHASE_HENYEY_GREENSTEIN, dc->legendre[1], excess);
+		phase_ground_fit(excess, dc->fit);
+		dc->valid = true;
+		dc->kind = a->c[delta].phase;
+		dc->g = a->c[delta].g;
+	}
+	for (int k = 0; k < PHASE_GROUND_FIT; k++)
+		p->ground_fit[k][n] = (float)dc->fit[k];
+	p->c[n].layer1c[2] = (float)dc->legendre[0];
+	p->c[n].layer1c[3] = (float)dc->legendre[1];
+	double h, spread;
+	phase_delta_peak(a->c[delta].phase, a->c[delta].g, &h, &spread);
+	put4(p->delta_peak, h, spread, 0, 0);
+	base->v[SPEC_DELTA_LOBE] = n + 1;
+}
+
+/* The cameras of the aerial volumes: the state's, then each view's. */
+void eng_fill_views(const struct sky_state *s, float *out)
+{
+	double h0 = s->altitude_km > 0.0 ? s->altitude_km : 0.0;
+	double fwd[3], right[3], up[3];
+
+	for (uint32_t i = 0; i <= s->n_views; i++) {
+		const struct state_camera *c = i ? &s->views[i - 1].camera : &s->camera;
+		double h = i && !isnan(s->views[i - 1].altitude_km) ? s->views[i - 1].altitude_km : h0;
+		state_camera_basis(c, fwd, right, up);
+		put4(out + 12 * i, fwd[0], fwd[1], fwd[2], tan(c->vfov_deg * SKYMAP_PI / 360.0));
+		put4(out + 12 * i + 4, right[0], right[1], right[2], c->aspect);
+		put4(out + 12 * i + 8, up[0], up[1], up[2], h > 0.0 ? h : 0.0);
+	}
+}
+
+/* The constants one pass is specialized on: the others are zeroed so that a
+ * change that does not concern a pass reuses its cached pipeline. */
+struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t)
+{
+	struct spec k = *base;
+	const struct state_table_quality *q = &s->quality.t[t];
+
+	k.v[SPEC_OUT_W] = (int32_t)q->width;
+	k.v[SPEC_OUT_H] = (int32_t)q->height;
+	k.v[SPEC_OUT_D] = (int32_t)q->depth;
+	k.v[SPEC_STEPS] = (int32_t)q->steps;
+	if (t == STATE_TRANSMITTANCE) {
+		for (int i = 0; i < 4; i++)
+			k.v[SPEC_PHASE_0 + i] = 0;	/* extinction only */
+		k.v[SPEC_MOON_LIT] = k.v[SPEC_GROUND_BLACK] = 0;
+		k.v[SPEC_M_W] = k.v[SPEC_M_H] = k.v[SPEC_MS_DIRS] = 0;
+		k.v[SPEC_STEPS] = k.v[SPEC_EXP_MASK] = 0;	/* steps and profiles: the column pass's */
+	}
+	if (t != STATE_MULTISCATTER)
+		k.v[SPEC_MS_DIRS] = 0;
+	k.v[SPEC_MS_SUN_GROUP] = t == STATE_MULTISCATTER ? MS_SUN_GROUP : 0;
+	k.v[SPEC_SV_AZ_GROUP] = t == STATE_SKYVIEW ? SV_AZ_GROUP : 0;
+	if (t == STATE_MULTISCATTER)
+		k.v[SPEC_MOON_LIT] = k.v[SPEC_MULTISCATTER_ON] = 0;	/* the table is the term itself */
+	if (t == STATE_TRANSMITTANCE)
+		k.v[SPEC_MULTISCATTER_ON] = k.v[SPEC_MOMENT_LOBE] = k.v[SPEC_DELTA_LOBE] = 0;
+	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
+		k.v[SPEC_GROUND_BLACK] = 0;	/* the ground enters through the multiscatter table */
+	return k;
+}
+
+/* The column pass is specialized on the constituents' count and profile
+ * kinds, the transmittance table's size and its steps, nothing else. */
+struct spec eng_column_spec(const struct spec *base, const struct sky_state *s)
+{
+	const struct state_table_quality *q = &s->quality.t[STATE_TRANSMITTANCE];
+	struct spec k = { { 0 } };
+
+	k.v[SPEC_N_CONST] = base->v[SPEC_N_CONST];
+	k.v[SPEC_OUT_W] = (int32_t)q->width;
+	k.v[SPEC_OUT_H] = (int32_t)q->height;
+	k.v[SPEC_STEPS] = (int32_t)q->steps;
+	k.v[SPEC_EXP_MASK] = base->v[SPEC_EXP_MASK];
+	return k;
+}
+
+void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,
+		       struct column_key *ret)
+{
+	memset(ret, 0, sizeof(*ret));
+	memcpy(ret->planet, p->planet, sizeof(ret->planet));
+	ret->h_top = p->misc[3];
+	for (int i = 0; i < column_spec->v[SPEC_N_CONST]; i++) {
+		memcpy(ret->layers[i], p->c[i].layer0, 4 * sizeof(float));
+		memcpy(ret->layers[i] + 4, p->c[i].layer0c_1, 4 * sizeof(float));
+		memcpy(ret->layers[i] + 8, p->c[i].layer1c, 4 * sizeof(float));
+	}
+	ret->spec = *column_spec;
+}

@@ -1,0 +1,501 @@
+/* eng_run.c - running the passes: the pipeline cache, the tables'
+ * buffers, recording and submitting the command buffer, and completion. */
+#include "eng_internal.h"
+
+#include <errno.h>
+#include <poll.h>
+#include <string.h>
+#include <unistd.h>
+
+static double elapsed_ms(const struct timespec *a, const struct timespec *b)
+{
+	return (b->tv_sec - a->tv_sec) * 1e3 + (b->tv_nsec - a->tv_nsec) * 1e-6;
+}
+
+static int get_pipeline(struct eng *e, int t, const struct spec *key, VkPipeline *ret,
+			char *err, size_t err_size)
+{
+	int rc = 0;
+	for (int i = 0; i < e->n_pipes[t]; i++)
+		if (!memcmp(&e->pipes[t][i].key, key, sizeof(*key))) {
+			*ret = e->pipes[t][i].pipe;
+			return 0;
+		}
+	if (e->n_pipes[t] == MAX_PIPELINES) {
+		/* Evict the oldest variant; no work is in flight here. */
+		e->vk.vkDestroyPipeline(e->dev, e->pipes[t][0].pipe, NULL);
+		memmove(&e->pipes[t][0], &e->pipes[t][1], sizeof(e->pipes[t][0]) * (MAX_PIPELINES - 1));
+		e->n_pipes[t]--;
+	}
+	VkSpecializationMapEntry map[N_SPEC];
+	for (uint32_t i = 0; i < N_SPEC; i++)
+		map[i] = (VkSpecializationMapEntry){ i, i * 4, 4 };
+	/* Every constant for every pass: Vulkan ignores the ids a shader does
+	 * not declare. */
+	VkSpecializationInfo si = { N_SPEC, map, sizeof(key->v), key->v };
+	VkComputePipelineCreateInfo ci = { .sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO,
+		.stage = { .sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
+			   .stage = VK_SHADER_STAGE_COMPUTE_BIT, .module = e->modules[t],
+			   .pName = "main", .pSpecializationInfo = &si },
+		.layout = e->pipe_layout };
+	VkPipeline p;
+	VK_TRY(e->vk.vkCreateComputePipelines(e->dev, VK_NULL_HANDLE, 1, &ci, NULL, &p));
+	e->pipelines_created++;
+	e->pipes[t][e->n_pipes[t]].key = *key;
+	e->pipes[t][e->n_pipes[t]].pipe = p;
+	e->n_pipes[t]++;
+	*ret = p;
+fail:
+	return rc;
+}
+
+/* Points the descriptor set at the current buffers and views. */
+static void bind_buffers(struct eng *e)
+{
+	VkDescriptorBufferInfo bi[N_BINDINGS] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
+	VkWriteDescriptorSet w[N_BINDINGS];
+	for (int i = 0; i < N_BINDINGS; i++) {
+		w[i] = (VkWriteDescriptorSet){ .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
+			.dstSet = e->set, .dstBinding = (uint32_t)i, .descriptorCount = 1,
+			.descriptorType = eng_binding_type(i) };
+		if (i > STATE_N_TABLES && i < BINDING_VIEWS) {
+			w[i].pTexelBufferView = &e->lookup_view[i - 1 - STATE_N_TABLES];
+			continue;
+		}
+		if (i == BINDING_MOMENT_TEX) {
+			w[i].pTexelBufferView = &e->moment_view;
+			continue;
+		}
+		if (i == BINDING_COLUMNS_TEX) {
+			w[i].pTexelBufferView = &e->columns_view;
+			continue;
+		}
+		if (i == BINDING_VIEWS)
+			bi[i] = (VkDescriptorBufferInfo){ e->views.buf, 0, VK_WHOLE_SIZE };
+		else if (i == BINDING_COLUMNS)
+			bi[i] = (VkDescriptorBufferInfo){ e->columns.buf, 0, VK_WHOLE_SIZE };
+		else if (i == BINDING_ITERATE)
+			bi[i] = (VkDescriptorBufferInfo){ e->ms_iterate.buf, 0, VK_WHOLE_SIZE };
+		else if (i == BINDING_MOMENT)
+			bi[i] = (VkDescriptorBufferInfo){ e->moment.buf, 0, VK_WHOLE_SIZE };
+		else if (i > 0)
+			bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
+		w[i].pBufferInfo = &bi[i];
+	}
+	e->vk.vkUpdateDescriptorSets(e->dev, N_BINDINGS, w, 0, NULL);
+}
+
+/* (Re)allocates the tables whose size changed; returns the mask of tables
+ * that must be recomputed because their contents were lost. */
+static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret_lost,
+			 char *err, size_t err_size)
+{
+	VkFormat format = s->quality.storage == STATE_F16 ? VK_FORMAT_R16G16B16A16_SFLOAT
+							 : VK_FORMAT_R32G32B32A32_SFLOAT;
+	uint32_t lost = 0;
+	bool rebind = false;
+	int rc = 0;
+
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		size_t bytes = state_table_bytes(s, (enum state_table)t);
+		if (t == STATE_AERIAL)
+			bytes *= 1 + s->n_views;
+		if (e->table[t].buf && e->table_bytes[t] == bytes &&
+		    (t >= N_LOOKUPS || e->lookup_format[t] == format))
+			continue;
+		if (t < N_LOOKUPS && e->lookup_view[t]) {
+			e->vk.vkDestroyBufferView(e->dev, e->lookup_view[t], NULL);
+			e->lookup_view[t] = VK_NULL_HANDLE;
+		}
+		eng_buffer_free(e, &e->table[t]);
+		eng_buffer_free(e, &e->readback[t]);
+		e->table_bytes[t] = 0;
+		rc = eng_buffer_new(e, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+					  VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
+					  VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->table[t], err, err_size);
+		if (rc == 0)
+			rc = eng_buffer_new(e, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+					VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT,
+					VK_MEMORY_PROPERTY_HOST_CACHED_BIT, &e->readback[t], err, err_size);
+		if (rc < 0)
+			return rc;
+		if (t < N_LOOKUPS) {
+			VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
+				.buffer = e->table[t].buf, .format = format, .range = VK_WHOLE_SIZE };
+			VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->lookup_view[t]));
+			e->lookup_format[t] = format;
+		}
+		memset(e->readback[t].map, 0, bytes);
+		e->table_bytes[t] = bytes;
+		lost |= STATE_BIT(t);
+		rebind = true;
+	}
+	const struct state_table_quality *tq = &s->quality.t[STATE_TRANSMITTANCE];
+	VkDeviceSize column_bytes = (VkDeviceSize)tq->width * tq->height * 4 * sizeof(float);
+	if (!e->columns.buf || e->columns.bytes != column_bytes) {
+		eng_vec4_buffer_free(e, &e->columns, &e->columns_view);
+		e->columns_valid = false;
+		rc = eng_vec4_buffer_new(e, column_bytes, &e->columns, &e->columns_view, err, err_size);
+		if (rc < 0)
+			return rc;
+		rebind = true;
+	}
+	const struct state_table_quality *mq = &s->quality.t[STATE_MULTISCATTER];
+	VkDeviceSize iterate_bytes = e->table_bytes[STATE_MULTISCATTER] +
+				     (VkDeviceSize)mq->width * mq->height * 4 * sizeof(float);
+	if (!e->ms_iterate.buf || e->ms_iterate.bytes != iterate_bytes) {
+		eng_buffer_free(e, &e->ms_iterate);
+		rc = eng_buffer_new(e, iterate_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+						  VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->ms_iterate, err, err_size);
+		if (rc < 0)
+			return rc;
+		rebind = true;
+	}
+	VkDeviceSize moment_bytes = (VkDeviceSize)mq->width * mq->height * 4 * sizeof(float);
+	if (!e->moment.buf || e->moment.bytes != moment_bytes) {
+		eng_vec4_buffer_free(e, &e->moment, &e->moment_view);
+		/* Its contents go with the multi-scattering table's, which is
+		 * recomputed whenever its size (and so this one's) changes. */
+		rc = eng_vec4_buffer_new(e, moment_bytes, &e->moment, &e->moment_view, err, err_size);
+		if (rc < 0)
+			return rc;
+		rebind = true;
+	}
+	if (rebind)
+		bind_buffers(e);
+	*ret_lost = lost;
+fail:
+	return rc;
+}
+
+static void groups(const struct sky_state *s, int t, uint32_t *x, uint32_t *y)
+{
+	const struct state_table_quality *q = &s->quality.t[t];
+	/* Multi-scattering and sky-view invocations compute several texels of a row. */
+	uint32_t g = t == STATE_MULTISCATTER ? MS_SUN_GROUP : t == STATE_SKYVIEW ? SV_AZ_GROUP : 1;
+	uint32_t w = (q->width + g - 1) / g;
+	/* Workgroups are 8 x 8, but 4 x 16 for sky-view (skyview.comp). */
+	uint32_t lx = 8, ly = 8;
+	*x = (w + lx - 1) / lx;
+	*y = (q->height + ly - 1) / ly;
+}
+
+/* Records one pass: its dispatch between two timestamps (queries 2 pass and
+ * 2 pass + 1), then a barrier so that the next pass reads what it wrote. */
+static void record_pass(struct eng *e, int pass, VkPipeline pipe, uint32_t gx, uint32_t gy,
+			uint32_t gz)
+{
+	const VkMemoryBarrier compute_to_compute = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_SHADER_READ_BIT };
+
+	if (e->timestamps)
+		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
+					  2 * (uint32_t)pass);
+	e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipe);
+	e->vk.vkCmdDispatch(e->cmd, gx, gy, gz);
+	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+				   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &compute_to_compute, 0,
+				   NULL, 0, NULL);
+	if (e->timestamps)
+		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, e->queries,
+					  2 * (uint32_t)pass + 1);
+}
+
+/* Records the steps of the iteration of psi_ms after the multi-scattering
+ * pass: each step writes the next table into the scratch buffer, which is
+ * then copied over the table (later passes and the next step read it
+ * through the lookup view). One pair of timestamps spans all steps. */
+static void record_iteration(struct eng *e, const struct sky_state *s, const VkPipeline pipes[2],
+			     uint32_t steps)
+{
+	const VkMemoryBarrier to_copy = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_SHADER_READ_BIT,
+		.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_TRANSFER_WRITE_BIT };
+	const VkMemoryBarrier to_read = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+		.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+		.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT };
+	uint32_t gx, gy;
+
+	groups(s, STATE_MULTISCATTER, &gx, &gy);
+	if (e->timestamps)
+		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
+					  2 * PASS_MSITERATE);
+	for (uint32_t i = 0; i < steps; i++) {
+		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[i > 0]);
+		e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
+		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+					   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &to_copy, 0, NULL, 0, NULL);
+		VkBufferCopy c = { 0, 0, e->table_bytes[STATE_MULTISCATTER] };
+		e->vk.vkCmdCopyBuffer(e->cmd, e->ms_iterate.buf, e->table[STATE_MULTISCATTER].buf, 1, &c);
+		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &to_read, 0, NULL, 0,
+					   NULL);
+	}
+	if (e->timestamps)
+		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, e->queries,
+					  2 * PASS_MSITERATE + 1);
+}
+
+/* Whether the device can hold and dispatch every table of s: 0, or -EINVAL
+ * with the table and the limit in err. */
+static int check_limits(const struct eng *e, const struct sky_state *s, char *err, size_t err_size)
+{
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		const struct state_table_quality *q = &s->quality.t[t];
+		uint32_t gx, gy;
+		groups(s, t, &gx, &gy);
+		if (t < N_LOOKUPS && (uint64_t)q->width * q->height > e->limits.maxTexelBufferElements) {
+			eng_set_err(err, err_size, "%s_width: %ux%u texels exceed the device's %u for a lookup table",
+				state_table_names[t], q->width, q->height,
+				e->limits.maxTexelBufferElements);
+			return -EINVAL;
+		}
+		if (gx > e->limits.maxComputeWorkGroupCount[0] ||
+		    gy > e->limits.maxComputeWorkGroupCount[1] || q->width == 0 || q->height == 0) {
+			eng_set_err(err, err_size, "%s_width: %ux%u is beyond the device's limits",
+				state_table_names[t], q->width, q->height);
+			return -EINVAL;
+		}
+	}
+	return 0;
+}
+
+/* What one computation runs: the pipelines of the tables in mask, the
+ * column pass's when the kept columns do not fit (run_columns, key), and
+ * the steps of the iteration of psi_ms. */
+struct plan {
+	uint32_t mask;
+	VkPipeline pipes[STATE_N_TABLES];
+	VkPipeline column_pipe;
+	bool run_columns;
+	struct column_key key;
+	VkPipeline iterate_pipes[2];
+	uint32_t iterations;
+};
+
+/* Fills params and plan for s and mask, creating the pipelines it lacks. */
+static int make_plan(struct eng *e, const struct sky_state *s, uint32_t mask, struct gpu_params *params,
+		     struct plan *ret, char *err, size_t err_size)
+{
+	struct spec base;
+	int rc;
+
+	memset(ret, 0, sizeof(*ret));
+	ret->mask = mask;
+	eng_fill_params(e, s, params, &base);
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		if (mask & STATE_BIT(t)) {
+			struct spec k = eng_pass_spec(&base, s, t);
+			rc = get_pipeline(e, t, &k, &ret->pipes[t], err, err_size);
+			if (rc < 0)
+				return rc;
+		}
+	/* The iteration of psi_ms: its first step recovers L2 from the table,
+	 * the later ones read it back (SPEC_ITER_FIRST). */
+	ret->iterations = (mask & STATE_BIT(STATE_MULTISCATTER)) ? state_multiscatter_iterations(s) : 0;
+	for (int i = 0; i < 2 && ret->iterations > 0; i++) {
+		struct spec k = eng_pass_spec(&base, s, STATE_MULTISCATTER);
+		k.v[SPEC_ITER_FIRST] = i == 0;
+		rc = get_pipeline(e, PASS_MSITERATE, &k, &ret->iterate_pipes[i], err, err_size);
+		if (rc < 0)
+			return rc;
+	}
+	/* The column densities are recomputed only when what they depend on
+	 * changed; the same inputs give the same bits, so a table made from
+	 * kept columns is the one a fresh engine makes. */
+	struct spec ck = eng_column_spec(&base, s);
+	eng_column_key(params, &ck, &ret->key);
+	ret->run_columns = (mask & STATE_BIT(STATE_TRANSMITTANCE)) &&
+			   (!e->columns_valid || memcmp(&ret->key, &e->column_key, sizeof(ret->key)));
+	if (ret->run_columns)
+		return get_pipeline(e, PASS_COLUMNS, &ck, &ret->column_pipe, err, err_size);
+	return 0;
+}
+
+/* Records the plan's passes into e->cmd, then the copies of its tables to
+ * host memory. */
+static int record_plan(struct eng *e, const struct sky_state *s, const struct plan *pl, char *err,
+		       size_t err_size)
+{
+	int rc = 0;
+	VkCommandBufferBeginInfo bi = { .sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
+		.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT };
+	VK_TRY(e->vk.vkBeginCommandBuffer(e->cmd, &bi));
+	if (e->timestamps)
+		e->vk.vkCmdResetQueryPool(e->cmd, e->queries, 0, 2 * N_PASSES);
+	e->vk.vkCmdBindDescriptorSets(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, e->pipe_layout, 0, 1,
+				      &e->set, 0, NULL);
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		if (!(pl->mask & STATE_BIT(t)))
+			continue;
+		uint32_t gx, gy;
+		groups(s, t, &gx, &gy);
+		if (t == STATE_TRANSMITTANCE && pl->run_columns)
+			record_pass(e, PASS_COLUMNS, pl->column_pipe, gx, gy, 1);
+		/* Every view's volume in one dispatch: z is the view. */
+		record_pass(e, t, pl->pipes[t], gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1);
+		if (t == STATE_MULTISCATTER && pl->iterations > 0)
+			record_iteration(e, s, pl->iterate_pipes, pl->iterations);
+	}
+	VkMemoryBarrier to_copy = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT };
+	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+				   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &to_copy, 0, NULL, 0, NULL);
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		if (pl->mask & STATE_BIT(t)) {
+			VkBufferCopy c = { 0, 0, e->table_bytes[t] };
+			e->vk.vkCmdCopyBuffer(e->cmd, e->table[t].buf, e->readback[t].buf, 1, &c);
+		}
+	VkMemoryBarrier to_host = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+		.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT, .dstAccessMask = VK_ACCESS_HOST_READ_BIT };
+	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+				   0, 1, &to_host, 0, NULL, 0, NULL);
+	VK_TRY(e->vk.vkEndCommandBuffer(e->cmd));
+fail:
+	return rc;
+}
+
+int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err, size_t err_size)
+{
+	struct gpu_params params;
+	struct plan pl;
+	uint32_t lost = 0;
+	int rc = 0;
+
+	pthread_mutex_lock(&e->lock);
+	bool busy = e->pending || e->finished;
+	pthread_mutex_unlock(&e->lock);
+	if (busy) {
+		eng_set_err(err, err_size, "a computation is in flight");
+		return -EBUSY;
+	}
+	rc = check_limits(e, s, err, err_size);
+	if (rc == 0)
+		rc = ensure_tables(e, s, &lost, err, err_size);
+	if (rc < 0)
+		return rc;
+	/* Exactly mask: a table the caller did not ask for is neither computed
+	 * nor forced, so demand decides the cost. Only a dependency of mask
+	 * whose buffer was reallocated must come along. */
+	mask |= lost & state_closure(mask);
+	rc = make_plan(e, s, mask, &params, &pl, err, err_size);
+	if (rc < 0)
+		return rc;
+	memcpy(e->params.map, &params, sizeof(params));
+	eng_fill_views(s, e->views.map);
+	rc = record_plan(e, s, &pl, err, err_size);
+	if (rc < 0)
+		return rc;
+	VK_TRY(e->vk.vkResetFences(e->dev, 1, &e->fence));
+	VkSubmitInfo si = { .sType = VK_STRUCTURE_TYPE_SUBMIT_INFO, .commandBufferCount = 1,
+		.pCommandBuffers = &e->cmd };
+	clock_gettime(CLOCK_MONOTONIC, &e->submit_time);
+	VK_TRY(e->vk.vkQueueSubmit(e->queue, 1, &si, e->fence));
+
+	if (pl.run_columns) {
+		/* Invalidated again if the computation fails (eng_complete). */
+		e->column_key = pl.key;
+		e->columns_valid = true;
+	}
+	e->columns_in_flight = pl.run_columns;
+	e->iterations_in_flight = pl.iterations;
+	pthread_mutex_lock(&e->lock);
+	e->in_flight_mask = mask;
+	e->pending = true;
+	e->finished = false;
+	pthread_cond_signal(&e->cond);
+	pthread_mutex_unlock(&e->lock);
+	return 0;
+fail:
+	return rc;
+}
+
+int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_size)
+{
+	struct timespec now;
+	uint64_t count;
+	int rc = 0;
+
+	pthread_mutex_lock(&e->lock);
+	bool done = e->finished;
+	VkResult wr = e->wait_result;
+	uint32_t mask = e->in_flight_mask;
+	pthread_mutex_unlock(&e->lock);
+	if (!done)
+		return -EAGAIN;
+	clock_gettime(CLOCK_MONOTONIC, &now);
+	while (read(e->event_fd, &count, sizeof(count)) == sizeof(count))
+		;
+
+	struct eng_timing t = { .computed = mask, .total_ms = elapsed_ms(&e->submit_time, &now),
+		.columns = e->columns_in_flight };
+	pthread_mutex_lock(&e->lock);
+	e->finished = false;
+	pthread_mutex_unlock(&e->lock);
+	if (wr != VK_SUCCESS)
+		e->columns_valid = false;
+	VK_TRY(wr);
+	for (int i = 0; i < STATE_N_TABLES; i++) {
+		if (!(mask & STATE_BIT(i)))
+			continue;
+		VkMappedMemoryRange r = { .sType = VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE,
+			.memory = e->readback[i].mem, .size = VK_WHOLE_SIZE };
+		VK_TRY(e->vk.vkInvalidateMappedMemoryRanges(e->dev, 1, &r));
+	}
+	if (e->timestamps) {
+		uint64_t ts[2 * STATE_N_TABLES];
+		for (int i = 0; i < STATE_N_TABLES; i++) {
+			if (!(mask & STATE_BIT(i)))
+				continue;
+			VK_TRY(e->vk.vkGetQueryPoolResults(e->dev, e->queries, 2 * i, 2, sizeof(uint64_t) * 2,
+							   &ts[2 * i], sizeof(uint64_t),
+							   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+			t.table_ms[i] = (double)(ts[2 * i + 1] - ts[2 * i]) * e->timestamp_period_ns * 1e-6;
+		}
+		if (t.columns) {
+			VK_TRY(e->vk.vkGetQueryPoolResults(e->dev, e->queries, 2 * PASS_COLUMNS, 2,
+							   sizeof(uint64_t) * 2, ts, sizeof(uint64_t),
+							   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+			t.columns_ms = (double)(ts[1] - ts[0]) * e->timestamp_period_ns * 1e-6;
+			t.table_ms[STATE_TRANSMITTANCE] += t.columns_ms;
+		}
+		if (e->iterations_in_flight) {
+			VK_TRY(e->vk.vkGetQueryPoolResults(e->dev, e->queries, 2 * PASS_MSITERATE, 2,
+							   sizeof(uint64_t) * 2, ts, sizeof(uint64_t),
+							   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+			t.table_ms[STATE_MULTISCATTER] += (double)(ts[1] - ts[0]) * e->timestamp_period_ns * 1e-6;
+		}
+	}
+	*ret = t;
+	return 0;
+fail:
+	return rc;
+}
+
+int eng_wait(struct eng *e, struct eng_timing *ret, char *err, size_t err_size)
+{
+	struct pollfd p = { .fd = e->event_fd, .events = POLLIN };
+	for (;;) {
+		int rc = eng_complete(e, ret, err, err_size);
+		if (rc != -EAGAIN)
+			return rc;
+		pthread_mutex_lock(&e->lock);
+		bool idle = !e->pending && !e->finished;
+		pthread_mutex_unlock(&e->lock);
+		if (idle) {
+			eng_set_err(err, err_size, "nothing was submitted");
+			return -EINVAL;
+		}
+		if (poll(&p, 1, -1) < 0 && errno != EINTR)
+			return -errno;
+	}
+}
+
+int eng_compute(struct eng *e, const struct sky_state *s, uint32_t mask, struct eng_timing *ret,
+		char *err, size_t err_size)
+{
+	int rc = eng_submit(e, s, mask, err, err_size);
+	return rc < 0 ? rc : eng_wait(e, ret, err, err_size);
+}
