@@ -292,7 +292,7 @@ static void check_fresh(struct eng *e, const struct sky_state *s, const char *wh
 	eng_free(fresh);
 }
 
-/* Issue 7: optical depth is linear in the coefficients, so the engine keeps
+/* Optical depth is linear in the coefficients, so the engine keeps
  * the column densities of the transmittance texels and a change of
  * coefficients alone runs only exp(-sum ext_k L_k); what the columns depend
  * on (a scale height, a layer, the shell, the steps) runs the column pass. */

@@ -163,9 +163,9 @@ static double column_rising(const struct atmo_profile *p, const struct chord *c,
 }
 
 /* The column density of a profile of clamped linear layers (ozone's tent)
- * from altitude h along mu for a length d, in closed form. Steps that take
+ * from altitude h along mu for a length d, in closed form: steps that take
  * the altitude as linear in t miss its curvature near a grazing ray's
- * tangent point, where rows of the table rose by 0.11 %. The ray descends
+ * tangent point, enough to make the table's rows rise. The ray descends
  * to its tangent point (u < 0), then rises: each half is monotone in
  * altitude. */
 static double column_linear(const struct atmo_profile *p, double rb, double h, double mu, double d)

@@ -144,7 +144,7 @@ v3 model_multiscatter(const struct ctx *c, double h, double mu_s, double *ret_sh
 		 * turns linear for |s| < 1e-10 (a shift below 1e-5 texel): row 0's
 		 * horizon is mu = 0 exactly, where sqrt would blow the last-bit
 		 * difference of two mirrored views' mu up to 1e-8 and break the
-		 * 1e-9 mirror check of the model (tools/stab.c). */
+		 * 1e-9 mirror check of the model (truth/stab.c). */
 		double mh = skymap_horizon_cos(c->rb, (double)y / (n - 1) * c->shell);
 		double d = skymap_clamp(mu_s, -1.0, 1.0) - mh;
 		double sn = skymap_clamp(d < 0.0 ? d / (1.0 + mh) : d / (1.0 - mh), -1.0, 1.0);
