@@ -1,6 +1,6 @@
 /* daemon_harness.h - starts the real skyd on a private socket in a fresh
  * directory and talks to it as a client would; shared by the integration
- * tests. Readiness comes from skyd's sd_notify("READY=1") on a socket of
+ * tests and latbench. Readiness comes from skyd's sd_notify("READY=1") on a socket of
  * ours, never from a sleep. */
 #ifndef SKYD_DAEMON_HARNESS_H
 #define SKYD_DAEMON_HARNESS_H

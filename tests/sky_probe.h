@@ -34,7 +34,7 @@ static inline void probe_mars_sun5(struct sky_state *s, const char *pair)
 	probe_set(s, pair);
 }
 
-/* The rule of a term that `knob`=auto|off|on switches and pick (model.c)
+/* The rule of a term that `knob`=auto|off|on switches and pick (phase.h)
  * names the constituent of: none for the default Earth, the Mie layer when
  * forced on, Mars' dust under auto, none when off or with 2 directions. */
 static inline void probe_check_rule(int (*pick)(const struct sky_state *, const double *),

@@ -252,7 +252,7 @@ static void test_moon_light(void)
 	/* Mean-distance full moon: 0.314 lx outside the atmosphere. */
 	double full = astro_moon_illuminance_lx(0.0, 384400.0, 1.0);
 	CHECK_NEAR(full, 0.314, 0.002);
-	/* PHYSICS.md: a quarter moon is about 9 % of the full one. */
+	/* docs/physics.md: a quarter moon is about 9 % of the full one. */
 	CHECK_NEAR(astro_moon_illuminance_lx(90.0, 384400.0, 1.0) / full, 0.09, 0.01);
 	CHECK(astro_moon_illuminance_lx(180.0, 384400.0, 1.0) == 0.0);
 	CHECK(astro_moon_illuminance_lx(NAN, 384400.0, 1.0) == 0.0);

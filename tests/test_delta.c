@@ -148,10 +148,7 @@ static void test_limit(probe_sky_fn *sky, void *arg, const char *who)
 /* Mars, sun 5, 0.2 km: against the path tracer the isotropic phase read the
  * horizon 55 % low beside the sun and 20-30 % low elsewhere, and the
  * zenith 18 % high (test_moment); delta-M must raise the horizon and lower
- * the zenith (the model's on / off ratios were 2.04, 1.27, 1.35, 1.18 and
- * 0.94 when this was written, with the peak's own light and its widening;
- * 1.78, 1.28, 1.34, 1.14 and 0.94 without). The engine's ratios within 2 %
- * of the model's. */
+ * the zenith. The engine's ratios within 2 % of the model's. */
 static double model_ratio[N_DIRS];
 static const double lo[N_DIRS] = { 1.5, 1.1, 1.15, 1.05, 0.85 }, hi[N_DIRS] = { 2.1, 1.45, 1.5, 1.3, 0.99 };
 
@@ -203,9 +200,8 @@ static void test_mars_shape(probe_sky_fn *sky, void *arg, const char *who)
  * 0.2 km: the horizon 90 deg from the sun over the horizon 150 deg from it.
  * The path tracer reads 0.904 at 1 deg elevation and 0.889 at 2 deg
  * (`skybench accuracy`'s cached truth of mars-s5-h0.2, 1 % standard error
- * each); with the shape taken symmetric about the vertical (no
- * (T_xx - T_yy) term, multiscatter.comp) the model read 1.011 and 0.981,
- * with it 0.868 and 0.854. Within 6 %. */
+ * each); the shape's (T_xx - T_yy) term (multiscatter.comp) is what
+ * brings the model within 6 %. */
 static void test_mars_across(void)
 {
 	static const struct probe_dir across[] = { { 1, 90 }, { 1, 30 }, { 2, 90 }, { 2, 30 } };

@@ -292,7 +292,7 @@ static void check_fresh(struct eng *e, const struct sky_state *s, const char *wh
 	eng_free(fresh);
 }
 
-/* Issue 7: optical depth is linear in the coefficients, so the engine keeps
+/* Optical depth is linear in the coefficients, so the engine keeps
  * the column densities of the transmittance texels and a change of
  * coefficients alone runs only exp(-sum ext_k L_k); what the columns depend
  * on (a scale height, a layer, the shell, the steps) runs the column pass. */
@@ -343,166 +343,157 @@ static void test_columns(void)
 	eng_free(e);
 }
 
-int main(void)
+/* No subscriber: the start and a change compute nothing. */
+static void test_no_subscriber(struct conn *ctl)
 {
-	struct daemon d = { 0 };
-	struct conn ctl, sub, sub2, sampler;
-	char err[256];
-	const uint8_t *map = NULL;
-	struct stat st;
+	EXPECT(ctl, "last_computed", "none");
+	EXPECT(ctl, "tables_valid", "none");
+	EXPECT(ctl, "computations", "0");
+	change(ctl, "sun_elevation_deg=20");
+	EXPECT(ctl, "last_computed", "none");
+	EXPECT(ctl, "tables_needed", "none");
+	EXPECT(ctl, "computations", "0");
+}
 
-	harness_need_device();
-	if (eng_new(NULL, err, sizeof(err), &ref_eng) < 0) {
-		printf("skipped: %s\n", err);
-		return 77;
-	}
-	test_columns();
-	state_default(&mirror);
-	for (int i = 0; small[i]; i++)
-		mirror_set(small[i]);
-	if (daemon_start(&d, small) < 0 || conn_open(&ctl, d.sock) < 0) {
-		FAIL("skyd did not start");
-		return test_report("test_demand");
-	}
-	CHECK(conn_request(&ctl, "subscribe events=1", reply, sizeof(reply)) == 0);
-
-	/* No subscriber: the start and a change compute nothing. */
-	EXPECT(&ctl, "last_computed", "none");
-	EXPECT(&ctl, "tables_valid", "none");
-	EXPECT(&ctl, "computations", "0");
-	change(&ctl, "sun_elevation_deg=20");
-	EXPECT(&ctl, "last_computed", "none");
-	EXPECT(&ctl, "tables_needed", "none");
-	EXPECT(&ctl, "computations", "0");
-
-	/* Transmittance only (a view from space): that table alone. */
-	CHECK(conn_open(&sub, d.sock) == 0);
-	CHECK(conn_request(&sub, "subscribe tables=transmittance", reply, sizeof(reply)) == 0);
-	CHECK(sub.n_fds == 1);
-	if (sub.n_fds == 1 && fstat(sub.fds[0], &st) == 0) {
-		map = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_SHARED, sub.fds[0], 0);
-		if (map == MAP_FAILED)
-			map = NULL;
-	}
-	if (!map) {
-		FAIL("no region");
-		goto out;
-	}
-	settle(&ctl, ctl.event_generation + 1);
-	EXPECT(&ctl, "last_computed", "transmittance");
-	EXPECT(&ctl, "tables_needed", "transmittance");
+/* Transmittance only (a view from space): that table alone. map is the
+ * region of the subscription to it. */
+static void test_transmittance_only(struct conn *ctl, const uint8_t *map)
+{
+	settle(ctl, ctl->event_generation + 1);
+	EXPECT(ctl, "last_computed", "transmittance");
+	EXPECT(ctl, "tables_needed", "transmittance");
 	check_slot(map, T, "transmittance only");
 	/* A weather change on it: transmittance from the kept column densities,
 	 * the same bits as a full recompute. */
 	uint64_t columns = reply_u64(reply, "column_passes");
 	CHECK(columns >= 1);
-	change(&ctl, "mie_scattering_per_km=0.0041");
-	EXPECT(&ctl, "last_computed", "transmittance");
+	change(ctl, "mie_scattering_per_km=0.0041");
+	EXPECT(ctl, "last_computed", "transmittance");
 	CHECK(reply_u64(reply, "column_passes") == columns);
 	check_slot(map, T, "weather, transmittance only");
-	change(&ctl, "mie_scale_height_km=1.3");
-	EXPECT(&ctl, "last_computed", "transmittance");
+	change(ctl, "mie_scale_height_km=1.3");
+	EXPECT(ctl, "last_computed", "transmittance");
 	CHECK(reply_u64(reply, "column_passes") == columns + 1);
 	check_slot(map, T, "profile, transmittance only");
 
 	/* A time-of-day change leaves transmittance as it was: carried, not
 	 * recomputed. */
-	change(&ctl, "sun_elevation_deg=12 sun_azimuth_deg=200");
-	EXPECT(&ctl, "last_computed", "none");
+	change(ctl, "sun_elevation_deg=12 sun_azimuth_deg=200");
+	EXPECT(ctl, "last_computed", "none");
 	check_slot(map, T, "time of day, transmittance only");
+}
 
+/* sub, the transmittance subscriber, turns to a sky-view dome. */
+static void test_skyview(struct conn *ctl, struct conn *sub, const uint8_t *map)
+{
 	/* A sky-view dome: the missing dependencies and sky-view. */
-	CHECK(conn_request(&sub, "subscribe tables=skyview", reply, sizeof(reply)) == 0);
-	settle(&ctl, ctl.event_generation + 1);
-	EXPECT(&ctl, "last_computed", "multiscatter,skyview");
-	EXPECT(&ctl, "tables_needed", "transmittance,multiscatter,skyview");
+	CHECK(conn_request(sub, "subscribe tables=skyview", reply, sizeof(reply)) == 0);
+	settle(ctl, ctl->event_generation + 1);
+	EXPECT(ctl, "last_computed", "multiscatter,skyview");
+	EXPECT(ctl, "tables_needed", "transmittance,multiscatter,skyview");
 	check_slot(map, T | M | S, "sky-view dome");
 
 	/* Time of day with sky-view in use: sky-view alone. */
-	change(&ctl, "sun_elevation_deg=5");
-	EXPECT(&ctl, "last_computed", "skyview");
+	change(ctl, "sun_elevation_deg=5");
+	EXPECT(ctl, "last_computed", "skyview");
 	check_slot(map, T | M | S, "time of day, sky-view");
 	/* Moon and observer position are the same kind of change. */
-	change(&ctl, "moon_illuminance_lx=0.3 moon_elevation_deg=40");
-	EXPECT(&ctl, "last_computed", "skyview");
-	change(&ctl, "altitude_km=1.5");
-	EXPECT(&ctl, "last_computed", "skyview");
+	change(ctl, "moon_illuminance_lx=0.3 moon_elevation_deg=40");
+	EXPECT(ctl, "last_computed", "skyview");
+	change(ctl, "altitude_km=1.5");
+	EXPECT(ctl, "last_computed", "skyview");
 	check_slot(map, T | M | S, "observer position");
 
 	/* A camera change with no aerial perspective in use: nothing. */
-	change(&ctl, "camera_yaw_deg=90");
-	EXPECT(&ctl, "last_computed", "none");
+	change(ctl, "camera_yaw_deg=90");
+	EXPECT(ctl, "last_computed", "none");
 	check_slot(map, T | M | S, "camera, no aerial");
+}
 
-	/* A second client asks for aerial perspective: it alone. */
-	CHECK(conn_open(&sub2, d.sock) == 0);
+/* A second client asks for aerial perspective beside the sky-view dome,
+ * and leaves. */
+static void test_aerial(struct conn *ctl, struct daemon *d, const uint8_t *map)
+{
+	struct conn sub2;
+
+	/* Aerial perspective added: it alone. */
+	CHECK(conn_open(&sub2, d->sock) == 0);
 	CHECK(conn_request(&sub2, "subscribe tables=aerial", reply, sizeof(reply)) == 0);
-	settle(&ctl, ctl.event_generation + 1);
-	EXPECT(&ctl, "last_computed", "aerial");
+	settle(ctl, ctl->event_generation + 1);
+	EXPECT(ctl, "last_computed", "aerial");
 	check_slot(map, T | M | S | A, "aerial added");
 
 	/* Camera: aerial only. Time of day: sky-view and aerial. */
-	change(&ctl, "camera_pitch_deg=10 camera_vfov_deg=40");
-	EXPECT(&ctl, "last_computed", "aerial");
+	change(ctl, "camera_pitch_deg=10 camera_vfov_deg=40");
+	EXPECT(ctl, "last_computed", "aerial");
 	check_slot(map, T | M | S | A, "camera");
-	change(&ctl, "sun_elevation_deg=25");
-	EXPECT(&ctl, "last_computed", "skyview,aerial");
+	change(ctl, "sun_elevation_deg=25");
+	EXPECT(ctl, "last_computed", "skyview,aerial");
 	check_slot(map, T | M | S | A, "time of day, full scene");
 
 	/* Weather and atmosphere: everything. */
-	change(&ctl, "mie_scattering_per_km=0.008");
-	EXPECT(&ctl, "last_computed", "transmittance,multiscatter,skyview,aerial");
+	change(ctl, "mie_scattering_per_km=0.008");
+	EXPECT(ctl, "last_computed", "transmittance,multiscatter,skyview,aerial");
 	check_slot(map, T | M | S | A, "weather");
 
 	/* A change that leaves every table as it was: no new generation. */
-	CHECK(conn_request(&ctl, "status", reply, sizeof(reply)) == 0);
+	CHECK(conn_request(ctl, "status", reply, sizeof(reply)) == 0);
 	uint64_t gen = reply_u64(reply, "generation"), n = reply_u64(reply, "computations");
-	CHECK(conn_request(&ctl, "set sun_elevation_deg=25 camera_pitch_deg=10", reply, sizeof(reply)) == 0);
+	CHECK(conn_request(ctl, "set sun_elevation_deg=25 camera_pitch_deg=10", reply, sizeof(reply)) == 0);
 	CHECK(reply_u64(reply, "generation") == gen);
-	CHECK(conn_request(&ctl, "status", reply, sizeof(reply)) == 0);
+	CHECK(conn_request(ctl, "status", reply, sizeof(reply)) == 0);
 	CHECK(reply_u64(reply, "generation") == gen && reply_u64(reply, "computations") == n);
 
 	/* Multi-scattering switched off: sky-view and aerial perspective no
 	 * longer need its table, so it is not computed and leaves the slot. */
-	change(&ctl, "multiscatter_dirs=0");
-	EXPECT(&ctl, "last_computed", "skyview,aerial");
-	EXPECT(&ctl, "tables_needed", "transmittance,skyview,aerial");
+	change(ctl, "multiscatter_dirs=0");
+	EXPECT(ctl, "last_computed", "skyview,aerial");
+	EXPECT(ctl, "tables_needed", "transmittance,skyview,aerial");
 	check_slot(map, T | S | A, "multi-scattering off");
-	change(&ctl, "multiscatter_dirs=2");
-	EXPECT(&ctl, "last_computed", "multiscatter,skyview,aerial");
+	change(ctl, "multiscatter_dirs=2");
+	EXPECT(ctl, "last_computed", "multiscatter,skyview,aerial");
 	check_slot(map, T | M | S | A, "multi-scattering on");
 
 	/* The aerial client leaves: its table is no longer computed. */
 	hang_up(&sub2);
-	EXPECT(&ctl, "demand", "skyview");
-	change(&ctl, "camera_roll_deg=5 sun_elevation_deg=35");
-	EXPECT(&ctl, "last_computed", "skyview");
+	EXPECT(ctl, "demand", "skyview");
+	change(ctl, "camera_roll_deg=5 sun_elevation_deg=35");
+	EXPECT(ctl, "last_computed", "skyview");
 	check_slot(map, T | M | S, "aerial client gone");
+}
 
-	/* A sample of a table nobody computes: it becomes this connection's
-	 * demand and the reply comes with the generation that has it. */
-	CHECK(conn_request(&sub, "unsubscribe", reply, sizeof(reply)) == 0);
-	change(&ctl, "sun_elevation_deg=45");
-	EXPECT(&ctl, "last_computed", "none");
-	CHECK(conn_open(&sampler, d.sock) == 0);
+/* A sample of a table nobody computes: it becomes this connection's
+ * demand and the reply comes with the generation that has it. sub stops
+ * subscribing first. */
+static void test_sampler(struct conn *ctl, struct conn *sub, struct daemon *d, const uint8_t *map)
+{
+	struct conn sampler;
+
+	CHECK(conn_request(sub, "unsubscribe", reply, sizeof(reply)) == 0);
+	change(ctl, "sun_elevation_deg=45");
+	EXPECT(ctl, "last_computed", "none");
+	CHECK(conn_open(&sampler, d->sock) == 0);
 	CHECK(conn_request(&sampler, "sample sky el_deg=20 az_deg=90", reply, sizeof(reply)) == 0);
 	CHECK(strstr(reply, "luminance_cd_m2: ") != NULL);
-	EXPECT(&ctl, "demand", "skyview");
-	EXPECT(&ctl, "last_computed", "skyview");
+	EXPECT(ctl, "demand", "skyview");
+	EXPECT(ctl, "last_computed", "skyview");
 	check_slot(map, T | M | S, "sampled sky-view");
 	/* The sampler's demand lasts while it is connected. */
-	change(&ctl, "sun_elevation_deg=50");
-	EXPECT(&ctl, "last_computed", "skyview");
+	change(ctl, "sun_elevation_deg=50");
+	EXPECT(ctl, "last_computed", "skyview");
 	CHECK(conn_request(&sampler, "sample sun", reply, sizeof(reply)) == 0);
 	CHECK(strstr(reply, "illuminance_lx: ") != NULL);
 	hang_up(&sampler);
-	EXPECT(&ctl, "demand", "none");
+	EXPECT(ctl, "demand", "none");
+}
 
-	test_views(&ctl, &d);
-
-	/* The pipelines of the variants in use are cached: a repeat, or a
-	 * switch back to a variant seen before, builds none. */
+/* The pipelines of the variants in use are cached: a repeat, or a switch
+ * back to a variant seen before, builds none. */
+static void test_pipeline_cache(void)
+{
 	struct eng_timing t;
+	char err[256];
+
 	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
 	uint64_t built = eng_pipelines_created(ref_eng);
 	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
@@ -524,8 +515,44 @@ int main(void)
 	mirror_set("multiscatter_dirs=2");
 	CHECK(eng_compute(ref_eng, &mirror, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
 	CHECK(eng_pipelines_created(ref_eng) == built);
+}
 
-out:
+int main(void)
+{
+	struct daemon d = { 0 };
+	struct conn ctl, sub;
+	char err[256];
+
+	harness_need_device();
+	if (eng_new(NULL, err, sizeof(err), &ref_eng) < 0) {
+		printf("skipped: %s\n", err);
+		return 77;
+	}
+	test_columns();
+	state_default(&mirror);
+	for (int i = 0; small[i]; i++)
+		mirror_set(small[i]);
+	if (daemon_start(&d, small) < 0 || conn_open(&ctl, d.sock) < 0) {
+		FAIL("skyd did not start");
+		return test_report("test_demand");
+	}
+	CHECK(conn_request(&ctl, "subscribe events=1", reply, sizeof(reply)) == 0);
+	test_no_subscriber(&ctl);
+
+	CHECK(conn_open(&sub, d.sock) == 0);
+	CHECK(conn_request(&sub, "subscribe tables=transmittance", reply, sizeof(reply)) == 0);
+	CHECK(sub.n_fds == 1);
+	const uint8_t *map = sub.n_fds == 1 ? map_last(&sub) : NULL;
+	if (!map) {
+		FAIL("no region");
+	} else {
+		test_transmittance_only(&ctl, map);
+		test_skyview(&ctl, &sub, map);
+		test_aerial(&ctl, &d, map);
+		test_sampler(&ctl, &sub, &d, map);
+		test_views(&ctl, &d);
+		test_pipeline_cache();
+	}
 	conn_close(&sub);
 	conn_close(&ctl);
 	daemon_cleanup(&d);

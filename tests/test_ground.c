@@ -1,8 +1,8 @@
 /* test_ground.c - the ground's first bounce seen through each constituent's
  * phase: the hemisphere factor k against a brute-force integral, and the
  * model's sky over a sunlit ground in a thin atmosphere against single
- * scattering of the ground's light, which the isotropic treatment read 14
- * times too bright at the zenith for Mie (g = 0.8). */
+ * scattering of the ground's light, which an isotropic treatment gets many
+ * times too bright at the zenith for a forward-peaked phase. */
 #include <math.h>
 #include <stdio.h>
 
@@ -85,12 +85,11 @@ static void check_fit(void)
 		enum atmo_phase kind;
 		double g, limit;
 	} cases[] = {
-		/* Measured between the points: 1.4e-3, 7.7e-4, 5.3e-3, 4.9e-5. */
 		{ ATMO_PHASE_CORNETTE_SHANKS, 0.8, 2e-3 },	/* Earth's Mie */
 		{ ATMO_PHASE_CORNETTE_SHANKS, 0.85, 2e-3 },	/* Mars' dust */
 		{ ATMO_PHASE_HENYEY_GREENSTEIN, 0.95, 8e-3 },
 		{ ATMO_PHASE_HENYEY_GREENSTEIN, -0.6, 1e-3 },
-		{ ATMO_PHASE_RAYLEIGH, 0.0, 1e-6 },	/* the brute force's own error: 3e-8 */
+		{ ATMO_PHASE_RAYLEIGH, 0.0, 1e-6 },	/* the brute force's own error */
 	};
 	static const double between[] = { 0.25, 0.5, 1.5, 5.5, 15.5, 30.5 };	/* in table steps */
 	double e[PHASE_GROUND_N], coef[PHASE_GROUND_FIT];

@@ -2,8 +2,8 @@
  * forward-peaked phase (ms_source in shaders/common.glsl): the phases'
  * Legendre moments against closed forms, the rule that switches it on, and
  * what it does to Mars' sky in the model, and the engine's sky doing the
- * same (test_engine's PSNR bound alone passed a shape with band 1's sign
- * flipped: 58 dB against 75). */
+ * same (test_engine's PSNR bound alone does not catch a shape with band
+ * 1's sign flipped). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -74,8 +74,7 @@ static void mars_ratios(probe_sky_fn *sky, void *arg, double ret[N_MARS_DIRS])
 /* Mars, sun 5 deg at azimuth 180, 0.2 km: against the path tracer the
  * isotropic phase read the horizon 30 deg beside the sun 60 % low, the
  * horizon elsewhere 20-30 % low and the zenith 18 % high; the shape must
- * move each the right way (the model's ratios with it on / off were 1.48,
- * 1.12 and 0.74 when this was written). */
+ * move each the right way. */
 static double model_ratio[N_MARS_DIRS];
 
 static void test_mars_sky(void)
@@ -91,7 +90,7 @@ static void test_mars_sky(void)
 	}
 }
 
-/* The engine's ratios within 2 % of the model's (they agree to 0.3 %). */
+/* The engine's ratios within 2 % of the model's. */
 static void test_engine_mars_sky(struct eng *e)
 {
 	double r[N_MARS_DIRS] = { 0 };

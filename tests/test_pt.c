@@ -84,8 +84,8 @@ static void test_single_scatter(void)
 /* Earth with every coefficient x0.01 over a black ground: all orders are the
  * first order plus higher orders whose share grows with the optical depth.
  * The slack allows 5 vertical optical depths of the channel relative (1.4 %
- * in blue, 0.2 % in red); the excess measured is 0.2-1.0 % in blue and within
- * the noise in red, and it shrinks with the scale factor. */
+ * in blue, 0.2 % in red), well above the excess, which shrinks with the
+ * scale factor. */
 static void test_thin(void)
 {
 	struct atmo a;
@@ -216,15 +216,12 @@ static void test_disort_slab(void)
  * flux pi F per unit area normal to the beam with F = 1, so a sun of
  * illuminance pi gives radiance in the tables' units directly.
  *
- * No tabulated values for optical depth 0.1 could be found through the
- * search tools available here, so this uses 0.5. Coulson's tables are
- * polarized (vector) radiative transfer; this tracer, like the sky tables,
- * is scalar. Neglecting polarization changes multiply scattered Rayleigh
- * intensity by up to about 10 % (Mishchenko, Lacis & Travis 1994, JQSRT 51;
- * Emde & Mayer 2019 find +8 % near a 90 degree phase angle): here nadir
- * (phase angle 78 degrees) reads +9.4 %, while the same code agrees with
- * the scalar DISORT-checked slab above to 0.3 %. The bound is therefore
- * 12 %, and the deviations are printed. */
+ * Coulson's tables are polarized (vector) radiative transfer; this tracer,
+ * like the sky tables, is scalar. Neglecting polarization changes multiply
+ * scattered Rayleigh intensity by up to about 10 % (Mishchenko, Lacis &
+ * Travis 1994, JQSRT 51; Emde & Mayer 2019 find +8 % near a 90 degree phase
+ * angle), so the bound is 12 % while the scalar slab above holds to its
+ * noise; the deviations are printed. */
 static void test_coulson(void)
 {
 	struct atmo a;

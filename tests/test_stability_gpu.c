@@ -1,4 +1,5 @@
-/* test_stability_gpu.c - issue 6 on the Vulkan engine: the named stiff cases
+/* test_stability_gpu.c - the stiff and extreme atmospheres on the Vulkan
+ * engine: the named stiff cases
  * (invariants, float32 against the float64 model at the same step counts,
  * an observer at 1 m as accurate as at 1 km, sky continuous through sunset)
  * and 300 seeded random atmospheres. Exits 77 without a Vulkan device. */

@@ -1,5 +1,6 @@
-/* test_stability_model.c - issue 6 on the double-precision model: every
- * named stiff case of PHYSICS.md and 10,000 seeded random atmospheres keep
+/* test_stability_model.c - the stiff and extreme atmospheres on the
+ * double-precision model: every named stiff case of docs/physics.md and
+ * 10,000 seeded random atmospheres keep
  * the table invariants (finite, >= 0, T in [0, 1] and monotone along rays,
  * exact vacuum, mirror symmetry, sky continuous through sunset). */
 #include <math.h>

@@ -141,7 +141,7 @@ static void usage(FILE *f)
 		   "  perf   times each table, sky-view + aerial perspective, and the whole set, each\n"
 		   "         from scratch (transmittance with its column densities; also with them kept)\n"
 		   "       skybench stability --markdown FILE\n"
-		   "  stability  the stiff cases of PHYSICS.md: invariants and precision as markdown\n"
+		   "  stability  the stiff cases of docs/physics.md: invariants and precision as markdown\n"
 		   "       skybench demand [--runs N] [--markdown] [key=value ...]\n"
 		   "  demand [--runs N] [--markdown] [key=value ...]: each kind of scene with only the\n"
 		   "         tables it needs against a full recompute (docs/performance.md)\n"

@@ -106,122 +106,150 @@ static double now_s(void)
 	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-int main(int argc, char **argv)
-{
-	static struct pt_dir dirs[MAX_DIRS];
-	static struct pt_result res[MAX_DIRS];
+/* The command line's settings. */
+struct args {
 	struct sky_state s;
 	struct pt_options opt;
+	size_t n;		/* directions */
+	int reference;
+	struct pt_approx ap;
+	uint64_t delta_m;	/* 1 + --delta-m's constituent, 0 none */
+	double delta_f;		/* --delta-f, < 0 for the phase's own */
+};
+
+/* Sets option a from its value v. Returns 0, -EINVAL for a bad value, or
+ * -ENOENT for an option that does not exist. */
+static int set_option(struct args *g, struct pt_dir *dirs, const char *a, const char *v)
+{
+	struct pt_options *opt = &g->opt;
+	uint64_t u;
+	double d;
+	int bad = 0;
+	if (strcmp(a, "--error") == 0)
+		bad = parse_double(v, &d) < 0 || d < 0.0 || (opt->rel_error = d, 0);
+	else if (strcmp(a, "--threads") == 0)
+		bad = parse_u64(v, &u) < 0 || u > 256 || (opt->threads = (int)u, 0);
+	else if (strcmp(a, "--seed") == 0)
+		bad = parse_u64(v, &u) < 0 || (opt->seed = u, 0);
+	else if (strcmp(a, "--min-samples") == 0)
+		bad = parse_u64(v, &u) < 0 || (opt->min_samples = u, 0);
+	else if (strcmp(a, "--max-samples") == 0)
+		bad = parse_u64(v, &u) < 0 || !u || (opt->max_samples = u, 0);
+	else if (strcmp(a, "--batch") == 0)
+		bad = parse_u64(v, &u) < 0 || !u || u > (1u << 30) || (opt->batch = (uint32_t)u, 0);
+	else if (strcmp(a, "--delta-m") == 0)
+		bad = parse_u64(v, &u) < 0 || u >= ATMO_MAX_CONSTITUENTS || (g->delta_m = u + 1, 0);
+	else if (strcmp(a, "--delta-f") == 0)
+		bad = parse_double(v, &d) < 0 || !(d >= 0.0 && d < 1.0) || (g->delta_f = d, 0);
+	else if (strcmp(a, "--dirs") == 0)
+		bad = parse_dirs(v, dirs, &g->n) < 0;
+	else if (strcmp(a, "--mode") == 0) {
+		if (strcmp(v, "sky") == 0)
+			opt->mode = PT_SKY;
+		else if (strcmp(v, "single") == 0)
+			opt->mode = PT_SINGLE;
+		else if (strcmp(v, "ground") == 0)
+			opt->mode = PT_GROUND;
+		else
+			bad = 1;
+	} else {
+		return -ENOENT;
+	}
+	return bad ? -EINVAL : 0;
+}
+
+/* --delta-m's approximation: f (the phase's second Legendre moment unless
+ * --delta-f) and g'. Returns 0, or 2 for a constituent the state lacks. */
+static int set_delta_m(struct args *g)
+{
+	if (!g->delta_m)
+		return 0;
+	const struct atmo_constituent *c = &g->s.atmo.c[g->delta_m - 1];
+	if ((int)g->delta_m > g->s.atmo.n_constituents) {
+		fprintf(stderr, "skytruth: --delta-m: no constituent %d\n", (int)g->delta_m - 1);
+		return 2;
+	}
+	g->ap.delta_m = (int)g->delta_m;
+	g->ap.delta_f = g->delta_f >= 0.0 ? g->delta_f : phase_legendre(c->phase, c->g, 2);
+	g->ap.delta_g = (phase_legendre(c->phase, c->g, 1) - g->ap.delta_f) / (1.0 - g->ap.delta_f);
+	return 0;
+}
+
+/* Parses the command line into g and dirs. Returns -1 to go on, or the
+ * exit status: 0 after --help, 1 or 2 on an error (said on stderr). */
+static int parse_args(int argc, char **argv, struct args *g, struct pt_dir *dirs)
+{
 	char err[256];
-	size_t n = 0;
-	int reference = 0;
-	struct pt_approx ap = { 0 };
-	uint64_t delta_m = 0;
-	double delta_f = -1.0;
 
-	state_default(&s);
-	pt_options_default(&opt);
-	if (parse_dirs(default_dirs, dirs, &n) < 0)
+	state_default(&g->s);
+	pt_options_default(&g->opt);
+	if (parse_dirs(default_dirs, dirs, &g->n) < 0)
 		return 1;
-
 	for (int i = 1; i < argc; i++) {
 		const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-		uint64_t u;
-		double d;
 		if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
 			usage(stdout);
 			return 0;
 		} else if (strcmp(a, "--reference") == 0) {
-			reference = 1;
+			g->reference = 1;
 		} else if (strcmp(a, "--isotropic") == 0) {
-			ap.isotropic = 1;
+			g->ap.isotropic = 1;
 		} else if (strcmp(a, "--delta-excess") == 0) {
-			ap.delta_excess = 1;
+			g->ap.delta_excess = 1;
 		} else if (strncmp(a, "--", 2) == 0) {
 			if (!v) {
 				fprintf(stderr, "skytruth: %s needs a value\n", a);
 				return 2;
 			}
 			i++;
-			int bad = 0;
-			if (strcmp(a, "--error") == 0)
-				bad = parse_double(v, &d) < 0 || d < 0.0 || (opt.rel_error = d, 0);
-			else if (strcmp(a, "--threads") == 0)
-				bad = parse_u64(v, &u) < 0 || u > 256 || (opt.threads = (int)u, 0);
-			else if (strcmp(a, "--seed") == 0)
-				bad = parse_u64(v, &u) < 0 || (opt.seed = u, 0);
-			else if (strcmp(a, "--min-samples") == 0)
-				bad = parse_u64(v, &u) < 0 || (opt.min_samples = u, 0);
-			else if (strcmp(a, "--max-samples") == 0)
-				bad = parse_u64(v, &u) < 0 || !u || (opt.max_samples = u, 0);
-			else if (strcmp(a, "--batch") == 0)
-				bad = parse_u64(v, &u) < 0 || !u || u > (1u << 30) ||
-				      (opt.batch = (uint32_t)u, 0);
-			else if (strcmp(a, "--delta-m") == 0)
-				bad = parse_u64(v, &u) < 0 || u >= ATMO_MAX_CONSTITUENTS || (delta_m = u + 1, 0);
-			else if (strcmp(a, "--delta-f") == 0)
-				bad = parse_double(v, &d) < 0 || !(d >= 0.0 && d < 1.0) || (delta_f = d, 0);
-			else if (strcmp(a, "--dirs") == 0)
-				bad = parse_dirs(v, dirs, &n) < 0;
-			else if (strcmp(a, "--mode") == 0) {
-				if (strcmp(v, "sky") == 0)
-					opt.mode = PT_SKY;
-				else if (strcmp(v, "single") == 0)
-					opt.mode = PT_SINGLE;
-				else if (strcmp(v, "ground") == 0)
-					opt.mode = PT_GROUND;
-				else
-					bad = 1;
-			} else {
+			int rc = set_option(g, dirs, a, v);
+			if (rc == -ENOENT) {
 				fprintf(stderr, "skytruth: unknown option %s\n", a);
 				usage(stderr);
 				return 2;
 			}
-			if (bad) {
+			if (rc < 0) {
 				fprintf(stderr, "skytruth: %s: bad value '%s'\n", a, v);
 				return 2;
 			}
-		} else if (state_set_pair(&s, a, NULL, err, sizeof(err)) < 0) {
+		} else if (state_set_pair(&g->s, a, NULL, err, sizeof(err)) < 0) {
 			fprintf(stderr, "skytruth: %s\n", err);
 			return 2;
 		}
 	}
-	if (state_validate(&s, 0, err, sizeof(err)) < 0) {
+	if (state_validate(&g->s, 0, err, sizeof(err)) < 0) {
 		fprintf(stderr, "skytruth: %s\n", err);
 		return 2;
 	}
+	return set_delta_m(g) ? 2 : -1;
+}
 
-	if (delta_m) {
-		const struct atmo_constituent *c = &s.atmo.c[delta_m - 1];
-		if ((int)delta_m > s.atmo.n_constituents) {
-			fprintf(stderr, "skytruth: --delta-m: no constituent %d\n", (int)delta_m - 1);
-			return 2;
-		}
-		ap.delta_m = (int)delta_m;
-		ap.delta_f = delta_f >= 0.0 ? delta_f : phase_legendre(c->phase, c->g, 2);
-		ap.delta_g = (phase_legendre(c->phase, c->g, 1) - ap.delta_f) / (1.0 - ap.delta_f);
-	}
-
-	struct pt_sun sun = { .elevation_deg = s.sun.elevation_deg,
-		.azimuth_deg = s.sun.azimuth_deg,
-		.angular_radius_deg = s.sun.angular_radius_deg };
+/* Traces g's directions and prints one line each, between a header and
+ * the time taken. Returns the exit status. */
+static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_result *res)
+{
+	const struct sky_state *s = &g->s;
+	const struct pt_approx *ap = &g->ap;
+	struct pt_sun sun = { .elevation_deg = s->sun.elevation_deg,
+		.azimuth_deg = s->sun.azimuth_deg,
+		.angular_radius_deg = s->sun.angular_radius_deg };
 	for (int ch = 0; ch < 3; ch++)
-		sun.illuminance[ch] = s.sun.illuminance_lx * s.sun.color[ch];
+		sun.illuminance[ch] = s->sun.illuminance_lx * s->sun.color[ch];
 
 	static const char *const modes[] = { "sky", "single", "ground" };
 	printf("# skytruth: preset %s altitude_km %.9g sun_elevation_deg %.9g "
 	       "sun_azimuth_deg %.9g illuminance %.9g,%.9g,%.9g mode %s error %g seed %llu"
 	       " isotropic %d delta_m %d f %.6g g' %.6g\n",
-	       s.preset, s.altitude_km, sun.elevation_deg, sun.azimuth_deg,
-	       sun.illuminance[0], sun.illuminance[1], sun.illuminance[2], modes[opt.mode],
-	       opt.rel_error, (unsigned long long)opt.seed, ap.isotropic, ap.delta_m - 1, ap.delta_f,
-	       ap.delta_g);
+	       s->preset, s->altitude_km, sun.elevation_deg, sun.azimuth_deg,
+	       sun.illuminance[0], sun.illuminance[1], sun.illuminance[2], modes[g->opt.mode],
+	       g->opt.rel_error, (unsigned long long)g->opt.seed, ap->isotropic, ap->delta_m - 1,
+	       ap->delta_f, ap->delta_g);
 	fflush(stdout);
 
 	double t0 = now_s();
-	int r = ap.isotropic || ap.delta_m ?
-		pt_render_approx(&s.atmo, s.altitude_km, &sun, dirs, n, &opt, &ap, res) :
-		pt_render(&s.atmo, s.altitude_km, &sun, dirs, n, &opt, res);
+	int r = ap->isotropic || ap->delta_m ?
+		pt_render_approx(&s->atmo, s->altitude_km, &sun, dirs, g->n, &g->opt, ap, res) :
+		pt_render(&s->atmo, s->altitude_km, &sun, dirs, g->n, &g->opt, res);
 	double elapsed = now_s() - t0;
 	if (r < 0) {
 		fprintf(stderr, "skytruth: path tracing failed: %s\n", strerror(-r));
@@ -230,15 +258,15 @@ int main(int argc, char **argv)
 
 	uint64_t total = 0;
 	printf("# elevation_deg azimuth_deg L_r L_g L_b se_r se_g se_b samples%s\n",
-	       reference ? " ref_r ref_g ref_b" : "");
-	for (size_t i = 0; i < n; i++) {
+	       g->reference ? " ref_r ref_g ref_b" : "");
+	for (size_t i = 0; i < g->n; i++) {
 		printf("%.6g %.6g %.9g %.9g %.9g %.3g %.3g %.3g %llu", dirs[i].elevation_deg,
 		       dirs[i].azimuth_deg, res[i].radiance[0], res[i].radiance[1],
 		       res[i].radiance[2], res[i].std_error[0], res[i].std_error[1],
 		       res[i].std_error[2], (unsigned long long)res[i].samples);
-		if (reference) {
+		if (g->reference) {
 			double ref[3];
-			pt_single_scatter_reference(&s.atmo, s.altitude_km, &sun, &dirs[i], ref);
+			pt_single_scatter_reference(&s->atmo, s->altitude_km, &sun, &dirs[i], ref);
 			printf(" %.9g %.9g %.9g", ref[0], ref[1], ref[2]);
 		}
 		printf("\n");
@@ -247,4 +275,16 @@ int main(int argc, char **argv)
 	printf("# time_s %.3f paths %llu (x3 channels) paths_per_s %.0f\n", elapsed,
 	       (unsigned long long)total, elapsed > 0 ? 3.0 * (double)total / elapsed : 0.0);
 	return 0;
+}
+
+int main(int argc, char **argv)
+{
+	static struct pt_dir dirs[MAX_DIRS];
+	static struct pt_result res[MAX_DIRS];
+	struct args g = { .delta_f = -1.0 };
+
+	int status = parse_args(argc, argv, &g, dirs);
+	if (status >= 0)
+		return status;
+	return trace(&g, dirs, res);
 }

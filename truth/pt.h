@@ -91,13 +91,13 @@ int pt_single_scatter_reference(const struct atmo *a, double altitude_km,
 				double ret_radiance[3]);
 
 /* What the sky tables assume, traced otherwise exactly, to measure what
- * each assumption costs against PT_SKY (issue 5, items 13 and 14). */
+ * each assumption costs against PT_SKY (skytruth --isotropic, --delta-m). */
 struct pt_approx {
 	int isotropic;		/* light scattered once already scatters isotropically
 				 * at every later vertex (Hillaire's isotropic psi_ms);
 				 * the light's first scattering keeps its phase */
 	int delta_m;		/* 1 + the constituent whose phase is delta-M scaled for
-				 * the orders >= 2 (pt.c: render_delta_m); 0 none */
+				 * the orders >= 2 (pt_render.c: render_delta_m); 0 none */
 	double delta_f;		/* its forward fraction f, in [0, 1) */
 	double delta_g;		/* the scaled phase's g' (Henyey-Greenstein) */
 	int delta_excess;	/* keep the peak-then-once-scattered light TMS drops */

@@ -1,5 +1,5 @@
-/* stab.c - named stiff cases, the seeded sweep and the table invariants of
- * issue 6, shared by the numerical tests and skybench stability. */
+/* stab.c - the named stiff cases, the seeded sweep and the table invariants,
+ * shared by the numerical tests and skybench stability. */
 #include "stab.h"
 
 #include <assert.h>
@@ -644,9 +644,9 @@ int stab_horizon(const char *name, stab_compute_fn fn, void *ctx, const struct s
 			step[k] = fabs(rows[(size_t)(k + 1) * h + y] - rows[(size_t)k * h + y]);
 		/* The neighbours are the two steps on either side: where the row
 		 * has a smooth extremum the step across it is near 0, and at the
-		 * ends of the sweep a step next to it has no other neighbour
-		 * (thin x0.01 peaks at sun 2.65 degrees: steps 0.064, -0.005,
-		 * -0.054 read as a jump of 10x). A real jump stands out from all four. */
+		 * ends of the sweep a step next to it has no other neighbour (a thin
+		 * atmosphere's peak near sunrise would read as a jump against one
+		 * neighbour). A real jump stands out from all four. */
 		for (int k = 0; k + 1 < N; k++) {
 			double nb = 0;
 			for (int d = -2; d <= 2; d++)

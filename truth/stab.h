@@ -1,4 +1,4 @@
-/* stab.h - the stiff and extreme atmospheres of PHYSICS.md as named cases,
+/* stab.h - the stiff and extreme atmospheres of docs/physics.md as named cases,
  * a seeded random sweep, and the invariants every table must keep.
  *
  * Shared by the numerical tests (which assert) and `skybench stability`
@@ -33,7 +33,7 @@ extern const size_t stab_n_cases;
 void stab_medium(struct sky_state *s);
 void stab_small(struct sky_state *s);
 
-/* One random parameter set from the ranges of issue 6, small sizes; the
+/* One random parameter set from the sweep's ranges (stab.c), small sizes; the
  * sequence depends only on *seed, which it advances. gpu_friendly keeps the
  * pipeline variants few (scattering in every constituent, a non-black
  * ground) so that a sweep on the engine does not compile a shader per case. */

@@ -1,0 +1,145 @@
+/* bench_accuracy_internal.h - what the files of `skybench accuracy` share:
+ * the scenes, configurations, options, ground truth and results, and the
+ * functions of each job (truth, measuring, images, reports). */
+#ifndef SKYD_BENCH_ACCURACY_INTERNAL_H
+#define SKYD_BENCH_ACCURACY_INTERNAL_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "eng.h"
+#include "pt.h"
+#include "state.h"
+
+#define MAX_DIRS 2048
+#define MAX_KEYS 8
+
+enum category { CAT_DAY = 0, CAT_HORIZON = 1, CAT_TWILIGHT = 2, N_CAT = 3 };
+extern const char *const acc_cat_names[N_CAT];
+
+struct scene {
+	char name[48];
+	const char *preset;
+	double altitude_km, sun_elevation_deg, albedo; /* albedo < 0: the preset's */
+	double scattering_scale;
+	bool sweep;		/* also measured under the knob sweeps */
+	bool fisheye;		/* gets a side-by-side image */
+};
+
+struct config {
+	const char *name;
+	const char *keys[MAX_KEYS];	/* applied after quality=medium */
+	bool preset;			/* a quality preset (else a sweep of one knob) */
+};
+
+/* The presets and the one-knob sweeps; the definition's length must match. */
+#define N_CONFIGS 30
+#define DEFAULT_CONFIG 1
+extern const struct config acc_configs[];
+
+struct opts {
+	const char *out, *cache, *cache_ro, *device, *limits, *only, *scene_filter;
+	int runs, threads, fisheye_n, image_px;
+	double day_error, twilight_error, fisheye_error;
+	uint64_t max_samples;
+	bool reduced, presets_only, no_images, list_truth;
+};
+
+struct gt {
+	size_t n;
+	struct pt_dir dir[MAX_DIRS];
+	double weight[MAX_DIRS];
+	double lum[MAX_DIRS], lum_se[MAX_DIRS];
+	double rgb[MAX_DIRS][3];
+};
+
+struct stats {
+	double weight, mean_rel, p95_rel, bias_rel, rmse_lum, worst_rel, worst_el, worst_az;
+	double gt_rel_se;
+};
+
+struct result {
+	bool done;
+	double time_ms;
+	struct stats cat[N_CAT];
+};
+
+/* Error of a configuration over the scenes it ran on, per category: the
+ * mean of the per-scene means (and the largest per-scene mean), the time as
+ * the mean of the per-scene medians. */
+struct summary {
+	double time_ms, mean[N_CAT], max_mean[N_CAT], p95[N_CAT], all;
+	int n_scenes;
+};
+
+/* snprintf into a path-sized buffer; false when the result did not fit. */
+#define FITS(buf, ...) (snprintf(buf, sizeof(buf), __VA_ARGS__) < (int)sizeof(buf))
+
+static inline double luminance(const double rgb[3])
+{
+	return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+}
+
+/* qsort's comparison of doubles, ascending. */
+static inline int cmp_double(const void *a, const void *b)
+{
+	double x = *(const double *)a, y = *(const double *)b;
+	return x < y ? -1 : x > y;
+}
+
+/* ---- scenes and the ground truth (bench_accuracy_truth.c) ---- */
+
+/* Fills sc (at most max) with the matrix, or the CI's six scenes when
+ * reduced; returns how many. */
+size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced);
+/* The state of a scene under a configuration (NULL: the default preset).
+ * Returns 0 or -EINVAL (said on stderr). */
+int acc_scene_state(const struct scene *sc, const struct config *cf, struct sky_state *ret);
+/* g's directions: the measured set, weighted for the sun's mirror plane. */
+void acc_direction_set(struct gt *g);
+/* The ground truth for g's directions: from the read-only cache, the cache,
+ * or the path tracer (then written to the cache). kind names the set in the
+ * cache file and in --list-truth. Returns 0 or -errno. */
+int acc_ground_truth(const struct opts *o, const struct scene *sc, double rel_error, struct gt *g,
+		     const char *kind);
+
+/* ---- measuring the tables (bench_accuracy_measure.c) ---- */
+
+/* The sky radiance a client reads from e's sky-view table of state s. */
+void acc_table_radiance(const struct eng *e, const struct sky_state *s, double el_deg, double az_deg,
+			double ret_rgb[3]);
+/* The error statistics of e's tables of state s against g, per category,
+ * in res; each direction's row goes to dirs (directions.csv) when open. */
+void acc_measure(const struct eng *e, const struct sky_state *s, const struct scene *sc,
+		 const char *config, const struct gt *g, struct result *res, FILE *dirs);
+/* Computes the tables the sky needs once to warm up, then runs times; the
+ * median wall time in ret_ms. Returns 0 or -EIO (said on stderr). */
+int acc_time_tables(struct eng *e, const struct sky_state *s, int runs, double *ret_ms);
+
+/* ---- images (bench_accuracy_image.c) ---- */
+
+/* fisheye-<scene>.png in o->out: the tables, the truth and the signed
+ * error side by side. Returns 0 or -errno. */
+int acc_fisheye(const struct opts *o, struct eng *e, const struct scene *sc);
+
+/* ---- reports (bench_accuracy_report.c) ---- */
+
+void acc_summarize(const struct scene *sc, const struct result *r, size_t n_sc, size_t cfg,
+		   bool sweep_scenes_only, struct summary *ret);
+/* accuracy.csv, accuracy.md and the plot (errtime.dat, .gp, .png by
+ * gnuplot) in o->out. Each returns 0 or -errno. */
+int acc_write_csv(const struct opts *o, const struct scene *sc, size_t n_sc, const struct result *r,
+		  const char *device);
+int acc_write_md(const struct opts *o, const struct scene *sc, size_t n_sc, const struct result *r,
+		 const char *device, const char *cmdline, double gt_s, double total_s);
+int acc_write_plot(const struct opts *o, const struct scene *sc, size_t n_sc, const struct result *r,
+		   const char *device);
+/* --limits FILE: lines "category max_mean_rel [scene]" for the default
+ * preset's largest per-scene mean over the scenes whose name contains scene
+ * (every scene without it); returns the number of limits exceeded, or
+ * -errno. */
+int acc_check_limits(const char *file, const struct scene *sc, size_t n_sc, const struct result *r);
+
+#endif

@@ -1,0 +1,319 @@
+/* bench_accuracy_truth.c - the scenes of `skybench accuracy` and their ground
+ * truth: the path tracer's radiance, cached by a hash of what it depends on. */
+#include "bench_accuracy_internal.h"
+
+#include <errno.h>
+#include <locale.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+/* Bumped whenever the path tracer's estimator or this file's use of it
+ * changes, so that cached ground truth from before is never reused. */
+#define GT_VERSION "gt2"
+
+/* The direction set: every azimuth is covered by 0 to 180 degrees in steps
+ * of 30 with the sun at 180, because the sky (the tables' and the
+ * truth's) is symmetric about the sun's vertical plane; the directions
+ * strictly between count twice. Elevations are denser near the horizon. */
+static const double dir_elevations[] = { 0.5, 1, 1.5, 2, 2.5, 3, 4, 6, 9, 13, 20, 30, 45, 65 };
+#define N_EL (sizeof(dir_elevations) / sizeof(dir_elevations[0]))
+#define N_AZ 7
+#define SUN_AZIMUTH_DEG 180.0
+
+size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced)
+{
+	static const double suns[] = { 90, 45, 20, 10, 5, 2, 0, -2, -4, -6 };
+	static const double alts[] = { 0.2, 10 };
+	static const double albedos[] = { 0, 0.3 };
+	size_t n = 0;
+
+#define ADD(...) do { if (n < max) sc[n++] = (struct scene){ __VA_ARGS__ }; } while (0)
+	if (reduced) {
+		/* CI: a day sky with its horizon band and one twilight sky. */
+		ADD("earth-s20-h0.2-a0.3", "earth", 0.2, 20, 0.3, 1, true, false);
+		ADD("earth-s2-h0.2-a0.3", "earth", 0.2, 2, 0.3, 1, true, false);
+		ADD("earth-s-4-h0.2-a0.3", "earth", 0.2, -4, 0.3, 1, true, false);
+		/* and the atmospheres whose own terms only they switch on: the
+		 * iteration (Earth x10), the shape and delta-M (Mars). */
+		ADD("earth10x-s30-h0.2-a0.3", "earth", 0.2, 30, 0.3, 10, true, false);
+		ADD("mars-s30-h0.2", "mars", 0.2, 30, -1, 1, true, false);
+		ADD("mars-s5-h0.2", "mars", 0.2, 5, -1, 1, true, false);
+		return n;
+	}
+	for (size_t a = 0; a < 2; a++)
+		for (size_t b = 0; b < 2; b++)
+			for (size_t s = 0; s < sizeof(suns) / sizeof(suns[0]); s++) {
+				char name[48];
+				snprintf(name, sizeof(name), "earth-s%g-h%g-a%g", suns[s], alts[a], albedos[b]);
+				bool main_row = a == 0 && b == 1;
+				ADD("", "earth", alts[a], suns[s], albedos[b], 1, main_row,
+				    main_row && (suns[s] == 20 || suns[s] == 2 || suns[s] == -2));
+				snprintf(sc[n - 1].name, sizeof(sc[n - 1].name), "%s", name);
+			}
+	ADD("mars-s30-h0.2", "mars", 0.2, 30, -1, 1, true, false);
+	ADD("mars-s5-h0.2", "mars", 0.2, 5, -1, 1, true, false);
+	/* Not in the reduced matrix: a Mars sky that no constant was chosen
+	 * by, to check one (PHASE_DELTA_ORDER). */
+	ADD("mars-s15-h0.2", "mars", 0.2, 15, -1, 1, true, false);
+	ADD("earth10x-s30-h0.2-a0.3", "earth", 0.2, 30, 0.3, 10, true, false);
+#undef ADD
+	return n;
+}
+
+static int apply(struct sky_state *s, const char *pair)
+{
+	char err[256];
+	if (state_set_pair(s, pair, NULL, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skybench: %s\n", err);
+		return -EINVAL;
+	}
+	return 0;
+}
+
+/* The state of a scene under a configuration (NULL: the default preset). */
+int acc_scene_state(const struct scene *sc, const struct config *cf, struct sky_state *ret)
+{
+	char kv[96];
+	struct sky_state s;
+
+	state_default(&s);
+	snprintf(kv, sizeof(kv), "preset=%s", sc->preset);
+	if (apply(&s, kv) < 0)
+		return -EINVAL;
+	s.altitude_km = sc->altitude_km;
+	s.sun.elevation_deg = sc->sun_elevation_deg;
+	s.sun.azimuth_deg = SUN_AZIMUTH_DEG;
+	if (sc->albedo >= 0)
+		for (int c = 0; c < 3; c++)
+			s.atmo.ground_albedo[c] = sc->albedo;
+	for (int i = 0; i < s.atmo.n_constituents; i++)
+		for (int c = 0; c < 3; c++)
+			s.atmo.c[i].scattering_per_km[c] *= sc->scattering_scale;
+	for (int k = 0; cf && k < MAX_KEYS && cf->keys[k]; k++)
+		if (apply(&s, cf->keys[k]) < 0)
+			return -EINVAL;
+	char err[256];
+	if (state_validate(&s, 0, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skybench: %s: %s\n", sc->name, err);
+		return -EINVAL;
+	}
+	*ret = s;
+	return 0;
+}
+
+void acc_direction_set(struct gt *g)
+{
+	g->n = 0;
+	for (size_t e = 0; e < N_EL; e++)
+		for (int a = 0; a < N_AZ; a++) {
+			g->dir[g->n] = (struct pt_dir){ dir_elevations[e], 30.0 * a };
+			g->weight[g->n++] = a == 0 || a == N_AZ - 1 ? 1.0 : 2.0;
+		}
+	g->dir[g->n] = (struct pt_dir){ 90.0, 0.0 };
+	g->weight[g->n++] = 1.0;
+}
+
+/* FNV-1a, 64 bits. */
+static uint64_t fnv(uint64_t h, const char *s)
+{
+	for (; *s; s++)
+		h = (h ^ (unsigned char)*s) * 0x100000001b3ull;
+	return h;
+}
+
+static uint64_t fnv_double(uint64_t h, double d)
+{
+	char buf[40];
+	snprintf(buf, sizeof(buf), "%.17g;", d);
+	return fnv(h, buf);
+}
+
+/* Only what the truth depends on - the atmosphere, the observer's altitude
+ * and the sun - so that keys added to the state later leave the cache (and
+ * the committed truth of the CI test) valid. */
+static uint64_t hash_scene(uint64_t h, const struct sky_state *s)
+{
+	const struct atmo *a = &s->atmo;
+	h = fnv_double(h, a->bottom_radius_km);
+	h = fnv_double(h, a->top_radius_km);
+	for (int c = 0; c < 3; c++)
+		h = fnv_double(h, a->ground_albedo[c]);
+	h = fnv_double(h, a->n_constituents);
+	for (int i = 0; i < a->n_constituents; i++) {
+		const struct atmo_constituent *k = &a->c[i];
+		for (int c = 0; c < 3; c++) {
+			h = fnv_double(h, k->scattering_per_km[c]);
+			h = fnv_double(h, k->absorption_per_km[c]);
+		}
+		h = fnv_double(h, k->phase);
+		h = fnv_double(h, k->g);
+		for (int l = 0; l < 2; l++) {
+			const struct atmo_layer *y = &k->density.layers[l];
+			h = fnv_double(h, y->width_km);
+			h = fnv_double(h, y->exp_term);
+			h = fnv_double(h, y->exp_scale_per_km);
+			h = fnv_double(h, y->linear_per_km);
+			h = fnv_double(h, y->constant);
+		}
+	}
+	h = fnv_double(h, s->altitude_km);
+	h = fnv_double(h, s->sun.elevation_deg);
+	h = fnv_double(h, s->sun.azimuth_deg);
+	h = fnv_double(h, s->sun.angular_radius_deg);
+	for (int c = 0; c < 3; c++)
+		h = fnv_double(h, s->sun.illuminance_lx * s->sun.color[c]);
+	return h;
+}
+
+static uint64_t gt_hash(const struct sky_state *s, const struct pt_options *po, const struct gt *g)
+{
+	struct { uint64_t h; } c = { 0xcbf29ce484222325ull };
+	char buf[128];
+	c.h = fnv(c.h, GT_VERSION);
+	c.h = hash_scene(c.h, s);
+	snprintf(buf, sizeof(buf), "err=%.9g;min=%llu;max=%llu;batch=%u;seed=%llu;n=%zu;", po->rel_error,
+		 (unsigned long long)po->min_samples, (unsigned long long)po->max_samples, po->batch,
+		 (unsigned long long)po->seed, g->n);
+	c.h = fnv(c.h, buf);
+	for (size_t i = 0; i < g->n; i++) {
+		snprintf(buf, sizeof(buf), "%.9g:%.9g,", g->dir[i].elevation_deg, g->dir[i].azimuth_deg);
+		c.h = fnv(c.h, buf);
+	}
+	return c.h;
+}
+
+static void fill_gt(struct gt *g, const struct pt_result *r)
+{
+	static const double w[3] = { 0.2126, 0.7152, 0.0722 };
+	for (size_t i = 0; i < g->n; i++) {
+		double v = 0;
+		for (int c = 0; c < 3; c++) {
+			g->rgb[i][c] = r[i].radiance[c];
+			v += w[c] * w[c] * r[i].std_error[c] * r[i].std_error[c];
+		}
+		g->lum[i] = luminance(g->rgb[i]);
+		g->lum_se[i] = sqrt(v);	/* channels are traced with independent streams */
+	}
+}
+
+static int gt_read(const char *path, struct gt *g)
+{
+	FILE *f = fopen(path, "re");
+	if (!f)
+		return -errno;
+	static locale_t c_locale;
+	if (!c_locale)
+		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
+	locale_t old = uselocale(c_locale);
+	char line[512];
+	size_t i = 0;
+	struct pt_result r[1];
+	int rc = 0;
+	static struct pt_result all[MAX_DIRS];
+	while (fgets(line, sizeof(line), f)) {
+		if (line[0] == '#')
+			continue;
+		double el, az;
+		unsigned long long n;
+		if (i >= g->n || sscanf(line, "%lf %lf %lf %lf %lf %lf %lf %lf %llu", &el, &az,
+					 &r->radiance[0], &r->radiance[1], &r->radiance[2],
+					 &r->std_error[0], &r->std_error[1], &r->std_error[2], &n) != 9 ||
+		    fabs(el - g->dir[i].elevation_deg) > 1e-6 || fabs(az - g->dir[i].azimuth_deg) > 1e-6) {
+			rc = -EPROTO;
+			break;
+		}
+		all[i++] = r[0];
+	}
+	uselocale(old);
+	fclose(f);
+	if (rc == 0 && i != g->n)
+		rc = -EPROTO;
+	if (rc == 0)
+		fill_gt(g, all);
+	return rc;
+}
+
+static int gt_write(const char *path, const char *what, const struct gt *g, const struct pt_result *r)
+{
+	char tmp[4096];
+	if (!FITS(tmp, "%s.tmp", path))
+		return -ENAMETOOLONG;
+	FILE *f = fopen(tmp, "we");
+	if (!f)
+		return -errno;
+	static locale_t c_locale;
+	if (!c_locale)
+		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
+	locale_t old = uselocale(c_locale);
+	fprintf(f, "# skybench accuracy ground truth (%s), %s\n"
+		   "# elevation_deg azimuth_deg L_r L_g L_b se_r se_g se_b samples\n", GT_VERSION, what);
+	for (size_t i = 0; i < g->n; i++)
+		fprintf(f, "%.9g %.9g %.17g %.17g %.17g %.9g %.9g %.9g %llu\n", g->dir[i].elevation_deg,
+			g->dir[i].azimuth_deg, r[i].radiance[0], r[i].radiance[1], r[i].radiance[2],
+			r[i].std_error[0], r[i].std_error[1], r[i].std_error[2],
+			(unsigned long long)r[i].samples);
+	uselocale(old);
+	int rc = ferror(f) ? -EIO : 0;
+	if (fclose(f) != 0 && rc == 0)
+		rc = -errno;
+	if (rc == 0 && rename(tmp, path) < 0)
+		rc = -errno;
+	if (rc < 0)
+		unlink(tmp);
+	return rc;
+}
+
+/* The ground truth for g's directions: from the read-only cache, the cache,
+ * or the path tracer (then written to the cache). */
+int acc_ground_truth(const struct opts *o, const struct scene *sc, double rel_error, struct gt *g,
+		     const char *kind)
+{
+	struct sky_state s;
+	struct pt_options po;
+	char path[4096], what[256];
+
+	if (acc_scene_state(sc, NULL, &s) < 0)
+		return -EINVAL;
+	pt_options_default(&po);
+	po.rel_error = rel_error;
+	po.max_samples = o->max_samples;
+	po.threads = o->threads;
+	uint64_t h = gt_hash(&s, &po, g);
+	if (o->list_truth) {
+		printf("%s %s gt-%016llx.txt\n", sc->name, kind, (unsigned long long)h);
+		return 0;
+	}
+	if (o->cache_ro) {
+		if (FITS(path, "%s/gt-%016llx.txt", o->cache_ro, (unsigned long long)h) &&
+		    gt_read(path, g) == 0)
+			return 0;
+	}
+	if (!FITS(path, "%s/gt-%016llx.txt", o->cache, (unsigned long long)h))
+		return -ENAMETOOLONG;
+	if (gt_read(path, g) == 0)
+		return 0;
+	struct pt_result *r = calloc(g->n, sizeof(*r));
+	if (!r)
+		return -ENOMEM;
+	struct pt_sun sun = { .elevation_deg = s.sun.elevation_deg, .azimuth_deg = s.sun.azimuth_deg,
+			      .angular_radius_deg = s.sun.angular_radius_deg };
+	for (int c = 0; c < 3; c++)
+		sun.illuminance[c] = s.sun.illuminance_lx * s.sun.color[c];
+	int rc = pt_render(&s.atmo, s.altitude_km, &sun, g->dir, g->n, &po, r);
+	if (rc == 0) {
+		fill_gt(g, r);
+		if (!FITS(what, "%s %s, rel_error %g, max_samples %llu", sc->name, kind, rel_error,
+			  (unsigned long long)o->max_samples))
+			what[sizeof(what) - 1] = 0;
+		int wr = gt_write(path, what, g, r);
+		if (wr < 0)
+			fprintf(stderr, "skybench: cannot write '%s': %s\n", path, strerror(-wr));
+	} else {
+		fprintf(stderr, "skybench: path tracer on %s: %s\n", sc->name, strerror(-rc));
+	}
+	free(r);
+	return rc;
+}
