@@ -153,13 +153,12 @@ void state_default_camera(struct state_camera *ret)
 }
 
 /* The quality presets behind the key quality=low|medium|high|ultra. medium
- * is the reference of PHYSICS.md and the default, with at most 20 sky-view
- * steps a ray (PHYSICS.md: about 4 to 30): 30 read the same within 0.21
- * points in every scene of `skybench accuracy` at 1.3-1.4 times the sky-view
- * time (docs/accuracy-findings.md, Cost). low halves it, high
- * raises steps by half, ultra doubles sizes and steps (about 8 times the
- * work of medium: more would take seconds on lavapipe). Their cost and
- * error are measured by `skybench accuracy`. */
+ * is the reference of docs/physics.md and the default; it takes at most 20
+ * sky-view steps a ray (docs/physics.md: about 4 to 30), where more steps
+ * no longer move the error (docs/findings.d/daemon.md). low halves it,
+ * high raises steps by half, ultra doubles sizes and steps (about 8 times
+ * the work of medium: more would take seconds on lavapipe). `skybench
+ * accuracy` measures their cost and error. */
 struct quality_preset {
 	const char *name;
 	struct state_quality q;
@@ -589,8 +588,8 @@ uint32_t state_multiscatter_iterations(const struct sky_state *s)
 	if (s->quality.multiscatter_iterations > 0)
 		return (uint32_t)s->quality.multiscatter_iterations - 1;
 	/* Not on the 2-direction fast path: its f_ms is too coarse for the
-	 * transfer, and iterating spreads its errors (a random atmosphere of
-	 * optical depth 150: psi at the top of the shell 0.06 -> 7220). */
+	 * transfer, and iterating spreads its errors instead of correcting
+	 * them (docs/findings.d/daemon.md). */
 	if (s->quality.multiscatter_dirs != 64)
 		return 0;
 	/* The threshold needs a few percent: 1000 intervals are plenty. */

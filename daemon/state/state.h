@@ -84,7 +84,7 @@ struct state_quality {
 enum state_light_mode { STATE_MANUAL = 0, STATE_CLOCK = 1 };
 
 /* The simulation clock and the observer's site: where the sun and moon
- * come from when their mode is STATE_CLOCK (daemon/drive.c computes them).
+ * come from when their mode is STATE_CLOCK (daemon/srv/drive.c computes them).
  * The simulated time at monotonic time m is
  * anchor_utc_s + rate * (m - anchor_mono_s). */
 struct state_clock {
@@ -102,7 +102,7 @@ struct state_clock {
 };
 
 /* Night-sky floor (airglow, starlight, zodiacal light) added to the
- * sky-view and aerial tables; see PROTOCOL.md "Night-sky floor". */
+ * sky-view and aerial tables; see proto/PROTOCOL.md "Night-sky floor". */
 struct state_night {
 	double zenith_luminance_cd_m2;	/* 0 switches the floor off */
 	double illuminance_lx;		/* horizontal, from the whole floor */
