@@ -13,7 +13,7 @@
  * Times are POSIX seconds (UTC, no leap seconds); the user's UT1 - UTC and
  * TT - UT1 (delta T) come with the options. Angles are degrees. Azimuths run
  * eastward from north, [0, 360). Every direction comes twice: geometric (the
- * straight line, what the sky tables want; PHYSICS.md: feed the unrefracted
+ * straight line, what the sky tables want; docs/physics.md: feed the unrefracted
  * direction to the tables) and apparent (raised by refraction, what a person
  * sees). All functions are pure and thread-safe.
  *
@@ -77,7 +77,7 @@ struct astro_sun {
 
 /* A V = 0 star's illuminance outside the atmosphere (Allen's Astrophysical
  * Quantities). The full moon at mean distances, V = -12.73 (Krisciunas and
- * Schaefer 1991), then gives 0.314 lx outside the atmosphere; PHYSICS.md
+ * Schaefer 1991), then gives 0.314 lx outside the atmosphere; docs/physics.md
  * quotes 0.27-0.31 lx at the ground at high altitude. */
 #define ASTRO_MOON_ILLUMINANCE_MAG0_LX 2.54e-6
 
@@ -142,7 +142,7 @@ struct astro_times {
 /* Night-sky floor, for the engine to add where the sun and moon leave the
  * sky dark. Horizontal illuminance from starlight, airglow and zodiacal
  * light on a clear moonless night: about 0.002 lx (USNO Circular 171 via
- * PHYSICS.md: "below -18: about 0.002 lx"). Zenith luminance of a dark
+ * docs/physics.md: "below -18: about 0.002 lx"). Zenith luminance of a dark
  * site: V = 21.6..22.0 mag/arcsec^2 (Leinert et al. 1998, "The 1997 reference of diffuse night
  * sky brightness", A&AS 127, 1), i.e. with L = 10.8e4 * 10^(-0.4 V) cd/m^2
  * about 0.2 mcd/m^2. */

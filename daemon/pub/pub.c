@@ -184,15 +184,6 @@ const struct sky_shm_slot *pub_current(const struct pub *p, const uint8_t **ret_
 	return (const struct sky_shm_slot *)base;
 }
 
-static void light_direction(double elevation_deg, double azimuth_deg, double ret[3])
-{
-	double el = elevation_deg * SKYMAP_PI / 180.0, az = azimuth_deg * SKYMAP_PI / 180.0;
-
-	ret[0] = cos(el) * sin(az);	/* east */
-	ret[1] = cos(el) * cos(az);	/* north */
-	ret[2] = sin(el);		/* up */
-}
-
 void pub_shm_state(const struct sky_state *s, struct sky_shm_state *ret)
 {
 	struct sky_shm_state o = { 0 };
@@ -211,24 +202,14 @@ void pub_shm_state(const struct sky_state *s, struct sky_shm_state *ret)
 		o.sun_illuminance_lx[c] = s->sun.illuminance_lx * s->sun.color[c];
 		o.moon_illuminance_lx[c] = s->moon.illuminance_lx * s->moon.color[c];
 	}
-	light_direction(s->sun.elevation_deg, s->sun.azimuth_deg, o.sun_direction);
-	light_direction(s->moon.elevation_deg, s->moon.azimuth_deg, o.moon_direction);
+	/* The vectors the engine lit the tables with. */
+	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, o.sun_direction);
+	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, o.moon_direction);
 	o.sun_angular_radius_rad = s->sun.angular_radius_deg * deg;
 	o.moon_angular_radius_rad = s->moon.angular_radius_deg * deg;
 
-	/* Camera frame: forward from yaw and pitch, right horizontal, up
-	 * completing a right-handed frame, then roll about forward. */
-	double yaw = s->camera.yaw_deg * deg, pitch = s->camera.pitch_deg * deg;
-	double roll = s->camera.roll_deg * deg;
-	double f[3] = { sin(yaw) * cos(pitch), cos(yaw) * cos(pitch), sin(pitch) };
-	double r[3] = { cos(yaw), -sin(yaw), 0.0 };
-	double u[3] = { r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2],
-			r[0] * f[1] - r[1] * f[0] };
-	for (int c = 0; c < 3; c++) {
-		o.camera_forward[c] = f[c];
-		o.camera_right[c] = r[c] * cos(roll) + u[c] * sin(roll);
-		o.camera_up[c] = u[c] * cos(roll) - r[c] * sin(roll);
-	}
+	/* The frame the engine computed the aerial volume in, as for views. */
+	state_camera_basis(&s->camera, o.camera_forward, o.camera_right, o.camera_up);
 	o.camera_vfov_rad = s->camera.vfov_deg * deg;
 	o.camera_aspect = s->camera.aspect;
 	o.aerial_range_km = s->quality.aerial_range_km;

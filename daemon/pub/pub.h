@@ -53,7 +53,7 @@ void pub_supersede(struct pub *p);
 const struct sky_shm_header *pub_header(const struct pub *p);
 const struct sky_shm_slot *pub_current(const struct pub *p, const uint8_t **ret_base);
 
-/* The slot checksum of PROTOCOL.md for a slot whose tables start at base. */
+/* The slot checksum of proto/PROTOCOL.md for a slot whose tables start at base. */
 uint64_t pub_checksum(const struct sky_shm_header *h, const struct sky_shm_slot *slot,
 		      const uint8_t *base);
 

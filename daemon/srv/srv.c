@@ -7,9 +7,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "drive.h"
 #include "log.h"
 #include "loop.h"
 #include "pub.h"
+#include "simclock.h"
 
 /* Four slots of the region must fit in memory beside everything else. */
 #define SRV_MAX_REGION_BYTES (2ull << 30)
@@ -272,6 +274,29 @@ int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 		*ret_generation = s->in_flight_generation + 1;
 	else			/* in flight now, or published at once */
 		*ret_generation = s->in_flight ? s->in_flight_generation : s->generation;
+	return 0;
+}
+
+int srv_apply(struct srv *s, struct drive *clock, const struct sky_state *next, uint32_t dirty,
+	      uint64_t *ret_generation, uint32_t *ret_dirty, char *err, size_t err_size)
+{
+	struct sky_state lit = *next;
+	int r;
+
+	if (memcmp(&lit.clock, &s->state.clock, sizeof(lit.clock)) != 0) {
+		double mono_s;
+		simclock_read_clocks(NULL, &mono_s);
+		state_clock_rebase(&lit, &s->state, mono_s);
+		if (drive_lights(&lit, mono_s, &dirty, err, err_size) < 0)
+			return -ERANGE;
+	}
+	if (srv_check(s, &lit, err, err_size) < 0)
+		return -ERANGE;
+	r = srv_change(s, &lit, dirty, ret_generation, err, err_size);
+	if (r < 0)
+		return r;
+	drive_changed(clock);
+	*ret_dirty = dirty;
 	return 0;
 }
 

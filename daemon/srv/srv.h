@@ -17,6 +17,7 @@
 #include "eng.h"
 #include "state.h"
 
+struct drive;
 struct loop;
 struct pub;
 struct srv;
@@ -70,6 +71,19 @@ int srv_check(const struct srv *s, const struct sky_state *next, char *err, size
  * state is kept and computed with the next change. */
 int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	       uint64_t *ret_generation, char *err, size_t err_size);
+
+/* Applies a candidate state that a request built from the served one, as
+ * one change: a new time_rate re-anchors the running clock
+ * (state_clock_rebase); a new clock (time, place, light mode) places the
+ * clock-driven lights at once (drive_lights), so that the generation named
+ * shows them; then srv_check and srv_change; clock (NULL: none) then takes
+ * the new lights as its reference. dirty: the tables the request
+ * invalidated (state_set's mask). ret_dirty gets them with the lights'.
+ * Returns 0; -ERANGE when refused (astro cannot place the lights, or a
+ * cross-key or device rule), or -EIO / -ENOMEM when the computation could
+ * not start: err says why and nothing changed. */
+int srv_apply(struct srv *s, struct drive *clock, const struct sky_state *next, uint32_t dirty,
+	      uint64_t *ret_generation, uint32_t *ret_dirty, char *err, size_t err_size);
 
 /* The tables some client needs: the demand and its dependencies under the
  * newest state. Only these are ever computed; a change to any other table

@@ -55,7 +55,7 @@ struct atmo {
 /* Index of the well-known constituents in the presets. */
 enum { ATMO_RAYLEIGH = 0, ATMO_MIE = 1, ATMO_OZONE = 2 };
 
-/* Hillaire's EGSR 2020 Earth with the constants of PHYSICS.md. */
+/* Hillaire's EGSR 2020 Earth with the constants of docs/physics.md. */
 void atmo_earth(struct atmo *ret);
 /* Mars after Collienne 2013 (OpenSpace). */
 void atmo_mars(struct atmo *ret);

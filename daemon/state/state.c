@@ -153,13 +153,12 @@ void state_default_camera(struct state_camera *ret)
 }
 
 /* The quality presets behind the key quality=low|medium|high|ultra. medium
- * is the reference of PHYSICS.md and the default, with at most 20 sky-view
- * steps a ray (PHYSICS.md: about 4 to 30): 30 read the same within 0.21
- * points in every scene of `skybench accuracy` at 1.3-1.4 times the sky-view
- * time (docs/accuracy-findings.md, Cost). low halves it, high
- * raises steps by half, ultra doubles sizes and steps (about 8 times the
- * work of medium: more would take seconds on lavapipe). Their cost and
- * error are measured by `skybench accuracy`. */
+ * is the reference of docs/physics.md and the default; it takes at most 20
+ * sky-view steps a ray (docs/physics.md: about 4 to 30), where more steps
+ * no longer move the error (docs/findings.d/daemon.md). low halves it,
+ * high raises steps by half, ultra doubles sizes and steps (about 8 times
+ * the work of medium: more would take seconds on lavapipe). `skybench
+ * accuracy` measures their cost and error. */
 struct quality_preset {
 	const char *name;
 	struct state_quality q;
@@ -283,7 +282,10 @@ static int enum_index(const char *const *names, const char *v)
 	return -1;
 }
 
+/* The three refusals of a key: malformed, out of its range, unknown. */
 #define ERR(...) (snprintf(err, err_size, __VA_ARGS__), -EINVAL)
+#define ERR_RANGE(...) (snprintf(err, err_size, __VA_ARGS__), -ERANGE)
+#define ERR_UNKNOWN(...) (snprintf(err, err_size, __VA_ARGS__), -ENOENT)
 
 static int set_key(struct sky_state *s, const struct key *k, const char *v,
 		   char *err, size_t err_size)
@@ -296,7 +298,7 @@ static int set_key(struct sky_state *s, const struct key *k, const char *v,
 		if (parse_double(v, &d) < 0)
 			return ERR("%s: '%s' is not a finite number", k->name, v);
 		if (d < k->min || d > k->max)
-			return ERR("%s: %g is outside [%g, %g]", k->name, d, k->min, k->max);
+			return ERR_RANGE("%s: %g is outside [%g, %g]", k->name, d, k->min, k->max);
 		*(double *)base = d;
 		return 0;
 	case K_TRIPLE:
@@ -304,7 +306,7 @@ static int set_key(struct sky_state *s, const struct key *k, const char *v,
 			return ERR("%s: '%s' is not one or three finite numbers", k->name, v);
 		for (int i = 0; i < 3; i++)
 			if (t[i] < k->min || t[i] > k->max)
-				return ERR("%s: %g is outside [%g, %g]", k->name, t[i], k->min, k->max);
+				return ERR_RANGE("%s: %g is outside [%g, %g]", k->name, t[i], k->min, k->max);
 		memcpy(base, t, sizeof(t));
 		return 0;
 	case K_UINT: {
@@ -316,9 +318,9 @@ static int set_key(struct sky_state *s, const struct key *k, const char *v,
 		if (*end || errno)
 			return ERR("%s: '%s' is not a whole number", k->name, v);
 		if (u < k->min || u > k->max)
-			return ERR("%s: %llu is outside [%g, %g]", k->name, u, k->min, k->max);
+			return ERR_RANGE("%s: %llu is outside [%g, %g]", k->name, u, k->min, k->max);
 		if (strcmp(k->name, "multiscatter_dirs") == 0 && u != 0 && u != 2 && u != 64)
-			return ERR("multiscatter_dirs: must be 0 (off), 2 or 64");
+			return ERR_RANGE("multiscatter_dirs: must be 0 (off), 2 or 64");
 		*(uint32_t *)base = (uint32_t)u;
 		return 0;
 	}
@@ -366,7 +368,7 @@ static int set_constituent(struct atmo_constituent *c, const char *key, const ch
 				return ERR("%s: '%s' is not one or three finite numbers", key, v);
 			for (int ch = 0; ch < 3; ch++)
 				if (t[ch] < 0.0)
-					return ERR("%s: coefficients must be >= 0", key);
+					return ERR_RANGE("%s: coefficients must be >= 0", key);
 			memcpy(ckeys[i].which == C_SCATTERING ? c->scattering_per_km
 							      : c->absorption_per_km, t, sizeof(t));
 			return 0;
@@ -376,19 +378,19 @@ static int set_constituent(struct atmo_constituent *c, const char *key, const ch
 		switch (ckeys[i].which) {
 		case C_SCALE_HEIGHT:
 			if (!(d > 0.0))
-				return ERR("%s: must be > 0", key);
+				return ERR_RANGE("%s: must be > 0", key);
 			c->density = (struct atmo_profile){ 0 };
 			c->density.layers[1].exp_term = 1.0;
 			c->density.layers[1].exp_scale_per_km = -1.0 / d;
 			return 0;
 		case C_G:
 			if (!(fabs(d) < 1.0))
-				return ERR("%s: must satisfy |g| < 1", key);
+				return ERR_RANGE("%s: must satisfy |g| < 1", key);
 			c->g = d;
 			return 0;
 		case C_WIDTH:
 			if (d < 0.0)
-				return ERR("%s: must be >= 0", key);
+				return ERR_RANGE("%s: must be >= 0", key);
 			l->width_km = d;
 			return 0;
 		case C_EXP_TERM: l->exp_term = d; return 0;
@@ -398,7 +400,7 @@ static int set_constituent(struct atmo_constituent *c, const char *key, const ch
 		default: break;
 		}
 	}
-	return ERR("%s: unknown key", key);
+	return ERR_UNKNOWN("%s: unknown key", key);
 }
 
 static int in_list(const char *const *list, const char *key)
@@ -464,7 +466,7 @@ static int set_clock_key(struct sky_state *s, const char *key, const char *v, ui
 		if (parse_double(v, &d) < 0)
 			return ERR("time_rate: '%s' is not a finite number", v);
 		if (fabs(d) > SIMCLOCK_RATE_MAX)
-			return ERR("time_rate: %g is outside [%g, %g]", d, -SIMCLOCK_RATE_MAX, SIMCLOCK_RATE_MAX);
+			return ERR_RANGE("time_rate: %g is outside [%g, %g]", d, -SIMCLOCK_RATE_MAX, SIMCLOCK_RATE_MAX);
 		/* The rate runs from the anchor; a running clock is re-anchored
 		 * by state_clock_rebase when the change is committed, so that
 		 * utc= and time_rate= in one request mean the same in any order. */
@@ -475,7 +477,7 @@ static int set_clock_key(struct sky_state *s, const char *key, const char *v, ui
 		else if (parse_double(v, &d) < 0)
 			return ERR("delta_t_s: '%s' is not auto or a finite number", v);
 		else if (fabs(d) > 1e6)
-			return ERR("delta_t_s: %g is outside [-1e6, 1e6]", d);
+			return ERR_RANGE("delta_t_s: %g is outside [-1e6, 1e6]", d);
 		c->delta_t_s = d;
 	} else if (strcmp(key, "sun_mode") == 0 || strcmp(key, "moon_mode") == 0) {
 		int m = enum_index(mode_names, v);
@@ -532,7 +534,7 @@ int state_set(struct sky_state *s, const char *key, const char *value,
 			const char *suffix;
 			struct atmo_constituent *c = find_constituent(s, key, &suffix);
 			if (!c)
-				return ERR("%s: unknown key", key);
+				return ERR_UNKNOWN("%s: unknown key", key);
 			r = set_constituent(c, key, suffix, value, err, err_size);
 			dirty = FROM_T;
 		}
@@ -589,8 +591,8 @@ uint32_t state_multiscatter_iterations(const struct sky_state *s)
 	if (s->quality.multiscatter_iterations > 0)
 		return (uint32_t)s->quality.multiscatter_iterations - 1;
 	/* Not on the 2-direction fast path: its f_ms is too coarse for the
-	 * transfer, and iterating spreads its errors (a random atmosphere of
-	 * optical depth 150: psi at the top of the shell 0.06 -> 7220). */
+	 * transfer, and iterating spreads its errors instead of correcting
+	 * them (docs/findings.d/daemon.md). */
 	if (s->quality.multiscatter_dirs != 64)
 		return 0;
 	/* The threshold needs a few percent: 1000 intervals are plenty. */
@@ -608,14 +610,14 @@ int state_validate(const struct sky_state *s, uint64_t max_buffer_bytes,
 		return r;
 	if (s->night.zenith_luminance_cd_m2 > 0.0 &&
 	    s->night.illuminance_lx < M_PI * s->night.zenith_luminance_cd_m2)
-		return ERR("night_illuminance_lx: %g is below pi * night_zenith_luminance_cd_m2 = %g (a night sky darker at the horizon than at the zenith)",
+		return ERR_RANGE("night_illuminance_lx: %g is below pi * night_zenith_luminance_cd_m2 = %g (a night sky darker at the horizon than at the zenith)",
 			   s->night.illuminance_lx, M_PI * s->night.zenith_luminance_cd_m2);
 	if (s->quality.skyview_min_steps > s->quality.t[STATE_SKYVIEW].steps)
-		return ERR("skyview_min_steps: must not exceed skyview_steps");
+		return ERR_RANGE("skyview_min_steps: must not exceed skyview_steps");
 	for (int t = 0; t < STATE_N_TABLES; t++) {
 		size_t bytes = state_table_bytes(s, (enum state_table)t);
 		if (max_buffer_bytes && bytes > max_buffer_bytes)
-			return ERR("%s_width: table of %zu bytes exceeds the device limit of %llu",
+			return ERR_RANGE("%s_width: table of %zu bytes exceeds the device limit of %llu",
 				   state_table_names[t], bytes,
 				   (unsigned long long)max_buffer_bytes);
 	}

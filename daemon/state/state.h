@@ -84,7 +84,7 @@ struct state_quality {
 enum state_light_mode { STATE_MANUAL = 0, STATE_CLOCK = 1 };
 
 /* The simulation clock and the observer's site: where the sun and moon
- * come from when their mode is STATE_CLOCK (daemon/drive.c computes them).
+ * come from when their mode is STATE_CLOCK (daemon/srv/drive.c computes them).
  * The simulated time at monotonic time m is
  * anchor_utc_s + rate * (m - anchor_mono_s). */
 struct state_clock {
@@ -102,7 +102,7 @@ struct state_clock {
 };
 
 /* Night-sky floor (airglow, starlight, zodiacal light) added to the
- * sky-view and aerial tables; see PROTOCOL.md "Night-sky floor". */
+ * sky-view and aerial tables; see proto/PROTOCOL.md "Night-sky floor". */
 struct state_night {
 	double zenith_luminance_cd_m2;	/* 0 switches the floor off */
 	double illuminance_lx;		/* horizontal, from the whole floor */
@@ -130,20 +130,23 @@ void state_default_camera(struct state_camera *ret);
 /* Default: Earth, sun at 30 degrees, observer at 0.2 km, reference sizes. */
 void state_default(struct sky_state *ret);
 
-/* Parses one key=value into s. On failure returns -EINVAL (unknown key,
- * malformed or out-of-range number) or -ERANGE and writes a message naming
- * the key and the rule to err; s may be partly changed, so callers work on
- * a copy. Numbers are parsed in the C locale. ret_dirty, if not NULL, gets
+/* Parses one key=value into s. On failure returns -ENOENT (unknown key),
+ * -EINVAL (a malformed value: not a number, not one of the names) or
+ * -ERANGE (a value outside the key's range or rule) and writes a message
+ * naming the key and the rule to err; the control protocol answers each
+ * with its own ACK code. s may be partly changed, so callers work on a
+ * copy. Numbers are parsed in the C locale. ret_dirty, if not NULL, gets
  * the tables this key invalidates ORed in. */
 int state_set(struct sky_state *s, const char *key, const char *value,
 	      uint32_t *ret_dirty, char *err, size_t err_size);
 
-/* Splits "key=value" and calls state_set. */
+/* Splits "key=value" and calls state_set; -EINVAL without a '='. */
 int state_set_pair(struct sky_state *s, const char *pair, uint32_t *ret_dirty,
 		   char *err, size_t err_size);
 
-/* Cross-key rules (top above bottom, sizes within limits). max_dim is the
- * device's largest buffer dimension rule: 0 means no device limit known. */
+/* Cross-key rules (top above bottom, sizes within limits): 0, or -ERANGE
+ * (-EINVAL from atmo_validate) with err naming the key. max_buffer_bytes
+ * is the device's largest buffer: 0 means no device limit known. */
 int state_validate(const struct sky_state *s, uint64_t max_buffer_bytes,
 		   char *err, size_t err_size);
 

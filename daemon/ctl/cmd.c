@@ -1,0 +1,100 @@
+/* cmd.c - the command table of the text protocol (proto/PROTOCOL.md),
+ * the verbs about the protocol itself (commands, help, ping, close) and
+ * what the verbs share for parsing their arguments. */
+#include "ctl_internal.h"
+
+#include <errno.h>
+#include <locale.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Every verb, in the order `commands` lists them. A new group of verbs
+ * (cmd_*.c) adds its entries here. */
+static const struct ctl_cmd cmds[] = {
+	{ "set", "set key=value ...", "change the sky; all or nothing; names the generation that shows it",
+	  1, PROTO_MAX_ARGS, ctl_cmd_set },
+	{ "get", "get [key ...] | get sun | get moon | get times [date=YYYY-MM-DD] [utc_offset_min=N]",
+	  "the current state, every key or the named ones; the clock's sun, moon, or the day's rise, set and twilights",
+	  0, PROTO_MAX_ARGS, ctl_cmd_get },
+	{ "batch", "batch", "start a batch: set lines until end apply as one change (no reply until end)",
+	  0, 0, ctl_cmd_batch },
+	{ "end", "end", "apply the batch as one change", 0, 0, ctl_cmd_end },
+	{ "status", "status", "generation, computation times, device, clients, last error", 0, 0, ctl_cmd_status },
+	{ "subscribe", "subscribe [tables=LIST] [events=0|1]",
+	  "tables: receive the shared memory (SCM_RIGHTS) and its layout; events: changed: lines",
+	  1, 2, ctl_cmd_subscribe },
+	{ "unsubscribe", "unsubscribe", "stop events and layout lines", 0, 0, ctl_cmd_unsubscribe },
+	{ "sample", "sample sky el_deg=E az_deg=A | sample sun | sample ambient",
+	  "sky radiance in a direction (no sun disk), the sun's illuminance at the observer, or the horizontal sky irradiance, from the published tables",
+	  1, 3, ctl_cmd_sample },
+	{ "view", "view add name=NAME [altitude_km=H] [yaw_deg=] [pitch_deg=] [roll_deg=] [vfov_deg=] [aspect=] | view del name=NAME | view list",
+	  "cameras with their own aerial-perspective volume; a view lasts while the connection that added it is open",
+	  1, 8, ctl_cmd_view },
+	{ "commands", "commands", "list the verbs", 0, 0, ctl_cmd_commands },
+	{ "help", "help [VERB]", "usage of a verb", 0, 1, ctl_cmd_help },
+	{ "ping", "ping", "answer OK", 0, 0, ctl_cmd_ping },
+	{ "close", "close", "answer OK and close the connection", 0, 0, ctl_cmd_close },
+};
+static const size_t n_cmds = sizeof(cmds) / sizeof(cmds[0]);
+
+const struct ctl_cmd *ctl_find_cmd(const char *name)
+{
+	for (size_t i = 0; i < n_cmds; i++)
+		if (strcmp(cmds[i].name, name) == 0)
+			return &cmds[i];
+	return NULL;
+}
+
+int ctl_cmd_commands(struct client *c, const struct proto_request *req, struct reply *r,
+		     char *msg, size_t msg_size)
+{
+	for (size_t i = 0; i < n_cmds; i++)
+		ctl_reply_add(r, "command: %s\n", cmds[i].name);
+	return 0;
+}
+
+int ctl_cmd_help(struct client *c, const struct proto_request *req, struct reply *r,
+		 char *msg, size_t msg_size)
+{
+	const char *name = req->n_args ? req->args[0].key : "help";
+	const struct ctl_cmd *e = ctl_find_cmd(name);
+
+	if (!e || (req->n_args && req->args[0].value))
+		return CTL_ACK(SKY_ACK_NO_EXIST, "%s: unknown verb", name);
+	ctl_reply_add(r, "usage: %s\nhelp: %s\n", e->usage, e->help);
+	return 0;
+}
+
+int ctl_cmd_ping(struct client *c, const struct proto_request *req, struct reply *r,
+		 char *msg, size_t msg_size)
+{
+	return 0;
+}
+
+int ctl_cmd_close(struct client *c, const struct proto_request *req, struct reply *r,
+		  char *msg, size_t msg_size)
+{
+	c->closing = 1;
+	return 0;
+}
+
+/* A strict finite number in the C locale, whatever the process locale. */
+int ctl_parse_number(const char *v, double *ret)
+{
+	static locale_t c_locale;
+	char *end;
+
+	if (!c_locale)
+		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
+	if (!c_locale || !v || !*v)
+		return -EINVAL;
+	errno = 0;
+	double d = strtod_l(v, &end, c_locale);
+	if (*end || !isfinite(d) || errno == ERANGE)
+		return -EINVAL;
+	*ret = d;
+	return 0;
+}
+

@@ -1,0 +1,177 @@
+/* ctl_internal.h - what the files of the control server share: a client
+ * connection, the server, a reply under construction and the command
+ * table's entry, with the functions one file offers the others.
+ *
+ * conn.c owns the connections (queues, framing, dispatch); ctl.c the
+ * listening socket and the events sent to every client; cmd.c the table of
+ * verbs; each cmd_*.c one group of verbs. A new group of verbs is a new
+ * cmd_*.c, its handlers declared below and entered in cmd.c's table.
+ */
+#ifndef SKYD_CTL_INTERNAL_H
+#define SKYD_CTL_INTERNAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+
+#include "ctl.h"
+#include "proto.h"
+#include "state.h"
+
+struct chunk;
+struct loop_io;
+struct loop_timer;
+
+/* A batch: set lines applied to a copy of the state, committed by end. */
+struct batch {
+	struct sky_state state;
+	uint32_t dirty;
+	int lines;
+	int error_code;			/* first failure; 0 if none */
+	char error[300];
+};
+
+struct client {
+	struct ctl *ctl;
+	struct client *prev, *next;
+	uint64_t id;
+	int fd;
+	struct loop_io *io;
+	uint32_t io_events;
+	struct ucred cred;		/* peer, recorded for roles */
+
+	char in[SKY_PROTO_LINE_MAX];
+	size_t in_len;
+	int discarding;			/* inside a line that was too long */
+	int eof;			/* the peer will send nothing more */
+	int closing;			/* drop once the output is out */
+
+	struct chunk *out_head, *out_tail;
+	size_t out_bytes;
+
+	uint32_t sub_tables;		/* has the region, gets layout: lines */
+	int sub_events;			/* gets changed: and failed: lines */
+	uint32_t sample_tables;		/* demanded by its sample requests, until unsubscribe */
+	const char *line;		/* the request being handled, unparsed */
+	char *deferred;			/* a sample waiting for its table; input waits too */
+	struct batch *batch;
+};
+
+struct ctl {
+	struct loop *loop;
+	struct srv *srv;
+	int listen_fd;
+	struct loop_io *listen_io;
+	struct loop_timer *accept_timer;
+	int accept_paused;
+	int accept_warned;		/* said so in the log; quiet until accepting again */
+	char path[sizeof(((struct sockaddr_un *)0)->sun_path)];
+	int created_socket;
+	struct client *clients;
+	int n_clients;
+	uint64_t next_id;
+	struct drive *drive;		/* the clock; NULL: none */
+	int finishing;
+};
+
+/* A reply under construction: pairs, then OK or one ACK line. */
+struct reply {
+	char *buf;
+	size_t len, cap;
+	int fd;				/* sent with the reply, owned */
+	int failed;
+};
+
+/* A verb's handler returns 0 (the dispatcher adds OK), an ACK code with
+ * the message in msg (what it wrote to the reply is then discarded), or -1
+ * when it answers later (a batch, a sample waiting for its table). */
+typedef int ctl_handler_fn(struct client *c, const struct proto_request *req, struct reply *r,
+			   char *msg, size_t msg_size);
+
+/* One verb: its usage and help for `help`, and the argument counts the
+ * dispatcher checks before calling fn. */
+struct ctl_cmd {
+	const char *name;
+	const char *usage;
+	const char *help;
+	int min_args, max_args;
+	ctl_handler_fn *fn;
+};
+
+/* In a handler: writes the message and yields the ACK code. */
+#define CTL_ACK(code, ...) (snprintf(msg, msg_size, __VA_ARGS__), (code))
+
+/* conn.c: connections. */
+int ctl_client_add(struct ctl *ctl, int fd);
+void ctl_client_drop(struct client *c, const char *why);
+/* Queues len bytes and a dup of fd (if >= 0); 0, or -1 if the client was
+ * dropped (its queue over its bound, or no fd to pass). */
+int ctl_client_queue(struct client *c, const char *data, size_t len, int fd);
+/* Writes what the socket takes. 0, or -1 if the client is gone. */
+int ctl_client_flush(struct client *c);
+/* Answers the samples that waited for a table (failed: with an ACK), then
+ * the input that queued behind them. */
+void ctl_resume_deferred(struct ctl *ctl, int failed);
+/* Appends printf-formatted text; on lack of memory marks r failed. */
+void ctl_reply_add(struct reply *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/* ctl.c: the server. */
+/* Tells srv the tables in use: what clients subscribed to and sampled. */
+void ctl_update_demand(struct ctl *ctl);
+
+/* cmd.c: the command table and the verbs about the protocol itself. */
+const struct ctl_cmd *ctl_find_cmd(const char *name);
+/* A strict finite number in the C locale: 0 or -EINVAL. */
+int ctl_parse_number(const char *v, double *ret);
+int ctl_cmd_commands(struct client *c, const struct proto_request *req, struct reply *r,
+		     char *msg, size_t msg_size);
+int ctl_cmd_help(struct client *c, const struct proto_request *req, struct reply *r,
+		 char *msg, size_t msg_size);
+int ctl_cmd_ping(struct client *c, const struct proto_request *req, struct reply *r,
+		 char *msg, size_t msg_size);
+int ctl_cmd_close(struct client *c, const struct proto_request *req, struct reply *r,
+		  char *msg, size_t msg_size);
+
+/* cmd_state.c: set, get, batch, end. */
+int ctl_cmd_set(struct client *c, const struct proto_request *req, struct reply *r,
+		char *msg, size_t msg_size);
+int ctl_cmd_get(struct client *c, const struct proto_request *req, struct reply *r,
+		char *msg, size_t msg_size);
+int ctl_cmd_batch(struct client *c, const struct proto_request *req, struct reply *r,
+		  char *msg, size_t msg_size);
+int ctl_cmd_end(struct client *c, const struct proto_request *req, struct reply *r,
+		char *msg, size_t msg_size);
+/* Applies a set line inside a batch to the batch's copy of the state; the
+ * first failure is kept for end to report. */
+void ctl_batch_line(struct client *c, const char *line);
+/* Makes next the served state through srv_apply and replies with its
+ * generation and tables; 0 or an ACK code with msg. */
+int ctl_commit(struct client *c, const struct sky_state *next, uint32_t dirty, struct reply *r,
+	       char *msg, size_t msg_size);
+
+/* cmd_astro.c: get sun, get moon, get times (reached through get). */
+int ctl_get_sun(struct client *c, const struct proto_request *req, struct reply *r,
+		char *msg, size_t msg_size);
+int ctl_get_moon(struct client *c, const struct proto_request *req, struct reply *r,
+		 char *msg, size_t msg_size);
+int ctl_get_times(struct client *c, const struct proto_request *req, struct reply *r,
+		  char *msg, size_t msg_size);
+
+/* cmd_tables.c: status, subscribe, unsubscribe, sample. */
+int ctl_cmd_status(struct client *c, const struct proto_request *req, struct reply *r,
+		   char *msg, size_t msg_size);
+int ctl_cmd_subscribe(struct client *c, const struct proto_request *req, struct reply *r,
+		      char *msg, size_t msg_size);
+int ctl_cmd_unsubscribe(struct client *c, const struct proto_request *req, struct reply *r,
+			char *msg, size_t msg_size);
+int ctl_cmd_sample(struct client *c, const struct proto_request *req, struct reply *r,
+		   char *msg, size_t msg_size);
+
+/* cmd_view.c: view add, del, list. */
+int ctl_cmd_view(struct client *c, const struct proto_request *req, struct reply *r,
+		 char *msg, size_t msg_size);
+/* Drops the views of a connection that closed. */
+void ctl_views_drop_owner(struct ctl *ctl, uint64_t owner);
+
+#endif
