@@ -206,7 +206,7 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 //   without delta-M the sub-samples cannot resolve the phase's narrow peak
 //   and z is 15 T_xz. One texel keeps a lookup to one fetch.
 // L2's shape stands for the higher orders' too. docs/physics.md derives the
-// bands; docs/findings.d/engine.md has the variants measured on Mars.
+// bands; docs/findings.md has the variants measured on Mars.
 void store_shape(int i, int j, vec3 psi, vec3 sun_j, float escape_lum)
 {
 	float l = max(dot(sum_l2[j], MS_SHARE_LUM), 1e-30);

@@ -20,7 +20,7 @@
 #define N_SPEC SPEC_COUNT
 /* Texels of a row one invocation shares its rays between: sun angles of
  * multi-scattering, azimuths of sky-view (more azimuths share more work
- * until the registers run out; docs/findings.d/engine.md). */
+ * until the registers run out; docs/findings.md). */
 #define MS_SUN_GROUP 4
 #define SV_AZ_GROUP 12
 /* The state's camera and STATE_MAX_VIEWS views, 3 vec4 each. */
