@@ -246,6 +246,13 @@ struct sensor_status {
  * sensor_get_status or sensor_set_config, not sensor_free. */
 typedef void (*sensor_fn)(void *ctx, const struct sensor_reading *r);
 
+/* Called after any event that changed the status (sensor_get_status: the
+ * state, the device in use and its state, why, the counters) or the list
+ * of devices; events that come together are told once. From the loop;
+ * it may call what sensor_fn may. NULL stops it. */
+typedef void (*sensor_status_fn)(void *ctx);
+void sensor_on_status(struct sensor *s, sensor_status_fn fn, void *ctx);
+
 /* Starts the manager on l: libusb's fds join the loop, hot-plug (or a
  * rescan timer) watches for devices, the chosen device is opened and read.
  * fn (may be NULL) gets the pipeline's outputs. -EINVAL for a config that

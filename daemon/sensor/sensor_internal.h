@@ -235,7 +235,9 @@ struct sensor_dev {
 	uint64_t retry_ns;		/* FAILED: not before */
 	uint64_t close_ns;		/* CLOSING since */
 	uint64_t fresh_ns;		/* ready, or last accepted reading */
-	char last_note[SENSOR_TEXT_MAX];
+	char pending_note[SENSOR_TEXT_MAX];	/* the driver's note on the reading to come */
+	char last_logged[SENSOR_TEXT_MAX];
+	uint64_t logged_ns;
 	struct sensor_info info;
 };
 
@@ -268,8 +270,13 @@ struct sensor {
 	struct sensor_event *events;
 	size_t n_events, events_cap;
 	int list_mode;
+	sensor_status_fn status_fn;
+	void *status_ctx;
+	uint64_t status_key;		/* digest of what the last status call saw */
 	int settling;
 	int in_events;			/* inside libusb_handle_events */
+	int config_pending;		/* set_config came while dispatching: apply in settle */
+	struct sensor_config pending_cfg;
 	char why[160];
 	struct sensor_counters counters;
 };
