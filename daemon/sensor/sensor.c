@@ -503,7 +503,9 @@ static int start_usb(struct sensor *s)
 
 	if (r < 0) {
 		s->usb = NULL;
-		snprintf(s->why, sizeof(s->why), "libusb: %s", sensor_usb_error(r));
+		snprintf(s->why, sizeof(s->why),
+			 "libusb could not start: %s (it needs /dev/bus/usb, and a netlink socket "
+			 "for hot-plug)", sensor_usb_error(r));
 		log_warning("sensor: %s", s->why);
 		return -ENODEV;
 	}
