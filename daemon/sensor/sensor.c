@@ -106,6 +106,8 @@ uint64_t sensor_s_to_ns(double s)
 
 /* ---- finding devices ---- */
 
+/* The port path ("1-4.2", the name sysfs gives the device) into buf;
+ * -ENODEV for a root hub, which has none. */
 static int bus_path(libusb_device *usb, char *buf, size_t size)
 {
 	uint8_t ports[8];
@@ -119,6 +121,8 @@ static int bus_path(libusb_device *usb, char *buf, size_t size)
 	return 0;
 }
 
+/* Name and serial from the strings the kernel read at enumeration (sysfs):
+ * no USB traffic, nothing that could block. */
 static void fill_names(struct sensor_dev *d)
 {
 	char manufacturer[48], product[48];
@@ -205,12 +209,14 @@ static void device_left(struct sensor *s, struct sensor_dev *d)
 		sensor_dev_close(d, SENSOR_DEV_IDLE, why);
 }
 
+/* Called from libusb_handle_events (or, for the devices present, from the
+ * registration) in the loop's thread. */
 static int LIBUSB_CALL hotplug_cb(libusb_context *ctx, libusb_device *usb,
 				  libusb_hotplug_event event, void *user)
 {
 	struct sensor *s = user;
 
-	/* libusb may hold locks here: only queue, sensor_settle() acts. */
+	/* Inside libusb's dispatch: only queue, sensor_settle() acts. */
 	if (s->n_events == s->events_cap) {
 		size_t cap = s->events_cap ? 2 * s->events_cap : 16;
 		struct sensor_event *e = realloc(s->events, cap * sizeof(*e));
@@ -259,6 +265,7 @@ static void scan(struct sensor *s)
 	libusb_free_device_list(list, 1);
 }
 
+/* Not open, still here, and idle or failed long enough ago. */
 static int openable(const struct sensor_dev *d, uint64_t now)
 {
 	if (d->gone || d->h)
@@ -440,6 +447,7 @@ void sensor_on_status(struct sensor *s, sensor_status_fn fn, void *ctx)
 	s->status_key = 0;
 }
 
+/* List mode: every device identified, given up on, or closed again. */
 static int list_done(const struct sensor *s)
 {
 	uint64_t now = loop_now_ns();
@@ -496,6 +504,8 @@ void sensor_settle(struct sensor *s)
 
 /* ---- life cycle ---- */
 
+/* libusb's context on the loop and the devices found; -ENODEV with why
+ * when libusb cannot start. */
 static int start_usb(struct sensor *s)
 {
 	const struct libusb_pollfd **fds;

@@ -232,6 +232,7 @@ void sensor_dev_free(struct sensor_dev *d)
 
 /* ---- transfers ---- */
 
+/* libusb's transfer status as -errno, 0 for completed. */
 static int map_status(enum libusb_transfer_status st)
 {
 	switch (st) {
@@ -245,6 +246,9 @@ static int map_status(enum libusb_transfer_status st)
 	}
 }
 
+/* Every transfer ends here: bookkeeping, the device stopped after too
+ * many bad ones in a row, then the driver's callback. Inside libusb's
+ * dispatch. */
 static void LIBUSB_CALL xfer_done(struct libusb_transfer *t)
 {
 	struct sensor_xfer *x = t->user_data;
@@ -289,6 +293,7 @@ static unsigned timeout_ms(const struct sensor_dev *d, unsigned ms)
 	return ms ? ms : (unsigned)(d->s->cfg.io_timeout_s * 1000.0 + 0.5);
 }
 
+/* Submits t (which it owns from here) and tracks it on d. */
 static int submit(struct sensor_dev *d, struct libusb_transfer *t, sensor_xfer_fn fn, int control)
 {
 	struct sensor_xfer *x = calloc(1, sizeof(*x));

@@ -33,6 +33,8 @@ struct hid_priv {
 	uint8_t report[HID_MAX_DESC];	/* the report descriptor, then feature scratch */
 };
 
+/* The first HID interface with an interrupt IN endpoint: a candidate; what
+ * it is, only its report descriptor says. */
 static int hid_match(const struct libusb_device_descriptor *dd,
 		     const struct libusb_config_descriptor *cfg)
 {
@@ -253,6 +255,9 @@ static void feature_set(struct sensor_dev *d, int status, const uint8_t *data, s
 	next_feature(d);
 }
 
+/* A feature report as the device holds it: other fields keep their
+ * values, ours are changed, and it goes back. A device that refuses is
+ * noted and read all the same. */
 static void feature_got(struct sensor_dev *d, int status, const uint8_t *data, size_t len)
 {
 	struct hid_priv *p = sensor_dev_priv(d);
@@ -308,6 +313,8 @@ static void add_feature(struct hid_priv *p, const struct sensor_hid_field *f)
 		p->features[p->n_features++] = f->report_id;
 }
 
+/* The report descriptor, from sysfs or the device: no ambient light
+ * sensor in it is final (unsupported); then the feature reports to set. */
 static void got_descriptor(struct sensor_dev *d, const uint8_t *desc, size_t len)
 {
 	struct hid_priv *p = sensor_dev_priv(d);
@@ -376,6 +383,8 @@ static int find_endpoint(struct sensor_dev *d, struct hid_priv *p)
 	return found ? 0 : -ENOENT;
 }
 
+/* The report descriptor: the kernel's copy when sysfs has one, else asked
+ * of the device (GET_DESCRIPTOR, report, on the interface). */
 static int hid_start(struct sensor_dev *d)
 {
 	struct hid_priv *p = sensor_dev_priv(d);

@@ -100,6 +100,7 @@ static void exchange_failed(struct sensor_dev *d, const char *what)
 	sensor_dev_timer(d, (uint64_t)(sensor_dev_config(d)->report_interval_s * 1e9), poll_sensor);
 }
 
+/* The response: it must echo the command code. */
 static void in_done(struct sensor_dev *d, int status, const uint8_t *data, size_t len)
 {
 	struct mcp_priv *p = sensor_dev_priv(d);
@@ -179,6 +180,8 @@ static void schedule_poll(struct sensor_dev *d)
 
 static void get_data(struct sensor_dev *d);
 
+/* 0x40's answer: the two bytes of the BH1750, or why not; a read not yet
+ * complete is fetched again shortly. */
 static void got_data(struct sensor_dev *d, const uint8_t *resp)
 {
 	struct mcp_priv *p = sensor_dev_priv(d);
@@ -283,6 +286,8 @@ static void next_address(struct sensor_dev *d, const uint8_t *resp)
 	sensor_dev_timer(d, MCP_STEP_NS, probe_address);
 }
 
+/* After the power-on write: anything but a clean idle engine without an
+ * address NACK means nothing answers there. */
 static void probe_status(struct sensor_dev *d, const uint8_t *resp)
 {
 	struct mcp_priv *p = sensor_dev_priv(d);
@@ -332,6 +337,7 @@ static void speed_set(struct sensor_dev *d, const uint8_t *resp)
 	sensor_dev_timer(d, MCP_STEP_NS, probe_address);
 }
 
+/* The HID interface's two interrupt endpoints, then the I2C rate. */
 static int mcp_start(struct sensor_dev *d)
 {
 	struct mcp_priv *p = sensor_dev_priv(d);
