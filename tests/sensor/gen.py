@@ -310,7 +310,8 @@ def mcp():
     BH1750 is looked for at 0x23 (no answer: NACK, the transfer is
     cancelled) and found at 0x5c; measurement time 31, continuous high
     resolution. Then each poll: read 2 bytes (0x91), fetch them (0x40).
-    One fetch fails (0x41) between the second and third reading; the
+    Before the second reading one answer is garbage (it echoes 0x10 to a
+    0x91); between the second and third one fetch fails (0x41). The
     capture ends after the last reading."""
     write_text('mcp.umockdev', mcp_device(3, 3, 'MCP-0001'))
     cap = Capture(1, 3)
@@ -323,6 +324,8 @@ def mcp():
     for byte in (0x40 | (31 >> 5), 0x60 | (31 & 0x1f), 0x10):
         mcp_exchange(cap, report(0x90, 1, 0, 0x5c << 1, byte), report(0x90, 0x00))
     for n, count in enumerate(BH1750_COUNTS):
+        if n == 1:
+            mcp_exchange(cap, report(0x91, 2, 0, 0x5c << 1 | 1), report(0x10, 0x00))	# garbage
         if n == 2:
             mcp_exchange(cap, report(0x91, 2, 0, 0x5c << 1 | 1), report(0x91, 0x00))
             mcp_exchange(cap, report(0x40), report(0x40, 0x41, 0x00, 127))	# failed
