@@ -147,6 +147,7 @@ static int step_kelvin(struct run *r, const struct sensor_status *st)
 	if (st->pipe.rejected[SENSOR_REJECT_UNIT] < 3)
 		return 0;
 	CHECK(st->pipe.accepted == 0 && r->n_lux == 0);
+	CHECK(st->counters.io_errors == 1);	/* the stalled feature report */
 	CHECK(strstr(st->device.detail, "unit not lux") != NULL);
 	CHECK(strstr(st->why, "refused: unit") != NULL);
 	CHECK(st->state == SENSOR_STATE_READING || st->state == SENSOR_STATE_STALE);

@@ -113,18 +113,24 @@ void sensor_note_why(struct sensor *s, const char *text)
 	s->why[n] = 0;
 }
 
-/* A device's problems go to the log at most once a second and never the
- * same text twice in a row: a device sending garbage at 1 kHz must not
- * flood the journal (the counters say how much there was). */
+/* A device's problems go to the log at most five lines in ten seconds and
+ * never the same text twice in a row: a device sending garbage at 1 kHz
+ * must not flood the journal (the counters say how much there was). */
 static void dev_log(struct sensor_dev *d, const char *text)
 {
 	uint64_t now = loop_now_ns();
 
-	if (!strcmp(text, d->last_logged) || now - d->logged_ns < 1000000000ull)
+	if (!strcmp(text, d->last_logged))
 		return;
+	if (now - d->logged_ns >= 10000000000ull) {
+		d->logged_ns = now;
+		d->logged_lines = 0;
+	}
+	if (d->logged_lines >= 5)
+		return;
+	d->logged_lines++;
 	log_warning("sensor %s: %s", d->info.bus_path, text);
 	snprintf(d->last_logged, sizeof(d->last_logged), "%s", text);
-	d->logged_ns = now;
 }
 
 void sensor_dev_note(struct sensor_dev *d, const char *fmt, ...)
@@ -269,6 +275,10 @@ static void LIBUSB_CALL xfer_done(struct libusb_transfer *t)
 	}
 	if (status == 0) {
 		d->bad_in_row = 0;
+	} else if (status == -EPIPE) {
+		/* A stall is an answer (the device refuses a request it need
+		 * not support): the driver decides. */
+		s->counters.io_errors++;
 	} else {
 		if (status == -ETIMEDOUT)
 			s->counters.timeouts++;
@@ -392,7 +402,7 @@ void sensor_dev_ready(struct sensor_dev *d, const char *fmt, ...)
 		return;
 	d->failures = 0;
 	d->fresh_ns = loop_now_ns();
-	d->last_logged[0] = 0;
+	d->pending_note[0] = 0;		/* set-up notes are not about readings */
 	if (s->list_mode) {
 		d->probed = 1;
 		sensor_dev_close(d, SENSOR_DEV_IDLE, NULL);

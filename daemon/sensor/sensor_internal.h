@@ -237,7 +237,8 @@ struct sensor_dev {
 	uint64_t fresh_ns;		/* ready, or last accepted reading */
 	char pending_note[SENSOR_TEXT_MAX];	/* the driver's note on the reading to come */
 	char last_logged[SENSOR_TEXT_MAX];
-	uint64_t logged_ns;
+	uint64_t logged_ns;		/* start of the current log window */
+	int logged_lines;		/* lines logged in it */
 	struct sensor_info info;
 };
 

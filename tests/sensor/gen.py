@@ -46,12 +46,13 @@ class Capture:
                           setup if setup is not None else bytes(8), 0, 0, 0, 0)
         self.records.append(hdr + data)
 
-    def control_in(self, request_type, request, value, index, length, answer):
-        """A control transfer reading length bytes; the device answers."""
+    def control_in(self, request_type, request, value, index, length, answer, status=0):
+        """A control transfer reading length bytes; the device answers, or
+        refuses with status (-32, EPIPE: a stall)."""
         setup = struct.pack('<BBHHH', request_type, request, value, index, length)
         i = self._id()
         self._record(i, 'S', XFER_CONTROL, 0x80, setup, b'', length)
-        self._record(i, 'C', XFER_CONTROL, 0x80, None, answer, len(answer))
+        self._record(i, 'C', XFER_CONTROL, 0x80, None, answer, len(answer), status)
 
     def control_out(self, request_type, request, value, index, data):
         """A control transfer writing data; the device takes it."""
@@ -253,11 +254,13 @@ def als_flood():
 
 def als_kelvin():
     """A sensor whose illuminance field claims kelvin (0x00010001): every
-    reading must be refused for its unit."""
+    reading must be refused for its unit. It also stalls the request for
+    its feature report, so skyd sets nothing and reads all the same."""
     desc = als_report_descriptor(unit=(0x01, 0x00, 0x01, 0x00))
     write_text('kelvin.umockdev', als_device(5, 6, 'KELVIN-1', desc, 'Sensor in kelvin'))
     cap = Capture(1, 6)
-    als_setup(cap, desc)
+    cap.control_in(0x81, 0x06, 0x2200, 0, len(desc), desc)
+    cap.control_in(0xA1, 0x01, 0x0301, 0, 9, b'', status=-32)	# GET_REPORT: stall
     for lux in (100.0, 200.0, 300.0):
         cap.interrupt_in(ALS_EP, ALS_PACKET, als_input(lux))
     cap.write('kelvin.pcap')
