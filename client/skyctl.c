@@ -67,7 +67,9 @@ static int request_print(sky_client *c, const char *line)
 }
 
 /* Joins verb and arguments with single spaces; arguments are passed as they
- * are (the daemon parses them), but a newline in one is refused here. */
+ * are (the daemon parses them), but a newline in one is refused here, and
+ * a value with spaces (one shell word, metar=EGLL 241250Z ...) is quoted
+ * so that it stays one value. */
 static int join_line(const char *verb, int argc, char **argv, char *buf, size_t size)
 {
 	size_t n = (size_t)snprintf(buf, size, "%s", verb);
@@ -76,8 +78,14 @@ static int join_line(const char *verb, int argc, char **argv, char *buf, size_t 
 			fprintf(stderr, "skyctl: a line break inside '%s'\n", argv[i]);
 			return -EINVAL;
 		}
-		n += (size_t)snprintf(buf + (n < size ? n : size), n < size ? size - n : 0, " %s",
-				      argv[i]);
+		const char *eq = strchr(argv[i], '=');
+		char *end = buf + (n < size ? n : size);
+		size_t left = n < size ? size - n : 0;
+		if (eq && eq[1] != '"' && strpbrk(eq, " \t") && !strchr(eq, '"'))
+			n += (size_t)snprintf(end, left, " %.*s\"%s\"", (int)(eq - argv[i] + 1), argv[i],
+					      eq + 1);
+		else
+			n += (size_t)snprintf(end, left, " %s", argv[i]);
 	}
 	if (n >= size) {
 		fprintf(stderr, "skyctl: request longer than %zu bytes\n", size - 1);

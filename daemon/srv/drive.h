@@ -36,7 +36,8 @@ void drive_site(const struct sky_state *s, struct astro_site *ret_site,
 		struct astro_options *ret_opt);
 
 /* Puts into s the lights whose mode is STATE_CLOCK as they are at monotonic
- * time mono_s: sun direction, illuminance (133.8 klx / R^2) and angular
+ * time mono_s: sun direction, illuminance (133.8 klx / R^2, clear sky: the
+ * tables get it times the state's cloud factor, state_resolve) and angular
  * radius; moon direction, angular radius, colour and illuminance (0 while
  * it is below DRIVE_MOON_MIN_ELEVATION_DEG); lights_utc_s. Nothing when no
  * light is clock-driven or no time is set (lights_utc_s becomes NAN).

@@ -28,6 +28,8 @@ struct srv {
 	uint32_t dirty;			/* invalidated since the last submission */
 	int pending;			/* state differs from what was submitted last */
 
+	/* state_resolve's of state: what the tables and the slot get (the
+	 * weather applied, the lights times the cloud factor). */
 	struct sky_state computing_state;
 	int in_flight;
 	uint32_t in_flight_mask;
@@ -182,7 +184,13 @@ static void kick(struct srv *s)
 
 	if (s->in_flight || !s->pending)
 		return;
-	s->computing_state = s->state;
+	/* The tables see the weather applied and the lights times the cloud
+	 * factor; the state keeps the keys as they were set. srv_check
+	 * resolved the same state, so this cannot fail but on a bug. */
+	if (state_resolve(&s->state, &s->computing_state, NULL, err, sizeof(err)) < 0) {
+		fail(s, s->generation + 1, err);
+		return;
+	}
 	s->pending = 0;
 	s->eng_valid &= ~s->dirty;
 	mask = s->dirty & srv_tables_needed(s);
