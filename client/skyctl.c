@@ -376,17 +376,6 @@ static int cmd_dump(const struct opts *o, int argc, char **argv)
 	return e;
 }
 
-static int parse_double(const char *s, double *ret)
-{
-	char *end;
-	errno = 0;
-	double x = strtod(s, &end);
-	if (end == s || *end || errno || !isfinite(x))
-		return -EINVAL;
-	*ret = x;
-	return 0;
-}
-
 /* render --view fisheye|equirect|perspective [--size WxH] [--yaw D]
  * [--pitch D] [--vfov D] [--exposure E] [--no-disks] OUT.png */
 static int cmd_render(const struct opts *o, int argc, char **argv)
@@ -421,14 +410,14 @@ static int cmd_render(const struct opts *o, int argc, char **argv)
 			p.height = (uint32_t)h;
 			sized = true;
 		} else if (strcmp(a, "--yaw") == 0 && val) {
-			bad = parse_double(argv[++i], &p.yaw_deg) < 0;
+			bad = proto_parse_number(argv[++i], &p.yaw_deg) < 0;
 		} else if (strcmp(a, "--pitch") == 0 && val) {
-			bad = parse_double(argv[++i], &p.pitch_deg) < 0 || fabs(p.pitch_deg) > 90.0;
+			bad = proto_parse_number(argv[++i], &p.pitch_deg) < 0 || fabs(p.pitch_deg) > 90.0;
 		} else if (strcmp(a, "--vfov") == 0 && val) {
-			bad = parse_double(argv[++i], &p.vfov_deg) < 0 || p.vfov_deg <= 0.0 ||
+			bad = proto_parse_number(argv[++i], &p.vfov_deg) < 0 || p.vfov_deg <= 0.0 ||
 			      p.vfov_deg >= 180.0;
 		} else if (strcmp(a, "--exposure") == 0 && val) {
-			bad = parse_double(argv[++i], &exposure) < 0 || exposure < 0.0;
+			bad = proto_parse_number(argv[++i], &exposure) < 0 || exposure < 0.0;
 		} else if (strcmp(a, "--no-disks") == 0) {
 			p.flags = 0;
 		} else if (a[0] != '-' && !out) {

@@ -2,6 +2,8 @@
 #include "proto.h"
 
 #include <errno.h>
+#include <locale.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -289,4 +291,21 @@ const char *proto_ack_name(int code)
 	case SKY_ACK_ENGINE: return "engine";
 	}
 	return "unknown";
+}
+
+int proto_parse_number(const char *v, double *ret)
+{
+	static locale_t c_locale;
+	char *end;
+
+	if (!c_locale)
+		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
+	if (!c_locale || !v || !*v)
+		return -EINVAL;
+	errno = 0;
+	double d = strtod_l(v, &end, c_locale);
+	if (*end || end == v || !isfinite(d) || (errno == ERANGE && d != 0.0))
+		return -EINVAL;
+	*ret = d;
+	return 0;
 }

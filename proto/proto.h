@@ -100,6 +100,11 @@ uint32_t proto_table_mask(const char *list);
 /* Writes "ACK [code] {verb} message\n" into buf, replacing any byte of the
  * message that could break the line (control, non-ASCII) with '?'. Returns
  * the length as snprintf does. */
+/* A number as the protocol writes it: the whole string, finite, parsed in
+ * the C locale whatever the process locale (a value that underflows reads
+ * as its denormal or 0). Returns 0 or -EINVAL; *ret untouched on failure. */
+int proto_parse_number(const char *v, double *ret);
+
 int proto_format_ack(char *buf, size_t size, int code, const char *verb, const char *message);
 
 /* The symbolic name of an ACK code ("syntax", "range", ...) or "unknown". */

@@ -80,21 +80,3 @@ int ctl_cmd_close(struct client *c, const struct proto_request *req, struct repl
 	return 0;
 }
 
-/* A strict finite number in the C locale, whatever the process locale. */
-int ctl_parse_number(const char *v, double *ret)
-{
-	static locale_t c_locale;
-	char *end;
-
-	if (!c_locale)
-		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
-	if (!c_locale || !v || !*v)
-		return -EINVAL;
-	errno = 0;
-	double d = strtod_l(v, &end, c_locale);
-	if (*end || !isfinite(d) || errno == ERANGE)
-		return -EINVAL;
-	*ret = d;
-	return 0;
-}
-

@@ -132,7 +132,6 @@ void ctl_update_demand(struct ctl *ctl);
 /* cmd.c: the command table and the verbs about the protocol itself. */
 const struct ctl_cmd *ctl_find_cmd(const char *name);
 /* A strict finite number in the C locale: 0 or -EINVAL. */
-int ctl_parse_number(const char *v, double *ret);
 int ctl_cmd_commands(struct client *c, const struct proto_request *req, struct reply *r,
 		     char *msg, size_t msg_size);
 int ctl_cmd_help(struct client *c, const struct proto_request *req, struct reply *r,

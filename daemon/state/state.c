@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "proto.h"
 #include "simclock.h"
 
 const char *const state_table_names[STATE_N_TABLES] = {
@@ -165,7 +166,7 @@ static int set_clock_key(struct sky_state *s, const char *key, const char *v, ui
 			return ERR("utc: '%s' is not now or an ISO 8601 UTC time such as 2026-06-21T18:30:00Z (a real date, a zone)", v);
 		}
 	} else if (strcmp(key, "time_rate") == 0) {
-		if (state_parse_double(v, &d) < 0)
+		if (proto_parse_number(v, &d) < 0)
 			return ERR("time_rate: '%s' is not a finite number", v);
 		if (fabs(d) > SIMCLOCK_RATE_MAX)
 			return ERR_RANGE("time_rate: %g is outside [%g, %g]", d, -SIMCLOCK_RATE_MAX, SIMCLOCK_RATE_MAX);
@@ -176,7 +177,7 @@ static int set_clock_key(struct sky_state *s, const char *key, const char *v, ui
 	} else if (strcmp(key, "delta_t_s") == 0) {
 		if (strcmp(v, "auto") == 0)
 			d = NAN;
-		else if (state_parse_double(v, &d) < 0)
+		else if (proto_parse_number(v, &d) < 0)
 			return ERR("delta_t_s: '%s' is not auto or a finite number", v);
 		else if (fabs(d) > 1e6)
 			return ERR_RANGE("delta_t_s: %g is outside [-1e6, 1e6]", d);

@@ -23,8 +23,6 @@
 #define ERR_RANGE(...) (snprintf(err, err_size, __VA_ARGS__), -ERANGE)
 #define ERR_UNKNOWN(...) (snprintf(err, err_size, __VA_ARGS__), -ENOENT)
 
-/* Strict C-locale double: the whole string, finite. 0 or -EINVAL. */
-int state_parse_double(const char *v, double *ret);
 /* Index of v in a NULL-terminated list, or -1. */
 int state_enum_index(const char *const *names, const char *v);
 

@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "proto.h"
 #include "simclock.h"
 
 enum kind { K_DOUBLE, K_TRIPLE, K_UINT, K_ENUM };
@@ -175,28 +176,6 @@ static const struct {
 };
 #define N_CKEYS (sizeof(ckeys) / sizeof(ckeys[0]))
 
-/* Strict C-locale double: the whole string, finite. strtod reads the
- * locale's decimal point, so it runs under a "C" locale_t. */
-int state_parse_double(const char *v, double *ret)
-{
-	static locale_t c_locale;
-	char *end;
-
-	if (!c_locale)
-		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
-	if (!c_locale || !*v)
-		return -EINVAL;
-	locale_t old = uselocale(c_locale);
-	errno = 0;
-	double d = strtod(v, &end);
-	int e = errno;
-	uselocale(old);
-	if (*end || end == v || !isfinite(d) || (e == ERANGE && d != 0.0))
-		return -EINVAL;
-	*ret = d;
-	return 0;
-}
-
 static int parse_triple(const char *v, double ret[3])
 {
 	char buf[128], *parts[3];
@@ -220,7 +199,7 @@ static int parse_triple(const char *v, double ret[3])
 		return -EINVAL;
 	double out[3];
 	for (int i = 0; i < n; i++)
-		if (state_parse_double(parts[i], &out[i]) < 0)
+		if (proto_parse_number(parts[i], &out[i]) < 0)
 			return -EINVAL;
 	for (int i = 0; i < 3; i++)
 		ret[i] = out[n == 1 ? 0 : i];
@@ -244,7 +223,7 @@ int state_set_table_key(struct sky_state *s, const struct state_key *k, const ch
 
 	switch (k->kind) {
 	case K_DOUBLE:
-		if (state_parse_double(v, &d) < 0)
+		if (proto_parse_number(v, &d) < 0)
 			return ERR("%s: '%s' is not a finite number", k->name, v);
 		if (d < k->min || d > k->max)
 			return ERR_RANGE("%s: %g is outside [%g, %g]", k->name, d, k->min, k->max);
@@ -322,7 +301,7 @@ static int set_constituent(struct atmo_constituent *c, const char *key, const ch
 							      : c->absorption_per_km, t, sizeof(t));
 			return 0;
 		}
-		if (state_parse_double(v, &d) < 0)
+		if (proto_parse_number(v, &d) < 0)
 			return ERR("%s: '%s' is not a finite number", key, v);
 		switch (ckeys[i].which) {
 		case C_SCALE_HEIGHT:
