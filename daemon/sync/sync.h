@@ -163,6 +163,8 @@ struct sync_status {
 	enum sync_state state;
 	enum sync_role role;
 	int active;			/* controller: it holds the claim and publishes */
+	int standby;			/* controller: another one holds the claim; this one
+					 * follows it and waits for it to go */
 	int tls, auth;			/* TLS on; a username is set (never the password) */
 	char self[SYNC_ID_MAX];		/* this instance's controller id */
 	char controller[SYNC_ID_MAX];	/* the controller the topic names, "" none known */
@@ -181,7 +183,7 @@ struct sync_status {
 	uint64_t connects;		/* connections the broker accepted */
 	uint64_t attempts;		/* connection attempts */
 	uint32_t backoff_ms;		/* the delay before the next attempt while lost */
-	char why[160];			/* the latest connection problem, "" none */
+	char why[256];			/* the latest connection problem, "" none */
 };
 
 /* A follower's (or a standby controller's) new sky: candidate is complete
