@@ -169,6 +169,10 @@ static void count_drop(struct sync *s, enum sync_drop d, const char *what, const
 
 /* ---- the connection ---- */
 
+/* The connection is gone, or the attempt failed: stop watching the
+ * socket, forget the claim and what was in flight, and try again after
+ * the back-off, which doubles for the next time. Only the loss of an
+ * established connection is a warning. */
 static void connection_lost(struct sync *s, const char *why)
 {
 	int was_connected = s->state == SYNC_CONNECTED;
@@ -590,9 +594,12 @@ static void on_subscribe(struct mosquitto *m, void *ctx, int mid, int n, const i
 	struct sync *s = ctx;
 
 	for (int i = 0; i < n; i++)
-		if (granted[i] > 2)
+		if (granted[i] > 2) {
 			log_error("sync: the broker refused a subscription under %s (access "
 				  "rules?)", s->cfg.prefix);
+			snprintf(s->st.why, sizeof(s->st.why), "the broker refused a subscription");
+			mark(s);
+		}
 	if (mid == s->last_sub_mid && s->cfg.role == SYNC_CONTROLLER)
 		mosquitto_publish(s->m, NULL, s->topic_probe, 1, "?", 1, false);
 }
@@ -734,6 +741,8 @@ void sync_free(struct sync *s)
 	if (!s)
 		return;
 	s->closing = 1;
+	if (s->io)
+		loop_io_del(s->io);
 	if (s->m) {
 		/* A controller says it is offline and leaves without DISCONNECT,
 		 * so that the broker also sends its will should that
@@ -745,8 +754,6 @@ void sync_free(struct sync *s)
 		mosquitto_destroy(s->m);
 	}
 	mosquitto_lib_cleanup();
-	if (s->io)
-		loop_io_del(s->io);
 	loop_timer_del(s->misc_timer);
 	loop_timer_del(s->retry_timer);
 	loop_timer_del(s->resolve_timer);

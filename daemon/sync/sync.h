@@ -215,7 +215,8 @@ int sync_new(struct loop *l, const struct sync_config *cfg, const struct sync_ca
  * disconnects; the password is wiped. */
 void sync_free(struct sync *s);
 
-/* The controller's state after an accepted change, with its generation
+/* The controller's state: once after sync_new (the state it starts
+ * with), then after every accepted change, with its generation
  * (increasing) and apply time. The latest is kept and sent when this
  * instance holds the claim and is connected, at once or after a
  * reconnection; at most one is in flight, a newer one replaces one still
