@@ -1,0 +1,450 @@
+/* test_sync_msg.c - the replication messages and settings (daemon/sync):
+ * a state survives encoding and decoding bit for bit, the simulated clock
+ * means the same instant on both sides, every kind of bad message is
+ * refused with its reason, the broker URL and the checks of the settings. */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "simclock.h"
+#include "state.h"
+#include "sync.h"
+#include "test.h"
+
+#define ID "skyhost/4242/0123456789abcdef"
+
+static char msg[SYNC_MSG_MAX + 1];
+
+static int64_t real_ns(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_REALTIME, &ts);
+	return (int64_t)ts.tv_sec * 1000000000ll + ts.tv_nsec;
+}
+
+static void set(struct sky_state *s, const char *pair)
+{
+	char err[256];
+	if (state_set_pair(s, pair, NULL, err, sizeof(err)) < 0)
+		FAIL("%s: %s", pair, err);
+}
+
+/* ---- comparing states field by field, bit for bit ---- */
+
+#define SAME(f)                                                    \
+	do {                                                       \
+		if (memcmp(&a->f, &b->f, sizeof(a->f)) != 0)        \
+			return #f;                                 \
+	} while (0)
+
+static const char *diff_atmo(const struct atmo *a, const struct atmo *b)
+{
+	SAME(bottom_radius_km);
+	SAME(top_radius_km);
+	SAME(ground_albedo);
+	SAME(n_constituents);
+	for (int i = 0; i < a->n_constituents; i++) {
+		SAME(c[i].name);
+		SAME(c[i].scattering_per_km);
+		SAME(c[i].absorption_per_km);
+		SAME(c[i].phase);
+		SAME(c[i].g);
+		SAME(c[i].density);
+	}
+	return NULL;
+}
+
+/* The first field in which a and b differ, NULL when none does. The
+ * clock's anchors and the lights' time are left out (they are instants on
+ * each machine's own clocks), and the views (they stay local). */
+static const char *state_diff_field(const struct sky_state *a, const struct sky_state *b)
+{
+	const char *d = diff_atmo(&a->atmo, &b->atmo);
+	if (d)
+		return d;
+	if (strcmp(a->preset, b->preset))
+		return "preset";
+	SAME(altitude_km);
+	SAME(sun);
+	SAME(moon);
+	SAME(camera);
+	SAME(quality.t);
+	SAME(quality.multiscatter_dirs);
+	SAME(quality.skyview_min_steps);
+	SAME(quality.aerial_range_km);
+	SAME(quality.aerial_spacing);
+	SAME(quality.storage);
+	SAME(quality.multiscatter_iterations);
+	SAME(quality.multiscatter_moment);
+	SAME(quality.multiscatter_delta);
+	SAME(clock.rate);
+	SAME(clock.lat_deg);
+	SAME(clock.lon_deg);
+	SAME(clock.site_elevation_m);
+	SAME(clock.pressure_mbar);
+	SAME(clock.temperature_c);
+	SAME(clock.delta_t_s);
+	SAME(clock.horizon_refraction_deg);
+	SAME(clock.threshold_deg);
+	SAME(clock.cadence_s);
+	SAME(clock.sun_mode);
+	SAME(clock.moon_mode);
+	SAME(night);
+	return NULL;
+}
+
+static size_t encode(const struct sky_state *s, uint64_t gen, int64_t apply_ns)
+{
+	struct sync_msg_header h = { .generation = gen, .apply_time_ns = apply_ns };
+	size_t len = 0;
+	snprintf(h.controller, sizeof(h.controller), "%s", ID);
+	int r = sync_msg_encode(s, &h, msg, sizeof(msg), &len);
+	if (r < 0)
+		FAIL("encode: %s", strerror(-r));
+	return len;
+}
+
+/* ---- round trips ---- */
+
+static void scene_clock(struct sky_state *s)
+{
+	set(s, "utc=2026-06-21T12:00:00.25Z");
+	set(s, "lat_deg=47.3769");
+	set(s, "lon_deg=8.5417");
+	set(s, "time_rate=60");
+	set(s, "moon_elevation_deg=12.5");	/* the moon manual, the sun on the clock */
+}
+
+static void scene_mars(struct sky_state *s)
+{
+	set(s, "preset=mars");
+	set(s, "sun_elevation_deg=-3.25");
+	set(s, "sun_azimuth_deg=271.125");
+	set(s, "camera_yaw_deg=33.3");
+	set(s, "storage=f16");
+	set(s, "aerial_spacing=linear");
+}
+
+static void scene_custom(struct sky_state *s)
+{
+	set(s, "mie_scale_height_km=2.5");
+	set(s, "ozone_layer0_width_km=27.5");	/* the ozone profile stays two layers */
+	set(s, "rayleigh_scattering_per_km=5.802e-3,13.558e-3,33.1e-3");
+	set(s, "ground_albedo=0.1,0.2,0.3");
+	set(s, "night_zenith_luminance_cd_m2=0.0003");
+	set(s, "multiscatter_iterations=3");
+	set(s, "multiscatter_moment=on");
+	set(s, "quality=high");
+	set(s, "altitude_km=1.234");
+	set(s, "delta_t_s=69.2");
+	set(s, "sun_color=1.1,1,0.9");
+}
+
+static void test_round_trip(const char *name, void (*scene)(struct sky_state *))
+{
+	struct sky_state a, b, c;
+	struct sync_msg_header h;
+	char why[256];
+
+	state_default(&a);
+	if (scene)
+		scene(&a);
+	int64_t apply = real_ns() + 300000000ll;
+	size_t len = encode(&a, 7, apply);
+	CHECK(len > 1000 && len < 16384);
+	enum sync_drop d = sync_msg_decode(msg, len, &h, &b, why, sizeof(why));
+	if (d) {
+		FAIL("%s: refused (%s): %s", name, sync_drop_name(d), why);
+		return;
+	}
+	CHECK(h.version == SYNC_FORMAT_VERSION && h.generation == 7 && h.apply_time_ns == apply);
+	CHECK(strcmp(h.controller, ID) == 0);
+	const char *f = state_diff_field(&a, &b);
+	if (f)
+		FAIL("%s: %s differs after the round trip", name, f);
+	CHECK(b.n_views == 0);
+	/* The same instant on the simulated clock on both sides. */
+	double real_s, mono_s;
+	simclock_read_clocks(&real_s, &mono_s);
+	double ua = state_clock_utc_s(&a, mono_s), ub = state_clock_utc_s(&b, mono_s);
+	if (isnan(ua) != isnan(ub) || (!isnan(ua) && fabs(ua - ub) > 1e-3))
+		FAIL("%s: simulated time %.6f here, %.6f there", name, ua, ub);
+	/* Encoding what was decoded gives the same message: a fixpoint. */
+	char first[SYNC_MSG_MAX + 1];
+	memcpy(first, msg, len + 1);
+	size_t len2 = encode(&b, 7, apply);
+	d = sync_msg_decode(msg, len2, &h, &c, why, sizeof(why));
+	CHECK(d == SYNC_DROP_NONE && state_diff_field(&b, &c) == NULL);
+	if (isnan(ua))
+		CHECK(len2 == len && memcmp(first, msg, len) == 0);
+}
+
+/* The time in the message is the one the clock shows at the apply time. */
+static void test_utc_at_apply_time(void)
+{
+	struct sky_state a;
+	state_default(&a);
+	scene_clock(&a);
+	int64_t apply = real_ns() + 2000000000ll;
+	size_t len = encode(&a, 1, apply);
+	const char *line = strstr(msg, "\nutc=");
+	CHECK(line != NULL && (size_t)(line - msg) < len);
+	if (!line)
+		return;
+	char text[64];
+	double utc_s, real_s, mono_s;
+	snprintf(text, sizeof(text), "%.*s", (int)strcspn(line + 5, "\n"), line + 5);
+	CHECK(simclock_parse_utc(text, &utc_s) == 0);
+	simclock_read_clocks(&real_s, &mono_s);
+	double expect = state_clock_utc_s(&a, mono_s + ((double)apply / 1e9 - real_s));
+	CHECK(fabs(utc_s - expect) < 60 * 1e-3);
+	/* And a clock never set stays unset: no utc line at all. */
+	state_default(&a);
+	len = encode(&a, 1, apply);
+	CHECK(strstr(msg, "\nutc=") == NULL);
+}
+
+/* ---- refusals ---- */
+
+/* Replaces the line of key with text (NULL removes it) and fixes the
+ * header's line count by delta_lines. */
+static size_t edit(size_t len, const char *key, const char *text, int delta_lines)
+{
+	char out[SYNC_MSG_MAX + 1], pat[80];
+	snprintf(pat, sizeof(pat), "\n%s=", key);
+	char *at = strstr(msg, pat);
+	if (!at) {
+		FAIL("no line %s", key);
+		return len;
+	}
+	at++;
+	char *end = strchr(at, '\n') + 1;
+	int n = snprintf(out, sizeof(out), "%.*s%s%s%s", (int)(at - msg), msg, text ? text : "",
+			 text ? "\n" : "", end);
+	memcpy(msg, out, (size_t)n + 1);
+	if (delta_lines) {
+		char *l = strstr(msg, "\nlines=");
+		unsigned v = (unsigned)atoi(l + 7);
+		char rest[SYNC_MSG_MAX + 1];
+		snprintf(rest, sizeof(rest), "%s", strchr(l + 1, '\n'));
+		snprintf(l, sizeof(msg) - (size_t)(l - msg), "\nlines=%u%s", v + delta_lines, rest);
+	}
+	return strlen(msg);
+}
+
+static void expect_drop(const char *what, size_t len, enum sync_drop want, const char *word)
+{
+	struct sync_msg_header h;
+	struct sky_state s;
+	char why[256] = "";
+	enum sync_drop d = sync_msg_decode(msg, len, &h, &s, why, sizeof(why));
+	if (d != want)
+		FAIL("%s: %s (%s), expected %s", what, sync_drop_name(d), why, sync_drop_name(want));
+	else if (word && !strstr(why, word))
+		FAIL("%s: reason '%s' does not say '%s'", what, why, word);
+}
+
+static void test_refusals(void)
+{
+	struct sky_state a;
+	int64_t now = real_ns();
+	size_t len;
+
+	state_default(&a);
+	scene_clock(&a);
+#define FRESH() (len = encode(&a, 3, now))
+	FRESH();
+	expect_drop("good", len, SYNC_DROP_NONE, NULL);
+	expect_drop("empty", 0, SYNC_DROP_MALFORMED, "empty");
+	memcpy(msg, "\x00\x01\xff garbage\n", 12);
+	expect_drop("binary", 12, SYNC_DROP_MALFORMED, "not text");
+	strcpy(msg, "hello world\n");
+	expect_drop("text", strlen(msg), SYNC_DROP_MALFORMED, "not a skysync");
+	FRESH();
+	expect_drop("no final newline", len - 1, SYNC_DROP_MALFORMED, "newline");
+	FRESH();
+	msg[8] = '2';
+	expect_drop("version 2", len, SYNC_DROP_VERSION, "version 2");
+	FRESH();
+	expect_drop("unknown key", edit(len, "sun_azimuth_deg", "sun_bogus_deg=1", 0), SYNC_DROP_KEY,
+		    "sun_bogus_deg");
+	FRESH();
+	expect_drop("out of range", edit(len, "sun_elevation_deg", "sun_elevation_deg=95", 0),
+		    SYNC_DROP_RANGE, "sun_elevation_deg");
+	FRESH();
+	expect_drop("not a number", edit(len, "camera_vfov_deg", "camera_vfov_deg=wide", 0),
+		    SYNC_DROP_RANGE, "camera_vfov_deg");
+	FRESH();
+	expect_drop("cross-key", edit(len, "top_radius_km", "top_radius_km=6000", 0),
+		    SYNC_DROP_RANGE, "top_radius_km");
+	FRESH();
+	expect_drop("bad utc", edit(len, "utc", "utc=yesterday", 0), SYNC_DROP_RANGE, "utc");
+	FRESH();
+	expect_drop("truncated", edit(len, "night_illuminance_lx", NULL, 0), SYNC_DROP_MALFORMED,
+		    "lines");
+	FRESH();
+	expect_drop("missing key", edit(len, "camera_roll_deg", NULL, -1), SYNC_DROP_MALFORMED,
+		    "camera_roll_deg");
+	FRESH();
+	expect_drop("extra key", edit(len, "storage", "storage=f32\nquality=low", 1),
+		    SYNC_DROP_MALFORMED, "keys");
+	FRESH();
+	expect_drop("twice", edit(len, "storage", "storage=f32\nstorage=f16", 1),
+		    SYNC_DROP_MALFORMED, "twice");
+	FRESH();
+	expect_drop("no '='", edit(len, "storage", "storage", 0), SYNC_DROP_MALFORMED, NULL);
+	FRESH();
+	expect_drop("controller id", edit(len, "controller", "controller=a b", 0),
+		    SYNC_DROP_MALFORMED, "controller");
+	FRESH();
+	expect_drop("generation 0", edit(len, "generation", "generation=0", 0), SYNC_DROP_MALFORMED,
+		    "generation");
+	FRESH();
+	expect_drop("generation -1", edit(len, "generation", "generation=-1", 0),
+		    SYNC_DROP_MALFORMED, "generation");
+	FRESH();
+	expect_drop("no apply time", edit(len, "apply_time_ns", NULL, 0), SYNC_DROP_MALFORMED,
+		    "apply_time_ns");
+	len = encode(&a, 3, now + SYNC_APPLY_AHEAD_MAX_NS + 10000000000ll);
+	expect_drop("apply time far ahead", len, SYNC_DROP_RANGE, "ahead");
+	FRESH();
+	char longline[700];
+	memset(longline, 'x', sizeof(longline));
+	memcpy(longline, "storage=", 8);
+	longline[sizeof(longline) - 1] = 0;
+	expect_drop("long line", edit(len, "storage", longline, 0), SYNC_DROP_MALFORMED, "long");
+	/* A field a later version 1 adds is skipped. */
+	FRESH();
+	expect_drop("no line count", edit(len, "lines", NULL, 0), SYNC_DROP_MALFORMED, "lines");
+	FRESH();
+	char *l = strstr(msg, "\nlines=");
+	char rest[SYNC_MSG_MAX + 1];
+	snprintf(rest, sizeof(rest), "%s", l);
+	snprintf(l, sizeof(msg) - (size_t)(l - msg), "\nfuture_field=yes%s", rest);
+	expect_drop("unknown header field", strlen(msg), SYNC_DROP_NONE, NULL);
+#undef FRESH
+}
+
+static void test_presence(void)
+{
+	struct sync_presence p = { .online = 1 }, q;
+	char buf[256], why[256];
+	size_t len;
+
+	snprintf(p.controller, sizeof(p.controller), "%s", ID);
+	CHECK(sync_presence_encode(&p, buf, sizeof(buf), &len) == 0);
+	CHECK(sync_presence_decode(buf, len, &q, why, sizeof(why)) == SYNC_DROP_NONE);
+	CHECK(strcmp(q.controller, ID) == 0 && q.online == 1);
+	CHECK(sync_presence_decode("", 0, &q, why, sizeof(why)) == SYNC_DROP_NONE);
+	CHECK(q.controller[0] == 0 && q.online == 0);
+	CHECK(sync_presence_decode("junk", 4, &q, why, sizeof(why)) == SYNC_DROP_MALFORMED);
+	const char *v2 = "skysync=2\ncontroller=" ID "\nonline=1\n";
+	CHECK(sync_presence_decode(v2, strlen(v2), &q, why, sizeof(why)) == SYNC_DROP_VERSION);
+	const char *bad = "skysync=1\ncontroller=" ID "\nonline=2\n";
+	CHECK(sync_presence_decode(bad, strlen(bad), &q, why, sizeof(why)) == SYNC_DROP_MALFORMED);
+	const char *noid = "skysync=1\nonline=1\n";
+	CHECK(sync_presence_decode(noid, strlen(noid), &q, why, sizeof(why)) ==
+	      SYNC_DROP_MALFORMED);
+	CHECK(sync_id_valid(ID) && !sync_id_valid("a/b") && !sync_id_valid("a//b") &&
+	      !sync_id_valid("a/b/c d") && !sync_id_valid("/a/b") && !sync_id_valid(""));
+	snprintf(p.controller, sizeof(p.controller), "not an id");
+	CHECK(sync_presence_encode(&p, buf, sizeof(buf), &len) == -EINVAL);
+}
+
+/* ---- settings ---- */
+
+static void test_url(void)
+{
+	struct sync_config c;
+	char err[256];
+
+	sync_config_defaults(&c);
+	CHECK(sync_config_parse_url(&c, "mqtt://127.0.0.1:18830/sky/hall", err, sizeof(err)) == 0);
+	CHECK(!strcmp(c.host, "127.0.0.1") && c.port == 18830 && !strcmp(c.prefix, "sky/hall") &&
+	      !c.tls);
+	CHECK(sync_config_parse_url(&c, "mqtts://broker.example.org/dome", err, sizeof(err)) == 0);
+	CHECK(!strcmp(c.host, "broker.example.org") && c.port == 8883 && c.tls);
+	CHECK(sync_config_parse_url(&c, "mqtt://[::1]:1884/p", err, sizeof(err)) == 0);
+	CHECK(!strcmp(c.host, "::1") && c.port == 1884 && !c.tls);
+	CHECK(sync_config_parse_url(&c, "mqtt://broker/sky", err, sizeof(err)) == 0 && c.port == 1883);
+	static const char *const bad[] = {
+		"http://h/p", "mqtt://h", "mqtt://h/", "mqtt://h:0/p", "mqtt://h:65536/p",
+		"mqtt://h:12a/p", "mqtt://h/p/+", "mqtt://h/#", "mqtt://h/a//b", "mqtt://h/a/",
+		"mqtt://:1883/p", "mqtt://[::1/p", "mqtt://ho st/p", "mqtt://h:/p",
+	};
+	for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
+		struct sync_config before = c;
+		if (sync_config_parse_url(&c, bad[i], err, sizeof(err)) != -EINVAL)
+			FAIL("%s accepted", bad[i]);
+		CHECK(memcmp(&before, &c, sizeof(c)) == 0);
+	}
+	/* Credentials in a URL: refused, and never repeated in the message. */
+	CHECK(sync_config_parse_url(&c, "mqtt://alice:hunter2@h/p", err, sizeof(err)) == -EINVAL);
+	CHECK(strstr(err, "hunter2") == NULL && strstr(err, "alice") == NULL);
+}
+
+static void test_check(void)
+{
+	struct sync_config c;
+	char err[256], path[] = "/tmp/test_sync_pwXXXXXX";
+
+	sync_config_defaults(&c);
+	CHECK(sync_config_check(&c, err, sizeof(err)) == -EINVAL);	/* no broker */
+	CHECK(sync_config_parse_url(&c, "mqtt://127.0.0.1/sky", err, sizeof(err)) == 0);
+	CHECK(sync_config_check(&c, err, sizeof(err)) == 0);
+	struct sync_config d = c;
+	snprintf(d.password, sizeof(d.password), "pw");
+	CHECK(sync_config_check(&d, err, sizeof(err)) == -EINVAL && strstr(err, "username"));
+	d = c;
+	snprintf(d.cafile, sizeof(d.cafile), "/etc/ca.pem");
+	CHECK(sync_config_check(&d, err, sizeof(err)) == -EINVAL && strstr(err, "mqtts"));
+	d.tls = 1;
+	CHECK(sync_config_check(&d, err, sizeof(err)) == 0);
+	snprintf(d.certfile, sizeof(d.certfile), "/etc/client.pem");
+	CHECK(sync_config_check(&d, err, sizeof(err)) == -EINVAL);
+	d = c;
+	d.keepalive_s = 1;
+	CHECK(sync_config_check(&d, err, sizeof(err)) == -EINVAL);
+	d = c;
+	d.lead_ms = 20000;
+	CHECK(sync_config_check(&d, err, sizeof(err)) == -EINVAL);
+	d = c;
+	d.backoff_min_ms = 5000;
+	d.backoff_max_ms = 1000;
+	CHECK(sync_config_check(&d, err, sizeof(err)) == -EINVAL);
+	enum sync_role r;
+	CHECK(sync_parse_role("controller", &r) == 0 && r == SYNC_CONTROLLER);
+	CHECK(sync_parse_role("follower", &r) == 0 && r == SYNC_FOLLOWER);
+	CHECK(sync_parse_role("leader", &r) == -EINVAL);
+	/* The password file: its first line; the error names the file only. */
+	int fd = mkstemp(path);
+	CHECK(fd >= 0 && write(fd, "s3cret pass\nnext\n", 17) == 17);
+	close(fd);
+	CHECK(sync_config_read_password(&c, path, err, sizeof(err)) == 0);
+	CHECK(strcmp(c.password, "s3cret pass") == 0);
+	fd = open(path, O_WRONLY | O_TRUNC);
+	CHECK(fd >= 0 && write(fd, "\n", 1) == 1);
+	close(fd);
+	CHECK(sync_config_read_password(&c, path, err, sizeof(err)) == -EINVAL);
+	unlink(path);
+	CHECK(sync_config_read_password(&c, path, err, sizeof(err)) == -ENOENT);
+}
+
+int main(void)
+{
+	test_round_trip("default", NULL);
+	test_round_trip("clock", scene_clock);
+	test_round_trip("mars", scene_mars);
+	test_round_trip("custom", scene_custom);
+	test_utc_at_apply_time();
+	test_refusals();
+	test_presence();
+	test_url();
+	test_check();
+	return test_report("test_sync_msg");
+}
