@@ -46,6 +46,13 @@ void drive_site(const struct sky_state *s, struct astro_site *ret_site,
 int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *err,
 		 size_t err_size);
 
+/* The state the tables are computed with: s with the sun's and the moon's
+ * illuminance times the light factor (the light sensor's cloud mode,
+ * state_set_light_factor); the state itself keeps the lights as they were
+ * set or as the clock placed them. ret may be s. With a factor of 1 ret is
+ * s byte for byte. */
+void drive_resolve(const struct sky_state *s, struct sky_state *ret);
+
 /* Takes neither loop nor srv; both must outlive the drive. */
 int drive_new(struct loop *l, struct srv *srv, struct drive **ret);
 void drive_free(struct drive *d);

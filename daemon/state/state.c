@@ -197,6 +197,8 @@ static const char *quality_name(const struct sky_state *s)
 	return "custom";
 }
 
+static void sensor_defaults(struct state_sensor *ret);	/* the light sensor's block below */
+
 void state_default(struct sky_state *ret)
 {
 	struct sky_state s = { 0 };
@@ -219,6 +221,7 @@ void state_default(struct sky_state *ret)
 		.sun_mode = STATE_MANUAL, .moon_mode = STATE_MANUAL };
 	s.lights_utc_s = NAN;
 	s.night = (struct state_night){ .zenith_luminance_cd_m2 = 2.0e-4, .illuminance_lx = 0.002 };
+	sensor_defaults(&s.sensor);
 	*ret = s;
 }
 
@@ -503,6 +506,136 @@ static const struct key *find_key(const char *name)
 	return NULL;
 }
 
+/* ---- the light sensor's keys (docs/sensor.md) ----
+ * A block of its own: its own table, listed by `get` only while it differs
+ * from its defaults (state_foreach), and a mode that, leaving cloud, gives
+ * the lights back their full illuminance. The ranges are sensor_config's
+ * (daemon/sensor/sensor.h), which the service checks again. */
+
+static const char *const sensor_mode_names[] = { "off", "cloud", "elevation", "exposure", NULL };
+
+#define SOFF(field) OFF(sensor.field)
+static const struct key sensor_key_table[] = {
+	{ "sensor_mode", K_ENUM, SOFF(mode), 0, 0, 0, sensor_mode_names },
+	{ "sensor_time_constant_s", K_DOUBLE, SOFF(time_constant_s), 0, 0, 86400, 0 },
+	{ "sensor_hysteresis", K_DOUBLE, SOFF(hysteresis), 0, 0, 10, 0 },
+	{ "sensor_min_interval_s", K_DOUBLE, SOFF(min_interval_s), 0, 0, 86400, 0 },
+	{ "sensor_stale_after_s", K_DOUBLE, SOFF(stale_after_s), 0, 0.001, 86400, 0 },
+	{ "sensor_max_lux", K_DOUBLE, SOFF(max_lux), 0, 1, 1e7, 0 },
+	{ "sensor_floor_lux", K_DOUBLE, SOFF(floor_lux), 0, 1e-9, 1e3, 0 },
+	{ "sensor_report_interval_s", K_DOUBLE, SOFF(report_interval_s), 0, 0.01, 3600, 0 },
+	{ "sensor_io_timeout_s", K_DOUBLE, SOFF(io_timeout_s), 0, 0.01, 60, 0 },
+	{ "sensor_rescan_s", K_DOUBLE, SOFF(rescan_s), 0, 0.01, 3600, 0 },
+};
+#define N_SENSOR_KEYS (sizeof(sensor_key_table) / sizeof(sensor_key_table[0]))
+
+const char *const state_sensor_keys[] = {
+	"sensor_mode", "sensor_select", "sensor_time_constant_s", "sensor_hysteresis",
+	"sensor_min_interval_s", "sensor_stale_after_s", "sensor_max_lux", "sensor_floor_lux",
+	"sensor_report_interval_s", "sensor_io_timeout_s", "sensor_rescan_s", NULL,
+};
+
+/* sensor_config_defaults' values. */
+static void sensor_defaults(struct state_sensor *ret)
+{
+	*ret = (struct state_sensor){ .mode = STATE_SENSOR_OFF, .time_constant_s = 5.0,
+		.hysteresis = 0.05, .min_interval_s = 1.0, .stale_after_s = 30.0,
+		.max_lux = 200000.0, .floor_lux = 0.01, .report_interval_s = 0.5,
+		.io_timeout_s = 1.0, .rescan_s = 5.0, .light_factor = 1.0 };
+	snprintf(ret->select, sizeof(ret->select), "auto");
+}
+
+const char *state_sensor_mode_name(enum state_sensor_mode m)
+{
+	return (unsigned)m < 4 ? sensor_mode_names[m] : "?";
+}
+
+void state_set_light_factor(struct sky_state *s, double factor, uint32_t *ret_dirty)
+{
+	double f = fmin(fmax(factor, STATE_LIGHT_FACTOR_MIN), 1.0);
+
+	if (ret_dirty && f != s->sensor.light_factor)
+		*ret_dirty |= LIGHTS;
+	s->sensor.light_factor = f;
+}
+
+static const struct key *find_sensor_key(const char *name)
+{
+	for (size_t i = 0; i < N_SENSOR_KEYS; i++)
+		if (strcmp(sensor_key_table[i].name, name) == 0)
+			return &sensor_key_table[i];
+	return NULL;
+}
+
+/* The forms of sensor_config's select; no spaces, as every value. */
+static int valid_select(const char *v)
+{
+	return !strcmp(v, "auto") || !strcmp(v, "none") || (!strncmp(v, "bus:", 4) && v[4]) ||
+	       (!strncmp(v, "serial:", 7) && v[7]) || (!strncmp(v, "name:", 5) && v[5]);
+}
+
+/* A sensor key into s. Returns 1 if key is not one, else 0 or -errno with
+ * err; a mode other than cloud sets the light factor back to 1. */
+static int set_sensor_key(struct sky_state *s, const char *key, const char *v,
+			  uint32_t *ret_dirty, char *err, size_t err_size)
+{
+	if (strcmp(key, "sensor_select") == 0) {
+		if (strlen(v) >= sizeof(s->sensor.select))
+			return ERR_RANGE("sensor_select: longer than %zu bytes",
+					 sizeof(s->sensor.select) - 1);
+		if (!valid_select(v))
+			return ERR("sensor_select: '%s' is not auto, none, bus:PORTS, serial:TEXT or name:TEXT", v);
+		snprintf(s->sensor.select, sizeof(s->sensor.select), "%s", v);
+		return 0;
+	}
+	const struct key *k = find_sensor_key(key);
+	if (!k)
+		return 1;
+	int r = set_key(s, k, v, err, err_size);
+	if (r < 0)
+		return r;
+	if (k->kind == K_ENUM && s->sensor.mode != STATE_SENSOR_CLOUD)
+		state_set_light_factor(s, 1.0, ret_dirty);
+	return 0;
+}
+
+static void format_value(const struct sky_state *s, const struct key *k, char *buf, size_t n);
+
+/* One sensor key's value; -ENOENT if key is not one. */
+static int get_sensor_key(const struct sky_state *s, const char *key, char *buf, size_t size)
+{
+	if (strcmp(key, "sensor_select") == 0) {
+		snprintf(buf, size, "%s", s->sensor.select);
+		return 0;
+	}
+	const struct key *k = find_sensor_key(key);
+	if (!k)
+		return -ENOENT;
+	format_value(s, k, buf, size);
+	return 0;
+}
+
+static void foreach_sensor(const struct sky_state *s, state_emit_fn fn, void *ctx)
+{
+	struct sky_state d;
+	char buf[STATE_SENSOR_SELECT_MAX], def[STATE_SENSOR_SELECT_MAX];
+	int same = 1;
+
+	sensor_defaults(&d.sensor);
+	for (int i = 0; state_sensor_keys[i] && same; i++) {
+		get_sensor_key(s, state_sensor_keys[i], buf, sizeof(buf));
+		get_sensor_key(&d, state_sensor_keys[i], def, sizeof(def));
+		same = strcmp(buf, def) == 0;
+	}
+	if (same)
+		return;
+	for (int i = 0; state_sensor_keys[i]; i++) {
+		get_sensor_key(s, state_sensor_keys[i], buf, sizeof(buf));
+		fn(ctx, state_sensor_keys[i], buf);
+	}
+}
+
+
 int state_set(struct sky_state *s, const char *key, const char *value,
 	      uint32_t *ret_dirty, char *err, size_t err_size)
 {
@@ -511,6 +644,8 @@ int state_set(struct sky_state *s, const char *key, const char *value,
 	int r;
 
 	r = set_clock_key(s, key, value, &dirty, err, err_size);
+	if (r > 0)
+		r = set_sensor_key(s, key, value, &dirty, err, err_size);
 	if (r <= 0) {
 		if (r < 0)
 			return r;
@@ -721,6 +856,7 @@ void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx)
 			format_constituent(&s->atmo.c[c], i, buf, sizeof(buf));
 			fn(ctx, name, buf);
 		}
+	foreach_sensor(s, fn, ctx);
 }
 
 int state_get(const struct sky_state *s, const char *key, char *buf, size_t size)
@@ -742,6 +878,8 @@ int state_get(const struct sky_state *s, const char *key, char *buf, size_t size
 		format_value(s, k, buf, size);
 		return 0;
 	}
+	if (get_sensor_key(s, key, buf, size) == 0)
+		return 0;
 	for (int c = 0; c < s->atmo.n_constituents; c++) {
 		size_t n = strlen(s->atmo.c[c].name);
 		if (strncmp(key, s->atmo.c[c].name, n) || key[n] != '_')

@@ -108,6 +108,37 @@ struct state_night {
 	double illuminance_lx;		/* horizontal, from the whole floor */
 };
 
+/* ---- the light sensor (docs/sensor.md) ----
+ * A USB light sensor's keys: what its readings do to the sky
+ * (daemon/srv/sense.c) and how they are taken (daemon/sensor's
+ * sensor_config, the same fields and ranges). Setting them computes no
+ * table; the readings change the state, each as a change of its own. */
+enum state_sensor_mode {
+	STATE_SENSOR_OFF = 0,		/* no sensor opened; the default */
+	STATE_SENSOR_CLOUD = 1,		/* reading over clear-sky illuminance dims the lights */
+	STATE_SENSOR_ELEVATION = 2,	/* the reading places the sun (its elevation) */
+	STATE_SENSOR_EXPOSURE = 3,	/* a suggested EV100; the tables stay */
+};
+#define STATE_SENSOR_SELECT_MAX 128
+
+struct state_sensor {
+	enum state_sensor_mode mode;			/* sensor_mode */
+	char select[STATE_SENSOR_SELECT_MAX];		/* sensor_select: auto, none, bus:, serial:, name: */
+	double time_constant_s, hysteresis, min_interval_s;	/* the reading pipeline */
+	double stale_after_s, max_lux, floor_lux;
+	double report_interval_s, io_timeout_s, rescan_s;	/* the device */
+	/* Not a key: the sun's and the moon's illuminance factor that the
+	 * cloud mode measured, 1 otherwise. The state keeps the lights as set;
+	 * drive_resolve applies the factor to what the tables are computed
+	 * with. Leaving the cloud mode sets it back to 1. */
+	double light_factor;
+};
+
+/* The light factor's bounds: 1 is a clear sky; below 1/1000 (ten times
+ * darker than a thunderstorm's 1/100) a reading says more about the sensor
+ * than about the clouds. */
+#define STATE_LIGHT_FACTOR_MIN 0.001
+
 struct sky_state {
 	char preset[ATMO_NAME_MAX];
 	struct atmo atmo;
@@ -122,6 +153,7 @@ struct sky_state {
 	struct state_night night;
 	uint32_t n_views;		/* views[0 .. n_views) in use, in the order added */
 	struct state_view views[STATE_MAX_VIEWS];
+	struct state_sensor sensor;
 };
 
 /* The default camera (and a new view's): south, level, 60 degrees, 16:9. */
@@ -170,6 +202,18 @@ void state_clock_rebase(struct sky_state *next, const struct sky_state *cur, dou
  * and the horizon gain c of L(mu) = L_zenith (1 + c (1 - mu)), chosen so
  * that the horizontal illuminance pi L_zenith (1 + c / 3) is the state's. */
 void state_night_floor(const struct sky_state *s, double *ret_zenith_cd_m2, double *ret_gain);
+
+/* The light sensor's key names in `get` order, NULL-terminated, and the
+ * name of a mode ("off", "cloud", "elevation", "exposure"). `get` without
+ * keys (state_foreach) lists them only while one differs from its default,
+ * so that a state without a sensor reads as it always did. */
+extern const char *const state_sensor_keys[];
+const char *state_sensor_mode_name(enum state_sensor_mode m);
+
+/* Sets the light factor measured by the cloud mode, clamped to
+ * [STATE_LIGHT_FACTOR_MIN, 1]; ret_dirty (if not NULL) gets the tables it
+ * invalidates ORed in when it changed. */
+void state_set_light_factor(struct sky_state *s, double factor, uint32_t *ret_dirty);
 
 /* Tables that differ between a and b given what they depend on. */
 uint32_t state_diff(const struct sky_state *a, const struct sky_state *b);
