@@ -67,7 +67,9 @@ static int request_print(sky_client *c, const char *line)
 }
 
 /* Joins verb and arguments with single spaces; arguments are passed as they
- * are (the daemon parses them), but a newline in one is refused here. */
+ * are (the daemon parses them), but a newline in one is refused here, and
+ * a value with spaces (one shell word, metar=EGLL 241250Z ...) is quoted
+ * so that it stays one value. */
 static int join_line(const char *verb, int argc, char **argv, char *buf, size_t size)
 {
 	size_t n = (size_t)snprintf(buf, size, "%s", verb);
@@ -76,8 +78,14 @@ static int join_line(const char *verb, int argc, char **argv, char *buf, size_t 
 			fprintf(stderr, "skyctl: a line break inside '%s'\n", argv[i]);
 			return -EINVAL;
 		}
-		n += (size_t)snprintf(buf + (n < size ? n : size), n < size ? size - n : 0, " %s",
-				      argv[i]);
+		const char *eq = strchr(argv[i], '=');
+		char *end = buf + (n < size ? n : size);
+		size_t left = n < size ? size - n : 0;
+		if (eq && eq[1] != '"' && strpbrk(eq, " \t") && !strchr(eq, '"'))
+			n += (size_t)snprintf(end, left, " %.*s\"%s\"", (int)(eq - argv[i] + 1), argv[i],
+					      eq + 1);
+		else
+			n += (size_t)snprintf(end, left, " %s", argv[i]);
 	}
 	if (n >= size) {
 		fprintf(stderr, "skyctl: request longer than %zu bytes\n", size - 1);
@@ -368,17 +376,6 @@ static int cmd_dump(const struct opts *o, int argc, char **argv)
 	return e;
 }
 
-static int parse_double(const char *s, double *ret)
-{
-	char *end;
-	errno = 0;
-	double x = strtod(s, &end);
-	if (end == s || *end || errno || !isfinite(x))
-		return -EINVAL;
-	*ret = x;
-	return 0;
-}
-
 /* render --view fisheye|equirect|perspective [--size WxH] [--yaw D]
  * [--pitch D] [--vfov D] [--exposure E] [--no-disks] OUT.png */
 static int cmd_render(const struct opts *o, int argc, char **argv)
@@ -413,14 +410,14 @@ static int cmd_render(const struct opts *o, int argc, char **argv)
 			p.height = (uint32_t)h;
 			sized = true;
 		} else if (strcmp(a, "--yaw") == 0 && val) {
-			bad = parse_double(argv[++i], &p.yaw_deg) < 0;
+			bad = proto_parse_number(argv[++i], &p.yaw_deg) < 0;
 		} else if (strcmp(a, "--pitch") == 0 && val) {
-			bad = parse_double(argv[++i], &p.pitch_deg) < 0 || fabs(p.pitch_deg) > 90.0;
+			bad = proto_parse_number(argv[++i], &p.pitch_deg) < 0 || fabs(p.pitch_deg) > 90.0;
 		} else if (strcmp(a, "--vfov") == 0 && val) {
-			bad = parse_double(argv[++i], &p.vfov_deg) < 0 || p.vfov_deg <= 0.0 ||
+			bad = proto_parse_number(argv[++i], &p.vfov_deg) < 0 || p.vfov_deg <= 0.0 ||
 			      p.vfov_deg >= 180.0;
 		} else if (strcmp(a, "--exposure") == 0 && val) {
-			bad = parse_double(argv[++i], &exposure) < 0 || exposure < 0.0;
+			bad = proto_parse_number(argv[++i], &exposure) < 0 || exposure < 0.0;
 		} else if (strcmp(a, "--no-disks") == 0) {
 			p.flags = 0;
 		} else if (a[0] != '-' && !out) {

@@ -41,6 +41,7 @@ static void usage(FILE *f)
 		"usage: skyd [options] [key=value ...]\n"
 		"       skyd --once --dump DIR [key=value ...]\n"
 		"       skyd --list-devices\n"
+		"       skyd --list-keys [--markdown]\n"
 		"       skyd --list-sensors [key=value ...]\n"
 		"\n"
 		"Computes sky lookup tables on the GPU and serves them over shared memory;\n"
@@ -55,12 +56,16 @@ static void usage(FILE *f)
 		"  --list-sensors    the USB light sensors found, each opened to see what it is\n"
 		"                    (sensor_select and the other sensor_* keys apply)\n"
 		"  -h, --help        this text\n"
-		"  --version         protocol and program versions\n");
+		"  --version         protocol and program versions\n"
+		"  --list-keys       every key of set: name, unit, range, default, the tables\n"
+		"                    it invalidates, what it is (tab-separated; --markdown:\n"
+		"                    the table of proto/PROTOCOL.md)\n");
 }
 
 static int parse_options(int argc, char **argv, struct options *o)
 {
-	enum { OPT_SOCKET = 256, OPT_CONFIG, OPT_DEVICE, OPT_LOG, OPT_VERSION, OPT_SENSORS };
+	enum { OPT_SOCKET = 256, OPT_CONFIG, OPT_DEVICE, OPT_LOG, OPT_VERSION, OPT_LIST_KEYS,
+	       OPT_MARKDOWN, OPT_SENSORS };
 	static const struct option longs[] = {
 		{ "socket", required_argument, NULL, OPT_SOCKET },
 		{ "config", required_argument, NULL, OPT_CONFIG },
@@ -68,10 +73,12 @@ static int parse_options(int argc, char **argv, struct options *o)
 		{ "log-level", required_argument, NULL, OPT_LOG },
 		{ "help", no_argument, NULL, 'h' },
 		{ "version", no_argument, NULL, OPT_VERSION },
+		{ "list-keys", no_argument, NULL, OPT_LIST_KEYS },
+		{ "markdown", no_argument, NULL, OPT_MARKDOWN },
 		{ "list-sensors", no_argument, NULL, OPT_SENSORS },
 		{ 0 },
 	};
-	int c;
+	int c, list_keys = 0, markdown = 0;
 
 	o->level = LOG_LEVEL_INFO;
 	while ((c = getopt_long(argc, argv, "+nh", longs, NULL)) != -1) {
@@ -92,8 +99,18 @@ static int parse_options(int argc, char **argv, struct options *o)
 			printf("skyd %s, protocol %s, shared memory layout %u\n", PROJECT_VERSION,
 			       SKY_PROTO_VERSION, SKY_SHM_LAYOUT_VERSION);
 			return 0;
+		case OPT_LIST_KEYS: list_keys = 1; break;
+		case OPT_MARKDOWN: markdown = 1; break;
 		default: usage(stderr); return 2;
 		}
+	}
+	if (list_keys) {
+		state_print_keys(stdout, markdown);
+		return 0;
+	}
+	if (markdown) {
+		fprintf(stderr, "skyd: --markdown goes with --list-keys\n");
+		return 2;
 	}
 	o->first_pair = optind;
 	return -1;

@@ -195,6 +195,13 @@ int once_main(int argc, char **argv)
 		fprintf(stderr, "skyd: %s\n", err);
 		return 2;
 	}
+	/* The tables see the weather as the daemon's would; the manifest keeps
+	 * the keys as given. state_validate resolved it already. */
+	struct sky_state sky;
+	if (state_resolve(&s, &sky, NULL, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		return 2;
+	}
 
 	struct eng *e;
 	if (eng_new(device, err, sizeof(err), &e) < 0) {
@@ -208,7 +215,7 @@ int once_main(int argc, char **argv)
 		return 2;
 	}
 	struct eng_timing t;
-	rc = eng_compute(e, &s, STATE_ALL_TABLES, &t, err, sizeof(err));
+	rc = eng_compute(e, &sky, STATE_ALL_TABLES, &t, err, sizeof(err));
 	if (rc == -EINVAL) {
 		fprintf(stderr, "skyd: %s\n", err);
 		eng_free(e);
@@ -222,7 +229,7 @@ int once_main(int argc, char **argv)
 	printf("skyd: %s: tables in %.2f ms (transmittance %.2f, multiscatter %.2f, skyview %.2f, aerial %.2f)\n",
 	       eng_device(e)->name, t.total_ms, t.table_ms[0], t.table_ms[1], t.table_ms[2], t.table_ms[3]);
 	struct eng_f16_range range;
-	eng_f16_range(e, &s, STATE_ALL_TABLES, &range);
+	eng_f16_range(e, &sky, STATE_ALL_TABLES, &range);
 	if (eng_f16_broken(&range))
 		fprintf(stderr, "skyd: warning: storage=f16 breaks here: %llu values overflowed the "
 				"half range (above 65504), %llu of %llu sky radiance values fell below "

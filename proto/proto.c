@@ -2,6 +2,8 @@
 #include "proto.h"
 
 #include <errno.h>
+#include <locale.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,22 +20,43 @@ static int is_space(char c)
 	return c == ' ' || c == '\t';
 }
 
-/* Cuts the next space-separated token out of *pp; NULL at the end. */
-static char *next_token(char **pp)
+/* Cuts the next space-separated token out of *pp into *ret: 1, or 0 at the
+ * end. A value may be quoted: in key="a b" the quotes go and the spaces
+ * between them stay (no escapes; a value cannot hold '"'). Only a quote
+ * right after the first '=' opens one, so every line that parsed before
+ * quoting existed parses the same, but for values that began with '"'.
+ * -EINVAL for an unclosed quote or text right after the closing one. */
+static int next_token(char **pp, char **ret)
 {
-	char *p = *pp;
+	char *p = *pp, *eq = NULL;
 
 	while (is_space(*p))
 		p++;
 	if (!*p)
-		return NULL;
-	char *tok = p;
-	while (*p && !is_space(*p))
+		return 0;
+	*ret = p;
+	while (*p && !is_space(*p)) {
+		if (*p == '=' && !eq) {
+			eq = p;
+			if (p[1] != '"') {
+				p++;
+				continue;
+			}
+			char *close = strchr(p + 2, '"');
+			if (!close || (close[1] && !is_space(close[1])))
+				return -EINVAL;
+			/* Shift the quoted text over the opening quote. */
+			memmove(p + 1, p + 2, (size_t)(close - (p + 2)));
+			close[-1] = 0;
+			*pp = close[1] ? close + 2 : close + 1;
+			return 1;
+		}
 		p++;
+	}
 	if (*p)
 		*p++ = 0;
 	*pp = p;
-	return tok;
+	return 1;
 }
 
 static int split_arg(char *tok, struct proto_arg *ret, char *err, size_t err_size)
@@ -76,16 +99,20 @@ int proto_parse_request(char *line, struct proto_request *ret, char *err, size_t
 	r = check_bytes(line, err, err_size);
 	if (r < 0)
 		return r;
-	tok = next_token(&p);
-	if (!tok)
+	r = next_token(&p, &tok);
+	if (r == 0)
 		return -ENODATA;
+	if (r < 0)
+		return ERR("'%.32s': a quoted value needs its closing '\"' and a space after it", tok);
 	for (char *c = tok; *c; c++)
 		if (!is_name_char((unsigned char)*c))
 			return ERR("verb '%.32s' is not lower-case letters, digits and _", tok);
 	if (strlen(tok) >= PROTO_VERB_MAX)
 		return ERR("verb '%.32s...' is too long", tok);
 	ret->verb = tok;
-	while ((tok = next_token(&p))) {
+	while ((r = next_token(&p, &tok)) != 0) {
+		if (r < 0)
+			return ERR("'%.32s': a quoted value needs its closing '\"' and a space after it", tok);
 		if (ret->n_args == PROTO_MAX_ARGS)
 			return snprintf(err, err_size, "more than %d arguments", PROTO_MAX_ARGS), -E2BIG;
 		r = split_arg(tok, &ret->args[ret->n_args], err, err_size);
@@ -99,12 +126,14 @@ int proto_parse_request(char *line, struct proto_request *ret, char *err, size_t
 int proto_split_args(char *s, struct proto_arg *ret, int max)
 {
 	char err[8], *tok, *p = s;
-	int n = 0;
+	int n = 0, r;
 
 	if (check_bytes(s, err, sizeof(err)) < 0)
 		return -EINVAL;
-	while ((tok = next_token(&p))) {
+	while ((r = next_token(&p, &tok)) != 0) {
 		struct proto_arg a;
+		if (r < 0)
+			return -EINVAL;
 		if (split_arg(tok, &a, err, sizeof(err)) < 0)
 			return -EINVAL;
 		if (n < max)
@@ -262,4 +291,21 @@ const char *proto_ack_name(int code)
 	case SKY_ACK_ENGINE: return "engine";
 	}
 	return "unknown";
+}
+
+int proto_parse_number(const char *v, double *ret)
+{
+	static locale_t c_locale;
+	char *end;
+
+	if (!c_locale)
+		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
+	if (!c_locale || !v || !*v)
+		return -EINVAL;
+	errno = 0;
+	double d = strtod_l(v, &end, c_locale);
+	if (*end || end == v || !isfinite(d) || (errno == ERANGE && d != 0.0))
+		return -EINVAL;
+	*ret = d;
+	return 0;
 }

@@ -2,7 +2,8 @@
  * skyd, libsky, skyctl and the fuzz target.
  *
  * A request is one line "verb arg arg ...", where an arg is key=value or a
- * bare word, separated by spaces or tabs. A reply is "key: value" lines
+ * bare word, separated by spaces or tabs; a value in double quotes
+ * (key="a b") keeps its spaces and loses the quotes. A reply is "key: value" lines
  * closed by "OK" or "ACK [code] {verb} message"; event lines ("changed:",
  * "layout:", "failed:") may arrive between replies, never inside one.
  * Everything is parsed in place: the returned pointers point into the line
@@ -33,7 +34,8 @@ struct proto_request {
 /* Splits line (NUL-terminated, without its newline; a trailing '\r' is
  * ignored) in place into ret. Returns 0; -ENODATA for a blank line; -EINVAL
  * for a malformed line (control or non-ASCII bytes, a verb or key that is not
- * [a-z0-9_], "=value" without a key) or -E2BIG for too many args, with a
+ * [a-z0-9_], "=value" without a key, a quoted value without its closing
+ * quote or with text right after it) or -E2BIG for too many args, with a
  * message in err. ret is unspecified on failure. */
 int proto_parse_request(char *line, struct proto_request *ret, char *err, size_t err_size);
 
@@ -98,6 +100,11 @@ uint32_t proto_table_mask(const char *list);
 /* Writes "ACK [code] {verb} message\n" into buf, replacing any byte of the
  * message that could break the line (control, non-ASCII) with '?'. Returns
  * the length as snprintf does. */
+/* A number as the protocol writes it: the whole string, finite, parsed in
+ * the C locale whatever the process locale (a value that underflows reads
+ * as its denormal or 0). Returns 0 or -EINVAL; *ret untouched on failure. */
+int proto_parse_number(const char *v, double *ret);
+
 int proto_format_ack(char *buf, size_t size, int code, const char *verb, const char *message);
 
 /* The symbolic name of an ACK code ("syntax", "range", ...) or "unknown". */

@@ -30,7 +30,7 @@ static char reply[1 << 16];
 
 struct ev {
 	char mode[16], state[16], not_applied[160];
-	double lux, ev100, light_factor, elevation_deg;	/* NAN for none */
+	double lux, ev100, cloud_factor, elevation_deg;	/* NAN for none */
 	int stale;
 	uint64_t generation, changes, accepted, rejected;
 };
@@ -46,7 +46,7 @@ static double field_num(const char *v)
 static void parse_event(const char *line)
 {
 	char copy[1024], *save = NULL;
-	struct ev e = { .lux = NAN, .ev100 = NAN, .light_factor = NAN, .elevation_deg = NAN };
+	struct ev e = { .lux = NAN, .ev100 = NAN, .cloud_factor = NAN, .elevation_deg = NAN };
 
 	snprintf(copy, sizeof(copy), "%s", line + 8);
 	for (char *tok = strtok_r(copy, " ", &save); tok; tok = strtok_r(NULL, " ", &save)) {
@@ -59,7 +59,7 @@ static void parse_event(const char *line)
 		else if (!strcmp(tok, "not_applied")) snprintf(e.not_applied, sizeof(e.not_applied), "%s", v);
 		else if (!strcmp(tok, "lux")) e.lux = field_num(v);
 		else if (!strcmp(tok, "ev100")) e.ev100 = field_num(v);
-		else if (!strcmp(tok, "light_factor")) e.light_factor = field_num(v);
+		else if (!strcmp(tok, "cloud_factor")) e.cloud_factor = field_num(v);
 		else if (!strcmp(tok, "elevation_deg")) e.elevation_deg = field_num(v);
 		else if (!strcmp(tok, "stale")) e.stale = atoi(v);
 		else if (!strcmp(tok, "generation")) e.generation = strtoull(v, NULL, 10);
@@ -244,12 +244,12 @@ static void run_cloud(void)
 			return;
 		}
 		const struct ev *e = &evs[i];
-		printf("cloud: %.3f lx -> light_factor %.6f in generation %llu\n", e->lux,
-		       e->light_factor, (unsigned long long)e->generation);
+		printf("cloud: %.3f lx -> cloud_factor %.6f in generation %llu\n", e->lux,
+		       e->cloud_factor, (unsigned long long)e->generation);
 		CHECK(REL(e->lux, bh1750_lux(counts[k]), 1e-8));	/* printed to 9 digits */
 		CHECK(e->accepted == (uint64_t)k + 1);
 		/* The clear sky from the same tables, less the night floor's 0.002 lx. */
-		CHECK(REL(e->light_factor, e->lux / clear, 1e-6));
+		CHECK(REL(e->cloud_factor, e->lux / clear, 1e-6));
 		CHECK(e->changes == (uint64_t)k + 1 && !strcmp(e->not_applied, "none"));
 		from = i + 1;
 	}
@@ -262,14 +262,16 @@ static void run_cloud(void)
 	CHECK(REL(seen, last->lux, 1e-4));
 	/* The state keeps the sun as set; the factor is the sensor's. */
 	CHECK(num(&c, "get sun_illuminance_lx", "sun_illuminance_lx") == 133800.0);
-	CHECK(REL(num(&c, "get sensor", "light_factor"), last->light_factor, 1e-9));
+	CHECK(REL(num(&c, "get sensor", "cloud_factor"), last->cloud_factor, 1e-9));
 	CHECK(!strcmp(text(&c, "get sensor", "family", buf, sizeof(buf)), "mcp2221-bh1750"));
 	CHECK(!strcmp(text(&c, "get sensor", "device", buf, sizeof(buf)), "1-3"));
 	CHECK(request(&c, "sensor list") == 0);
 	CHECK(strstr(reply, "device: bus=1-3 family=mcp2221-bh1750 id=04d8:00dd serial=MCP-0001") != NULL);
-	CHECK(num(&c, "status", "sensor_light_factor") == last->light_factor);
-	/* Off: the lights get their full illuminance back, in one change. */
-	CHECK(request(&c, "set sensor_mode=off") == 0);
+	CHECK(num(&c, "status", "sensor_cloud_factor") == last->cloud_factor);
+	/* The sensor wrote the weather's cloud cover: get weather says so. */
+	CHECK(REL(num(&c, "get weather", "cloud_factor"), last->cloud_factor, 1e-9));
+	/* Off keeps the cover last measured; auto gives the lights back. */
+	CHECK(request(&c, "set sensor_mode=off cloud_oktas=auto") == 0);
 	CHECK(wait_generation(&c, reply_u64(reply, "generation")) == 0);
 	CHECK(REL(horizontal_lx(&c), clear, 1e-6));
 	conn_close(&c);
@@ -387,7 +389,7 @@ static void run_exposure(void)
 	CHECK(REL(num(&c, "status", "sensor_ev100"), log2(101325.0 * 100.0 / 250.0), 1e-8));
 	CHECK(num(&c, "status", "generation") == (double)g);
 	CHECK(num(&c, "get sensor", "changes") == 0.0);
-	CHECK(num(&c, "get sensor", "light_factor") == 1.0);
+	CHECK(num(&c, "get sensor", "cloud_factor") == 1.0);
 	conn_close(&c);
 }
 
@@ -407,7 +409,7 @@ static void run_garbage(void)
 		return;
 	}
 	struct ev good = evs[i];
-	CHECK(good.lux == 20000.0 && REL(good.light_factor, 20000.0 / clear, 1e-6));
+	CHECK(good.lux == 20000.0 && REL(good.cloud_factor, 20000.0 / clear, 1e-6));
 	CHECK(wait_generation(&c, good.generation) == 0);
 	double seen = horizontal_lx(&c);
 	if (wait_event(&c, i + 1, is_stopped) < 0)
@@ -423,7 +425,7 @@ static void run_garbage(void)
 	CHECK(num(&c, "get sensor", "changes") == 1.0);
 	CHECK(num(&c, "get sensor", "generation") == (double)good.generation);
 	CHECK(num(&c, "status", "generation") == (double)good.generation);
-	CHECK(num(&c, "get sensor", "light_factor") == good.light_factor);
+	CHECK(num(&c, "get sensor", "cloud_factor") == good.cloud_factor);
 	CHECK(horizontal_lx(&c) == seen);
 	/* Refusals say why in the log (five lines in ten seconds at most). */
 	snprintf(cmd, sizeof(cmd), "grep -q 'reading refused: malformed' '%s'", d.log);
@@ -448,8 +450,8 @@ static void run_vanish(void)
 	if (num(&c, "get sensor", "failures") < 1.0 && wait_event(&c, 0, is_stopped) < 0)
 		FAIL("the device did not stop");
 	double clear = num(&c, "get sensor", "clear_sky_lx");
-	double f = num(&c, "get sensor", "light_factor");
-	printf("vanish: state %s, stale, lux %s, light_factor %.6f, last_error %s\n",
+	double f = num(&c, "get sensor", "cloud_factor");
+	printf("vanish: state %s, stale, lux %s, cloud_factor %.6f, last_error %s\n",
 	       text(&c, "get sensor", "state", buf, sizeof(buf)),
 	       text(&c, "get sensor", "lux", buf + 64, 64), f,
 	       text(&c, "get sensor", "last_error", buf + 128, 128));

@@ -26,6 +26,7 @@
 #include <time.h>
 
 #include "model.h"
+#include "proto.h"
 #include "pt.h"
 #include "state.h"
 
@@ -42,23 +43,6 @@ static void usage(FILE *f)
 		"                [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]\n"
 		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...).\n"
 		"default --dirs %s\n", default_dirs);
-}
-
-/* Whole-string, finite, C-locale number. */
-static int parse_double(const char *s, double *ret)
-{
-	static locale_t c_locale;
-	char *end;
-	if (!c_locale)
-		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
-	if (!c_locale || !*s)
-		return -EINVAL;
-	errno = 0;
-	double d = strtod_l(s, &end, c_locale);
-	if (*end || errno || !isfinite(d))
-		return -EINVAL;
-	*ret = d;
-	return 0;
 }
 
 static int parse_u64(const char *s, uint64_t *ret)
@@ -87,8 +71,8 @@ static int parse_dirs(const char *list, struct pt_dir *dirs, size_t *ret_n)
 		if (!colon || n == MAX_DIRS)
 			return -EINVAL;
 		*colon = 0;
-		if (parse_double(tok, &dirs[n].elevation_deg) < 0 ||
-		    parse_double(colon + 1, &dirs[n].azimuth_deg) < 0 ||
+		if (proto_parse_number(tok, &dirs[n].elevation_deg) < 0 ||
+		    proto_parse_number(colon + 1, &dirs[n].azimuth_deg) < 0 ||
 		    fabs(dirs[n].elevation_deg) > 90.0)
 			return -EINVAL;
 		n++;
@@ -126,7 +110,7 @@ static int set_option(struct args *g, struct pt_dir *dirs, const char *a, const 
 	double d;
 	int bad = 0;
 	if (strcmp(a, "--error") == 0)
-		bad = parse_double(v, &d) < 0 || d < 0.0 || (opt->rel_error = d, 0);
+		bad = proto_parse_number(v, &d) < 0 || d < 0.0 || (opt->rel_error = d, 0);
 	else if (strcmp(a, "--threads") == 0)
 		bad = parse_u64(v, &u) < 0 || u > 256 || (opt->threads = (int)u, 0);
 	else if (strcmp(a, "--seed") == 0)
@@ -140,7 +124,7 @@ static int set_option(struct args *g, struct pt_dir *dirs, const char *a, const 
 	else if (strcmp(a, "--delta-m") == 0)
 		bad = parse_u64(v, &u) < 0 || u >= ATMO_MAX_CONSTITUENTS || (g->delta_m = u + 1, 0);
 	else if (strcmp(a, "--delta-f") == 0)
-		bad = parse_double(v, &d) < 0 || !(d >= 0.0 && d < 1.0) || (g->delta_f = d, 0);
+		bad = proto_parse_number(v, &d) < 0 || !(d >= 0.0 && d < 1.0) || (g->delta_f = d, 0);
 	else if (strcmp(a, "--dirs") == 0)
 		bad = parse_dirs(v, dirs, &g->n) < 0;
 	else if (strcmp(a, "--mode") == 0) {

@@ -148,6 +148,41 @@ static void c_view_h(struct sky_state *s) { horizon_view(s, 0.0); }
 static void c_view_hp(struct sky_state *s) { horizon_view(s, asin(1e-7) * 180.0 / M_PI); }
 static void c_view_hm(struct sky_state *s) { horizon_view(s, -asin(1e-7) * 180.0 / M_PI); }
 
+/* Weather cases: the keys, then the state the tables are computed with
+ * (state_resolve), so that the model, the engine and the invariants all
+ * see the weathered atmosphere. */
+static void weathered(struct sky_state *s)
+{
+	char err[256];
+	int rc = state_resolve(s, s, NULL, err, sizeof(err));
+	if (rc < 0)
+		fprintf(stderr, "stab: %s\n", err);
+	assert(rc == 0);
+}
+static void c_fog(struct sky_state *s)
+{
+	set(s, "visibility_km=0.05");
+	set(s, "aerosol=maritime");
+	set(s, "relative_humidity=1");
+	weathered(s);
+}
+static void c_vis_300(struct sky_state *s) { set(s, "visibility_km=300"); weathered(s); }
+static void c_rh_100(struct sky_state *s)
+{
+	set(s, "relative_humidity=1");
+	set(s, "aerosol=maritime");
+	weathered(s);
+}
+static void c_ozone_0(struct sky_state *s) { set(s, "ozone_du=0"); weathered(s); }
+static void c_ozone_600(struct sky_state *s) { set(s, "ozone_du=600"); set(s, "sun_elevation_deg=-3"); weathered(s); }
+static void c_dust(struct sky_state *s)
+{
+	set(s, "visibility_km=0.2");
+	set(s, "aerosol=desert");
+	set(s, "relative_humidity=0.1");
+	weathered(s);
+}
+
 const struct stab_case stab_cases[] = {
 	{ "earth", "reference", c_earth },
 	{ "vacuum", "L = 0, T = 1 exactly, no 0/0", c_vacuum },
@@ -180,6 +215,12 @@ const struct stab_case stab_cases[] = {
 	{ "view at horizon", "sky/ground switch", c_view_h },
 	{ "view horizon +1e-7", "discriminant near 0", c_view_hp },
 	{ "view horizon -1e-7", "discriminant near 0", c_view_hm },
+	{ "fog 50 m", "maritime aerosol at saturation, tau 68, g 0.83", c_fog },
+	{ "visibility 300 km", "no aerosol left: air alone", c_vis_300 },
+	{ "humidity 100 %", "maritime climatology grown 6 times", c_rh_100 },
+	{ "ozone 0 DU", "no ozone absorption", c_ozone_0 },
+	{ "ozone 600 DU", "twice Earth's ozone, sun -3 (Chappuis band)", c_ozone_600 },
+	{ "dust storm 200 m", "desert aerosol, tau 37, absorbing", c_dust },
 };
 const size_t stab_n_cases = sizeof(stab_cases) / sizeof(stab_cases[0]);
 
@@ -239,6 +280,32 @@ static void exp_density(struct atmo_profile *p, double scale_height_km)
 	p->layers[1].exp_scale_per_km = -1.0 / scale_height_km;
 }
 
+/* Weather keys on a third of the sweep's atmospheres, each key given or
+ * not at even odds, over its whole range; then the state the tables get. */
+static void random_weather(uint64_t *seed, struct sky_state *s)
+{
+	static const char *const aerosols[] = { "clean", "continental", "urban", "maritime", "desert" };
+	char pair[64];
+
+	if (uniform(seed, 0, 1) >= 1.0 / 3.0)
+		return;
+	if (uniform(seed, 0, 1) < 0.5)
+		setf(s, "visibility_km", log_uniform(seed, WEATHER_VISIBILITY_MIN_KM, WEATHER_VISIBILITY_MAX_KM));
+	if (uniform(seed, 0, 1) < 0.5)
+		setf(s, "relative_humidity", uniform(seed, 0, 1));
+	if (uniform(seed, 0, 1) < 0.5) {
+		snprintf(pair, sizeof(pair), "aerosol=%s", aerosols[next_u64(seed) % 5]);
+		set(s, pair);
+	}
+	if (uniform(seed, 0, 1) < 0.5)
+		setf(s, "angstrom_beta", log_uniform(seed, 1e-3, WEATHER_ANGSTROM_BETA_MAX));
+	if (uniform(seed, 0, 1) < 0.5)
+		setf(s, "ozone_du", uniform(seed, 0, WEATHER_OZONE_DU_MAX));
+	if (uniform(seed, 0, 1) < 0.5)
+		setf(s, "cloud_oktas", uniform(seed, 0, WEATHER_OKTAS_MAX));
+	weathered(s);
+}
+
 void stab_random(uint64_t *seed, bool gpu_friendly, struct sky_state *ret)
 {
 	struct sky_state s;
@@ -296,6 +363,10 @@ void stab_random(uint64_t *seed, bool gpu_friendly, struct sky_state *ret)
 	}
 	if (uniform(seed, 0, 1) < 0.2)
 		s.quality.multiscatter_dirs = 64;
+	/* From a stream of its own: the atmospheres the seed gave before the
+	 * weather keys existed stay the same, the weather comes on top. */
+	uint64_t weather_seed = *seed ^ 0x77656174686572ull;
+	random_weather(&weather_seed, &s);
 	snprintf(s.preset, sizeof(s.preset), "random");
 	*ret = s;
 }

@@ -33,8 +33,10 @@ extern const size_t stab_n_cases;
 void stab_medium(struct sky_state *s);
 void stab_small(struct sky_state *s);
 
-/* One random parameter set from the sweep's ranges (stab.c), small sizes; the
- * sequence depends only on *seed, which it advances. gpu_friendly keeps the
+/* One random parameter set from the sweep's ranges (stab.c), small sizes,
+ * with weather keys on a third of them (resolved: the state the tables
+ * get); the sequence depends only on *seed, which it advances the same
+ * with or without the weather. gpu_friendly keeps the
  * pipeline variants few (scattering in every constituent, a non-black
  * ground) so that a sweep on the engine does not compile a shader per case. */
 void stab_random(uint64_t *seed, bool gpu_friendly, struct sky_state *ret);

@@ -15,8 +15,8 @@
 static const struct ctl_cmd cmds[] = {
 	{ "set", "set key=value ...", "change the sky; all or nothing; names the generation that shows it",
 	  1, PROTO_MAX_ARGS, ctl_cmd_set },
-	{ "get", "get [key ...] | get sun | get moon | get times [date=YYYY-MM-DD] [utc_offset_min=N] | get sensor",
-	  "the current state, every key or the named ones; the clock's sun, moon, or the day's rise, set and twilights; the light sensor",
+	{ "get", "get [key ...] | get sun | get moon | get times [date=YYYY-MM-DD] [utc_offset_min=N] | get weather | get sensor",
+	  "the current state, every key or the named ones; the clock's sun, moon, or the day's rise, set and twilights; the weather keys and what they map to; the light sensor",
 	  0, PROTO_MAX_ARGS, ctl_cmd_get },
 	{ "batch", "batch", "start a batch: set lines until end apply as one change (no reply until end)",
 	  0, 0, ctl_cmd_batch },
@@ -80,24 +80,6 @@ int ctl_cmd_close(struct client *c, const struct proto_request *req, struct repl
 		  char *msg, size_t msg_size)
 {
 	c->closing = 1;
-	return 0;
-}
-
-/* A strict finite number in the C locale, whatever the process locale. */
-int ctl_parse_number(const char *v, double *ret)
-{
-	static locale_t c_locale;
-	char *end;
-
-	if (!c_locale)
-		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
-	if (!c_locale || !v || !*v)
-		return -EINVAL;
-	errno = 0;
-	double d = strtod_l(v, &end, c_locale);
-	if (*end || !isfinite(d) || errno == ERANGE)
-		return -EINVAL;
-	*ret = d;
 	return 0;
 }
 

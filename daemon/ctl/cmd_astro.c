@@ -156,7 +156,7 @@ int ctl_get_times(struct client *c, const struct proto_request *req, struct repl
 		if (strcmp(a->key, "date") == 0) {
 			date = a->value;
 		} else if (strcmp(a->key, "utc_offset_min") == 0) {
-			if (ctl_parse_number(a->value, &off) < 0 || off != floor(off))
+			if (proto_parse_number(a->value, &off) < 0 || off != floor(off))
 				return CTL_ACK(SKY_ACK_ARG, "utc_offset_min: '%s' is not a whole number", a->value);
 			if (fabs(off) > 1080)
 				return CTL_ACK(SKY_ACK_RANGE, "utc_offset_min: %g is outside [-1080, 1080]", off);

@@ -67,7 +67,7 @@ static void reply_reading(struct reply *r, const struct sense_status *st)
 	number(st->age_s, a, sizeof(a));
 	ctl_reply_add(r, "age_s: %s\nstale: %d\n", a, st->have_reading && rd->stale);
 	number(st->ev100, a, sizeof(a));
-	ctl_reply_add(r, "ev100: %s\nlight_factor: %.9g\n", a, st->light_factor);
+	ctl_reply_add(r, "ev100: %s\ncloud_factor: %.9g\n", a, st->cloud_factor);
 	number(st->clear_sky_lx, a, sizeof(a));
 	ctl_reply_add(r, "clear_sky_lx: %s\n", a);
 	number(st->elevation_deg, a, sizeof(a));
@@ -184,7 +184,7 @@ void ctl_status_sensor(struct ctl *ctl, struct reply *r)
 	ctl_reply_add(r, "sensor_lux: %s\nsensor_stale: %d\n", a,
 		      st.have_reading && st.sensor.reading.stale);
 	number(st.ev100, a, sizeof(a));
-	ctl_reply_add(r, "sensor_ev100: %s\nsensor_light_factor: %.9g\n", a, st.light_factor);
+	ctl_reply_add(r, "sensor_ev100: %s\nsensor_cloud_factor: %.9g\n", a, st.cloud_factor);
 }
 
 void ctl_sensor_event(void *ctx, const struct sense_status *st)
@@ -199,11 +199,11 @@ void ctl_sensor_event(void *ctx, const struct sense_status *st)
 	number(st->elevation_deg, el, sizeof(el));
 	one_word(st->not_applied, why, sizeof(why));
 	int n = snprintf(line, sizeof(line),
-			 "sensor: mode=%s state=%s lux=%s stale=%d ev100=%s light_factor=%.9g "
+			 "sensor: mode=%s state=%s lux=%s stale=%d ev100=%s cloud_factor=%.9g "
 			 "elevation_deg=%s generation=%llu changes=%llu accepted=%llu rejected=%llu "
 			 "mono_ns=%llu not_applied=%s\n",
 			 state_sensor_mode_name(st->mode), sensor_state_name(st->sensor.state), lux,
-			 st->have_reading && rd->stale, ev, st->light_factor, el,
+			 st->have_reading && rd->stale, ev, st->cloud_factor, el,
 			 (unsigned long long)st->generation, (unsigned long long)st->changes,
 			 (unsigned long long)st->sensor.pipe.accepted,
 			 (unsigned long long)rejected_total(&st->sensor.pipe),

@@ -1,5 +1,5 @@
 /* cmd_state.c - the verbs that read and change the sky's state: set, get
- * (its key=value part), batch and end. */
+ * (its key=value part; get weather is cmd_weather.c's), batch and end. */
 #include "ctl_internal.h"
 
 #include <errno.h>
@@ -23,9 +23,10 @@ static int set_error_code(int r)
 	}
 }
 
-/* Applies the args of a set to s. Returns 0 or an ACK code with msg. */
+/* Applies the args of a set to s; a metar= is noted for the reply. Returns
+ * 0 or an ACK code with msg. */
 static int apply_pairs(struct sky_state *s, const struct proto_request *req, uint32_t *dirty,
-		       char *msg, size_t msg_size)
+		       struct ctl_metar *metar, char *msg, size_t msg_size)
 {
 	char err[256];
 
@@ -34,7 +35,9 @@ static int apply_pairs(struct sky_state *s, const struct proto_request *req, uin
 		if (!a->value)
 			return CTL_ACK(SKY_ACK_SYNTAX, "'%s': key=value expected", a->key);
 		err[0] = 0;
-		int r = state_set(s, a->key, a->value, dirty, err, sizeof(err));
+		int r = strcmp(a->key, "metar") == 0
+			? ctl_apply_metar(s, a->value, dirty, metar, err, sizeof(err))
+			: state_set(s, a->key, a->value, dirty, err, sizeof(err));
 		if (r < 0)
 			return CTL_ACK(set_error_code(r), "%s", err[0] ? err : strerror(-r));
 	}
@@ -64,10 +67,15 @@ int ctl_cmd_set(struct client *c, const struct proto_request *req, struct reply 
 		char *msg, size_t msg_size)
 {
 	struct sky_state next = *srv_state(c->ctl->srv);
+	struct ctl_metar metar = { 0 };
 	uint32_t dirty = 0;
-	int code = apply_pairs(&next, req, &dirty, msg, msg_size);
+	int code = apply_pairs(&next, req, &dirty, &metar, msg, msg_size);
 
-	return code ? code : ctl_commit(c, &next, dirty, r, msg, msg_size);
+	if (!code)
+		code = ctl_commit(c, &next, dirty, r, msg, msg_size);
+	if (!code)
+		ctl_reply_metar(r, &metar);
+	return code;
 }
 
 static void emit_pair(void *ctx, const char *key, const char *value)
@@ -88,6 +96,8 @@ int ctl_cmd_get(struct client *c, const struct proto_request *req, struct reply 
 			return ctl_get_moon(c, req, r, msg, msg_size);
 		if (strcmp(req->args[0].key, "times") == 0)
 			return ctl_get_times(c, req, r, msg, msg_size);
+		if (strcmp(req->args[0].key, "weather") == 0)
+			return ctl_get_weather(c, req, r, msg, msg_size);
 		if (strcmp(req->args[0].key, "sensor") == 0)
 			return ctl_get_sensor(c, req, r, msg, msg_size);
 	}
@@ -140,7 +150,7 @@ void ctl_batch_line(struct client *c, const char *line)
 	else if (!req.n_args)
 		code = SKY_ACK_SYNTAX, snprintf(msg, sizeof(msg), "set: key=value expected");
 	else
-		code = apply_pairs(&b->state, &req, &b->dirty, msg, sizeof(msg));
+		code = apply_pairs(&b->state, &req, &b->dirty, &b->metar, msg, sizeof(msg));
 	if (code) {
 		b->error_code = code;
 		snprintf(b->error, sizeof(b->error), "line %d: %s", b->lines, msg);
@@ -160,6 +170,8 @@ int ctl_cmd_end(struct client *c, const struct proto_request *req, struct reply 
 		code = CTL_ACK(b->error_code, "%s; nothing applied", b->error);
 	else
 		code = ctl_commit(c, &b->state, b->dirty, r, msg, msg_size);
+	if (!code)
+		ctl_reply_metar(r, &b->metar);
 	free(b);
 	return code;
 }

@@ -194,9 +194,9 @@ int ctl_cmd_sample(struct client *c, const struct proto_request *req, struct rep
 				return CTL_ACK(SKY_ACK_NO_EXIST, "%s: unknown key (el_deg, az_deg)", req->args[i].key);
 		if (!ev || !av)
 			return CTL_ACK(SKY_ACK_SYNTAX, "usage: sample sky el_deg=E az_deg=A");
-		if (ctl_parse_number(ev, &el) < 0)
+		if (proto_parse_number(ev, &el) < 0)
 			return CTL_ACK(SKY_ACK_ARG, "el_deg: '%s' is not a finite number", ev);
-		if (ctl_parse_number(av, &az) < 0)
+		if (proto_parse_number(av, &az) < 0)
 			return CTL_ACK(SKY_ACK_ARG, "az_deg: '%s' is not a finite number", av);
 		if (el < -90 || el > 90)
 			return CTL_ACK(SKY_ACK_RANGE, "el_deg: %g is outside [-90, 90]", el);

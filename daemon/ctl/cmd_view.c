@@ -85,7 +85,7 @@ static int view_add(struct client *c, const struct proto_request *req, struct re
 				break;
 		if (k == sizeof(view_keys) / sizeof(view_keys[0]))
 			return CTL_ACK(SKY_ACK_NO_EXIST, "%s: unknown key (name, altitude_km, yaw_deg, pitch_deg, roll_deg, vfov_deg, aspect)", a->key);
-		if (ctl_parse_number(a->value, &d) < 0)
+		if (proto_parse_number(a->value, &d) < 0)
 			return CTL_ACK(SKY_ACK_ARG, "%s: '%s' is not a finite number", a->key, a->value);
 		if (d < view_keys[k].min || d > view_keys[k].max)
 			return CTL_ACK(SKY_ACK_RANGE, "%s: %g is outside [%g, %g]", a->key, d,

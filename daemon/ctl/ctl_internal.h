@@ -16,6 +16,7 @@
 #include <sys/un.h>
 
 #include "ctl.h"
+#include "metar.h"
 #include "proto.h"
 #include "state.h"
 
@@ -24,10 +25,18 @@ struct sense;
 struct loop_io;
 struct loop_timer;
 
+/* The last METAR report a request applied, for its reply (cmd_weather.c). */
+struct ctl_metar {
+	int given;			/* a metar= key was applied */
+	struct metar report;
+	char applied[256];		/* the keys it set, key=value ... */
+};
+
 /* A batch: set lines applied to a copy of the state, committed by end. */
 struct batch {
 	struct sky_state state;
 	uint32_t dirty;
+	struct ctl_metar metar;
 	int lines;
 	int error_code;			/* first failure; 0 if none */
 	char error[300];
@@ -126,7 +135,6 @@ void ctl_update_demand(struct ctl *ctl);
 /* cmd.c: the command table and the verbs about the protocol itself. */
 const struct ctl_cmd *ctl_find_cmd(const char *name);
 /* A strict finite number in the C locale: 0 or -EINVAL. */
-int ctl_parse_number(const char *v, double *ret);
 int ctl_cmd_commands(struct client *c, const struct proto_request *req, struct reply *r,
 		     char *msg, size_t msg_size);
 int ctl_cmd_help(struct client *c, const struct proto_request *req, struct reply *r,
@@ -160,6 +168,19 @@ int ctl_get_moon(struct client *c, const struct proto_request *req, struct reply
 		 char *msg, size_t msg_size);
 int ctl_get_times(struct client *c, const struct proto_request *req, struct reply *r,
 		  char *msg, size_t msg_size);
+
+/* cmd_weather.c: get weather (reached through get), and the metar key of
+ * set and batch. */
+int ctl_get_weather(struct client *c, const struct proto_request *req, struct reply *r,
+		    char *msg, size_t msg_size);
+/* Applies metar=report to s (state_set_metar), ORs the tables it
+ * invalidates into *dirty and notes the report for the reply; 0 or
+ * state_set's -errno with err. */
+int ctl_apply_metar(struct sky_state *s, const char *report, uint32_t *dirty,
+		    struct ctl_metar *note, char *err, size_t err_size);
+/* The metar_used:, metar_ignored: and metar_applied: lines; nothing when
+ * the request had no report. */
+void ctl_reply_metar(struct reply *r, const struct ctl_metar *note);
 
 /* cmd_tables.c: status, subscribe, unsubscribe, sample. */
 int ctl_cmd_status(struct client *c, const struct proto_request *req, struct reply *r,

@@ -91,18 +91,6 @@ int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *
 	return 0;
 }
 
-void drive_resolve(const struct sky_state *s, struct sky_state *ret)
-{
-	double f = s->sensor.light_factor;
-
-	if (ret != s)
-		*ret = *s;
-	if (f == 1.0)
-		return;
-	ret->sun.illuminance_lx *= f;
-	ret->moon.illuminance_lx *= f;
-}
-
 static double angle_deg(const double a[3], const double b[3])
 {
 	double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];

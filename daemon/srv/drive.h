@@ -36,7 +36,8 @@ void drive_site(const struct sky_state *s, struct astro_site *ret_site,
 		struct astro_options *ret_opt);
 
 /* Puts into s the lights whose mode is STATE_CLOCK as they are at monotonic
- * time mono_s: sun direction, illuminance (133.8 klx / R^2) and angular
+ * time mono_s: sun direction, illuminance (133.8 klx / R^2, clear sky: the
+ * tables get it times the state's cloud factor, state_resolve) and angular
  * radius; moon direction, angular radius, colour and illuminance (0 while
  * it is below DRIVE_MOON_MIN_ELEVATION_DEG); lights_utc_s. Nothing when no
  * light is clock-driven or no time is set (lights_utc_s becomes NAN).
@@ -45,13 +46,6 @@ void drive_site(const struct sky_state *s, struct astro_site *ret_site,
  * the time or place; s is untouched then. Pure apart from its arguments. */
 int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *err,
 		 size_t err_size);
-
-/* The state the tables are computed with: s with the sun's and the moon's
- * illuminance times the light factor (the light sensor's cloud mode,
- * state_set_light_factor); the state itself keeps the lights as they were
- * set or as the clock placed them. ret may be s. With a factor of 1 ret is
- * s byte for byte. */
-void drive_resolve(const struct sky_state *s, struct sky_state *ret);
 
 /* Takes neither loop nor srv; both must outlive the drive. */
 int drive_new(struct loop *l, struct srv *srv, struct drive **ret);

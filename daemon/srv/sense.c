@@ -26,9 +26,10 @@
 #define CURVE_BINS 103
 #define CURVE_MAX_POINTS (CURVE_BINS + 8)
 /* One reading refines the elevation at most this many times: the
- * refinement converges in two or three; this bounds a curve that will not. */
+ * refinement converges in a few steps (more with small, coarse tables);
+ * this bounds a curve that will not. */
 #define MAX_REFINEMENTS 8
-/* A new sun under the same reading changes the light factor only past the
+/* A new sun under the same reading changes the cloud factor only past the
  * hysteresis and at least this much: the tables carry the factor in float
  * (or half) precision, so the factor read back from them differs from the
  * one applied in the last digits, and a smaller step would chase that. */
@@ -214,7 +215,7 @@ static void record_point(struct sense *s, const struct sky_state *k, double ligh
 /* ---- the published tables ---- */
 
 /* The clear-sky illuminance of the lights in the current slot: its
- * horizontal illuminance less the night floor's, over the light factor
+ * horizontal illuminance less the night floor's, over the cloud factor
  * it was computed with (radiance is linear in the lights' illuminance).
  * -EAGAIN while the slot lacks the tables. With record, the slot also
  * gives the curve a point. */
@@ -233,7 +234,7 @@ static int clear_sky(struct sense *s, int record, double *ret_lights_lx, double 
 		return -EAGAIN;
 	sensor_sky_horizontal(&trans, &sky, &slot->state, &lux);
 	*ret_night_lx = k->night.zenith_luminance_cd_m2 > 0.0 ? k->night.illuminance_lx : 0.0;
-	*ret_lights_lx = fmax(lux.total_lx - *ret_night_lx, 0.0) / k->sensor.light_factor;
+	*ret_lights_lx = fmax(lux.total_lx - *ret_night_lx, 0.0) / k->weather.cloud_factor;
 	if (record)
 		record_point(s, k, *ret_lights_lx, k->moon.illuminance_lx > 0.0);
 	return 0;
@@ -294,8 +295,8 @@ static int eval_cloud(struct sense *s, enum cause cause)
 		return 0;
 	}
 	double f = (s->last.lux - night_lx) / lights_lx;
-	f = fmin(fmax(f, STATE_LIGHT_FACTOR_MIN), 1.0);
-	double was = cur->sensor.light_factor;
+	f = fmin(fmax(f, SENSE_FACTOR_MIN), 1.0);
+	double was = cur->weather.cloud_factor;
 	/* A new sun under the same reading: only a change past the hysteresis. */
 	if (cause == CAUSE_PUBLISHED &&
 	    fabs(f - was) < fmax(cur->sensor.hysteresis, REEVALUATE_MIN) * was)
@@ -305,7 +306,7 @@ static int eval_cloud(struct sense *s, enum cause cause)
 		return 0;
 	struct sky_state next = *cur;
 	uint32_t dirty = 0;
-	state_set_light_factor(&next, f, &dirty);
+	state_set_cloud_factor(&next, f, &dirty);
 	return apply(s, &next, dirty);
 }
 
@@ -488,7 +489,7 @@ void sense_status(const struct sense *s, struct sense_status *ret)
 {
 	*ret = s->st;
 	ret->mode = srv_state(s->srv)->sensor.mode;
-	ret->light_factor = srv_state(s->srv)->sensor.light_factor;
+	ret->cloud_factor = srv_state(s->srv)->weather.cloud_factor;
 	memset(&ret->sensor, 0, sizeof(ret->sensor));
 	ret->sensor.state = SENSOR_STATE_OFF;
 	if (s->sensor)

@@ -4,8 +4,9 @@
  *
  *   cloud: the reading over the clear-sky horizontal illuminance that the
  *     published tables give for the sun and place (sensor_sky_horizontal,
- *     with the light factor they were computed with taken out) is the new
- *     light factor (state_set_light_factor);
+ *     with the cloud factor they were computed with taken out) is the new
+ *     cloud factor (state_set_cloud_factor, the weather's, which also sets
+ *     cloud_oktas to match);
  *   elevation: the sun's elevation is where a clear-sky illuminance curve
  *     gives the reading (the USNO curve, refined by points measured from
  *     the published tables); the sun becomes manual;
@@ -35,6 +36,11 @@ struct sense;
  * floor and the sensor's own floor make the ratio meaningless. */
 #define SENSE_CLOUD_MIN_LX 1.0
 
+/* The cloud factor's floor: 1 is a clear sky; below 1/1000 (ten times
+ * darker than a thunderstorm's 1/100) a reading says more about the sensor
+ * than about the clouds. */
+#define SENSE_FACTOR_MIN 0.001
+
 /* The sun's mean top-of-atmosphere illuminance: the elevation mode's curve
  * is for it, a reading is scaled by it over the sun's illuminance. */
 #define SENSE_SUN_MEAN_LX 133800.0
@@ -56,7 +62,7 @@ struct sense_status {
 	double age_s;			/* since the last accepted reading; NAN none */
 	uint64_t reading_mono_ns;	/* CLOCK_MONOTONIC of that reading; 0 none */
 	double ev100;			/* of the last output; NAN none */
-	double light_factor;		/* the served state's */
+	double cloud_factor;		/* the served state's (weather.cloud_factor) */
 	double clear_sky_lx;		/* the lights' clear-sky illuminance last predicted; NAN none */
 	double elevation_deg;		/* the last inversion; NAN none */
 	double deg_per_ln;		/* its sensitivity, d elevation / d ln E */

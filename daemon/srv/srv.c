@@ -28,9 +28,10 @@ struct srv {
 	uint32_t dirty;			/* invalidated since the last submission */
 	int pending;			/* state differs from what was submitted last */
 
-	/* What the engine computes: drive_resolve's of computing_keys (the
-	 * lights times the light factor); computing_keys and published_keys
-	 * are the state as set, of the computation and of the current slot. */
+	/* state_resolve's of computing_keys: what the tables and the slot get
+	 * (the weather applied, the lights times the cloud factor);
+	 * computing_keys and published_keys are the state as set, of the
+	 * computation and of the current slot. */
 	struct sky_state computing_state;
 	struct sky_state computing_keys;
 	struct sky_state published_keys;
@@ -194,8 +195,14 @@ static void kick(struct srv *s)
 
 	if (s->in_flight || !s->pending)
 		return;
+	/* The tables see the weather applied and the lights times the cloud
+	 * factor; the state keeps the keys as they were set. srv_check
+	 * resolved the same state, so this cannot fail but on a bug. */
+	if (state_resolve(&s->state, &s->computing_state, NULL, err, sizeof(err)) < 0) {
+		fail(s, s->generation + 1, err);
+		return;
+	}
 	s->computing_keys = s->state;
-	drive_resolve(&s->state, &s->computing_state);
 	s->pending = 0;
 	s->eng_valid &= ~s->dirty;
 	mask = s->dirty & srv_tables_needed(s);

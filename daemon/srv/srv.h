@@ -56,7 +56,7 @@ void srv_free(struct srv *s);
 
 /* The state as last changed (not necessarily computed yet). */
 const struct sky_state *srv_state(const struct srv *s);
-/* The state (as set: before drive_resolve) whose tables the current slot
+/* The state (as set: before state_resolve) whose tables the current slot
  * holds; the initial state before the first publication. */
 const struct sky_state *srv_published(const struct srv *s);
 /* The current region; valid until the next publication with a new layout. */

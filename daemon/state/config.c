@@ -53,6 +53,12 @@ int config_load(const char *path, struct sky_state *s, char *err, size_t err_siz
 		}
 		*eq = 0;
 		char *key = trim(p), *value = trim(eq + 1);
+		/* A value may be quoted as on the socket (metar = "EGLL ..."). */
+		size_t n = strlen(value);
+		if (n >= 2 && value[0] == '"' && value[n - 1] == '"') {
+			value[n - 1] = 0;
+			value++;
+		}
 		msg[0] = 0;
 		r = state_set(&next, key, value, NULL, msg, sizeof(msg));
 		if (r < 0) {

@@ -1,5 +1,7 @@
 /* config.h - the daemon's configuration file: "key = value" lines with the
- * keys of the protocol's set verb, '#' comments and blank lines. */
+ * keys of the protocol's set verb, '#' comments and blank lines. A value is
+ * the rest of the line, spaces kept (metar = EGLL 241250Z ...); double
+ * quotes around it are dropped. */
 #ifndef SKYD_CONFIG_H
 #define SKYD_CONFIG_H
 

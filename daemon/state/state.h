@@ -10,8 +10,10 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #include "atmo.h"
+#include "weather.h"
 
 /* The four tables, in dependency order. */
 enum state_table {
@@ -108,14 +110,41 @@ struct state_night {
 	double illuminance_lx;		/* horizontal, from the whole floor */
 };
 
+/* Weather (docs/weather.md): inputs in the words people use, kept apart
+ * from the atmosphere. `atmo` stays what the preset and the raw keys made
+ * it; state_resolve applies the weather to a copy, the state the tables
+ * are computed with. */
+
+/* What the weather maps that a raw key set after a weather key keeps: the
+ * raw key wins for its coefficient until a weather key that maps it is set
+ * again (last writer wins). preset= clears every bit. */
+enum state_override {
+	STATE_OVERRIDE_MIE_SCATTERING = 1u << 0,	/* mie_scattering_per_km */
+	STATE_OVERRIDE_MIE_ABSORPTION = 1u << 1,	/* mie_absorption_per_km */
+	STATE_OVERRIDE_MIE_G = 1u << 2,			/* mie_g */
+	STATE_OVERRIDE_MIE_PROFILE = 1u << 3,		/* mie_scale_height_km, mie_layer* */
+	STATE_OVERRIDE_OZONE_ABSORPTION = 1u << 4,	/* ozone_absorption_per_km */
+};
+#define STATE_OVERRIDE_MIE 0xfu
+
+struct state_weather {
+	struct weather in;		/* the weather keys; all auto by default */
+	uint32_t overridden;		/* enum state_override bits */
+	/* The sun's and the moon's illuminance factor, 1 under a clear sky:
+	 * from cloud_oktas (Kasten and Czeplak), or from a light sensor's
+	 * cloud mode through state_set_cloud_factor, the one path for both. */
+	double cloud_factor;
+};
+
 /* ---- the light sensor (docs/sensor.md) ----
  * A USB light sensor's keys: what its readings do to the sky
  * (daemon/srv/sense.c) and how they are taken (daemon/sensor's
  * sensor_config, the same fields and ranges). Setting them computes no
- * table; the readings change the state, each as a change of its own. */
+ * table; the readings change the state, each as a change of its own (the
+ * cloud mode through state_set_cloud_factor). */
 enum state_sensor_mode {
 	STATE_SENSOR_OFF = 0,		/* no sensor opened; the default */
-	STATE_SENSOR_CLOUD = 1,		/* reading over clear-sky illuminance dims the lights */
+	STATE_SENSOR_CLOUD = 1,		/* reading over clear-sky illuminance: the cloud factor */
 	STATE_SENSOR_ELEVATION = 2,	/* the reading places the sun (its elevation) */
 	STATE_SENSOR_EXPOSURE = 3,	/* a suggested EV100; the tables stay */
 };
@@ -127,21 +156,11 @@ struct state_sensor {
 	double time_constant_s, hysteresis, min_interval_s;	/* the reading pipeline */
 	double stale_after_s, max_lux, floor_lux;
 	double report_interval_s, io_timeout_s, rescan_s;	/* the device */
-	/* Not a key: the sun's and the moon's illuminance factor that the
-	 * cloud mode measured, 1 otherwise. The state keeps the lights as set;
-	 * drive_resolve applies the factor to what the tables are computed
-	 * with. Leaving the cloud mode sets it back to 1. */
-	double light_factor;
 };
-
-/* The light factor's bounds: 1 is a clear sky; below 1/1000 (ten times
- * darker than a thunderstorm's 1/100) a reading says more about the sensor
- * than about the clouds. */
-#define STATE_LIGHT_FACTOR_MIN 0.001
 
 struct sky_state {
 	char preset[ATMO_NAME_MAX];
-	struct atmo atmo;
+	struct atmo atmo;		/* the user's: preset and raw keys, no weather */
 	double altitude_km;		/* observer above the ground, kept apart from radius */
 	struct state_light sun;
 	struct state_light moon;	/* lit when moon_illuminance_lx > 0 */
@@ -153,6 +172,7 @@ struct sky_state {
 	struct state_night night;
 	uint32_t n_views;		/* views[0 .. n_views) in use, in the order added */
 	struct state_view views[STATE_MAX_VIEWS];
+	struct state_weather weather;
 	struct state_sensor sensor;
 };
 
@@ -203,17 +223,13 @@ void state_clock_rebase(struct sky_state *next, const struct sky_state *cur, dou
  * that the horizontal illuminance pi L_zenith (1 + c / 3) is the state's. */
 void state_night_floor(const struct sky_state *s, double *ret_zenith_cd_m2, double *ret_gain);
 
+
 /* The light sensor's key names in `get` order, NULL-terminated, and the
  * name of a mode ("off", "cloud", "elevation", "exposure"). `get` without
  * keys (state_foreach) lists them only while one differs from its default,
  * so that a state without a sensor reads as it always did. */
 extern const char *const state_sensor_keys[];
 const char *state_sensor_mode_name(enum state_sensor_mode m);
-
-/* Sets the light factor measured by the cloud mode, clamped to
- * [STATE_LIGHT_FACTOR_MIN, 1]; ret_dirty (if not NULL) gets the tables it
- * invalidates ORed in when it changed. */
-void state_set_light_factor(struct sky_state *s, double factor, uint32_t *ret_dirty);
 
 /* Tables that differ between a and b given what they depend on. */
 uint32_t state_diff(const struct sky_state *a, const struct sky_state *b);
@@ -246,5 +262,47 @@ int state_parse_tables(const char *list, uint32_t *ret_mask);
 void state_format_tables(uint32_t mask, char *buf, size_t size);
 /* The tables t depends on, t included. */
 uint32_t state_closure(uint32_t mask);
+
+/* ---- weather (state_weather.c) ---- */
+
+/* The state the tables are computed with: s with its weather mapped onto a
+ * copy of its atmosphere (weather_map, weather_apply; coefficients of raw
+ * keys set after the weather kept, enum state_override) and the sun's and
+ * moon's illuminance times cloud_factor. ret's weather is cleared, so that
+ * resolving it again changes nothing; ret may be s. Without weather ret is
+ * s byte for byte. ret_map (NULL: not wanted) gets the map. Returns 0, or
+ * -EINVAL / -ERANGE with err naming the key when the weather does not fit
+ * the atmosphere (ozone_du without an ozone constituent). */
+int state_resolve(const struct sky_state *s, struct sky_state *ret, struct weather_map *ret_map,
+		  char *err, size_t err_size);
+
+/* `get weather`: the weather keys and what they map to (weather_describe),
+ * then `overridden:` (the raw keys that win, or none) and `cloud_factor:`.
+ * 0, or the error of weather_map with err. */
+int state_describe_weather(const struct sky_state *s, state_emit_fn fn, void *ctx, char *err,
+			   size_t err_size);
+
+struct metar;
+/* Applies one METAR or SPECI report: metar_weather's visibility_km,
+ * relative_humidity, aerosol and cloud_oktas, the QNH reduced to
+ * site_elevation_m as pressure_mbar and the temperature as temperature_c
+ * (the refraction keys). ret_metar (NULL: not wanted) gets the decoded
+ * report. -EINVAL with err naming the group and its position for a
+ * malformed report; s is unchanged then. */
+int state_set_metar(struct sky_state *s, const char *report, struct metar *ret_metar,
+		    uint32_t *ret_dirty, char *err, size_t err_size);
+
+/* Sets cloud_factor (0..1, -ERANGE outside) as a light sensor measures it
+ * (illuminance over the clear-sky one), and cloud_oktas to the cover that
+ * Kasten and Czeplak's law gives that factor (8 below 0.25), so that get
+ * weather tells the same. ret_dirty as state_set's. */
+int state_set_cloud_factor(struct sky_state *s, double factor, uint32_t *ret_dirty);
+
+/* ---- the key list (state_keys.c) ---- */
+
+/* Prints every settable key: name, unit, range, default, the tables it
+ * invalidates and what it is, as a markdown table or as tab-separated
+ * lines. proto/PROTOCOL.md's key list is this output (tools/gen_keys_doc.sh). */
+void state_print_keys(FILE *f, bool markdown);
 
 #endif

@@ -2,6 +2,8 @@
  * ozone constituents and the cloud light factor (docs/weather.md). */
 #include "weather.h"
 
+#include "proto.h"
+
 #include <errno.h>
 #include <locale.h>
 #include <math.h>
@@ -139,27 +141,6 @@ unsigned weather_key_affects(const char *key)
 	return k ? k->affects : 0;
 }
 
-/* Strict C-locale double: the whole string, finite. */
-static int parse_double(const char *v, double *ret)
-{
-	static locale_t c_locale;
-	char *end;
-
-	if (!c_locale)
-		c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
-	if (!c_locale || !*v)
-		return -EINVAL;
-	locale_t old = uselocale(c_locale);
-	errno = 0;
-	double d = strtod(v, &end);
-	int e = errno;
-	uselocale(old);
-	if (*end || end == v || !isfinite(d) || (e == ERANGE && d != 0.0))
-		return -EINVAL;
-	*ret = d;
-	return 0;
-}
-
 int weather_set(struct weather *w, const char *key, const char *value, char *err,
 		size_t err_size)
 {
@@ -184,7 +165,7 @@ int weather_set(struct weather *w, const char *key, const char *value, char *err
 		*field = NAN;
 		return 0;
 	}
-	if (parse_double(value, &d) < 0) {
+	if (proto_parse_number(value, &d) < 0) {
 		snprintf(err, err_size, "%s: '%s' is not auto or a finite number", key, value);
 		return -EINVAL;
 	}
