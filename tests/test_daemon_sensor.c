@@ -268,6 +268,14 @@ static void run_cloud(void)
 	CHECK(request(&c, "sensor list") == 0);
 	CHECK(strstr(reply, "device: bus=1-3 family=mcp2221-bh1750 id=04d8:00dd serial=MCP-0001") != NULL);
 	CHECK(num(&c, "status", "sensor_cloud_factor") == last->cloud_factor);
+	/* skyctl sensor is get sensor. */
+	char cmd[512], out[8192];
+	snprintf(cmd, sizeof(cmd), "%s --socket '%s' sensor", SKYCTL_BINARY, d.sock);
+	FILE *p = popen(cmd, "r");
+	size_t n = p ? fread(out, 1, sizeof(out) - 1, p) : 0;
+	out[n] = 0;
+	CHECK(p && pclose(p) == 0);
+	CHECK(strstr(out, "mode: cloud\n") && strstr(out, "family: mcp2221-bh1750\n"));
 	/* The sensor wrote the weather's cloud cover: get weather says so. */
 	CHECK(REL(num(&c, "get weather", "cloud_factor"), last->cloud_factor, 1e-9));
 	/* Off keeps the cover last measured; auto gives the lights back. */
