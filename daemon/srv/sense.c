@@ -234,7 +234,8 @@ static int clear_sky(struct sense *s, int record, double *ret_lights_lx, double 
 		return -EAGAIN;
 	sensor_sky_horizontal(&trans, &sky, &slot->state, &lux);
 	*ret_night_lx = k->night.zenith_luminance_cd_m2 > 0.0 ? k->night.illuminance_lx : 0.0;
-	*ret_lights_lx = fmax(lux.total_lx - *ret_night_lx, 0.0) / k->weather.cloud_factor;
+	*ret_lights_lx = fmax(lux.total_lx - *ret_night_lx, 0.0) /
+			 fmax(k->weather.cloud_factor, SENSE_FACTOR_MIN);
 	if (record)
 		record_point(s, k, *ret_lights_lx, k->moon.illuminance_lx > 0.0);
 	return 0;
