@@ -8,7 +8,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
 
 #include "dump.h"
 #include "proto.h"
@@ -156,6 +159,86 @@ static int cmd_times(const struct opts *o, int argc, char **argv)
 		return run_verb(o, "get", 1, (char *[]){ "times" });
 	snprintf(date, sizeof(date), "date=%s", argv[0]);
 	return run_verb(o, "get", 2, (char *[]){ "times", date });
+}
+
+/* sensor watch: skyd's sensor: lines as they come, on a connection of its
+ * own (libsky keeps to the lines of its protocol, which these are not).
+ * The first line ("watching: sensor") says it is ready. */
+static int sensor_watch(const struct opts *o, long count)
+{
+	struct sockaddr_un sa = { .sun_family = AF_UNIX };
+	char path[sizeof(sa.sun_path)], line[SKY_PROTO_LINE_MAX + 2];
+	const char *p = o->socket;
+	static const char req[] = "sensor events=1\n";
+
+	if (!p && sky_default_path(path, sizeof(path)) == 0)
+		p = path;
+	int fd = p && strlen(p) < sizeof(sa.sun_path) ? socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0)
+						      : -1;
+	if (fd >= 0)
+		memcpy(sa.sun_path, p, strlen(p) + 1);
+	if (fd < 0 || connect(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0 ||
+	    write(fd, req, sizeof(req) - 1) != (ssize_t)sizeof(req) - 1) {
+		fprintf(stderr, "skyctl: cannot connect to '%s': %s\n", p ? p : "?", strerror(errno));
+		if (fd >= 0)
+			close(fd);
+		return EXIT_USAGE;
+	}
+	FILE *f = fdopen(fd, "r");
+	int refused = 0, greeted = 0, watching = 0;
+	while (f && count != 0 && fgets(line, sizeof(line), f)) {
+		if (!greeted) {
+			greeted = 1;
+			continue;
+		}
+		if (!strncmp(line, "ACK ", 4)) {
+			fprintf(stderr, "%s", line);
+			refused = 1;
+			break;
+		}
+		if (!watching) {
+			watching = !strcmp(line, "OK\n");
+			if (watching) {
+				printf("watching: sensor\n");
+				fflush(stdout);
+			}
+			continue;
+		}
+		if (strncmp(line, "sensor: ", 8) != 0)
+			continue;
+		fputs(line, stdout);
+		fflush(stdout);
+		if (count > 0)
+			count--;
+	}
+	if (count != 0 && !refused)
+		fprintf(stderr, "skyctl: sensor watch: skyd closed the connection\n");
+	if (f)
+		fclose(f);
+	else
+		close(fd);
+	return count == 0 ? EXIT_OK : EXIT_REFUSED;
+}
+
+/* sensor [list | watch [--count N]]: get sensor, the devices skyd knows,
+ * or its sensor: lines as they come. */
+static int cmd_sensor(const struct opts *o, int argc, char **argv)
+{
+	long count = -1;
+
+	if (!argc)
+		return run_verb(o, "get", 1, (char *[]){ "sensor" });
+	if (argc == 1 && !strcmp(argv[0], "list"))
+		return run_verb(o, "sensor", 1, (char *[]){ "list" });
+	if (!strcmp(argv[0], "watch")) {
+		char *end = NULL;
+		if (argc == 3 && !strcmp(argv[1], "--count"))
+			count = strtol(argv[2], &end, 10);
+		if (argc == 1 || (end && !*end && count >= 1))
+			return sensor_watch(o, count);
+	}
+	fprintf(stderr, "usage: skyctl sensor [list | watch [--count N]]\n");
+	return EXIT_USAGE;
 }
 
 static int cmd_help(const struct opts *o, int argc, char **argv)
@@ -494,6 +577,9 @@ static const struct cmd cmds[] = {
 	{ "sun", "sun                      where the clock's sun is (get sun)", cmd_sun },
 	{ "moon", "moon                     where the clock's moon is, its phase (get moon)", cmd_moon },
 	{ "times", "times [YYYY-MM-DD]       sunrise, sunset, twilights of a day (get times)", cmd_times },
+	{ "sensor", "sensor [list | watch [--count N]]\n"
+		    "                         the light sensor (get sensor), the devices skyd knows,\n"
+		    "                         or its sensor: lines as readings come", cmd_sensor },
 	{ "view", "view list                the camera views (view add|del work too, but a view\n"
 		  "                         lasts only while the connection that added it is open)", NULL },
 	{ "ping", "ping                     check that skyd answers", NULL },

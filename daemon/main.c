@@ -1,5 +1,6 @@
-/* main.c - skyd: the one-shot modes go to once_main; otherwise the daemon,
- * set up in order and torn down in reverse. */
+/* main.c - skyd: the one-shot modes go to once_main, --list-sensors lists
+ * the USB light sensors; otherwise the daemon, set up in order and torn
+ * down in reverse. */
 #include <errno.h>
 #include <getopt.h>
 #include <signal.h>
@@ -18,6 +19,8 @@
 #include "loop.h"
 #include "once.h"
 #include "proto.h"
+#include "sense.h"
+#include "sensor.h"
 #include "simclock.h"
 #include "srv.h"
 #include "state.h"
@@ -27,6 +30,7 @@ struct options {
 	const char *config_path;
 	const char *device;
 	int check_only;
+	int list_sensors;
 	enum log_level level;
 	int first_pair;			/* argv index of the first key=value */
 };
@@ -38,6 +42,7 @@ static void usage(FILE *f)
 		"       skyd --once --dump DIR [key=value ...]\n"
 		"       skyd --list-devices\n"
 		"       skyd --list-keys [--markdown]\n"
+		"       skyd --list-sensors [key=value ...]\n"
 		"\n"
 		"Computes sky lookup tables on the GPU and serves them over shared memory;\n"
 		"steered through a control socket (proto/PROTOCOL.md).\n"
@@ -48,6 +53,8 @@ static void usage(FILE *f)
 		"  -n                check the configuration (and key=value args) and exit\n"
 		"  --device SEL      Vulkan device index or name substring ($SKYD_DEVICE)\n"
 		"  --log-level L     error, warning, info (default) or debug ($SKYD_LOG)\n"
+		"  --list-sensors    the USB light sensors found, each opened to see what it is\n"
+		"                    (sensor_select and the other sensor_* keys apply)\n"
 		"  -h, --help        this text\n"
 		"  --version         protocol and program versions\n"
 		"  --list-keys       every key of set: name, unit, range, default, the tables\n"
@@ -58,7 +65,7 @@ static void usage(FILE *f)
 static int parse_options(int argc, char **argv, struct options *o)
 {
 	enum { OPT_SOCKET = 256, OPT_CONFIG, OPT_DEVICE, OPT_LOG, OPT_VERSION, OPT_LIST_KEYS,
-	       OPT_MARKDOWN };
+	       OPT_MARKDOWN, OPT_SENSORS };
 	static const struct option longs[] = {
 		{ "socket", required_argument, NULL, OPT_SOCKET },
 		{ "config", required_argument, NULL, OPT_CONFIG },
@@ -68,6 +75,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 		{ "version", no_argument, NULL, OPT_VERSION },
 		{ "list-keys", no_argument, NULL, OPT_LIST_KEYS },
 		{ "markdown", no_argument, NULL, OPT_MARKDOWN },
+		{ "list-sensors", no_argument, NULL, OPT_SENSORS },
 		{ 0 },
 	};
 	int c, list_keys = 0, markdown = 0;
@@ -85,6 +93,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 			}
 			break;
 		case 'n': o->check_only = 1; break;
+		case OPT_SENSORS: o->list_sensors = 1; break;
 		case 'h': usage(stdout); return 0;
 		case OPT_VERSION:
 			printf("skyd %s, protocol %s, shared memory layout %u\n", PROJECT_VERSION,
@@ -131,6 +140,59 @@ static int initial_state(const struct options *o, int argc, char **argv, struct 
 	return 0;
 }
 
+/* skyd --list-sensors: every candidate device, opened, identified and
+ * given back, one line each (sensor_info_format). */
+static int list_sensors(const struct sky_state *s)
+{
+	const struct state_sensor *k = &s->sensor;
+	struct sensor_config cfg;
+	struct sensor_info *infos;
+	size_t n;
+	char err[256] = "", line[512];
+
+	sensor_config_defaults(&cfg);
+	snprintf(cfg.select, sizeof(cfg.select), "%s", k->select);
+	cfg.report_interval_s = k->report_interval_s;
+	cfg.io_timeout_s = k->io_timeout_s;
+	cfg.rescan_s = k->rescan_s;
+	/* Identifying takes a few exchanges, each bounded by io_timeout_s. */
+	int r = sensor_list(&cfg, 4.0 * k->io_timeout_s + 1.0, &infos, &n, err, sizeof(err));
+	if (r < 0) {
+		fprintf(stderr, "skyd: --list-sensors: %s\n", err[0] ? err : strerror(-r));
+		return 1;
+	}
+	for (size_t i = 0; i < n; i++) {
+		sensor_info_format(&infos[i], line, sizeof(line));
+		printf("%s\n", line);
+	}
+	if (!n)
+		printf("no USB light sensor candidates found\n");
+	free(infos);
+	return 0;
+}
+
+/* The srv listener: the control server hears first (changed: lines), then
+ * the light sensor, which reads the new slot. */
+struct hooks {
+	struct ctl *ctl;
+	struct sense *sense;
+};
+
+static void on_published(void *ctx, uint64_t generation, uint32_t tables, int new_region)
+{
+	struct hooks *h = ctx;
+
+	ctl_published(h->ctl, generation, tables, new_region);
+	sense_published(h->sense, generation);
+}
+
+static void on_failed(void *ctx, uint64_t generation, const char *message)
+{
+	struct hooks *h = ctx;
+
+	ctl_failed(h->ctl, generation, message);
+}
+
 static void on_signal(void *ctx, int signo)
 {
 	log_info("%s: shutting down", strsignal(signo));
@@ -156,6 +218,8 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 	struct srv *srv = NULL;
 	struct ctl *ctl = NULL;
 	struct drive *drive = NULL;
+	struct sense *sense = NULL;
+	struct hooks hooks = { 0 };
 	struct sky_state lit = *initial;
 	char err[512] = "", path[108];
 	int listen_fd = -1, r;
@@ -213,13 +277,22 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 		log_error("%s", err);
 		goto out;
 	}
-	srv_set_listener(srv, &(struct srv_listener){ ctl_published, ctl_failed }, ctl);
+	hooks.ctl = ctl;
+	srv_set_listener(srv, &(struct srv_listener){ on_published, on_failed }, &hooks);
 	r = drive_new(loop, srv, &drive);
 	if (r < 0) {
 		log_error("clock: %s", strerror(-r));
 		goto out;
 	}
 	ctl_set_drive(ctl, drive);
+	r = sense_new(loop, srv, drive, &sense);
+	if (r < 0) {
+		log_error("light sensor: %s", strerror(-r));
+		goto out;
+	}
+	sense_set_listener(sense, ctl_sensor_event, ctl);
+	ctl_set_sense(ctl, sense);
+	hooks.sense = sense;
 	log_info("listening on %s, protocol %s", path, SKY_PROTO_VERSION);
 	sd_notify(0, "READY=1");
 	r = loop_run(loop);
@@ -227,6 +300,10 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 		log_error("event loop: %s", strerror(-r));
 	sd_notify(0, "STOPPING=1");
 out:
+	hooks.sense = NULL;
+	if (ctl)
+		ctl_set_sense(ctl, NULL);
+	sense_free(sense);
 	ctl_free(ctl);
 	drive_free(drive);
 	srv_free(srv);
@@ -255,5 +332,7 @@ int main(int argc, char **argv)
 		printf("%s: ok\n", o.config_path ? o.config_path : "configuration");
 		return 0;
 	}
+	if (o.list_sensors)
+		return list_sensors(&initial);
 	return run_daemon(&o, &initial);
 }

@@ -1,10 +1,15 @@
 /* latbench.c - the service's figures: latency from a set to the new
  * generation visible in a client, a client's snapshot copy time, the
- * writer's compute time with 0 and 64 clients reading at 60 Hz, and skyd's
- * resident memory at rest. Starts its own skyd (default layout) on a private
- * socket. A benchmark, not a test: it prints, it does not judge. */
+ * writer's compute time with 0 and 64 clients reading at 60 Hz, skyd's
+ * resident memory at rest, and the latency from a light sensor's reading
+ * to the generation it makes, visible in a client. Starts its own skyd
+ * (default layout) on a private socket; the sensor figure runs latbench
+ * again under umockdev-run with a replayed MCP2221A and BH1750
+ * (tests/sensor/mcp-ramp.pcap), skipped without umockdev-run. A
+ * benchmark, not a test: it prints, it does not judge. */
 #include <linux/futex.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdatomic.h>
 #include <sys/mman.h>
 #include <sys/resource.h>
@@ -273,8 +278,166 @@ static void bench_readers(struct conn *c, const struct region *r, const char *so
 	free(busy);
 }
 
+/* ---- a light sensor's reading -> the generation it makes ---- */
+
+#define MAX_GENERATIONS 4096
+
+/* When each generation was first seen, by a thread waiting on the futex
+ * word, so that the time does not wait for the socket's lines. */
+struct seen {
+	const struct region *r;
+	double at_ms[MAX_GENERATIONS];
+	atomic_int stop;
+};
+
+static void *watch_generations(void *arg)
+{
+	struct seen *s = arg;
+	_Atomic uint32_t *g = (_Atomic uint32_t *)&s->r->h->generation;
+	uint32_t have = atomic_load_explicit(g, memory_order_acquire);
+
+	while (!atomic_load(&s->stop)) {
+		struct timespec ts = { 0, 100000000 };
+		syscall(SYS_futex, g, FUTEX_WAIT, have, &ts, NULL, 0);
+		uint32_t v = atomic_load_explicit(g, memory_order_acquire);
+		double t = now_ms();
+		for (uint32_t k = have + 1; (int32_t)(v - k) >= 0 && k < MAX_GENERATIONS; k++)
+			s->at_ms[k] = t;
+		have = v;
+	}
+	return NULL;
+}
+
+static uint64_t event_u64(const char *line, const char *key)
+{
+	const char *p = strstr(line, key);
+	return p ? strtoull(p + strlen(key), NULL, 10) : 0;
+}
+
+/* Sends req and reads to its OK; sensor: lines that come on the way are
+ * handed to fn. */
+static int sensor_request(struct conn *c, const char *req, void (*fn)(void *, const char *),
+			  void *ctx)
+{
+	char line[8192];
+
+	if (send(c->fd, req, strlen(req), MSG_NOSIGNAL) < 0 || send(c->fd, "\n", 1, MSG_NOSIGNAL) < 0)
+		return -1;
+	for (;;) {
+		if (conn_line(c, line, sizeof(line)) < 0)
+			return -1;
+		if (!strncmp(line, "sensor: ", 8))
+			fn(ctx, line);
+		else if (!strcmp(line, "OK") || !strncmp(line, "ACK", 3))
+			return line[0] == 'O' ? 0 : -1;
+	}
+}
+
+struct changes {
+	uint64_t generation[MAX_GENERATIONS], mono_ns[MAX_GENERATIONS];
+	int n;
+	uint64_t last_changes;
+	int stopped;			/* the device stopped: its capture is over */
+};
+
+/* A sensor: line whose reading made a change: its generation and the
+ * monotonic time skyd took the reading at. */
+static void note_change(void *ctx, const char *line)
+{
+	struct changes *ch = ctx;
+	uint64_t k = event_u64(line, " changes=");
+
+	if (ch->n && (strstr(line, " state=searching") || strstr(line, " state=starting")))
+		ch->stopped = 1;
+	if (k > ch->last_changes && !strstr(line, " stale=1") && ch->n < MAX_GENERATIONS) {
+		ch->generation[ch->n] = event_u64(line, " generation=");
+		ch->mono_ns[ch->n] = event_u64(line, " mono_ns=");
+		ch->n++;
+	}
+	if (k > ch->last_changes)
+		ch->last_changes = k;
+}
+
+/* Under umockdev-run: skyd reads the replayed MCP2221A, polled every
+ * 100 ms; in cloud mode every reading of the ramp is a change. */
+static int bench_sensor(void)
+{
+	static const char *const args[] = { "sun_elevation_deg=60", "sensor_time_constant_s=0",
+		"sensor_hysteresis=0", "sensor_min_interval_s=0", "sensor_report_interval_s=0.1",
+		"sensor_io_timeout_s=0.3", NULL };
+	static struct seen seen;
+	static struct changes ch;
+	struct daemon d;
+	struct conn c;
+	struct region r;
+	pthread_t th;
+	char line[8192];
+
+	harness_need_device();
+	if (daemon_start(&d, args) < 0 || subscribe(&c, d.sock, &r) < 0)
+		return 1;
+	seen.r = &r;
+	if (pthread_create(&th, NULL, watch_generations, &seen) != 0)
+		return 1;
+	if (sensor_request(&c, "sensor events=1", note_change, &ch) < 0 ||
+	    sensor_request(&c, "set sensor_mode=cloud", note_change, &ch) < 0)
+		return 1;
+	while (!ch.stopped && conn_line(&c, line, sizeof(line)) >= 0)
+		if (!strncmp(line, "sensor: ", 8))
+			note_change(&ch, line);
+	atomic_store(&seen.stop, 1);
+	pthread_join(th, NULL);
+	double *lat = malloc(sizeof(double) * (size_t)(ch.n ? ch.n : 1));
+	int n = 0;
+	for (int i = 0; i < ch.n; i++)
+		if (ch.generation[i] < MAX_GENERATIONS && seen.at_ms[ch.generation[i]] > 0.0)
+			lat[n++] = seen.at_ms[ch.generation[i]] - (double)ch.mono_ns[i] / 1e6;
+	if (n)
+		printf("sensor reading -> generation visible (cloud mode, %d readings of a replayed "
+		       "MCP2221A + BH1750, default layout): median %.2f ms, p99 %.2f ms\n", n,
+		       pct(lat, n, 0.5), pct(lat, n, 0.99));
+	else
+		printf("sensor reading -> generation visible: no reading made a change\n");
+	free(lat);
+	conn_close(&c);
+	daemon_cleanup(&d);
+	return 0;
+}
+
+/* Runs latbench --sensor under umockdev-run with the MCP2221A's device
+ * description and the ramp's capture. */
+static void run_sensor_bench(void)
+{
+	char self[512], dev[512], cap[640];
+	ssize_t k = readlink("/proc/self/exe", self, sizeof(self) - 1);
+
+	if (k <= 0)
+		return;
+	self[k] = 0;
+	snprintf(dev, sizeof(dev), "%s/mcp.umockdev", SKYD_SENSOR_DATA);
+	snprintf(cap, sizeof(cap), "/sys/devices/pci0000:00/0000:00:14.0/usb1/1-3=%s/mcp-ramp.pcap",
+		 SKYD_SENSOR_DATA);
+	fflush(stdout);
+	pid_t pid = fork();
+	if (pid == 0) {
+		execlp("umockdev-run", "umockdev-run", "-d", dev, "-p", cap, "--", self, "--sensor",
+		       (char *)NULL);
+		printf("sensor reading -> generation visible: skipped (umockdev-run: %s)\n",
+		       strerror(errno));
+		_exit(0);
+	}
+	if (pid > 0)
+		waitpid(pid, NULL, 0);
+}
+
 int main(int argc, char **argv)
 {
+	if (argc > 1 && !strcmp(argv[1], "--sensor")) {
+		if (getenv("UMOCKDEV_DIR"))
+			return bench_sensor();
+		run_sensor_bench();
+		return 0;
+	}
 	int n = argc > 1 ? atoi(argv[1]) : 200;
 	struct daemon d;
 	struct conn c;
@@ -325,5 +488,8 @@ int main(int argc, char **argv)
 	conn_close(&c);
 	printf("skyd resident memory at rest: %ld kB\n", rss_kb(d.pid));
 	daemon_cleanup(&d);
+
+	/* 5. A light sensor's reading -> the generation it makes. */
+	run_sensor_bench();
 	return 0;
 }

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sense.h"
 #include "srv.h"
 
 /* The ACK code of a state_set refusal, from its -errno. */
@@ -55,6 +56,8 @@ int ctl_commit(struct client *c, const struct sky_state *next, uint32_t dirty, s
 		return CTL_ACK(SKY_ACK_RANGE, "%s", err);
 	if (e < 0)
 		return CTL_ACK(SKY_ACK_ENGINE, "state unchanged, computation failed: %s", err);
+	/* The sensor keys start, stop or reconfigure the sensor. */
+	sense_changed(c->ctl->sense);
 	state_format_tables(dirty, names, sizeof(names));
 	ctl_reply_add(r, "generation: %llu\ntables: %s\n", (unsigned long long)generation, names);
 	return 0;
@@ -95,6 +98,8 @@ int ctl_cmd_get(struct client *c, const struct proto_request *req, struct reply 
 			return ctl_get_times(c, req, r, msg, msg_size);
 		if (strcmp(req->args[0].key, "weather") == 0)
 			return ctl_get_weather(c, req, r, msg, msg_size);
+		if (strcmp(req->args[0].key, "sensor") == 0)
+			return ctl_get_sensor(c, req, r, msg, msg_size);
 	}
 	if (!req->n_args) {
 		state_foreach(s, emit_pair, r);

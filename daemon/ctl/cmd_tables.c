@@ -66,6 +66,7 @@ int ctl_cmd_status(struct client *c, const struct proto_request *req, struct rep
 		else
 			ctl_reply_add(r, "clock_next_tick_s: %.3f\n", ds.next_tick_s);
 	}
+	ctl_status_sensor(c->ctl, r);
 	return 0;
 }
 

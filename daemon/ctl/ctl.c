@@ -263,6 +263,11 @@ void ctl_set_drive(struct ctl *ctl, struct drive *d)
 	ctl->drive = d;
 }
 
+void ctl_set_sense(struct ctl *ctl, struct sense *s)
+{
+	ctl->sense = s;
+}
+
 void ctl_free(struct ctl *ctl)
 {
 	if (!ctl)

@@ -22,6 +22,8 @@
 
 struct ctl;
 struct drive;
+struct sense;
+struct sense_status;
 struct loop;
 struct srv;
 
@@ -42,6 +44,14 @@ void ctl_free(struct ctl *c);
 /* The clock told of every committed change (re-arms its timer), and asked
  * for its counters in status. d must outlive ctl; NULL: no clock. */
 void ctl_set_drive(struct ctl *ctl, struct drive *d);
+
+/* The light sensor: its status for get sensor and status, its devices for
+ * the sensor verb, told of every committed change (its keys). s must
+ * outlive ctl; NULL: none. */
+void ctl_set_sense(struct ctl *ctl, struct sense *s);
+/* The sense listener's hook, to be wired by main: a sensor: line to every
+ * connection that asked (sensor events=1). */
+void ctl_sensor_event(void *ctx, const struct sense_status *st);
 
 /* The srv listener's hooks, to be wired by main. */
 void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_region);

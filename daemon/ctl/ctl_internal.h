@@ -21,6 +21,7 @@
 #include "state.h"
 
 struct chunk;
+struct sense;
 struct loop_io;
 struct loop_timer;
 
@@ -62,6 +63,7 @@ struct client {
 	uint32_t sub_tables;		/* has the region, gets layout: lines */
 	int sub_events;			/* gets changed: and failed: lines */
 	uint32_t sample_tables;		/* demanded by its sample requests, until unsubscribe */
+	int sub_sensor;			/* gets sensor: lines (sensor events=1) */
 	const char *line;		/* the request being handled, unparsed */
 	char *deferred;			/* a sample waiting for its table; input waits too */
 	struct batch *batch;
@@ -81,6 +83,7 @@ struct ctl {
 	int n_clients;
 	uint64_t next_id;
 	struct drive *drive;		/* the clock; NULL: none */
+	struct sense *sense;		/* the light sensor; NULL: none */
 	int finishing;
 };
 
@@ -188,6 +191,14 @@ int ctl_cmd_unsubscribe(struct client *c, const struct proto_request *req, struc
 			char *msg, size_t msg_size);
 int ctl_cmd_sample(struct client *c, const struct proto_request *req, struct reply *r,
 		   char *msg, size_t msg_size);
+
+/* cmd_sensor.c: get sensor (reached through get), the sensor verb (list,
+ * events), the sensor lines of status. */
+int ctl_get_sensor(struct client *c, const struct proto_request *req, struct reply *r,
+		   char *msg, size_t msg_size);
+int ctl_cmd_sensor(struct client *c, const struct proto_request *req, struct reply *r,
+		   char *msg, size_t msg_size);
+void ctl_status_sensor(struct ctl *ctl, struct reply *r);
 
 /* cmd_view.c: view add, del, list. */
 int ctl_cmd_view(struct client *c, const struct proto_request *req, struct reply *r,

@@ -28,15 +28,20 @@ struct srv {
 	uint32_t dirty;			/* invalidated since the last submission */
 	int pending;			/* state differs from what was submitted last */
 
-	/* state_resolve's of state: what the tables and the slot get (the
-	 * weather applied, the lights times the cloud factor). */
+	/* state_resolve's of computing_keys: what the tables and the slot get
+	 * (the weather applied, the lights times the cloud factor);
+	 * computing_keys and published_keys are the state as set, of the
+	 * computation and of the current slot. */
 	struct sky_state computing_state;
+	struct sky_state computing_keys;
+	struct sky_state published_keys;
 	int in_flight;
 	uint32_t in_flight_mask;
 	uint64_t in_flight_generation;
 
 	uint32_t eng_valid;		/* engine tables that match computing_state */
 	uint32_t demand;		/* tables clients asked for (srv_set_demand) */
+	uint32_t own_demand;		/* tables the daemon reads itself (srv_set_own_demand) */
 	uint64_t generation;		/* published */
 	struct srv_status st;
 };
@@ -44,6 +49,11 @@ struct srv {
 const struct sky_state *srv_state(const struct srv *s)
 {
 	return &s->state;
+}
+
+const struct sky_state *srv_published(const struct srv *s)
+{
+	return &s->published_keys;
 }
 
 struct pub *srv_pub(const struct srv *s)
@@ -81,7 +91,7 @@ static uint32_t demand_closure(const struct sky_state *st, uint32_t demand)
 
 uint32_t srv_tables_needed(const struct srv *s)
 {
-	return demand_closure(&s->state, s->demand);
+	return demand_closure(&s->state, s->demand | s->own_demand);
 }
 
 uint32_t srv_tables_coming(const struct srv *s)
@@ -147,6 +157,7 @@ static void publish(struct srv *s, uint32_t computed)
 		tables[t] = (s->eng_valid & STATE_BIT(t)) ? eng_table(s->eng, (enum state_table)t, NULL)
 							  : NULL;
 	pub_publish(s->pub, &s->computing_state, s->eng_valid, tables, generation);
+	s->published_keys = s->computing_keys;
 	s->generation = generation;
 	s->st.published_computed = computed;
 	s->st.last_error[0] = 0;
@@ -191,6 +202,7 @@ static void kick(struct srv *s)
 		fail(s, s->generation + 1, err);
 		return;
 	}
+	s->computing_keys = s->state;
 	s->pending = 0;
 	s->eng_valid &= ~s->dirty;
 	mask = s->dirty & srv_tables_needed(s);
@@ -278,11 +290,15 @@ int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 		return -EIO;
 	}
 	free(prev);
-	if (s->pending)		/* behind the computation in flight */
-		*ret_generation = s->in_flight_generation + 1;
-	else			/* in flight now, or published at once */
-		*ret_generation = s->in_flight ? s->in_flight_generation : s->generation;
+	*ret_generation = srv_state_generation(s);
 	return 0;
+}
+
+uint64_t srv_state_generation(const struct srv *s)
+{
+	if (s->pending)		/* behind the computation in flight */
+		return s->in_flight_generation + 1;
+	return s->in_flight ? s->in_flight_generation : s->generation;
 }
 
 int srv_apply(struct srv *s, struct drive *clock, const struct sky_state *next, uint32_t dirty,
@@ -308,15 +324,26 @@ int srv_apply(struct srv *s, struct drive *clock, const struct sky_state *next, 
 	return 0;
 }
 
-void srv_set_demand(struct srv *s, uint32_t tables)
+/* A table asked for that is not current: compute it (and only the
+ * missing part of its closure), with the state as it is. */
+static void demand_changed(struct srv *s)
 {
-	s->demand = tables & STATE_ALL_TABLES;
-	/* A table asked for that is not current: compute it (and only the
-	 * missing part of its closure), with the state as it is. */
 	if (s->dirty & srv_tables_needed(s)) {
 		s->pending = 1;
 		kick(s);
 	}
+}
+
+void srv_set_demand(struct srv *s, uint32_t tables)
+{
+	s->demand = tables & STATE_ALL_TABLES;
+	demand_changed(s);
+}
+
+void srv_set_own_demand(struct srv *s, uint32_t tables)
+{
+	s->own_demand = tables & STATE_ALL_TABLES;
+	demand_changed(s);
 }
 
 void srv_set_listener(struct srv *s, const struct srv_listener *listener, void *ctx)
@@ -335,6 +362,7 @@ int srv_new(struct loop *l, struct eng *e, const struct sky_state *initial, stru
 	s->loop = l;
 	s->eng = e;
 	s->state = *initial;
+	s->published_keys = *initial;
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		s->st.table_ms[t] = -1;
 	r = pub_new(initial, 0, &s->pub);

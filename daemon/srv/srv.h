@@ -56,6 +56,9 @@ void srv_free(struct srv *s);
 
 /* The state as last changed (not necessarily computed yet). */
 const struct sky_state *srv_state(const struct srv *s);
+/* The state (as set: before state_resolve) whose tables the current slot
+ * holds; the initial state before the first publication. */
+const struct sky_state *srv_published(const struct srv *s);
 /* The current region; valid until the next publication with a new layout. */
 struct pub *srv_pub(const struct srv *s);
 const struct eng_device *srv_device(const struct srv *s);
@@ -71,6 +74,10 @@ int srv_check(const struct srv *s, const struct sky_state *next, char *err, size
  * state is kept and computed with the next change. */
 int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	       uint64_t *ret_generation, char *err, size_t err_size);
+
+/* The generation that shows the served state as it is now: the published
+ * one, the one in flight, or the one after it when a newer change waits. */
+uint64_t srv_state_generation(const struct srv *s);
 
 /* Applies a candidate state that a request built from the served one, as
  * one change: a new time_rate re-anchors the running clock
@@ -94,6 +101,11 @@ uint32_t srv_tables_needed(const struct srv *s);
  * start. Needed tables that are not current are computed at once, with
  * the state as it is: a later generation carries them. */
 void srv_set_demand(struct srv *s, uint32_t tables);
+
+/* Sets the tables the daemon reads from the published slots itself (the
+ * light sensor's cloud and elevation modes): joined with the clients'
+ * demand in srv_tables_needed, not shown as theirs in status. 0 at start. */
+void srv_set_own_demand(struct srv *s, uint32_t tables);
 
 /* Needed tables that are in flight or will be computed next: a table not
  * valid in the current slot that is here will come in a later generation. */

@@ -103,6 +103,7 @@ void state_default(struct sky_state *ret)
 	s.night = (struct state_night){ .zenith_luminance_cd_m2 = 2.0e-4, .illuminance_lx = 0.002 };
 	weather_init(&s.weather.in);
 	s.weather.cloud_factor = 1.0;
+	state_sensor_defaults(&s.sensor);
 	*ret = s;
 }
 
@@ -208,6 +209,8 @@ int state_set(struct sky_state *s, const char *key, const char *value,
 	r = set_clock_key(s, key, value, &dirty, err, err_size);
 	if (r > 0)
 		r = state_set_weather_key(s, key, value, &dirty, err, err_size);
+	if (r > 0)
+		r = state_set_sensor_key(s, key, value, err, err_size);
 	if (r <= 0) {
 		if (r < 0)
 			return r;
@@ -375,6 +378,7 @@ void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx)
 	}
 	state_foreach_key(s, fn, ctx);
 	state_foreach_weather(s, fn, ctx);
+	state_foreach_sensor(s, fn, ctx);
 }
 
 int state_get(const struct sky_state *s, const char *key, char *buf, size_t size)
@@ -392,6 +396,8 @@ int state_get(const struct sky_state *s, const char *key, char *buf, size_t size
 		return 0;
 	}
 	if (weather_get(&s->weather.in, key, buf, size) == 0)
+		return 0;
+	if (state_get_sensor_key(s, key, buf, size) == 0)
 		return 0;
 	return state_get_key(s, key, buf, size);
 }

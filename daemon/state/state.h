@@ -136,6 +136,28 @@ struct state_weather {
 	double cloud_factor;
 };
 
+/* ---- the light sensor (docs/sensor.md) ----
+ * A USB light sensor's keys: what its readings do to the sky
+ * (daemon/srv/sense.c) and how they are taken (daemon/sensor's
+ * sensor_config, the same fields and ranges). Setting them computes no
+ * table; the readings change the state, each as a change of its own (the
+ * cloud mode through state_set_cloud_factor). */
+enum state_sensor_mode {
+	STATE_SENSOR_OFF = 0,		/* no sensor opened; the default */
+	STATE_SENSOR_CLOUD = 1,		/* reading over clear-sky illuminance: the cloud factor */
+	STATE_SENSOR_ELEVATION = 2,	/* the reading places the sun (its elevation) */
+	STATE_SENSOR_EXPOSURE = 3,	/* a suggested EV100; the tables stay */
+};
+#define STATE_SENSOR_SELECT_MAX 128
+
+struct state_sensor {
+	enum state_sensor_mode mode;			/* sensor_mode */
+	char select[STATE_SENSOR_SELECT_MAX];		/* sensor_select: auto, none, bus:, serial:, name: */
+	double time_constant_s, hysteresis, min_interval_s;	/* the reading pipeline */
+	double stale_after_s, max_lux, floor_lux;
+	double report_interval_s, io_timeout_s, rescan_s;	/* the device */
+};
+
 struct sky_state {
 	char preset[ATMO_NAME_MAX];
 	struct atmo atmo;		/* the user's: preset and raw keys, no weather */
@@ -151,6 +173,7 @@ struct sky_state {
 	uint32_t n_views;		/* views[0 .. n_views) in use, in the order added */
 	struct state_view views[STATE_MAX_VIEWS];
 	struct state_weather weather;
+	struct state_sensor sensor;
 };
 
 /* The default camera (and a new view's): south, level, 60 degrees, 16:9. */
@@ -200,6 +223,13 @@ void state_clock_rebase(struct sky_state *next, const struct sky_state *cur, dou
  * that the horizontal illuminance pi L_zenith (1 + c / 3) is the state's. */
 void state_night_floor(const struct sky_state *s, double *ret_zenith_cd_m2, double *ret_gain);
 
+
+/* The light sensor's key names in `get` order, NULL-terminated, and the
+ * name of a mode ("off", "cloud", "elevation", "exposure"). `get` without
+ * keys (state_foreach) lists them only while one differs from its default,
+ * so that a state without a sensor reads as it always did. */
+extern const char *const state_sensor_keys[];
+const char *state_sensor_mode_name(enum state_sensor_mode m);
 
 /* Tables that differ between a and b given what they depend on. */
 uint32_t state_diff(const struct sky_state *a, const struct sky_state *b);

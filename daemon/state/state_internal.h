@@ -1,6 +1,7 @@
 /* state_internal.h - what the files of the state module share: state.c (the
  * state, set and get), state_keys.c (the key table, its parsers and its
- * list) and state_weather.c (the weather keys, METAR, state_resolve). */
+ * list), state_weather.c (the weather keys, METAR, state_resolve) and
+ * state_sensor.c (the light sensor's keys). */
 #ifndef SKYD_STATE_INTERNAL_H
 #define SKYD_STATE_INTERNAL_H
 
@@ -53,5 +54,20 @@ int state_set_weather_key(struct sky_state *s, const char *key, const char *valu
 void state_weather_note_raw(struct sky_state *s, const char *key);
 /* Calls fn for the weather keys that are given (not auto). */
 void state_foreach_weather(const struct sky_state *s, state_emit_fn fn, void *ctx);
+
+/* One row of the key list (skyd --list-keys): markdown or tab-separated. */
+void state_print_row(FILE *f, bool markdown, const char *name, const char *unit,
+		     const char *range, const char *def, uint32_t dirty, const char *doc);
+
+/* The light sensor's keys (state_sensor_keys): their defaults; a key into s,
+ * 1 when key is none of them, else 0, -EINVAL or -ERANGE with err (they
+ * invalidate no table); its value, -ENOENT when none of them; all of them
+ * to fn while one differs from its default; their rows of the key list. */
+void state_sensor_defaults(struct state_sensor *ret);
+int state_set_sensor_key(struct sky_state *s, const char *key, const char *value, char *err,
+			 size_t err_size);
+int state_get_sensor_key(const struct sky_state *s, const char *key, char *buf, size_t size);
+void state_foreach_sensor(const struct sky_state *s, state_emit_fn fn, void *ctx);
+void state_print_sensor_keys(FILE *f, bool markdown);
 
 #endif

@@ -477,8 +477,8 @@ static const struct {
 };
 
 /* A key list row; markdown escapes nothing, so no field may hold a '|'. */
-static void print_row(FILE *f, bool markdown, const char *name, const char *unit,
-		      const char *range, const char *def, uint32_t dirty, const char *doc)
+void state_print_row(FILE *f, bool markdown, const char *name, const char *unit,
+		     const char *range, const char *def, uint32_t dirty, const char *doc)
 {
 	char tables[96];
 
@@ -524,29 +524,30 @@ void state_print_keys(FILE *f, bool markdown)
 			snprintf(def, sizeof(def), "-");
 		/* NULL: time_rate's range, simclock's. */
 		snprintf(range, sizeof(range), "[%g, %g]", -SIMCLOCK_RATE_MAX, SIMCLOCK_RATE_MAX);
-		print_row(f, markdown, special_keys[i].name, special_keys[i].unit,
-			  special_keys[i].range ? special_keys[i].range : range, def,
-			  special_keys[i].dirty, special_keys[i].doc);
+		state_print_row(f, markdown, special_keys[i].name, special_keys[i].unit,
+				special_keys[i].range ? special_keys[i].range : range, def,
+				special_keys[i].dirty, special_keys[i].doc);
 	}
 	for (size_t i = 0; i < N_KEYS; i++) {
 		format_value(&s, &keys[i], def, sizeof(def));
 		key_range(&keys[i], range, sizeof(range));
-		print_row(f, markdown, keys[i].name, keys[i].unit, range, def, keys[i].dirty,
-			  keys[i].doc);
+		state_print_row(f, markdown, keys[i].name, keys[i].unit, range, def, keys[i].dirty,
+				keys[i].doc);
 	}
 	for (size_t i = 0; i < sizeof(weather_docs) / sizeof(weather_docs[0]); i++) {
 		unsigned affects = weather_key_affects(weather_docs[i].name);
 		if (state_get(&s, weather_docs[i].name, def, sizeof(def)) < 0)
 			snprintf(def, sizeof(def), "-");
-		print_row(f, markdown, weather_docs[i].name, weather_docs[i].unit,
-			  weather_docs[i].range, def,
-			  affects & WEATHER_AFFECTS_LIGHTS ? LIGHTS : FROM_T, weather_docs[i].doc);
+		state_print_row(f, markdown, weather_docs[i].name, weather_docs[i].unit,
+				weather_docs[i].range, def,
+				affects & WEATHER_AFFECTS_LIGHTS ? LIGHTS : FROM_T, weather_docs[i].doc);
 	}
 	for (int c = 0; c < s.atmo.n_constituents; c++)
 		for (size_t i = 0; i < N_CKEYS; i++) {
 			snprintf(name, sizeof(name), "%s_%s", s.atmo.c[c].name, ckeys[i].suffix);
 			format_constituent(&s.atmo.c[c], i, def, sizeof(def));
-			print_row(f, markdown, name, ckeys[i].unit, ckeys[i].range, def, FROM_T,
-				  ckeys[i].doc);
+			state_print_row(f, markdown, name, ckeys[i].unit, ckeys[i].range, def,
+					FROM_T, ckeys[i].doc);
 		}
+	state_print_sensor_keys(f, markdown);
 }
