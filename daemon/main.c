@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <getopt.h>
 #include <signal.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,11 +20,21 @@
 #include "loop.h"
 #include "once.h"
 #include "proto.h"
+#include "repl.h"
 #include "sense.h"
 #include "sensor.h"
 #include "simclock.h"
 #include "srv.h"
 #include "state.h"
+#include "sync.h"
+
+/* Replication's settings: the config file's sync_* keys, then --sync and
+ * --sync-role. */
+struct sync_settings {
+	struct sync_config cfg;
+	char url[512];			/* "" none: no replication */
+	char password_file[SYNC_PATH_MAX];
+};
 
 struct options {
 	const char *socket_path;
@@ -33,6 +44,9 @@ struct options {
 	int list_sensors;
 	enum log_level level;
 	int first_pair;			/* argv index of the first key=value */
+	const char *sync_url;		/* --sync */
+	const char *sync_role;		/* --sync-role */
+	struct sync_settings sync;
 };
 
 static void usage(FILE *f)
@@ -53,6 +67,9 @@ static void usage(FILE *f)
 		"  -n                check the configuration (and key=value args) and exit\n"
 		"  --device SEL      Vulkan device index or name substring ($SKYD_DEVICE)\n"
 		"  --log-level L     error, warning, info (default) or debug ($SKYD_LOG)\n"
+		"  --sync URL        one sky on several machines through an MQTT broker,\n"
+		"                    mqtt://HOST[:PORT]/PREFIX or mqtts://... (docs/sync.md)\n"
+		"  --sync-role R     controller or follower (default)\n"
 		"  --list-sensors    the USB light sensors found, each opened to see what it is\n"
 		"                    (sensor_select and the other sensor_* keys apply)\n"
 		"  -h, --help        this text\n"
@@ -65,7 +82,7 @@ static void usage(FILE *f)
 static int parse_options(int argc, char **argv, struct options *o)
 {
 	enum { OPT_SOCKET = 256, OPT_CONFIG, OPT_DEVICE, OPT_LOG, OPT_VERSION, OPT_LIST_KEYS,
-	       OPT_MARKDOWN, OPT_SENSORS };
+	       OPT_MARKDOWN, OPT_SENSORS, OPT_SYNC, OPT_SYNC_ROLE };
 	static const struct option longs[] = {
 		{ "socket", required_argument, NULL, OPT_SOCKET },
 		{ "config", required_argument, NULL, OPT_CONFIG },
@@ -76,6 +93,8 @@ static int parse_options(int argc, char **argv, struct options *o)
 		{ "list-keys", no_argument, NULL, OPT_LIST_KEYS },
 		{ "markdown", no_argument, NULL, OPT_MARKDOWN },
 		{ "list-sensors", no_argument, NULL, OPT_SENSORS },
+		{ "sync", required_argument, NULL, OPT_SYNC },
+		{ "sync-role", required_argument, NULL, OPT_SYNC_ROLE },
 		{ 0 },
 	};
 	int c, list_keys = 0, markdown = 0;
@@ -94,6 +113,8 @@ static int parse_options(int argc, char **argv, struct options *o)
 			break;
 		case 'n': o->check_only = 1; break;
 		case OPT_SENSORS: o->list_sensors = 1; break;
+		case OPT_SYNC: o->sync_url = optarg; break;
+		case OPT_SYNC_ROLE: o->sync_role = optarg; break;
 		case 'h': usage(stdout); return 0;
 		case OPT_VERSION:
 			printf("skyd %s, protocol %s, shared memory layout %u\n", PROJECT_VERSION,
@@ -116,14 +137,102 @@ static int parse_options(int argc, char **argv, struct options *o)
 	return -1;
 }
 
-/* The initial state: defaults, the config file, then key=value args. */
-static int initial_state(const struct options *o, int argc, char **argv, struct sky_state *ret)
+static int copy_setting(char *dst, size_t size, const char *value, char *err, size_t err_size)
+{
+	if (strlen(value) >= size) {
+		snprintf(err, err_size, "longer than %zu bytes", size - 1);
+		return -EINVAL;
+	}
+	snprintf(dst, size, "%s", value);
+	return 1;
+}
+
+/* config_key_fn: the sync_* keys (docs/sync.md). */
+static int sync_key(void *ctx, const char *key, const char *value, char *err, size_t err_size)
+{
+	struct sync_settings *ss = ctx;
+	struct sync_config *c = &ss->cfg;
+	char *end;
+
+	if (strcmp(key, "sync") == 0)
+		return copy_setting(ss->url, sizeof(ss->url), value, err, err_size);
+	if (strcmp(key, "sync_role") == 0) {
+		if (sync_parse_role(value, &c->role) == 0)
+			return 1;
+		snprintf(err, err_size, "sync_role: controller or follower");
+		return -EINVAL;
+	}
+	if (strcmp(key, "sync_lead_ms") == 0) {
+		errno = 0;
+		unsigned long v = strtoul(value, &end, 10);
+		if (errno || end == value || *end || v > 10000) {
+			snprintf(err, err_size, "sync_lead_ms: a whole number from 0 to 10000");
+			return -EINVAL;
+		}
+		c->lead_ms = (uint32_t)v;
+		return 1;
+	}
+	static const struct { const char *key; size_t off, size; } paths[] = {
+		{ "sync_username", offsetof(struct sync_config, username), SYNC_NAME_MAX },
+		{ "sync_cafile", offsetof(struct sync_config, cafile), SYNC_PATH_MAX },
+		{ "sync_capath", offsetof(struct sync_config, capath), SYNC_PATH_MAX },
+		{ "sync_certfile", offsetof(struct sync_config, certfile), SYNC_PATH_MAX },
+		{ "sync_keyfile", offsetof(struct sync_config, keyfile), SYNC_PATH_MAX },
+	};
+	for (size_t i = 0; i < sizeof(paths) / sizeof(paths[0]); i++)
+		if (strcmp(key, paths[i].key) == 0)
+			return copy_setting((char *)c + paths[i].off, paths[i].size, value, err,
+					    err_size);
+	if (strcmp(key, "sync_password_file") == 0)
+		return copy_setting(ss->password_file, sizeof(ss->password_file), value, err,
+				    err_size);
+	return 0;
+}
+
+/* The command line over the config file, then the whole checked. 0 or
+ * -EINVAL (logged). */
+static int sync_settings_finish(const struct options *o, struct sync_settings *ss)
+{
+	char err[512] = "";
+
+	if (o->sync_url && copy_setting(ss->url, sizeof(ss->url), o->sync_url, err,
+					sizeof(err)) < 0) {
+		log_error("--sync: %s", err);
+		return -EINVAL;
+	}
+	if (o->sync_role && sync_parse_role(o->sync_role, &ss->cfg.role) < 0) {
+		log_error("--sync-role: controller or follower");
+		return -EINVAL;
+	}
+	if (!ss->url[0])
+		return 0;
+	if (sync_config_parse_url(&ss->cfg, ss->url, err, sizeof(err)) < 0) {
+		log_error("%s: %s", o->sync_url ? "--sync" : "sync", err);
+		return -EINVAL;
+	}
+	if (ss->password_file[0] &&
+	    sync_config_read_password(&ss->cfg, ss->password_file, err, sizeof(err)) < 0) {
+		log_error("sync_password_file: %s", err);
+		return -EINVAL;
+	}
+	if (sync_config_check(&ss->cfg, err, sizeof(err)) < 0) {
+		log_error("sync: %s", err);
+		return -EINVAL;
+	}
+	return 0;
+}
+
+/* The initial state: defaults, the config file, then key=value args; the
+ * config file's sync_* keys go to o->sync. */
+static int initial_state(struct options *o, int argc, char **argv, struct sky_state *ret)
 {
 	char err[512];
 	struct sky_state s;
 
 	state_default(&s);
-	if (o->config_path && config_load(o->config_path, &s, err, sizeof(err)) < 0) {
+	sync_config_defaults(&o->sync.cfg);
+	if (o->config_path && config_load_with(o->config_path, &s, sync_key, &o->sync, err,
+					       sizeof(err)) < 0) {
 		log_error("%s", err);
 		return -EINVAL;
 	}
@@ -136,6 +245,8 @@ static int initial_state(const struct options *o, int argc, char **argv, struct 
 		log_error("%s", err);
 		return -EINVAL;
 	}
+	if (sync_settings_finish(o, &o->sync) < 0)
+		return -EINVAL;
 	*ret = s;
 	return 0;
 }
@@ -219,6 +330,7 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 	struct ctl *ctl = NULL;
 	struct drive *drive = NULL;
 	struct sense *sense = NULL;
+	struct repl *repl = NULL;
 	struct hooks hooks = { 0 };
 	struct sky_state lit = *initial;
 	char err[512] = "", path[108];
@@ -293,6 +405,16 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 	sense_set_listener(sense, ctl_sensor_event, ctl);
 	ctl_set_sense(ctl, sense);
 	hooks.sense = sense;
+	if (o->sync.url[0]) {
+		/* After everything it drives is up: the retained state may arrive
+		 * in the first dispatch. */
+		r = repl_new(loop, &o->sync.cfg, srv, drive, ctl, sense, &repl);
+		if (r < 0) {
+			log_error("sync: %s", strerror(-r));
+			goto out;
+		}
+		log_info("sync: %s, %s", o->sync.url, sync_role_name(o->sync.cfg.role));
+	}
 	log_info("listening on %s, protocol %s", path, SKY_PROTO_VERSION);
 	sd_notify(0, "READY=1");
 	r = loop_run(loop);
@@ -300,6 +422,7 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 		log_error("event loop: %s", strerror(-r));
 	sd_notify(0, "STOPPING=1");
 out:
+	repl_free(repl);
 	hooks.sense = NULL;
 	if (ctl)
 		ctl_set_sense(ctl, NULL);
@@ -314,7 +437,7 @@ out:
 
 int main(int argc, char **argv)
 {
-	struct options o = { 0 };
+	static struct options o;
 	struct sky_state initial;
 	int r;
 

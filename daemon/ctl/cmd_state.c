@@ -63,13 +63,26 @@ int ctl_commit(struct client *c, const struct sky_state *next, uint32_t dirty, s
 	return 0;
 }
 
+int ctl_sync_refuse(struct ctl *ctl, char *msg, size_t msg_size)
+{
+	char who[128];
+
+	if (!ctl->sync.may_change || ctl->sync.may_change(ctl->sync.ctx, who, sizeof(who)))
+		return 0;
+	return CTL_ACK(SKY_ACK_PERMISSION, "this skyd follows controller %s: change the sky there",
+		       who);
+}
+
 int ctl_cmd_set(struct client *c, const struct proto_request *req, struct reply *r,
 		char *msg, size_t msg_size)
 {
 	struct sky_state next = *srv_state(c->ctl->srv);
 	struct ctl_metar metar = { 0 };
 	uint32_t dirty = 0;
-	int code = apply_pairs(&next, req, &dirty, &metar, msg, msg_size);
+	int code = ctl_sync_refuse(c->ctl, msg, msg_size);
+
+	if (!code)
+		code = apply_pairs(&next, req, &dirty, &metar, msg, msg_size);
 
 	if (!code)
 		code = ctl_commit(c, &next, dirty, r, msg, msg_size);
@@ -168,7 +181,7 @@ int ctl_cmd_end(struct client *c, const struct proto_request *req, struct reply 
 	c->batch = NULL;
 	if (b->error_code)
 		code = CTL_ACK(b->error_code, "%s; nothing applied", b->error);
-	else
+	else if (!(code = ctl_sync_refuse(c->ctl, msg, msg_size)))
 		code = ctl_commit(c, &b->state, b->dirty, r, msg, msg_size);
 	if (!code)
 		ctl_reply_metar(r, &b->metar);

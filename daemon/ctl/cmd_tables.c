@@ -67,6 +67,13 @@ int ctl_cmd_status(struct client *c, const struct proto_request *req, struct rep
 			ctl_reply_add(r, "clock_next_tick_s: %.3f\n", ds.next_tick_s);
 	}
 	ctl_status_sensor(c->ctl, r);
+	if (c->ctl->sync.status) {
+		char sync[1024] = "";
+		c->ctl->sync.status(c->ctl->sync.ctx, sync, sizeof(sync));
+		ctl_reply_add(r, "%s", sync);
+	} else {
+		ctl_reply_add(r, "sync: off\n");
+	}
 	return 0;
 }
 

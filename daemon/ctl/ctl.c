@@ -263,6 +263,14 @@ void ctl_set_drive(struct ctl *ctl, struct drive *d)
 	ctl->drive = d;
 }
 
+void ctl_set_sync(struct ctl *ctl, const struct ctl_sync *sync)
+{
+	if (sync)
+		ctl->sync = *sync;
+	else
+		memset(&ctl->sync, 0, sizeof(ctl->sync));
+}
+
 void ctl_set_sense(struct ctl *ctl, struct sense *s)
 {
 	ctl->sense = s;

@@ -53,6 +53,18 @@ void ctl_set_sense(struct ctl *ctl, struct sense *s);
  * connection that asked (sensor events=1). */
 void ctl_sensor_event(void *ctx, const struct sense_status *st);
 
+/* Replication (docs/sync.md). may_change says whether this instance may
+ * change the replicated state; when not, it names the controller in
+ * charge in who, and set and batch are refused with SKY_ACK_PERMISSION.
+ * status appends the "sync..." lines of status to buf (terminated). */
+struct ctl_sync {
+	int (*may_change)(void *ctx, char *who, size_t who_size);
+	void (*status)(void *ctx, char *buf, size_t size);
+	void *ctx;
+};
+/* NULL: no replication ("sync: off" in status). */
+void ctl_set_sync(struct ctl *ctl, const struct ctl_sync *sync);
+
 /* The srv listener's hooks, to be wired by main. */
 void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_region);
 void ctl_failed(void *ctx, uint64_t generation, const char *message);

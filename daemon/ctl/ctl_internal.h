@@ -84,6 +84,7 @@ struct ctl {
 	uint64_t next_id;
 	struct drive *drive;		/* the clock; NULL: none */
 	struct sense *sense;		/* the light sensor; NULL: none */
+	struct ctl_sync sync;		/* replication; may_change NULL: none */
 	int finishing;
 };
 
@@ -160,6 +161,10 @@ void ctl_batch_line(struct client *c, const char *line);
  * generation and tables; 0 or an ACK code with msg. */
 int ctl_commit(struct client *c, const struct sky_state *next, uint32_t dirty, struct reply *r,
 	       char *msg, size_t msg_size);
+
+/* SKY_ACK_PERMISSION with msg when replication makes this instance a
+ * follower (the controller named), 0 when it may change the state. */
+int ctl_sync_refuse(struct ctl *ctl, char *msg, size_t msg_size);
 
 /* cmd_astro.c: get sun, get moon, get times (reached through get). */
 int ctl_get_sun(struct client *c, const struct proto_request *req, struct reply *r,

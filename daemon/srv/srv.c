@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "drive.h"
 #include "log.h"
@@ -44,6 +45,18 @@ struct srv {
 	uint32_t own_demand;		/* tables the daemon reads itself (srv_set_own_demand) */
 	uint64_t generation;		/* published */
 	struct srv_status st;
+
+	/* Switching at an apply time (srv_set_next_apply_time): the instant of
+	 * the pending state and of the computation in flight; a finished
+	 * computation whose instant is ahead stays in flight (held) until
+	 * hold_timer publishes it. */
+	struct srv_sync sync;
+	int64_t next_apply_ns;		/* for the next srv_change; 0 none */
+	int64_t pending_apply_ns;
+	int64_t in_flight_apply_ns;
+	int held;
+	uint32_t held_computed;
+	struct loop_timer *hold_timer;
 };
 
 const struct sky_state *srv_state(const struct srv *s)
@@ -166,6 +179,46 @@ static void publish(struct srv *s, uint32_t computed)
 		s->listener.published(s->ctx, generation, computed, new_region);
 }
 
+static int64_t realtime_ns(void)
+{
+	struct timespec ts;
+
+	clock_gettime(CLOCK_REALTIME, &ts);
+	return (int64_t)ts.tv_sec * 1000000000ll + ts.tv_nsec;
+}
+
+/* Publishes the finished computation now, or holds it (in flight, so that
+ * nothing overwrites the engine's tables) until its apply time. Returns 1
+ * when held. */
+static int finish(struct srv *s, uint32_t computed)
+{
+	int64_t ahead_ns = s->in_flight_apply_ns - realtime_ns();
+
+	if (s->in_flight_apply_ns > 0 && ahead_ns > 0 &&
+	    loop_timer_arm(s->hold_timer, (uint64_t)ahead_ns) == 0) {
+		s->in_flight = 1;
+		s->held = 1;
+		s->held_computed = computed;
+		return 1;
+	}
+	publish(s, computed);
+	return 0;
+}
+
+static void kick(struct srv *s);
+
+static void hold_expired(void *ctx)
+{
+	struct srv *s = ctx;
+
+	if (!s->held)
+		return;
+	s->held = 0;
+	s->in_flight = 0;
+	publish(s, s->held_computed);
+	kick(s);
+}
+
 /* Float16 storage can overflow (a bright sky, Mars) or lose its precision
  * in subnormals (deep twilight): said in status and the log, not refused,
  * since where it breaks depends on the sky, not on a key. */
@@ -209,8 +262,10 @@ static void kick(struct srv *s)
 	s->dirty &= ~mask;
 	s->in_flight_generation = s->generation + 1;
 	s->in_flight_mask = mask;
+	s->in_flight_apply_ns = s->pending_apply_ns;
+	s->pending_apply_ns = 0;
 	if (!mask) {
-		publish(s, 0);
+		finish(s, 0);
 		return;
 	}
 	r = eng_submit(s->eng, &s->computing_state, mask, err, sizeof(err));
@@ -229,7 +284,7 @@ static void eng_ready(void *ctx, uint32_t events)
 	char err[256] = "";
 	int r;
 
-	if (!s->in_flight)
+	if (!s->in_flight || s->held)
 		return;
 	r = eng_complete(s->eng, &timing, err, sizeof(err));
 	if (r == -EAGAIN)
@@ -249,9 +304,27 @@ static void eng_ready(void *ctx, uint32_t events)
 			if (s->st.last_computed & STATE_BIT(t))
 				s->st.table_ms[t] = timing.table_ms[t];
 		check_storage(s, s->st.last_computed);
-		publish(s, s->in_flight_mask);
+		if (finish(s, s->in_flight_mask))
+			return;
 	}
 	kick(s);
+}
+
+void srv_set_sync(struct srv *s, const struct srv_sync *sync)
+{
+	s->sync = *sync;
+}
+
+void srv_set_next_apply_time(struct srv *s, int64_t apply_time_ns)
+{
+	s->next_apply_ns = apply_time_ns;
+}
+
+static void committed(struct srv *s, uint64_t generation, int64_t apply_ns)
+{
+	if (s->sync.committed)
+		s->sync.committed(s->sync.ctx, &s->state, generation,
+				  apply_ns ? apply_ns : realtime_ns());
 }
 
 int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
@@ -260,10 +333,14 @@ int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	uint64_t failures = s->st.failures;
 	uint32_t prev_dirty = s->dirty;
 	int prev_pending = s->pending;
+	int64_t apply_ns = s->next_apply_ns;
 	struct sky_state *prev = malloc(sizeof(*prev));
 
+	s->next_apply_ns = 0;
 	if (!prev)
 		return -ENOMEM;
+	if (!apply_ns && s->sync.apply_time_ns)
+		apply_ns = s->sync.apply_time_ns(s->sync.ctx);
 	*prev = s->state;
 	s->state = *next;
 	s->dirty |= dirty;
@@ -271,9 +348,12 @@ int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 		/* Nothing new: visible with what is in flight, or already. */
 		*ret_generation = s->in_flight ? s->in_flight_generation : s->generation;
 		free(prev);
+		committed(s, *ret_generation, apply_ns);
 		return 0;
 	}
 	s->pending = 1;
+	if (apply_ns)
+		s->pending_apply_ns = apply_ns;
 	kick(s);
 	if (s->st.failures != failures) {
 		/* The computation could not start (a table the device cannot
@@ -291,6 +371,7 @@ int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	}
 	free(prev);
 	*ret_generation = srv_state_generation(s);
+	committed(s, *ret_generation, apply_ns);
 	return 0;
 }
 
@@ -372,6 +453,9 @@ int srv_new(struct loop *l, struct eng *e, const struct sky_state *initial, stru
 	r = loop_io_add(l, eng_event_fd(e), EPOLLIN | EPOLLET, eng_ready, s, &s->eng_io);
 	if (r < 0)
 		goto fail;
+	r = loop_timer_add(l, hold_expired, s, &s->hold_timer);
+	if (r < 0)
+		goto fail;
 	s->dirty = STATE_ALL_TABLES;
 	s->pending = 1;
 	kick(s);
@@ -387,6 +471,7 @@ void srv_free(struct srv *s)
 	if (!s)
 		return;
 	loop_io_del(s->eng_io);
+	loop_timer_del(s->hold_timer);
 	pub_free(s->pub);
 	free(s);
 }

@@ -92,6 +92,25 @@ uint64_t srv_state_generation(const struct srv *s);
 int srv_apply(struct srv *s, struct drive *clock, const struct sky_state *next, uint32_t dirty,
 	      uint64_t *ret_generation, uint32_t *ret_dirty, char *err, size_t err_size);
 
+/* Replication (docs/sync.md): how changes are timed and where they go.
+ * apply_time_ns gives the CLOCK_REALTIME instant at which a change
+ * accepted now becomes visible (0: as soon as it is computed); committed
+ * hears of every accepted change with the generation that shows it and
+ * that instant. Either may be NULL. */
+struct srv_sync {
+	int64_t (*apply_time_ns)(void *ctx);
+	void (*committed)(void *ctx, const struct sky_state *st, uint64_t generation,
+			  int64_t apply_time_ns);
+	void *ctx;
+};
+void srv_set_sync(struct srv *s, const struct srv_sync *sync);
+
+/* The next change (srv_change, srv_apply) becomes visible at apply_time_ns
+ * (CLOCK_REALTIME) rather than the hook's: its tables are computed at once
+ * and their generation is published at that instant, or at once when it
+ * has passed. Changes that coalesce with it keep the newest instant. */
+void srv_set_next_apply_time(struct srv *s, int64_t apply_time_ns);
+
 /* The tables some client needs: the demand and its dependencies under the
  * newest state. Only these are ever computed; a change to any other table
  * only marks it stale (it leaves the published slots until asked for). */

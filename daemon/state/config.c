@@ -20,6 +20,12 @@ static char *trim(char *s)
 
 int config_load(const char *path, struct sky_state *s, char *err, size_t err_size)
 {
+	return config_load_with(path, s, NULL, NULL, err, err_size);
+}
+
+int config_load_with(const char *path, struct sky_state *s, config_key_fn *daemon_key, void *ctx,
+		     char *err, size_t err_size)
+{
 	struct sky_state next = *s;
 	char line[SKY_PROTO_LINE_MAX], msg[256];
 	int lineno = 0, r = 0;
@@ -60,7 +66,11 @@ int config_load(const char *path, struct sky_state *s, char *err, size_t err_siz
 			value++;
 		}
 		msg[0] = 0;
-		r = state_set(&next, key, value, NULL, msg, sizeof(msg));
+		r = daemon_key ? daemon_key(ctx, key, value, msg, sizeof(msg)) : 0;
+		if (r == 0)
+			r = state_set(&next, key, value, NULL, msg, sizeof(msg));
+		else if (r > 0)
+			r = 0;
 		if (r < 0) {
 			snprintf(err, err_size, "%s:%d: %s", path, lineno, msg[0] ? msg : strerror(-r));
 			break;

@@ -14,4 +14,15 @@
  * (-EINVAL for a bad line or a state that fails state_validate). */
 int config_load(const char *path, struct sky_state *s, char *err, size_t err_size);
 
+/* The daemon's own settings among the lines (sync=, sync_role=, ...: they
+ * configure this process, they are not the sky's state): 1 when key is
+ * one of them and value was taken, 0 when key is not one (it goes to the
+ * state), -errno with err when value is refused. */
+typedef int config_key_fn(void *ctx, const char *key, const char *value, char *err,
+			  size_t err_size);
+/* config_load, handing each key to daemon_key first (NULL: none). What
+ * daemon_key took stays taken when a later line fails. */
+int config_load_with(const char *path, struct sky_state *s, config_key_fn *daemon_key, void *ctx,
+		     char *err, size_t err_size);
+
 #endif
