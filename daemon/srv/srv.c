@@ -144,7 +144,7 @@ static void publish(struct srv *s, uint32_t computed)
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		tables[t] = (s->eng_valid & STATE_BIT(t)) ? eng_table(s->eng, (enum state_table)t, NULL)
 							  : NULL;
-	pub_publish(s->pub, &s->computing_state, s->eng_valid, tables, generation);
+	pub_publish(s->pub, &s->computing_state, s->eng_valid, tables, NULL, generation);
 	s->generation = generation;
 	s->st.published_computed = computed;
 	s->st.last_error[0] = 0;
