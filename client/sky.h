@@ -404,12 +404,24 @@ SKY_EXPORT int sky_sample_view_aerial(const struct sky_view *v, const char *name
 /* The aerial volume of the camera view called name, for upload to a GPU
  * texture: *ret_texels points into the slot (valid as long as the view of
  * the slot is: until sky_view_end() or while the snapshot buffer lives),
- * laid out as the aerial table (same format and sizes); *ret_bytes (may be
- * NULL) its size. The view's camera is in the slot's views[] entry of the
- * same name (proto/skyproto.h). Errors as sky_sample_view_aerial().
+ * laid out as the aerial table (same format, sizes and RGB scale:
+ * sky_table_scale()); *ret_bytes (may be NULL) its size. The view's camera
+ * is in the slot's views[] entry of the same name (proto/skyproto.h).
+ * Errors as sky_sample_view_aerial().
  * Since 0.2. */
 SKY_EXPORT int sky_view_aerial_table(const struct sky_view *v, const char *name,
 				     const void **ret_texels, size_t *ret_bytes);
+
+/* The factor that turns a table's stored RGB into its values, for a client
+ * that reads the texels itself (a GPU upload of the slot's tables or of
+ * sky_view_aerial_table()'s): for a float16 table (SKY_FORMAT_RGBA16F)
+ * 2^rgb_scale_log2[table_id] of the slot's state, a power of two that skyd
+ * picks per table and per slot so that the sky neither overflows nor
+ * loses its precision (PROTOCOL.md, "Table storage"); 1 for float32. A is
+ * never scaled; the views' volumes share the aerial table's factor. The
+ * sampling functions apply it themselves. -EINVAL on bad arguments,
+ * -ENODATA if the table is not valid in the view. Since 0.2. */
+SKY_EXPORT int sky_table_scale(const struct sky_view *v, uint32_t table_id, double *ret_scale);
 
 /* The sun's transmitted illuminance at the observer (lx per channel, on a
  * surface facing the sun; 0 below the horizon). The same number as the

@@ -126,6 +126,18 @@ int sky_view_aerial_table(const struct sky_view *v, const char *name, const void
 	return 0;
 }
 
+int sky_table_scale(const struct sky_view *v, uint32_t table_id, double *ret_scale)
+{
+	struct skysample_table t;
+	if (!ret_scale || table_id >= SKY_SHM_MAX_TABLES)
+		return -EINVAL;
+	int r = view_table(v, table_id, &t);
+	if (r < 0)
+		return r;
+	*ret_scale = t.format == SKY_FORMAT_RGBA16F ? ldexp(1.0, t.rgb_scale_log2) : 1.0;
+	return 0;
+}
+
 int sky_sample_view_aerial(const struct sky_view *v, const char *name, double screen_u,
 			   double screen_v, double distance_km, double ret_rgb[3],
 			   double *ret_transmittance)

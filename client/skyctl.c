@@ -443,6 +443,7 @@ static int cmd_dump(const struct opts *o, int argc, char **argv)
 			.name = proto_table_name(t->id), .width = t->width, .height = t->height,
 			.depth = t->depth, .format = t->format,
 			.texels = (const unsigned char *)v.slot_base + t->offset,
+			.rgb_scale_log2 = v.slot->state.rgb_scale_log2[t->id],
 		};
 		char path[PATH_MAX], err[256];
 		snprintf(path, sizeof(path), "%s/%s.exr", argv[0], dt.name);

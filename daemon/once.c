@@ -121,7 +121,8 @@ static int dump_tables(const char *dir, const struct sky_state *s, const struct 
 		struct dump_table tab = { .name = state_table_names[i], .width = q->width,
 			.height = q->height, .depth = i == STATE_AERIAL ? q->depth : 1,
 			.format = s->quality.storage == STATE_F16 ? SKY_FORMAT_RGBA16F : SKY_FORMAT_RGBA32F,
-			.texels = eng_table(e, (enum state_table)i, NULL) };
+			.texels = eng_table(e, (enum state_table)i, NULL),
+			.rgb_scale_log2 = eng_table_scale_log2(e, (enum state_table)i) };
 		char path[4096];
 		snprintf(path, sizeof(path), "%s/%s.exr", dir, state_table_names[i]);
 		int rc = dump_exr(path, &tab, err, err_size);
@@ -231,9 +232,9 @@ int once_main(int argc, char **argv)
 	struct eng_f16_range range;
 	eng_f16_range(e, &sky, STATE_ALL_TABLES, &range);
 	if (eng_f16_broken(&range))
-		fprintf(stderr, "skyd: warning: storage=f16 breaks here: %llu values overflowed the "
-				"half range (above 65504), %llu of %llu sky radiance values fell below "
-				"6.1e-5 (subnormal, low precision); use storage=f32\n",
+		fprintf(stderr, "skyd: warning: storage=f16 breaks here: %llu values not finite, "
+				"%llu of %llu sky radiance values above the night floor stored as "
+				"subnormal halves (low precision); use storage=f32\n",
 			(unsigned long long)range.overflow, (unsigned long long)range.subnormal,
 			(unsigned long long)range.radiance_values);
 	if (dump_dir) {

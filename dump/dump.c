@@ -96,6 +96,9 @@ static void texel_rgba(const struct dump_table *t, size_t index, float ret[4])
 		const uint16_t *h = (const uint16_t *)t->texels + index * 4;
 		for (int c = 0; c < 4; c++)
 			ret[c] = half_to_float(h[c]);
+		/* A power of two: exact unless it leaves the float range. */
+		for (int c = 0; c < 3 && t->rgb_scale_log2; c++)
+			ret[c] = ldexpf(ret[c], t->rgb_scale_log2);
 	}
 }
 
@@ -246,21 +249,34 @@ static int channel_offset(const char *name, size_t component_bytes)
 }
 
 /* Fill the encoder's channels from stage, which holds the chunk's scanlines
- * contiguously in the table's own format. */
+ * contiguously as float32 RGBA. */
 static void exr_point_encoder(exr_encode_pipeline_t *enc, const struct dump_table *t,
 			      const uint8_t *stage)
 {
-	size_t tb = texel_bytes(t->format), cb = tb / 4;
-
 	for (int c = 0; c < enc->channel_count; c++) {
 		exr_coding_channel_info_t *ch = &enc->channels[c];
-		int off = channel_offset(ch->channel_name, cb);
+		int off = channel_offset(ch->channel_name, sizeof(float));
 		assert(off >= 0);	/* we declared exactly R, G, B, A */
-		ch->user_data_type = t->format == SKY_FORMAT_RGBA32F ? EXR_PIXEL_FLOAT : EXR_PIXEL_HALF;
-		ch->user_bytes_per_element = (int16_t)cb;
-		ch->user_pixel_stride = (int32_t)tb;
-		ch->user_line_stride = (int32_t)(tb * t->width);
+		ch->user_data_type = EXR_PIXEL_FLOAT;
+		ch->user_bytes_per_element = sizeof(float);
+		ch->user_pixel_stride = 4 * sizeof(float);
+		ch->user_line_stride = (int32_t)(4 * sizeof(float) * t->width);
 		ch->encode_from_ptr = stage + off;
+	}
+}
+
+/* Table row row as float32 RGBA values into out: a float32 table's bytes,
+ * a binary16 one's widened and scaled (texel_rgba). */
+static void stage_row(const struct dump_table *t, size_t row, uint8_t *out)
+{
+	if (t->format == SKY_FORMAT_RGBA32F) {
+		memcpy(out, (const uint8_t *)t->texels + row * 16 * t->width, 16 * (size_t)t->width);
+		return;
+	}
+	for (uint32_t i = 0; i < t->width; i++) {
+		float rgba[4];
+		texel_rgba(t, row * t->width + i, rgba);
+		memcpy(out + 16 * (size_t)i, rgba, sizeof(rgba));
 	}
 }
 
@@ -279,14 +295,13 @@ int dump_exr(const char *path, const struct dump_table *t, char *err, size_t err
 	char text[96];
 	int part = 0, lines = 0, r;
 	uint32_t image_h;
-	size_t tb, row_bytes;
+	size_t row_bytes;
 
 	if ((r = table_check(t, err, err_size)) < 0)
 		return r;
 	if (!path)
 		return fail(err, err_size, -EINVAL, "dump: no path");
-	tb = texel_bytes(t->format);
-	row_bytes = tb * t->width;
+	row_bytes = 4 * sizeof(float) * t->width;
 	image_h = t->height * t->depth;
 
 	if ((r = out_open(&out, path, err, err_size)) < 0)
@@ -340,9 +355,7 @@ int dump_exr(const char *path, const struct dump_table *t, char *err, size_t err
 		if (rv != EXR_ERR_SUCCESS)
 			goto exr_failed;
 		for (int l = 0; l < cinfo.height; l++)
-			memcpy(stage + (size_t)l * row_bytes,
-			       (const uint8_t *)t->texels + scanline_row(t, y + (uint32_t)l) * row_bytes,
-			       row_bytes);
+			stage_row(t, scanline_row(t, y + (uint32_t)l), stage + (size_t)l * row_bytes);
 		rv = enc_ready ? exr_encoding_update(ctx, part, &cinfo, &enc)
 			       : exr_encoding_initialize(ctx, part, &cinfo, &enc);
 		if (rv != EXR_ERR_SUCCESS)

@@ -27,16 +27,20 @@
 /* One table as the daemon or a client holds it. texels: RGBA, row-major,
  * rows bottom-up in v (row 0 is v = 0), slices stacked: texel (i, j, k) at
  * index ((k * height + j) * width + i) * 4 components of 4 bytes
- * (SKY_FORMAT_RGBA32F) or 2 bytes (SKY_FORMAT_RGBA16F, IEEE binary16). */
+ * (SKY_FORMAT_RGBA32F) or 2 bytes (SKY_FORMAT_RGBA16F, IEEE binary16).
+ * A binary16 table's RGB values are the stored ones times 2^rgb_scale_log2
+ * (proto/skyproto.h, the slot state's rgb_scale_log2; 0 when unscaled);
+ * every writer here writes the values. */
 struct dump_table {
 	const char *name;
 	uint32_t width, height, depth;	/* depth 1 for a 2-D table */
 	uint32_t format;		/* enum sky_shm_format */
 	const void *texels;
+	int32_t rgb_scale_log2;		/* binary16 only */
 };
 
 /* Write one table as a single-part scanline EXR, ZIP-compressed, channels
- * R, G, B, A as FLOAT (binary16 input is widened exactly). The file is
+ * R, G, B, A as FLOAT (binary16 input is widened and scaled exactly). The file is
  * written as "<path>.tmp-<random>" (mode 0644 less the umask) and renamed to
  * path when complete, so it replaces an older one atomically; on failure the
  * temporary is removed and path left as it was. */

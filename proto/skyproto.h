@@ -46,7 +46,7 @@ enum sky_ack {
  * control socket with a "layout:" line (PROTOCOL.md).
  */
 #define SKY_SHM_MAGIC 0x31594b53u	/* "SKY1" little-endian */
-#define SKY_SHM_LAYOUT_VERSION 3u
+#define SKY_SHM_LAYOUT_VERSION 4u
 #define SKY_SHM_MAX_TABLES 4u
 #define SKY_SHM_MIN_SLOTS 3u
 /* Views (`view add`): at most this many, each with its own aerial volume. */
@@ -60,6 +60,11 @@ enum sky_shm_table_id {
 	SKY_TABLE_AERIAL = 3,
 };
 
+/* RGB of an RGBA16F table is stored scaled: the value is the stored RGB
+ * times 2^state.rgb_scale_log2[id] of the slot (a power of two, so exact),
+ * chosen per table and per slot from the table's largest value so that no
+ * sky overflows binary16's 65504 nor sinks into its subnormals. A is never
+ * scaled. RGBA32F tables have scale 0 (stored as they are). */
 enum sky_shm_format {
 	SKY_FORMAT_RGBA32F = 1,		/* 16 bytes a texel */
 	SKY_FORMAT_RGBA16F = 2,		/* 8 bytes a texel, IEEE binary16 */
@@ -74,8 +79,9 @@ struct sky_shm_table {
 	uint64_t bytes;
 };
 
-/* The state that produced a slot. Angles in radians, lengths in km,
- * directions as unit vectors in the observer's east-north-up frame. */
+/* The state that produced a slot, and how its tables are stored. Angles in
+ * radians, lengths in km, directions as unit vectors in the observer's
+ * east-north-up frame. */
 struct sky_shm_state {
 	double utc_unix_s;		/* simulation time, NaN when angles were set directly */
 	double latitude_rad, longitude_rad;	/* the clock's site; NaN as utc_unix_s */
@@ -93,7 +99,11 @@ struct sky_shm_state {
 	double aerial_range_km;
 	uint32_t aerial_squared;	/* 1: squared slice spacing, 0: linear */
 	uint32_t reserved0;
-	double reserved[16];
+	/* By enum sky_shm_table_id: RGB = stored RGB * 2^rgb_scale_log2 (see
+	 * enum sky_shm_format); 0 for float32 tables. The views' aerial
+	 * volumes share the aerial table's. */
+	int32_t rgb_scale_log2[SKY_SHM_MAX_TABLES];
+	double reserved[14];
 };
 
 /* One view: a camera with its own aerial-perspective volume, of the aerial

@@ -31,6 +31,7 @@ struct skysample_table {
 	const void *texels;		/* RGBA, rows bottom-up in v, slices stacked */
 	uint32_t format;		/* enum sky_shm_format */
 	uint32_t width, height, depth;
+	int32_t rgb_scale_log2;		/* RGB = stored * 2^this (the slot state's) */
 };
 
 /* IEEE binary16 -> double, exact for every input (subnormals, inf, NaN). */
@@ -47,7 +48,8 @@ static inline double skysample_half(uint16_t h)
 	return (h & 0x8000) ? -x : x;
 }
 
-/* Texel (i, j, k) as four doubles; indices must be in range. */
+/* Texel (i, j, k) as four doubles, RGB unscaled (times 2^rgb_scale_log2,
+ * exact); indices must be in range. */
 static inline void skysample_texel(const struct skysample_table *t, uint32_t i, uint32_t j,
 				   uint32_t k, double ret_rgba[4])
 {
@@ -56,6 +58,8 @@ static inline void skysample_texel(const struct skysample_table *t, uint32_t i, 
 		const uint16_t *p = (const uint16_t *)t->texels + idx;
 		for (int c = 0; c < 4; c++)
 			ret_rgba[c] = skysample_half(p[c]);
+		for (int c = 0; c < 3 && t->rgb_scale_log2; c++)
+			ret_rgba[c] = ldexp(ret_rgba[c], t->rgb_scale_log2);
 	} else {
 		const float *p = (const float *)t->texels + idx;
 		for (int c = 0; c < 4; c++)
@@ -116,8 +120,9 @@ static inline void skysample_bilinear(const struct skysample_table *t, double u,
 }
 
 /* Finds table id in the header's directory and points ret at it inside the
- * slot that starts at slot_base. -ENOENT when the layout has no such table.
- * The directory is assumed checked (skysample_check_layout). */
+ * slot that starts at slot_base, with the slot's scale of the table.
+ * -ENOENT when the layout has no such table. The directory is assumed
+ * checked (skysample_check_layout). */
 static inline int skysample_table_from_slot(const struct sky_shm_header *hdr,
 					    const void *slot_base, uint32_t id,
 					    struct skysample_table *ret)
@@ -131,6 +136,7 @@ static inline int skysample_table_from_slot(const struct sky_shm_header *hdr,
 		ret->width = d->width;
 		ret->height = d->height;
 		ret->depth = d->depth;
+		ret->rgb_scale_log2 = ((const struct sky_shm_slot *)slot_base)->state.rgb_scale_log2[id];
 		return 0;
 	}
 	return -ENOENT;

@@ -17,14 +17,11 @@ layout(std430, binding = BINDING_VIEWS) readonly buffer ViewBuf { vec4 v[]; } VB
 // with one loop over the lanes where STORE_TEXEL's four words take four,
 // and a column stores OUT_D texels.
 layout(std430, binding = BINDING_AERIAL) writeonly buffer AerialTexels { uvec4 d[]; } AT;
-layout(std430, binding = BINDING_AERIAL) writeonly buffer AerialHalves { uvec2 d[]; } AH;
 
 void store_texel(int i, vec4 v)
 {
-	if (STORAGE_F16)
-		AH.d[i] = uvec2(packHalf2x16(v.xy), packHalf2x16(v.zw));
-	else
-		AT.d[i] = floatBitsToUint(v);
+	AT.d[i] = floatBitsToUint(v);
+	note_range(v.rgb);
 }
 
 void main()
@@ -97,4 +94,5 @@ void main()
 		store_texel(((view * OUT_D + k) * OUT_H + px.y) * OUT_W + px.x,
 			    vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0));
 	}
+	flush_range(BINDING_AERIAL - BINDING_TRANSMITTANCE);
 }

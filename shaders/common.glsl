@@ -72,7 +72,7 @@ layout(std430, binding = BINDING_MULTISCATTER) buffer MultiscatterBuf { uint d[]
 layout(std430, binding = BINDING_SKYVIEW) buffer SkyviewBuf { uint d[]; } SB;
 layout(std430, binding = BINDING_AERIAL) buffer AerialBuf { uint d[]; } AB;
 // The same transmittance and multi-scattering memory, read through texel
-// buffers: the format converts f16, and the gathers are vectorized.
+// buffers (float32 RGBA): the gathers are vectorized.
 layout(binding = BINDING_TRANSMITTANCE_TEX) uniform samplerBuffer TransmittanceTex;
 layout(binding = BINDING_MULTISCATTER_TEX) uniform samplerBuffer MultiscatterTex;
 // Column densities of the transmittance texels, one per constituent
@@ -86,16 +86,40 @@ layout(binding = BINDING_COLUMNS_TEX) uniform samplerBuffer ColumnTex;
 layout(std430, binding = BINDING_MOMENT) buffer MomentBuf { vec4 d[]; } MOB;
 layout(binding = BINDING_MOMENT_TEX) uniform samplerBuffer MomentTex;
 
-// Texels are RGBA: four 32-bit words, or two words of packed halves.
+// Texels are RGBA float32, four 32-bit words, whatever the storage: with
+// storage=f16 the pack pass (pack.comp) writes the published binary16 copy.
 #define STORE_TEXEL(B, i, v) do { \
-	if (STORAGE_F16) { \
-		B.d[2 * (i)] = packHalf2x16((v).xy); \
-		B.d[2 * (i) + 1] = packHalf2x16((v).zw); \
-	} else { \
-		uvec4 w_ = floatBitsToUint(v); \
-		B.d[4 * (i)] = w_.x; B.d[4 * (i) + 1] = w_.y; \
-		B.d[4 * (i) + 2] = w_.z; B.d[4 * (i) + 3] = w_.w; \
-	} } while (false)
+	uvec4 w_ = floatBitsToUint(v); \
+	B.d[4 * (i)] = w_.x; B.d[4 * (i) + 1] = w_.y; \
+	B.d[4 * (i) + 2] = w_.z; B.d[4 * (i) + 3] = w_.w; \
+	} while (false)
+
+// With storage=f16 the passes also find the largest |RGB| they store,
+// which pack.comp scales the binary16 copy by: each invocation keeps the
+// largest magnitude's float bits (non-negative floats order as their bits;
+// NaN above infinity) and adds them to its table's with one atomicMax.
+layout(std430, binding = BINDING_PACK) buffer PackBuf {
+	uint texels[SKY_PACK_TABLES];
+	uint max_bits[SKY_PACK_TABLES];
+	int scale_log2[SKY_PACK_TABLES];
+} PB;
+
+uint range_bits = 0u;
+
+void note_range(vec3 rgb)
+{
+	if (STORAGE_F16) {
+		uvec3 b = floatBitsToUint(rgb) & 0x7fffffffu;
+		range_bits = max(range_bits, max(b.x, max(b.y, b.z)));
+	}
+}
+
+// table: in state_table order, the table's binding less BINDING_TRANSMITTANCE.
+void flush_range(int table)
+{
+	if (STORAGE_F16 && range_bits != 0u)
+		atomicMax(PB.max_bits[table], range_bits);
+}
 
 float safe_sqrt(float x) { return sqrt(max(x, 0.0)); }
 

@@ -24,8 +24,8 @@
 layout(constant_id = SPEC_ITER_FIRST) const bool ITER_FIRST = true;
 layout(local_size_x = 8, local_size_y = 8) in;
 
-// The next psi in the table's storage format (copied over the table after
-// the pass), then L2 as float32 RGBA per texel.
+// The next psi as the table holds it, float32 RGBA (copied over the table
+// after the pass), then L2 as float32 RGBA per texel.
 layout(std430, binding = BINDING_ITERATE) buffer IterBuf { uint d[]; } IB;
 
 // The three rows nearest an altitude for ms_read_quadratic(): the middle
@@ -158,7 +158,7 @@ void main()
 		sum_returned += returned;
 	}
 	vec3 escape = sum_escape * norm;
-	int l2_base = (STORAGE_F16 ? 2 : 4) * OUT_W * OUT_H;
+	int l2_base = 4 * OUT_W * OUT_H;
 	for (int j = 0; j < MS_SUN_GROUP; j++) {
 		int i = py * OUT_W + x0 + j;
 		if (x0 + j >= OUT_W)
@@ -181,6 +181,7 @@ void main()
 		vec3 psi = l2 + gathered[j] * norm;
 		float kept = dot(own.rgb, MS_SHARE_LUM) / max(dot(psi, MS_SHARE_LUM), 1e-30);
 		STORE_TEXEL(IB, i, vec4(psi, clamp(own.a * kept, 0.0, 1.0)));
+		note_range(psi);
 		// The shape (multiscatter.comp's MomentBuf) is L2's, stored
 		// relative to psi: it stays what it was in absolute terms, as A
 		// does. Each texel is only ever touched by its own invocation, so
@@ -188,4 +189,7 @@ void main()
 		if (MOMENT_CONST >= 0)
 			MOB.d[i] *= kept;
 	}
+	// The table's largest value is the last step's: the engine clears
+	// the range before that step.
+	flush_range(BINDING_MULTISCATTER - BINDING_TRANSMITTANCE);
 }

@@ -278,7 +278,9 @@ void main()
 		// weighted by luminance, since A is one value.
 		float share = dot(sum_ground[j], MS_SHARE_LUM) * MS_NORM / max(dot(psi, MS_SHARE_LUM), 1e-30);
 		STORE_TEXEL(MB, py * OUT_W + x0 + j, vec4(psi, clamp(share, 0.0, 1.0)));
+		note_range(psi);
 		if (MOMENT_CONST >= 0)
 			store_shape(py * OUT_W + x0 + j, j, psi, sun[j], escape_lum);
 	}
+	flush_range(BINDING_MULTISCATTER - BINDING_TRANSMITTANCE);
 }

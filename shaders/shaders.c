@@ -7,6 +7,7 @@
 #include "aerial.spv.h"
 #include "columns.spv.h"
 #include "msiterate.spv.h"
+#include "pack.spv.h"
 
 const struct shader_code shader_code[SHADER_COUNT] = {
 	{ "transmittance", shader_transmittance_spv, sizeof(shader_transmittance_spv) },
@@ -15,4 +16,5 @@ const struct shader_code shader_code[SHADER_COUNT] = {
 	{ "aerial", shader_aerial_spv, sizeof(shader_aerial_spv) },
 	{ "columns", shader_columns_spv, sizeof(shader_columns_spv) },
 	{ "msiterate", shader_msiterate_spv, sizeof(shader_msiterate_spv) },
+	{ "pack", shader_pack_spv, sizeof(shader_pack_spv) },
 };

@@ -14,7 +14,8 @@
 #define SPEC_PHASE_1 2
 #define SPEC_PHASE_2 3
 #define SPEC_PHASE_3 4
-#define SPEC_STORAGE_F16 5	/* tables hold float16 texels */
+#define SPEC_STORAGE_F16 5	/* tables are published as float16: each pass records
+				 * its largest |RGB| for pack.comp */
 #define SPEC_MOON_LIT 6
 #define SPEC_GROUND_BLACK 7
 #define SPEC_T_W 8		/* the transmittance table's size */
@@ -33,7 +34,8 @@
 #define SPEC_ITER_FIRST 21	/* the first step of the iteration of psi_ms */
 #define SPEC_MOMENT_LOBE 22	/* 1 + the constituent whose phase sees the lobe, 0 none */
 #define SPEC_DELTA_LOBE 23	/* 1 + the constituent delta-M scales, 0 none */
-#define SPEC_COUNT 24
+#define SPEC_PACK_MASK 24	/* the tables pack.comp packs, STATE_BIT()s */
+#define SPEC_COUNT 25
 
 /* Bindings of the one descriptor set. The tables are storage buffers in
  * state_table order; transmittance and multi-scattering are read again
@@ -51,7 +53,8 @@
 #define BINDING_MOMENT 10		/* the shape of the multiply scattered light */
 #define BINDING_MOMENT_TEX 11		/* the same memory as a lookup */
 #define BINDING_COLUMNS_TEX 12		/* the column densities as a lookup */
-#define BINDING_COUNT 13
+#define BINDING_PACK 13			/* struct gpu_pack: pack.comp's counts, ranges, scales */
+#define BINDING_COUNT 14
 
 #define SKY_MAX_CONSTITUENTS 4	/* ATMO_MAX_CONSTITUENTS */
 #define SKY_GROUND_FIT 8	/* PHASE_GROUND_FIT */
@@ -88,7 +91,23 @@
 					 * a component per constituent */        \
 	V(delta_peak)	/* delta-M's forward peak: x = h, y = its spread (rad) */
 
+/* The pack pass (storage=f16, pack.comp), per table in state_table order:
+ * the texels to pack (0: not computed this time; the aerial table counts
+ * every view's volume), the float bits of the largest |RGB| (the passes'
+ * atomicMax) and the published scale, log2, that pack.comp chose. std430.
+ * Transmittance never exceeds 1: its pass writes its own binary16 copy,
+ * RGB scaled by 2^-SKY_F16_TRANSMITTANCE_LOG2. */
+#define SKY_PACK_TABLES 4
+#define SKY_F16_TRANSMITTANCE_LOG2 (-15)
+
 #ifdef __STDC__
+#include <stdint.h>
+struct gpu_pack {
+	uint32_t texels[SKY_PACK_TABLES];
+	uint32_t max_bits[SKY_PACK_TABLES];
+	int32_t scale_log2[SKY_PACK_TABLES];
+};
+
 #define SKY_C_VEC4(name) float name[4];
 #define SKY_C_VEC4_ARRAY(name, n) float name[n][4];
 #define SKY_C_CONSTITUENTS(name, n) struct gpu_constituent name[n];

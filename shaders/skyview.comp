@@ -157,6 +157,9 @@ void main()
 	vec3 night = P.night.rgb * (1.0 + P.night.w * (1.0 - max(cos_z, 0.0))) *
 		     (sky ? vec3(1.0) : 1.0 - tr);
 	for (int j = 0; j < SV_AZ_GROUP; j++)
-		if (x0 + j < OUT_W)
+		if (x0 + j < OUT_W) {
 			STORE_TEXEL(SB, py * OUT_W + x0 + j, vec4(radiance[j] + night, tr_mean));
+			note_range(radiance[j] + night);
+		}
+	flush_range(BINDING_SKYVIEW - BINDING_TRANSMITTANCE);
 }

@@ -20,8 +20,8 @@
 
 #include "daemon_harness.h"
 #include "test.h"
+#include "umockdev_exec.h"
 
-#define SYSFS "/sys/devices/pci0000:00/0000:00:14.0/usb1/1-"
 #define REL(a, b, tol) (fabs((a) - (b)) <= (tol) * fabs(b))
 
 static char reply[1 << 16];
@@ -512,36 +512,6 @@ static const struct scenario scenarios[] = {
 	{ "list", { "als", "mcp", "keyboard" }, { "2=als", "3=mcp" }, run_list },
 };
 
-/* Outside a testbed: run again under umockdev-run with the scenario's
- * devices and captures (skyd, its child, inherits the testbed). */
-static int reexec(const struct scenario *sc, char *self)
-{
-	static char args[8][512];
-	char *argv[24];
-	int n = 0, a = 0;
-
-	argv[n++] = "umockdev-run";
-	for (int i = 0; i < 4 && sc->devices[i]; i++, a++) {
-		snprintf(args[a], sizeof(args[a]), "%s/%s.umockdev", SKYD_SENSOR_DATA, sc->devices[i]);
-		argv[n++] = "-d";
-		argv[n++] = args[a];
-	}
-	for (int i = 0; i < 4 && sc->captures[i]; i++, a++) {
-		const char *eq = strchr(sc->captures[i], '=');
-		snprintf(args[a], sizeof(args[a]), SYSFS "%.*s=%s/%s.pcap", (int)(eq - sc->captures[i]),
-			 sc->captures[i], SKYD_SENSOR_DATA, eq + 1);
-		argv[n++] = "-p";
-		argv[n++] = args[a];
-	}
-	argv[n++] = "--";
-	argv[n++] = self;
-	argv[n++] = (char *)sc->name;
-	argv[n] = NULL;
-	execvp(argv[0], argv);
-	printf("test_daemon_sensor: umockdev-run: %s: skipped\n", strerror(errno));
-	return 77;
-}
-
 int main(int argc, char **argv)
 {
 	const struct scenario *sc = NULL;
@@ -554,7 +524,8 @@ int main(int argc, char **argv)
 		return 2;
 	}
 	if (!getenv("UMOCKDEV_DIR"))
-		return reexec(sc, argv[0]);
+		return umockdev_exec(SKYD_SENSOR_DATA, sc->devices, sc->captures, argv[0], sc->name,
+				     "test_daemon_sensor");
 	if (strcmp(sc->name, "list") != 0)
 		harness_need_device();
 	sc->run();

@@ -104,7 +104,7 @@ static int raw_scanline_r(const char *path, int y, float *ret_r, int width)
 static void test_exr_3d_f32(void)
 {
 	static float t[W3 * H3 * D3 * 4];
-	struct dump_table table = { "aerial", W3, H3, D3, SKY_FORMAT_RGBA32F, t };
+	struct dump_table table = { "aerial", W3, H3, D3, SKY_FORMAT_RGBA32F, t, 0 };
 	struct dump_exr_info info;
 	const char *path = in_dir("aerial.exr");
 	char err[256] = "";
@@ -157,7 +157,7 @@ static void test_exr_2d_f16(void)
 	};
 	enum { W = 6, H = 4, N = W * H * 4, NV = sizeof(v) / sizeof(v[0]) };
 	uint16_t t[N];
-	struct dump_table table = { "transmittance", W, H, 1, SKY_FORMAT_RGBA16F, t };
+	struct dump_table table = { "transmittance", W, H, 1, SKY_FORMAT_RGBA16F, t, 0 };
 	struct dump_exr_info info;
 	const char *path = in_dir("transmittance.exr");
 	char err[256] = "";
@@ -179,8 +179,8 @@ static void test_exr_2d_f16(void)
 	for (int n = 0; n < NV; n++) {
 		uint16_t hs[4] = { v[n].h, v[n].h, v[n].h, v[n].h };
 		float fv = bits_float(v[n].f), fs[4] = { fv, fv, fv, fv };
-		struct dump_table th = { "h", 1, 1, 1, SKY_FORMAT_RGBA16F, hs };
-		struct dump_table tf = { "f", 1, 1, 1, SKY_FORMAT_RGBA32F, fs };
+		struct dump_table th = { "h", 1, 1, 1, SKY_FORMAT_RGBA16F, hs, 0 };
+		struct dump_table tf = { "f", 1, 1, 1, SKY_FORMAT_RGBA32F, fs, 0 };
 		double eh = 0, ef = -1;
 		CHECK(dump_auto_exposure(&th, &eh) == 0 && dump_auto_exposure(&tf, &ef) == 0);
 		if (eh != ef)
@@ -226,7 +226,7 @@ static int pixel_sum(const uint8_t *px, uint32_t w, uint32_t x, uint32_t y)
 static void test_png_orientation(void)
 {
 	static float t[W3 * H3 * D3 * 4];
-	struct dump_table table = { "ramp", W3, H3, D3, SKY_FORMAT_RGBA32F, t };
+	struct dump_table table = { "ramp", W3, H3, D3, SKY_FORMAT_RGBA32F, t, 0 };
 	const char *path = in_dir("ramp.png");
 	char err[256] = "";
 	uint32_t w = 0, h = 0;
@@ -275,7 +275,7 @@ static void test_png_orientation(void)
 	static const uint16_t odd[] = { 0x7c00, 0xfc00, 0x7e00, 0xbc00, 0x0000, 0x3c00 };
 	for (size_t n = 0; n < sizeof(ht) / sizeof(ht[0]); n++)
 		ht[n] = odd[n % 6];
-	struct dump_table half = { "odd", 4, 3, 1, SKY_FORMAT_RGBA16F, ht };
+	struct dump_table half = { "odd", 4, 3, 1, SKY_FORMAT_RGBA16F, ht, 0 };
 	struct dump_tonemap tm = { 2.0, DUMP_CURVE_REINHARD };
 	path = in_dir("odd.png");
 	CHECK(dump_png(path, &half, &tm, err, sizeof(err)) == 0);
@@ -411,7 +411,7 @@ static void test_json_misuse(void)
 static void test_errors(void)
 {
 	float t[4] = { 1, 2, 3, 4 };
-	struct dump_table table = { "one", 1, 1, 1, SKY_FORMAT_RGBA32F, t };
+	struct dump_table table = { "one", 1, 1, 1, SKY_FORMAT_RGBA32F, t, 0 };
 	struct dump_table bad = table;
 	struct dump_exr_info info = { .width = 12345 };
 	static float sentinel;
@@ -486,7 +486,7 @@ static void test_failed_write_keeps_old_file(void)
 {
 	enum { W = 64, H = 64 };
 	static float t[W * H * 4];
-	struct dump_table table = { "noise", W, H, 1, SKY_FORMAT_RGBA32F, t };
+	struct dump_table table = { "noise", W, H, 1, SKY_FORMAT_RGBA32F, t, 0 };
 	struct rlimit old, small;
 	char exr[4200], png[4200], err[512] = "";
 	uint32_t x = 12345;

@@ -440,7 +440,7 @@ static void test_sampling_at_texel_centres(sky_client *c)
 	/* sun: top-of-atmosphere illuminance times the table at (altitude, mu_sun) */
 	double lx[3], tr3[3];
 	CHECK(sky_sample_sun(&v, lx) == 0);
-	skysample_transmittance(&(struct skysample_table){ t, SKY_FORMAT_RGBA32F, TW, TH, 1 },
+	skysample_transmittance(&(struct skysample_table){ t, SKY_FORMAT_RGBA32F, TW, TH, 1, 0 },
 				&v.slot->state, 0.2, sin(30.0 * DEG), tr3);
 	for (int k = 0; k < 3; k++)
 		CHECK(fabs(lx[k] - 1.0e5 * (k + 1) * tr3[k]) < 1e-6 * lx[k]);
@@ -457,8 +457,8 @@ static void test_ambient_and_disk(void)
 		sky[i] = 2.0f;
 	for (int i = 0; i < TW * TH * 4; i++)
 		trans[i] = 0.25f;
-	struct skysample_table ts = { sky, SKY_FORMAT_RGBA32F, SW, SH, 1 };
-	struct skysample_table tt = { trans, SKY_FORMAT_RGBA32F, TW, TH, 1 };
+	struct skysample_table ts = { sky, SKY_FORMAT_RGBA32F, SW, SH, 1, 0 };
+	struct skysample_table tt = { trans, SKY_FORMAT_RGBA32F, TW, TH, 1, 0 };
 	struct sky_shm_state st = { .bottom_radius_km = 6360, .top_radius_km = 6460, .altitude_km = 0.2,
 				    .sun_illuminance_lx = { 1000, 2000, 3000 },
 				    .sun_angular_radius_rad = 2.0 * DEG };

@@ -17,8 +17,9 @@
 #include "loop.h"
 #include "sensor.h"
 #include "test.h"
+#include "umockdev_exec.h"
 
-#define SYSFS_ALS "/sys/devices/pci0000:00/0000:00:14.0/usb1/1-2"
+#define SYSFS_ALS UMOCKDEV_SYSFS "2"
 #define REL(a, b, tol) (fabs((a) - (b)) <= (tol) * fabs(b))
 #define GUARD_S 30
 

@@ -21,8 +21,8 @@
 #include "loop.h"
 #include "sensor.h"
 #include "test.h"
+#include "umockdev_exec.h"
 
-#define SYSFS "/sys/devices/pci0000:00/0000:00:14.0/usb1/1-"
 #define REL(a, b, tol) (fabs((a) - (b)) <= (tol) * fabs(b))
 #define GUARD_S 30
 
@@ -348,36 +348,6 @@ static void run_scenario(const struct scenario *sc)
 	loop_free(r.loop);
 }
 
-/* Outside a testbed: run again under umockdev-run with the scenario's
- * devices and captures. */
-static int reexec(const struct scenario *sc, char *self)
-{
-	static char args[8][512];
-	char *argv[24];
-	int n = 0, a = 0;
-
-	argv[n++] = "umockdev-run";
-	for (int i = 0; i < 4 && sc->devices[i]; i++, a++) {
-		snprintf(args[a], sizeof(args[a]), "%s/%s.umockdev", SKYD_SENSOR_DATA, sc->devices[i]);
-		argv[n++] = "-d";
-		argv[n++] = args[a];
-	}
-	for (int i = 0; i < 4 && sc->captures[i]; i++, a++) {
-		const char *eq = strchr(sc->captures[i], '=');
-		snprintf(args[a], sizeof(args[a]), SYSFS "%.*s=%s/%s.pcap", (int)(eq - sc->captures[i]),
-			 sc->captures[i], SKYD_SENSOR_DATA, eq + 1);
-		argv[n++] = "-p";
-		argv[n++] = args[a];
-	}
-	argv[n++] = "--";
-	argv[n++] = self;
-	argv[n++] = (char *)sc->name;
-	argv[n] = NULL;
-	execvp(argv[0], argv);
-	printf("test_sensor_usb: umockdev-run: %s: skipped\n", strerror(errno));
-	return 77;
-}
-
 int main(int argc, char **argv)
 {
 	const struct scenario *sc = NULL;
@@ -390,7 +360,8 @@ int main(int argc, char **argv)
 		return 2;
 	}
 	if (!getenv("UMOCKDEV_DIR"))
-		return reexec(sc, argv[0]);
+		return umockdev_exec(SKYD_SENSOR_DATA, sc->devices, sc->captures, argv[0], sc->name,
+				     "test_sensor_usb");
 	if (sc->step)
 		run_scenario(sc);
 	else

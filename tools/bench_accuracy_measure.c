@@ -19,6 +19,7 @@ void acc_table_radiance(const struct eng *e, const struct sky_state *s, double e
 		.width = s->quality.t[STATE_SKYVIEW].width,
 		.height = s->quality.t[STATE_SKYVIEW].height,
 		.depth = 1,
+		.rgb_scale_log2 = eng_table_scale_log2(e, STATE_SKYVIEW),
 	};
 	struct sky_shm_state st = { .altitude_km = s->altitude_km,
 				    .bottom_radius_km = s->atmo.bottom_radius_km,
@@ -57,8 +58,8 @@ void acc_measure(const struct eng *e, const struct sky_state *s, const struct sc
 		double rgb[3];
 		acc_table_radiance(e, s, g->dir[i].elevation_deg, g->dir[i].azimuth_deg, rgb);
 		double y = luminance(rgb), w = g->weight[i];
-		/* A table value that is not finite (f16 overflows above 65504) is
-		 * an infinite error, never a NaN that would vanish from the means. */
+		/* A table value that is not finite is an infinite error, never a
+		 * NaN that would vanish from the means. */
 		double rel = !isfinite(y) ? INFINITY
 			     : g->lum[i] > 0 ? (y - g->lum[i]) / g->lum[i] : (y > 0 ? INFINITY : 0);
 		enum category c = category(sc, g->dir[i].elevation_deg);

@@ -3,6 +3,7 @@
  * and eng_run.c (the passes). */
 #include "eng_internal.h"
 
+#include <math.h>
 #include <string.h>
 
 const struct eng_device *eng_device(const struct eng *e)
@@ -15,24 +16,36 @@ uint64_t eng_max_table_bytes(const struct eng *e)
 	return e->limits.maxStorageBufferRange;
 }
 
+/* The value of a binary16 bit pattern (finite), times 2^k. */
+static double half_value(uint16_t h, int32_t k)
+{
+	int exponent = (h >> 10) & 0x1f, mantissa = h & 0x3ff;
+	double v = exponent ? ldexp(mantissa + 1024, exponent - 25) : ldexp(mantissa, -24);
+	return ldexp(h & 0x8000 ? -v : v, k);
+}
+
 void eng_f16_range(const struct eng *e, const struct sky_state *s, uint32_t mask,
 		   struct eng_f16_range *ret)
 {
+	double floor_cd_m2, gain;
+
 	memset(ret, 0, sizeof(*ret));
 	if (s->quality.storage != STATE_F16)
 		return;
+	state_night_floor(s, &floor_cd_m2, &gain);
 	for (int t = 0; t < STATE_N_TABLES; t++) {
 		size_t bytes;
 		const uint16_t *h = eng_table(e, (enum state_table)t, &bytes);
+		int32_t k = e->rgb_scale_log2[t];
 		if (!(mask & STATE_BIT(t)) || !h)
 			continue;
 		for (size_t i = 0; i < bytes / 8; i++) {
 			for (int c = 0; c < 3; c++) {
-				uint16_t exponent = (h[4 * i + c] >> 10) & 0x1f;
-				uint16_t mantissa = h[4 * i + c] & 0x3ff;
+				uint16_t x = h[4 * i + c], exponent = (x >> 10) & 0x1f;
 				if (exponent == 0x1f)
 					ret->overflow++;
-				else if (exponent == 0 && mantissa != 0 && t >= STATE_SKYVIEW)
+				else if (exponent == 0 && (x & 0x3ff) && t >= STATE_SKYVIEW &&
+					 fabs(half_value(x, k)) >= floor_cd_m2)
 					ret->subnormal++;
 			}
 		}
@@ -66,4 +79,9 @@ const void *eng_table(const struct eng *e, enum state_table t, size_t *ret_bytes
 	if (ret_bytes)
 		*ret_bytes = e->table_bytes[t];
 	return e->readback[t].map;
+}
+
+int32_t eng_table_scale_log2(const struct eng *e, enum state_table t)
+{
+	return e->rgb_scale_log2[t];
 }

@@ -7,6 +7,10 @@
  * Table memory: texels are RGBA, float32 (16 bytes) or float16 (8 bytes)
  * as the state's storage says, rows of width texels, rows bottom-up in v,
  * the aerial volume's slices stacked (see proto/skymap.h for the mappings).
+ * The passes compute in float32 whatever the storage; float16 tables are
+ * rounded from those values, RGB scaled by a power of two per table so that
+ * nothing overflows the half's 65504 nor sinks into its subnormals: the
+ * value is RGB 2^eng_table_scale_log2 (A is never scaled).
  *   transmittance  RGB transmittance to the top of the atmosphere, A = 1
  *   multiscatter   RGB psi_ms per unit illuminance (1/sr), A = the share of the
  *                  ground's first bounce in psi_ms (luminance-weighted, [0, 1])
@@ -37,7 +41,9 @@ struct eng_timing {
 	uint32_t computed;		/* STATE_BIT mask of the tables computed */
 	double table_ms[STATE_N_TABLES];/* GPU time per table (timestamps), else wall time;
 					 * transmittance's includes the column pass,
-					 * multi-scattering's the iteration of psi_ms */
+					 * multi-scattering's the iteration of psi_ms;
+					 * with storage=f16 the last one computed
+					 * includes the float16 copies (pack.comp) */
 	double total_ms;		/* submit to completion, wall clock */
 	/* 1 when the column-density pass ran: transmittance is exp(-sum ext_k L_k)
 	 * from column densities L_k that depend on the geometry, the profiles
@@ -73,18 +79,22 @@ uint64_t eng_max_table_bytes(const struct eng *e);
 int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err,
 	       size_t err_size);
 /* Where float16 storage breaks, in the tables of mask as last computed:
- * RGB values that overflowed the half range (infinite or NaN: above 65504),
- * and sky radiance (sky-view and aerial perspective) that fell into the
- * half's subnormals (below 6.1e-5 cd/m2, fewer than 11 significant bits:
- * deep twilight). Transmittance that small is a sun already gone, so only
- * its overflow counts. All 0 for float32 storage. */
+ * RGB values that are not finite (infinite or NaN: the scale keeps every
+ * finite float32 value finite, so only a computation that produced them
+ * leaves them), and sky radiance (sky-view and aerial perspective) at or
+ * above the night sky's zenith luminance (state_night_floor; any radiance
+ * without one) that was stored as a half subnormal, with fewer than 11
+ * significant bits: a sky spanning more than 2^29 between its brightest
+ * value and the night floor. Values below the floor (the ground just under
+ * the observer, seen through metres of air) may lose their precision.
+ * All 0 for float32 storage. */
 struct eng_f16_range {
 	uint64_t overflow;		/* values, every table */
 	uint64_t subnormal;		/* radiance values of sky-view and aerial */
 	uint64_t radiance_values;	/* RGB values of sky-view and aerial examined */
 };
-/* Whether r says float16 storage broke: any overflow, or more than 1 % of
- * the radiance values subnormal. */
+/* Whether r says float16 storage broke: any value not finite, or more than
+ * 1 % of the radiance values subnormal. */
 int eng_f16_broken(const struct eng_f16_range *r);
 void eng_f16_range(const struct eng *e, const struct sky_state *s, uint32_t mask,
 		   struct eng_f16_range *ret);
@@ -107,8 +117,15 @@ int eng_wait(struct eng *e, struct eng_timing *ret, char *err, size_t err_size);
 int eng_compute(struct eng *e, const struct sky_state *s, uint32_t mask,
 		struct eng_timing *ret, char *err, size_t err_size);
 
-/* The table as computed by the last completed computation, in host memory.
- * Valid until the next eng_submit or eng_free. ret_bytes may be NULL. */
+/* The table as computed by the last completed computation, in host memory,
+ * in the state's storage format. Valid until the next eng_submit or
+ * eng_free. ret_bytes may be NULL. */
 const void *eng_table(const struct eng *e, enum state_table t, size_t *ret_bytes);
+/* k such that the table's RGB values are its stored RGB times 2^k: 0 for
+ * float32 storage; for float16, the pack pass's choice, the smallest k
+ * with the table's largest |RGB| times 2^-k at most 65504 (transmittance,
+ * whose largest value is 1, gets -15). Changes with every computation of
+ * the table, as eng_table does. */
+int32_t eng_table_scale_log2(const struct eng *e, enum state_table t);
 
 #endif

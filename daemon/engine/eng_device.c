@@ -439,7 +439,7 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
-		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 4 },
+		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 5 },
 		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 2 } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
@@ -475,6 +475,13 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 		rc = eng_buffer_new(e, VIEW_BUFFER_BYTES, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
 				VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT,
 				0, &e->views, err, err_size);
+	if (rc == 0)
+		rc = eng_buffer_new(e, sizeof(struct gpu_pack),
+				VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+				VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT,
+				0, &e->pack, err, err_size);
+	if (rc == 0)
+		memset(e->pack.map, 0, sizeof(struct gpu_pack));
 fail:
 	return rc;
 }
@@ -542,6 +549,7 @@ void eng_free(struct eng *e)
 		}
 		eng_buffer_free(e, &e->params);
 		eng_buffer_free(e, &e->views);
+		eng_buffer_free(e, &e->pack);
 		eng_vec4_buffer_free(e, &e->columns, &e->columns_view);
 		eng_buffer_free(e, &e->ms_iterate);
 		eng_vec4_buffer_free(e, &e->moment, &e->moment_view);

@@ -39,11 +39,14 @@ _Static_assert(BINDING_TRANSMITTANCE + STATE_TRANSMITTANCE == 1 &&
 	       "sky_params.h's bindings follow enum state_table");
 _Static_assert(SKY_MAX_CONSTITUENTS == ATMO_MAX_CONSTITUENTS && SKY_GROUND_FIT == PHASE_GROUND_FIT,
 	       "sky_params.h's array lengths");
-/* Compute passes: one per table, then the column densities (SHADER_COLUMNS)
- * and the iteration of psi_ms (SHADER_MSITERATE). */
+/* Compute passes: one per table, then the column densities (SHADER_COLUMNS),
+ * the iteration of psi_ms (SHADER_MSITERATE) and the binary16 copies of
+ * storage=f16 (SHADER_PACK, timed with the last table's pass). */
 #define PASS_COLUMNS STATE_N_TABLES
 #define PASS_MSITERATE (STATE_N_TABLES + 1)
-#define N_PASSES (STATE_N_TABLES + 2)
+#define PASS_PACK (STATE_N_TABLES + 2)
+#define N_PASSES (STATE_N_TABLES + 3)
+_Static_assert(SKY_PACK_TABLES == STATE_N_TABLES, "pack.comp packs every table");
 
 /* phase_ground_excess of one constituent, kept while its phase stays: it
  * costs about 30000 phase evaluations, more than a sun change's tables. */
@@ -110,15 +113,25 @@ struct eng {
 
 	struct gpu_buffer params;
 	struct gpu_buffer views;			/* 3 vec4 per aerial volume */
-	struct gpu_buffer table[STATE_N_TABLES];	/* device memory */
-	struct gpu_buffer readback[STATE_N_TABLES];	/* host memory */
-	size_t table_bytes[STATE_N_TABLES];
+	/* Device memory: every table in float32 RGBA, as the passes compute
+	 * it whatever the storage; with storage=f16 its binary16 copy follows
+	 * (pack.comp), and that copy is what reaches host memory. */
+	struct gpu_buffer table[STATE_N_TABLES];
+	struct gpu_buffer readback[STATE_N_TABLES];	/* host memory, the published format */
+	size_t table_bytes[STATE_N_TABLES];		/* the published table (readback) */
+	size_t device_bytes[STATE_N_TABLES];		/* float32 part plus the copy */
+	/* The published RGB scale, log2, of each table as last computed
+	 * (eng_table_scale_log2): pack.comp's choice for storage=f16, else 0. */
+	int32_t rgb_scale_log2[STATE_N_TABLES];
 	/* Transmittance and multi-scattering are read by the later passes
-	 * through texel buffers: the sampler's gathers are vectorized, where a
-	 * storage-buffer load with a varying index is a loop over the lanes on
-	 * lavapipe. */
+	 * through texel buffers (float32 RGBA): the sampler's gathers are
+	 * vectorized, where a storage-buffer load with a varying index is a
+	 * loop over the lanes on lavapipe. */
 	VkBufferView lookup_view[N_LOOKUPS];
-	VkFormat lookup_format[N_LOOKUPS];
+	/* struct gpu_pack, host-visible: the engine writes the texel counts
+	 * before a storage=f16 computation and reads the scales after it. */
+	struct gpu_buffer pack;
+	bool pack_in_flight;
 	/* Column densities per transmittance texel (vec4, one per constituent):
 	 * recomputed only when column_key changes, so that a change of the
 	 * coefficients alone runs the tiny transmittance pass only. */
@@ -133,9 +146,9 @@ struct eng {
 	struct column_key column_key;
 	bool columns_valid;
 	bool columns_in_flight;
-	/* The iteration of psi_ms (shaders/msiterate.comp): its output in the
-	 * table's format, copied over the table after each step, then L2 as
-	 * float32 RGBA per texel. */
+	/* The iteration of psi_ms (shaders/msiterate.comp): its output as the
+	 * table holds it (float32 RGBA), copied over the table after each
+	 * step, then L2 as float32 RGBA per texel. */
 	struct gpu_buffer ms_iterate;
 	uint32_t iterations_in_flight;
 

@@ -4,6 +4,7 @@
 
 #include <errno.h>
 #include <poll.h>
+#include <stddef.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -72,6 +73,8 @@ static void bind_buffers(struct eng *e)
 		}
 		if (i == BINDING_VIEWS)
 			bi[i] = (VkDescriptorBufferInfo){ e->views.buf, 0, VK_WHOLE_SIZE };
+		else if (i == BINDING_PACK)
+			bi[i] = (VkDescriptorBufferInfo){ e->pack.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_COLUMNS)
 			bi[i] = (VkDescriptorBufferInfo){ e->columns.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_ITERATE)
@@ -85,49 +88,84 @@ static void bind_buffers(struct eng *e)
 	e->vk.vkUpdateDescriptorSets(e->dev, N_BINDINGS, w, 0, NULL);
 }
 
-/* (Re)allocates the tables whose size changed; returns the mask of tables
- * that must be recomputed because their contents were lost. */
+/* Texels of table t in s, every aerial volume counted. */
+static uint64_t table_texels(const struct sky_state *s, int t)
+{
+	const struct state_table_quality *q = &s->quality.t[t];
+	uint64_t n = (uint64_t)q->width * q->height * (t == STATE_AERIAL ? q->depth : 1);
+	return t == STATE_AERIAL ? n * (1 + s->n_views) : n;
+}
+
+/* Bytes of table t's float32 texels on the device. */
+static VkDeviceSize float_bytes(const struct sky_state *s, int t)
+{
+	return table_texels(s, t) * 4 * sizeof(float);
+}
+
+/* Bytes of table t on the device: its float32 texels, then with
+ * storage=f16 its binary16 copy, which pack.comp writes two texels at a
+ * time (an odd table gets one texel more). */
+static VkDeviceSize device_bytes(const struct sky_state *s, int t)
+{
+	VkDeviceSize pairs = (table_texels(s, t) + 1) / 2;
+	return float_bytes(s, t) + (s->quality.storage == STATE_F16 ? 16 * pairs : 0);
+}
+
+/* (Re)allocates table t: its device buffer (float32, then the published
+ * copy for storage=f16), its host copy and, for a lookup, its texel view. */
+static int table_new(struct eng *e, const struct sky_state *s, int t, char *err, size_t err_size)
+{
+	size_t bytes = table_texels(s, t) * state_texel_bytes(s->quality.storage);
+	VkDeviceSize device = device_bytes(s, t);
+	int rc = 0;
+
+	if (t < N_LOOKUPS && e->lookup_view[t]) {
+		e->vk.vkDestroyBufferView(e->dev, e->lookup_view[t], NULL);
+		e->lookup_view[t] = VK_NULL_HANDLE;
+	}
+	eng_buffer_free(e, &e->table[t]);
+	eng_buffer_free(e, &e->readback[t]);
+	e->table_bytes[t] = e->device_bytes[t] = 0;
+	rc = eng_buffer_new(e, device, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+				  VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
+				  VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+			    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->table[t], err, err_size);
+	if (rc == 0)
+		rc = eng_buffer_new(e, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+				    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT,
+				    VK_MEMORY_PROPERTY_HOST_CACHED_BIT, &e->readback[t], err, err_size);
+	if (rc < 0)
+		return rc;
+	if (t < N_LOOKUPS) {
+		VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
+			.buffer = e->table[t].buf, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
+			.range = float_bytes(s, t) };
+		VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->lookup_view[t]));
+	}
+	memset(e->readback[t].map, 0, bytes);
+	e->table_bytes[t] = bytes;
+	e->device_bytes[t] = device;
+	e->rgb_scale_log2[t] = 0;
+fail:
+	return rc;
+}
+
+/* (Re)allocates the tables whose size or storage changed; returns the mask
+ * of tables that must be recomputed because their contents were lost. */
 static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret_lost,
 			 char *err, size_t err_size)
 {
-	VkFormat format = s->quality.storage == STATE_F16 ? VK_FORMAT_R16G16B16A16_SFLOAT
-							 : VK_FORMAT_R32G32B32A32_SFLOAT;
 	uint32_t lost = 0;
 	bool rebind = false;
 	int rc = 0;
 
 	for (int t = 0; t < STATE_N_TABLES; t++) {
-		size_t bytes = state_table_bytes(s, (enum state_table)t);
-		if (t == STATE_AERIAL)
-			bytes *= 1 + s->n_views;
-		if (e->table[t].buf && e->table_bytes[t] == bytes &&
-		    (t >= N_LOOKUPS || e->lookup_format[t] == format))
+		size_t bytes = table_texels(s, t) * state_texel_bytes(s->quality.storage);
+		if (e->table[t].buf && e->table_bytes[t] == bytes && e->device_bytes[t] == device_bytes(s, t))
 			continue;
-		if (t < N_LOOKUPS && e->lookup_view[t]) {
-			e->vk.vkDestroyBufferView(e->dev, e->lookup_view[t], NULL);
-			e->lookup_view[t] = VK_NULL_HANDLE;
-		}
-		eng_buffer_free(e, &e->table[t]);
-		eng_buffer_free(e, &e->readback[t]);
-		e->table_bytes[t] = 0;
-		rc = eng_buffer_new(e, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
-					  VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
-					  VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-				VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->table[t], err, err_size);
-		if (rc == 0)
-			rc = eng_buffer_new(e, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-					VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT,
-					VK_MEMORY_PROPERTY_HOST_CACHED_BIT, &e->readback[t], err, err_size);
+		rc = table_new(e, s, t, err, err_size);
 		if (rc < 0)
 			return rc;
-		if (t < N_LOOKUPS) {
-			VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
-				.buffer = e->table[t].buf, .format = format, .range = VK_WHOLE_SIZE };
-			VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->lookup_view[t]));
-			e->lookup_format[t] = format;
-		}
-		memset(e->readback[t].map, 0, bytes);
-		e->table_bytes[t] = bytes;
 		lost |= STATE_BIT(t);
 		rebind = true;
 	}
@@ -142,8 +180,7 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 		rebind = true;
 	}
 	const struct state_table_quality *mq = &s->quality.t[STATE_MULTISCATTER];
-	VkDeviceSize iterate_bytes = e->table_bytes[STATE_MULTISCATTER] +
-				     (VkDeviceSize)mq->width * mq->height * 4 * sizeof(float);
+	VkDeviceSize iterate_bytes = 2 * float_bytes(s, STATE_MULTISCATTER);
 	if (!e->ms_iterate.buf || e->ms_iterate.bytes != iterate_bytes) {
 		eng_buffer_free(e, &e->ms_iterate);
 		rc = eng_buffer_new(e, iterate_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
@@ -166,7 +203,6 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 	if (rebind)
 		bind_buffers(e);
 	*ret_lost = lost;
-fail:
 	return rc;
 }
 
@@ -183,9 +219,11 @@ static void groups(const struct sky_state *s, int t, uint32_t *x, uint32_t *y)
 }
 
 /* Records one pass: its dispatch between two timestamps (queries 2 pass and
- * 2 pass + 1), then a barrier so that the next pass reads what it wrote. */
+ * 2 pass + 1), then a barrier so that the next pass reads what it wrote;
+ * with pack_groups > 0, also the pack pass of its table (pack.comp), which
+ * needs that barrier and which no later pass reads (nor waits for). */
 static void record_pass(struct eng *e, int pass, VkPipeline pipe, uint32_t gx, uint32_t gy,
-			uint32_t gz)
+			uint32_t gz, VkPipeline pack, uint32_t pack_groups)
 {
 	const VkMemoryBarrier compute_to_compute = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
 		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_SHADER_READ_BIT };
@@ -198,6 +236,10 @@ static void record_pass(struct eng *e, int pass, VkPipeline pipe, uint32_t gx, u
 	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 				   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &compute_to_compute, 0,
 				   NULL, 0, NULL);
+	if (pack_groups) {
+		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pack);
+		e->vk.vkCmdDispatch(e->cmd, pack_groups, 1, 1);
+	}
 	if (e->timestamps)
 		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, e->queries,
 					  2 * (uint32_t)pass + 1);
@@ -206,9 +248,11 @@ static void record_pass(struct eng *e, int pass, VkPipeline pipe, uint32_t gx, u
 /* Records the steps of the iteration of psi_ms after the multi-scattering
  * pass: each step writes the next table into the scratch buffer, which is
  * then copied over the table (later passes and the next step read it
- * through the lookup view). One pair of timestamps spans all steps. */
+ * through the lookup view). One pair of timestamps spans all steps. With
+ * storage=f16 the table's range is cleared before the last step, which
+ * records the range of what it stores: the table's. */
 static void record_iteration(struct eng *e, const struct sky_state *s, const VkPipeline pipes[2],
-			     uint32_t steps)
+			     uint32_t steps, VkPipeline pack, uint32_t pack_groups)
 {
 	const VkMemoryBarrier to_copy = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
 		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_SHADER_READ_BIT,
@@ -223,15 +267,30 @@ static void record_iteration(struct eng *e, const struct sky_state *s, const VkP
 		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, e->queries,
 					  2 * PASS_MSITERATE);
 	for (uint32_t i = 0; i < steps; i++) {
+		if (i == steps - 1 && s->quality.storage == STATE_F16) {
+			e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+						   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &to_copy, 0, NULL, 0,
+						   NULL);
+			e->vk.vkCmdFillBuffer(e->cmd, e->pack.buf,
+					      offsetof(struct gpu_pack, max_bits[STATE_MULTISCATTER]),
+					      sizeof(uint32_t), 0);
+			e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+						   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &to_read, 0, NULL,
+						   0, NULL);
+		}
 		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipes[i > 0]);
 		e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
 		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 					   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &to_copy, 0, NULL, 0, NULL);
-		VkBufferCopy c = { 0, 0, e->table_bytes[STATE_MULTISCATTER] };
+		VkBufferCopy c = { 0, 0, float_bytes(s, STATE_MULTISCATTER) };
 		e->vk.vkCmdCopyBuffer(e->cmd, e->ms_iterate.buf, e->table[STATE_MULTISCATTER].buf, 1, &c);
 		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
 					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &to_read, 0, NULL, 0,
 					   NULL);
+	}
+	if (pack_groups) {
+		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pack);
+		e->vk.vkCmdDispatch(e->cmd, pack_groups, 1, 1);
 	}
 	if (e->timestamps)
 		e->vk.vkCmdWriteTimestamp(e->cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, e->queries,
@@ -258,13 +317,22 @@ static int check_limits(const struct eng *e, const struct sky_state *s, char *er
 				state_table_names[t], q->width, q->height);
 			return -EINVAL;
 		}
+		/* The device holds float32 texels, and the binary16 copy too. */
+		uint64_t device = device_bytes(s, t);
+		if (device > e->limits.maxStorageBufferRange) {
+			eng_set_err(err, err_size, "%s_width: %ux%u needs %llu bytes of device buffer, above the device's %u",
+				state_table_names[t], q->width, q->height, (unsigned long long)device,
+				e->limits.maxStorageBufferRange);
+			return -EINVAL;
+		}
 	}
 	return 0;
 }
 
 /* What one computation runs: the pipelines of the tables in mask, the
- * column pass's when the kept columns do not fit (run_columns, key), and
- * the steps of the iteration of psi_ms. */
+ * column pass's when the kept columns do not fit (run_columns, key), the
+ * steps of the iteration of psi_ms, and for storage=f16 the pack pass over
+ * pack_groups workgroups (0: none). */
 struct plan {
 	uint32_t mask;
 	VkPipeline pipes[STATE_N_TABLES];
@@ -273,7 +341,29 @@ struct plan {
 	struct column_key key;
 	VkPipeline iterate_pipes[2];
 	uint32_t iterations;
+	VkPipeline pack_pipe;
+	uint32_t pack_groups;
 };
+
+/* The pack pass's plan: its pipeline for the tables of mask it packs (all
+ * but transmittance, which packs itself) and its workgroups, each
+ * invocation of 64 packing up to 16 texels of the largest of them. */
+static int plan_pack(struct eng *e, const struct sky_state *s, struct plan *pl, char *err,
+		     size_t err_size)
+{
+	struct spec k = { { 0 } };
+	uint64_t most = 0;
+	k.v[SPEC_PACK_MASK] = (int32_t)(pl->mask & ~STATE_BIT(STATE_TRANSMITTANCE));
+	if (!k.v[SPEC_PACK_MASK])
+		return 0;
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		if (k.v[SPEC_PACK_MASK] & STATE_BIT(t) && table_texels(s, t) > most)
+			most = table_texels(s, t);
+	uint64_t groups = (most + 64 * 16 - 1) / (64 * 16);
+	pl->pack_groups = groups > e->limits.maxComputeWorkGroupCount[0]
+				  ? e->limits.maxComputeWorkGroupCount[0] : (uint32_t)groups;
+	return get_pipeline(e, PASS_PACK, &k, &pl->pack_pipe, err, err_size);
+}
 
 /* Fills params and plan for s and mask, creating the pipelines it lacks. */
 static int make_plan(struct eng *e, const struct sky_state *s, uint32_t mask, struct gpu_params *params,
@@ -309,9 +399,9 @@ static int make_plan(struct eng *e, const struct sky_state *s, uint32_t mask, st
 	eng_column_key(params, &ck, &ret->key);
 	ret->run_columns = (mask & STATE_BIT(STATE_TRANSMITTANCE)) &&
 			   (!e->columns_valid || memcmp(&ret->key, &e->column_key, sizeof(ret->key)));
-	if (ret->run_columns)
-		return get_pipeline(e, PASS_COLUMNS, &ck, &ret->column_pipe, err, err_size);
-	return 0;
+	if (ret->run_columns && (rc = get_pipeline(e, PASS_COLUMNS, &ck, &ret->column_pipe, err, err_size)) < 0)
+		return rc;
+	return s->quality.storage == STATE_F16 && mask ? plan_pack(e, s, ret, err, err_size) : 0;
 }
 
 /* Records the plan's passes into e->cmd, then the copies of its tables to
@@ -333,25 +423,33 @@ static int record_plan(struct eng *e, const struct sky_state *s, const struct pl
 		uint32_t gx, gy;
 		groups(s, t, &gx, &gy);
 		if (t == STATE_TRANSMITTANCE && pl->run_columns)
-			record_pass(e, PASS_COLUMNS, pl->column_pipe, gx, gy, 1);
-		/* Every view's volume in one dispatch: z is the view. */
-		record_pass(e, t, pl->pipes[t], gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1);
-		if (t == STATE_MULTISCATTER && pl->iterations > 0)
-			record_iteration(e, s, pl->iterate_pipes, pl->iterations);
+			record_pass(e, PASS_COLUMNS, pl->column_pipe, gx, gy, 1, VK_NULL_HANDLE, 0);
+		/* Every view's volume in one dispatch: z is the view. The float16
+		 * copies follow the last pass, in its time. */
+		bool last = !(pl->mask >> (t + 1)), iterate = t == STATE_MULTISCATTER && pl->iterations > 0;
+		uint32_t pack = last ? pl->pack_groups : 0;
+		record_pass(e, t, pl->pipes[t], gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1,
+			    pl->pack_pipe, iterate ? 0 : pack);
+		if (iterate)
+			record_iteration(e, s, pl->iterate_pipes, pl->iterations, pl->pack_pipe, pack);
 	}
 	VkMemoryBarrier to_copy = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
 		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT };
 	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 				   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &to_copy, 0, NULL, 0, NULL);
+	/* The published copy: the float32 texels, or the binary16 ones after them. */
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if (pl->mask & STATE_BIT(t)) {
-			VkBufferCopy c = { 0, 0, e->table_bytes[t] };
+			VkBufferCopy c = { s->quality.storage == STATE_F16 ? float_bytes(s, t) : 0, 0,
+					   e->table_bytes[t] };
 			e->vk.vkCmdCopyBuffer(e->cmd, e->table[t].buf, e->readback[t].buf, 1, &c);
 		}
+	/* The host reads the copies and the pack pass's scales. */
 	VkMemoryBarrier to_host = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
-		.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT, .dstAccessMask = VK_ACCESS_HOST_READ_BIT };
-	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT,
-				   0, 1, &to_host, 0, NULL, 0, NULL);
+		.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_WRITE_BIT,
+		.dstAccessMask = VK_ACCESS_HOST_READ_BIT };
+	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+				   VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0, NULL, 0, NULL);
 	VK_TRY(e->vk.vkEndCommandBuffer(e->cmd));
 fail:
 	return rc;
@@ -385,6 +483,13 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 		return rc;
 	memcpy(e->params.map, &params, sizeof(params));
 	eng_fill_views(s, e->views.map);
+	if (s->quality.storage == STATE_F16) {
+		struct gpu_pack pack;
+		memset(&pack, 0, sizeof(pack));
+		for (int t = STATE_MULTISCATTER; t < STATE_N_TABLES; t++)
+			pack.texels[t] = (mask & STATE_BIT(t)) ? (uint32_t)table_texels(s, t) : 0;
+		memcpy(e->pack.map, &pack, sizeof(pack));
+	}
 	rc = record_plan(e, s, &pl, err, err_size);
 	if (rc < 0)
 		return rc;
@@ -401,6 +506,7 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 	}
 	e->columns_in_flight = pl.run_columns;
 	e->iterations_in_flight = pl.iterations;
+	e->pack_in_flight = s->quality.storage == STATE_F16;
 	pthread_mutex_lock(&e->lock);
 	e->in_flight_mask = mask;
 	e->pending = true;
@@ -443,6 +549,9 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 		VkMappedMemoryRange r = { .sType = VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE,
 			.memory = e->readback[i].mem, .size = VK_WHOLE_SIZE };
 		VK_TRY(e->vk.vkInvalidateMappedMemoryRanges(e->dev, 1, &r));
+		e->rgb_scale_log2[i] = !e->pack_in_flight ? 0
+				       : i == STATE_TRANSMITTANCE ? SKY_F16_TRANSMITTANCE_LOG2
+				       : ((const struct gpu_pack *)e->pack.map)->scale_log2[i];
 	}
 	if (e->timestamps) {
 		uint64_t ts[2 * STATE_N_TABLES];

@@ -60,6 +60,7 @@
 	X(vkCmdDispatch)                     \
 	X(vkCmdPipelineBarrier)              \
 	X(vkCmdCopyBuffer)                   \
+	X(vkCmdFillBuffer)                   \
 	X(vkCmdWriteTimestamp)               \
 	X(vkCmdResetQueryPool)               \
 	X(vkCreateQueryPool)                 \

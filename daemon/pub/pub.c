@@ -277,7 +277,8 @@ static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *s
 }
 
 void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
-		 const void *const tables[STATE_N_TABLES], uint64_t generation)
+		 const void *const tables[STATE_N_TABLES],
+		 const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation)
 {
 	struct sky_shm_header *h = p->header;
 	uint32_t i = p->next_slot;
@@ -297,6 +298,7 @@ void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
 		if ((valid & STATE_BIT(t)) && tables[t]) {
 			memcpy(base + h->tables[t].offset, tables[t], h->tables[t].bytes);
 			slot->valid_tables |= STATE_BIT(t);
+			slot->state.rgb_scale_log2[t] = rgb_scale_log2 ? rgb_scale_log2[t] : 0;
 		}
 	publish_views(h, slot, base, s, valid, tables[STATE_AERIAL]);
 	slot->checksum = pub_checksum(h, slot, base);

@@ -39,10 +39,13 @@ uint64_t pub_bytes(const struct pub *p);
 int pub_same_layout(const struct pub *p, const struct sky_state *s);
 
 /* Writes s and the tables in valid (pointers per enum state_table, each of
- * the layout's size) into the next slot and makes it current as generation.
- * Wakes futex waiters. Never blocks; costs one copy of the valid tables. */
+ * the layout's size) into the next slot and makes it current as generation,
+ * with each valid table's RGB scale, log2 (eng_table_scale_log2: 0 for
+ * float32; NULL: all 0) in the slot's state. Wakes futex waiters. Never
+ * blocks; costs one copy of the valid tables. */
 void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
-		 const void *const tables[STATE_N_TABLES], uint64_t generation);
+		 const void *const tables[STATE_N_TABLES],
+		 const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation);
 
 /* Marks the region superseded (a new layout replaces it) and wakes waiters. */
 void pub_supersede(struct pub *p);

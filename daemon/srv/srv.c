@@ -166,10 +166,13 @@ static void publish(struct srv *s, uint32_t computed)
 		s->pub = p;
 		new_region = 1;
 	}
-	for (int t = 0; t < STATE_N_TABLES; t++)
+	int32_t scales[STATE_N_TABLES];
+	for (int t = 0; t < STATE_N_TABLES; t++) {
 		tables[t] = (s->eng_valid & STATE_BIT(t)) ? eng_table(s->eng, (enum state_table)t, NULL)
 							  : NULL;
-	pub_publish(s->pub, &s->computing_state, s->eng_valid, tables, generation);
+		scales[t] = eng_table_scale_log2(s->eng, (enum state_table)t);
+	}
+	pub_publish(s->pub, &s->computing_state, s->eng_valid, tables, scales, generation);
 	s->published_keys = s->computing_keys;
 	s->generation = generation;
 	s->st.published_computed = computed;
