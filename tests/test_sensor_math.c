@@ -91,8 +91,8 @@ static void test_horizontal(uint32_t format)
 {
 	const float trans[4] = { 0.5f, 0.5f, 0.5f, 0.0f };
 	const float sky[4] = { 1000.0f, 2000.0f, 3000.0f, 0.0f };
-	struct skysample_table tt = { uniform_table(format, 16, 8, trans), format, 16, 8, 1 };
-	struct skysample_table st = { uniform_table(format, 24, 16, sky), format, 24, 16, 1 };
+	struct skysample_table tt = { uniform_table(format, 16, 8, trans), format, 16, 8, 1, 0 };
+	struct skysample_table st = { uniform_table(format, 24, 16, sky), format, 24, 16, 1, 0 };
 	struct sky_shm_state s;
 	struct sensor_sky_lux lx;
 
