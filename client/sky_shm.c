@@ -1,6 +1,7 @@
 /* sky_shm.c - libsky's side of the shared memory: mapping the sealed memfd
- * read-only, seqlock views and snapshots of the newest slot, and waiting for
- * a new generation on the futex word (following a layout change). */
+ * read-only, seqlock views and snapshots of the newest slot whose apply time
+ * has passed, and waiting for a new generation on the futex word (following
+ * a layout change) or for a slot's apply time. */
 #include <errno.h>
 #include <fcntl.h>
 #include <linux/futex.h>
@@ -73,14 +74,67 @@ static const struct sky_shm_slot *slot_at(const sky_client *c, uint32_t i)
 					     (uint64_t)i * c->map->slot_bytes);
 }
 
-/* Picks the newest slot and its even sequence; -EAGAIN while it is odd. */
+static int64_t realtime_ns(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_REALTIME, &ts);
+	return (int64_t)ts.tv_sec * 1000000000ll + ts.tv_nsec;
+}
+
+/* The spare slot (the last: the daemon writes a generation computed ahead
+ * of its apply time there before it makes it current) when it is stable,
+ * has an apply time and is newer than the current slot: 1 with its
+ * sequence, generation and apply time, else 0. */
+static int spare_ahead(const sky_client *c, uint32_t current, uint32_t *ret_seq,
+		       uint64_t *ret_gen, int64_t *ret_apply_ns)
+{
+	uint32_t j = c->map->n_slots - 1;
+	if (j == current)
+		return 0;
+	const struct sky_shm_slot *s = slot_at(c, j);
+	uint32_t seq = __atomic_load_n(&s->seq, __ATOMIC_ACQUIRE);
+	if (seq & 1u)
+		return 0;
+	uint64_t g = __atomic_load_n(&s->generation, __ATOMIC_RELAXED);
+	int64_t at = __atomic_load_n(&s->apply_time_ns, __ATOMIC_RELAXED);
+	uint64_t cur = __atomic_load_n(&slot_at(c, current)->generation, __ATOMIC_RELAXED);
+	atomic_thread_fence(memory_order_acquire);
+	if (__atomic_load_n(&s->seq, __ATOMIC_RELAXED) != seq || at <= 0 || g <= cur)
+		return 0;
+	*ret_seq = seq;
+	*ret_gen = g;
+	*ret_apply_ns = at;
+	return 1;
+}
+
+/* Picks the newest slot whose apply time has passed and its even sequence:
+ * the current slot, or the spare slot ahead of it once its apply time
+ * (CLOCK_REALTIME) is reached; -EAGAIN while the current slot is odd.
+ * ret_wake_ns (may be NULL) gets the apply time of a spare slot still
+ * ahead, 0 when there is none. */
 static int pick_slot(const sky_client *c, uint32_t *ret_index, uint32_t *ret_seq,
-		     uint32_t *ret_gen)
+		     uint32_t *ret_gen, int64_t *ret_wake_ns)
 {
 	uint32_t gen = __atomic_load_n(&c->map->generation, __ATOMIC_ACQUIRE);
 	uint32_t i = __atomic_load_n(&c->map->current_slot, __ATOMIC_ACQUIRE);
+	uint32_t seq;
+	uint64_t ahead_gen;
+	int64_t apply_ns;
+
+	if (ret_wake_ns)
+		*ret_wake_ns = 0;
 	if (i >= c->map->n_slots)
 		return -EPROTO;
+	if (spare_ahead(c, i, &seq, &ahead_gen, &apply_ns)) {
+		if (apply_ns <= realtime_ns()) {
+			*ret_index = c->map->n_slots - 1;
+			*ret_seq = seq;
+			*ret_gen = (uint32_t)ahead_gen;
+			return 0;
+		}
+		if (ret_wake_ns)
+			*ret_wake_ns = apply_ns;
+	}
 	uint32_t s = __atomic_load_n(&slot_at(c, i)->seq, __ATOMIC_ACQUIRE);
 	if (s & 1u)
 		return -EAGAIN;
@@ -98,7 +152,7 @@ int sky_view_begin(sky_client *c, struct sky_view *ret_view)
 		return -ENOTCONN;
 	for (int t = 0; t < SKY_VIEW_TRIES; t++) {
 		uint32_t i, seq, gen;
-		int r = pick_slot(c, &i, &seq, &gen);
+		int r = pick_slot(c, &i, &seq, &gen, NULL);
 		if (r == -EAGAIN)
 			continue;
 		if (r < 0)
@@ -134,7 +188,7 @@ int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_view *ret_vie
 		return -ENOBUFS;
 	for (int t = 0; t < SKY_SNAPSHOT_TRIES; t++) {
 		uint32_t i, seq, gen;
-		int r = pick_slot(c, &i, &seq, &gen);
+		int r = pick_slot(c, &i, &seq, &gen, NULL);
 		if (r == -EAGAIN)
 			continue;
 		if (r < 0)
@@ -180,6 +234,42 @@ static int follow_layout(sky_client *c, int64_t deadline)
 	return sky_pump_until(c, map_replaced, deadline < 0 ? -1 : sky_left_ms(deadline), false);
 }
 
+/* The generation a reader sees now (pick_slot's) and, in *ret_wake_ns,
+ * the apply time at which that changes by itself (0: none). Returns the
+ * header's word when no slot is stable (a publication is under way). */
+static uint32_t visible_generation(const sky_client *c, uint32_t word, int64_t *ret_wake_ns)
+{
+	uint32_t i, seq, gen;
+
+	if (pick_slot(c, &i, &seq, &gen, ret_wake_ns) < 0) {
+		*ret_wake_ns = 0;
+		return word;
+	}
+	return gen;
+}
+
+/* Sleeps on the futex word while it holds word, at most left_ms (-1: no
+ * bound) and not past wake_ns (CLOCK_REALTIME, 0: none). 0 or -errno. */
+static int futex_sleep(const uint32_t *addr, uint32_t word, int left_ms, int64_t wake_ns)
+{
+	int64_t ns = left_ms < 0 ? -1 : (int64_t)left_ms * 1000000ll;
+	if (wake_ns > 0) {
+		int64_t until = wake_ns - realtime_ns();
+		if (until < 0)
+			until = 0;
+		if (ns < 0 || until < ns)
+			ns = until;
+	}
+	struct timespec ts = { (time_t)(ns / 1000000000ll), (long)(ns % 1000000000ll) };
+	/* Shared (not private) futex: the word lives in a shared mapping. */
+	long r = syscall(SYS_futex, addr, FUTEX_WAIT, word, ns < 0 ? NULL : &ts, NULL, 0);
+	if (r < 0 && errno == EINTR)
+		return -EINTR;
+	if (r < 0 && errno != EAGAIN && errno != ETIMEDOUT)
+		return -errno;
+	return 0;
+}
+
 int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generation)
 {
 	if (!c)
@@ -193,22 +283,22 @@ int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generat
 			if (r < 0)
 				return r;
 		}
-		uint32_t *word = (uint32_t *)&c->map->generation;
+		const uint32_t *word = &c->map->generation;
 		uint32_t g = __atomic_load_n(word, __ATOMIC_ACQUIRE);
-		if (g != seen && !__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE)) {
+		int64_t wake_ns;
+		uint32_t v = visible_generation(c, g, &wake_ns);
+		if (v != seen && !__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE)) {
 			if (ret_generation)
-				*ret_generation = g;
+				*ret_generation = v;
 			return 0;
 		}
 		int left = sky_left_ms(deadline);
 		if (left == 0)
 			return -ETIMEDOUT;
-		struct timespec ts = { left / 1000, (long)(left % 1000) * 1000000L };
-		/* Shared (not private) futex: the word lives in a shared mapping. */
-		long r = syscall(SYS_futex, word, FUTEX_WAIT, seen, left < 0 ? NULL : &ts, NULL, 0);
-		if (r < 0 && errno == EINTR)
-			return -EINTR;
-		if (r < 0 && errno != EAGAIN && errno != ETIMEDOUT)
-			return -errno;
+		/* A slot ahead of its apply time wakes nobody when the time
+		 * comes: the wait is bounded by that time. */
+		int r = futex_sleep(word, g, left, wake_ns);
+		if (r < 0)
+			return r;
 	}
 }

@@ -276,12 +276,14 @@ static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *s
 	}
 }
 
-void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
-		 const void *const tables[STATE_N_TABLES],
-		 const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation)
+/* Writes one slot under its seqlock: s and the valid tables, as generation,
+ * to become current at apply_time_ns (0: now). Touches no header word. */
+static void write_slot(struct pub *p, uint32_t i, const struct sky_state *s, uint32_t valid,
+		       const void *const tables[STATE_N_TABLES],
+		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
+		       int64_t apply_time_ns)
 {
 	struct sky_shm_header *h = p->header;
-	uint32_t i = p->next_slot;
 	uint8_t *base = slot_base(p, i);
 	struct sky_shm_slot *slot = (struct sky_shm_slot *)base;
 	_Atomic uint32_t *seq = (_Atomic uint32_t *)&slot->seq;
@@ -291,7 +293,7 @@ void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
 	atomic_store_explicit(seq, s0 + 1, memory_order_relaxed);
 	atomic_thread_fence(memory_order_release);
 	slot->generation = generation;
-	slot->apply_time_ns = 0;
+	slot->apply_time_ns = apply_time_ns;
 	pub_shm_state(s, &slot->state);
 	slot->valid_tables = 0;
 	for (int t = 0; t < STATE_N_TABLES; t++)
@@ -303,13 +305,43 @@ void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
 	publish_views(h, slot, base, s, valid, tables[STATE_AERIAL]);
 	slot->checksum = pub_checksum(h, slot, base);
 	atomic_store_explicit(seq, s0 + 2, memory_order_release);
+}
 
+void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
+		 const void *const tables[STATE_N_TABLES],
+		 const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation)
+{
+	pub_publish_at(p, s, valid, tables, rgb_scale_log2, generation, 0);
+}
+
+void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
+		    const void *const tables[STATE_N_TABLES],
+		    const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
+		    int64_t apply_time_ns)
+{
+	struct sky_shm_header *h = p->header;
+	uint32_t i = p->next_slot;
+
+	write_slot(p, i, s, valid, tables, rgb_scale_log2, generation, apply_time_ns);
 	atomic_store_explicit((_Atomic uint32_t *)&h->current_slot, i, memory_order_release);
 	atomic_store_explicit((_Atomic uint32_t *)&h->generation, (uint32_t)generation,
 			      memory_order_release);
 	futex_wake_all(&h->generation);
 	/* The last slot stays spare for apply-time publications. */
 	p->next_slot = (i + 1) % (h->n_slots - 1);
+}
+
+void pub_publish_ahead(struct pub *p, const struct sky_state *s, uint32_t valid,
+		       const void *const tables[STATE_N_TABLES],
+		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
+		       int64_t apply_time_ns)
+{
+	struct sky_shm_header *h = p->header;
+
+	write_slot(p, h->n_slots - 1, s, valid, tables, rgb_scale_log2, generation, apply_time_ns);
+	/* The word keeps its value: waiters wake, find the slot ahead and
+	 * sleep again until its apply time. */
+	futex_wake_all(&h->generation);
 }
 
 void pub_supersede(struct pub *p)

@@ -6,7 +6,7 @@
  * so no client can map it writable, write it or resize it. Publication is a
  * seqlock per slot: a reader never blocks the writer and the writer never
  * waits for a reader. The slots rotate over n_slots - 1; the last slot is
- * kept for changes computed ahead of their apply time.
+ * kept for changes computed ahead of their apply time (pub_publish_ahead).
  *
  * Adoption (restart without losing clients): a sealed region cannot be
  * mapped writable again, so pub_adopt() reads an existing region (from the
@@ -46,6 +46,25 @@ int pub_same_layout(const struct pub *p, const struct sky_state *s);
 void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
 		 const void *const tables[STATE_N_TABLES],
 		 const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation);
+
+/* pub_publish for a generation that became current at apply_time_ns
+ * (CLOCK_REALTIME, passed or now; 0: now): the slot keeps the instant. */
+void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
+		    const void *const tables[STATE_N_TABLES],
+		    const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
+		    int64_t apply_time_ns);
+
+/* Writes a generation computed ahead of its apply time (CLOCK_REALTIME,
+ * > 0) into the spare slot (PUB_SLOTS - 1) without making it current:
+ * libsky hands it to clients from apply_time_ns on, while readers that
+ * ignore apply times keep the current slot until the daemon publishes the
+ * same generation with pub_publish_at at that instant. Wakes futex waiters
+ * (the word unchanged) so that they sleep until the apply time instead.
+ * Overwrites an earlier slot ahead. */
+void pub_publish_ahead(struct pub *p, const struct sky_state *s, uint32_t valid,
+		       const void *const tables[STATE_N_TABLES],
+		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
+		       int64_t apply_time_ns);
 
 /* Marks the region superseded (a new layout replaces it) and wakes waiters. */
 void pub_supersede(struct pub *p);

@@ -48,8 +48,9 @@ struct srv {
 
 	/* Switching at an apply time (srv_set_next_apply_time): the instant of
 	 * the pending state and of the computation in flight; a finished
-	 * computation whose instant is ahead stays in flight (held) until
-	 * hold_timer publishes it. */
+	 * computation whose instant is ahead goes into the spare slot at once
+	 * (libsky switches to it at that instant) and stays in flight (held)
+	 * until hold_timer makes it the current slot. */
 	struct srv_sync sync;
 	int64_t next_apply_ns;		/* for the next srv_change; 0 none */
 	int64_t pending_apply_ns;
@@ -142,11 +143,25 @@ static void fail(struct srv *s, uint64_t generation, const char *message)
 		s->listener.failed(s->ctx, generation, message);
 }
 
+/* The engine's valid tables and their scales, as the publisher takes them. */
+static void engine_tables(const struct srv *s, const void *ret_tables[STATE_N_TABLES],
+			  int32_t ret_scales[STATE_N_TABLES])
+{
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		ret_tables[t] = (s->eng_valid & STATE_BIT(t))
+					? eng_table(s->eng, (enum state_table)t, NULL)
+					: NULL;
+		ret_scales[t] = eng_table_scale_log2(s->eng, (enum state_table)t);
+	}
+}
+
 /* Publishes computing_state with the engine's tables (no GPU work when
- * mask is 0: only the state changed for tables nobody needs). */
-static void publish(struct srv *s, uint32_t computed)
+ * mask is 0: only the state changed for tables nobody needs), as current
+ * from apply_ns (0: now). */
+static void publish(struct srv *s, uint32_t computed, int64_t apply_ns)
 {
 	const void *tables[STATE_N_TABLES];
+	int32_t scales[STATE_N_TABLES];
 	int new_region = 0;
 	uint64_t generation = s->in_flight_generation;
 
@@ -166,13 +181,9 @@ static void publish(struct srv *s, uint32_t computed)
 		s->pub = p;
 		new_region = 1;
 	}
-	int32_t scales[STATE_N_TABLES];
-	for (int t = 0; t < STATE_N_TABLES; t++) {
-		tables[t] = (s->eng_valid & STATE_BIT(t)) ? eng_table(s->eng, (enum state_table)t, NULL)
-							  : NULL;
-		scales[t] = eng_table_scale_log2(s->eng, (enum state_table)t);
-	}
-	pub_publish(s->pub, &s->computing_state, s->eng_valid, tables, scales, generation);
+	engine_tables(s, tables, scales);
+	pub_publish_at(s->pub, &s->computing_state, s->eng_valid, tables, scales, generation,
+		       apply_ns);
 	s->published_keys = s->computing_keys;
 	s->generation = generation;
 	s->st.published_computed = computed;
@@ -180,6 +191,21 @@ static void publish(struct srv *s, uint32_t computed)
 	log_debug("generation %llu published", (unsigned long long)generation);
 	if (s->listener.published)
 		s->listener.published(s->ctx, generation, computed, new_region);
+}
+
+/* Writes the held computation into the spare slot for its apply time, so
+ * that libsky switches at that instant by itself; a new layout waits for
+ * the hold's end (its region comes with it). */
+static void publish_ahead(struct srv *s)
+{
+	const void *tables[STATE_N_TABLES];
+	int32_t scales[STATE_N_TABLES];
+
+	if (!pub_same_layout(s->pub, &s->computing_state))
+		return;
+	engine_tables(s, tables, scales);
+	pub_publish_ahead(s->pub, &s->computing_state, s->eng_valid, tables, scales,
+			  s->in_flight_generation, s->in_flight_apply_ns);
 }
 
 static int64_t realtime_ns(void)
@@ -190,9 +216,10 @@ static int64_t realtime_ns(void)
 	return (int64_t)ts.tv_sec * 1000000000ll + ts.tv_nsec;
 }
 
-/* Publishes the finished computation now, or holds it (in flight, so that
- * nothing overwrites the engine's tables) until its apply time. Returns 1
- * when held. */
+/* Publishes the finished computation now, or, when its apply time is
+ * ahead, into the spare slot at once and holds it (in flight, so that
+ * nothing overwrites the engine's tables) until that time makes it the
+ * current slot for readers that ignore apply times. Returns 1 when held. */
 static int finish(struct srv *s, uint32_t computed)
 {
 	int64_t ahead_ns = s->in_flight_apply_ns - realtime_ns();
@@ -202,9 +229,11 @@ static int finish(struct srv *s, uint32_t computed)
 		s->in_flight = 1;
 		s->held = 1;
 		s->held_computed = computed;
+		publish_ahead(s);
 		return 1;
 	}
-	publish(s, computed);
+	/* A slot made current never names an instant still ahead. */
+	publish(s, computed, s->in_flight_apply_ns > 0 && ahead_ns <= 0 ? s->in_flight_apply_ns : 0);
 	return 0;
 }
 
@@ -218,7 +247,7 @@ static void hold_expired(void *ctx)
 		return;
 	s->held = 0;
 	s->in_flight = 0;
-	publish(s, s->held_computed);
+	publish(s, s->held_computed, s->in_flight_apply_ns);
 	kick(s);
 }
 

@@ -107,8 +107,10 @@ void srv_set_sync(struct srv *s, const struct srv_sync *sync);
 
 /* The next change (srv_change, srv_apply) becomes visible at apply_time_ns
  * (CLOCK_REALTIME) rather than the hook's: its tables are computed at once
- * and their generation is published at that instant, or at once when it
- * has passed. Changes that coalesce with it keep the newest instant. */
+ * and written into the region's spare slot with that instant
+ * (pub_publish_ahead: libsky switches to it then), and their generation is
+ * made the current slot at that instant, or at once when it has passed.
+ * Changes that coalesce with it keep the newest instant. */
 void srv_set_next_apply_time(struct srv *s, int64_t apply_time_ns);
 
 /* The tables some client needs: the demand and its dependencies under the
