@@ -17,7 +17,8 @@
  *     sky_snapshot() copies a slot into the caller's memory, retrying a torn
  *     copy. Neither ever blocks the daemon nor holds anything it waits for.
  *   - sky_wait() sleeps until a new generation is published (a futex on the
- *     header's generation word), or, for programs with an event loop,
+ *     header's generation word) or a slot published ahead reaches its apply
+ *     time, or, for programs with an event loop,
  *     sky_get_fd() and sky_dispatch() deliver "changed" events.
  *   - sky_sample_*() evaluate the tables on the CPU with the published uv
  *     mappings (proto/skymap.h, proto/skysample.h: the daemon's `sample`
@@ -307,12 +308,21 @@ SKY_EXPORT const struct sky_shm_header *sky_header(const sky_client *c);
 struct sky_view {
 	const struct sky_shm_header *header;
 	const struct sky_shm_slot *slot;	/* state, generation, valid tables */
-	uint32_t generation;			/* header generation when taken */
+	uint32_t generation;			/* header generation when taken (a slot
+						 * published ahead: its own) */
 	uint32_t valid_tables;			/* SKY_TABLE_BIT mask */
 	uint32_t slot_index;
 	uint32_t seq;				/* the even sequence read at the start */
 	const void *slot_base;			/* start of the slot's bytes */
 };
+
+/* Apply times: with replication (docs/sync.md) skyd writes a sky computed
+ * ahead of its apply time (slot->apply_time_ns, CLOCK_REALTIME) into a spare
+ * slot at once. sky_view_begin(), sky_snapshot() and sky_wait() hand out the
+ * newest slot whose apply time has passed: before that instant a client
+ * gets the old sky, from it the new one, whether or not skyd has made it
+ * the current slot yet. Such a view's generation is its slot's (low 32
+ * bits), the value skyd's header takes when it makes the slot current. */
 
 /* Points ret_view at the newest stable slot in place, without copying.
  * Never blocks: if the writer holds the newest slot it retries a bounded
@@ -350,9 +360,11 @@ SKY_EXPORT size_t sky_snapshot_size(const sky_client *c);
  * daemon's computation on a machine with few cores. Since 0.1. */
 SKY_EXPORT int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_view *ret_view);
 
-/* Waits until the header's generation differs from seen, or timeout_ms
- * passes (< 0: forever, 0: just look). The daemon wakes the futex on every
- * publication. 0 and *ret_generation (may be NULL) set to the current
+/* Waits until the generation a view would get (the header's, or that of a
+ * slot published ahead once its apply time has passed) differs from seen,
+ * or timeout_ms passes (< 0: forever, 0: just look). The daemon wakes the
+ * futex on every publication; a slot ahead of its apply time bounds the
+ * sleep by that instant. 0 and *ret_generation (may be NULL) set to that
  * generation; -ETIMEDOUT; -EINTR if a signal interrupted it; -ENOTCONN
  * before sky_subscribe(). It reads the socket only when the region was
  * superseded (a layout change): then it waits there for the new region,

@@ -40,7 +40,13 @@ enum sky_ack {
  *   atomic_thread_fence(acquire); s2 = atomic_load_relaxed(&slot->seq)
  *   if s1 != s2 the copy is torn: retry
  * The newest slot is header->current_slot; header->generation increments on
- * every publication and is the futex word to wait on. When the layout
+ * every publication and is the futex word to wait on. The last slot
+ * (n_slots - 1) is spare: skyd writes a generation computed ahead of its
+ * apply time there (apply_time_ns > 0, generation above the current
+ * slot's) before it makes it current at that instant; a reader that honours
+ * apply times takes it once apply_time_ns <= CLOCK_REALTIME now and bounds
+ * its futex wait by that instant (PROTOCOL.md, "Switching at an apply
+ * time"). When the layout
  * changes (new sizes), the old region gets superseded = 1 and one last
  * generation increment to wake its waiters; the new memfd arrives on the
  * control socket with a "layout:" line (PROTOCOL.md).
@@ -120,7 +126,8 @@ struct sky_shm_slot {
 	uint32_t seq;			/* odd while written, even when stable (atomic) */
 	uint32_t valid_tables;		/* bit (1 << sky_shm_table_id) per valid table */
 	uint64_t generation;		/* the generation this slot was published in */
-	int64_t apply_time_ns;		/* CLOCK_REALTIME at which it becomes current; 0 now */
+	int64_t apply_time_ns;		/* CLOCK_REALTIME at which it becomes current; 0 now;
+					 * never hand out a slot whose instant is ahead */
 	uint64_t checksum;		/* of the state and the valid tables, sky_shm_checksum_words */
 	struct sky_shm_state state;
 	uint32_t n_views;		/* views[0 .. n_views) describe this slot's views */
