@@ -6,27 +6,22 @@
  * nothing. Exits 77 without mosquitto or a Vulkan device.
  *
  * Usage: test_daemon_sync switch|restart|garbage */
-#include <arpa/inet.h>
 #include <errno.h>
 #include <math.h>
-#include <netinet/in.h>
 #include <pthread.h>
-#include <pwd.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
 #include "daemon_harness.h"
 #include "sky.h"
+#include "sync_harness.h"
 
-#define MOSQUITTO_BIN "/usr/sbin/mosquitto"
-#define MOSQUITTO_PUB "/usr/bin/mosquitto_pub"
-#define N_SKYD 3
+#define N_SKYD SYNC_N_SKYD
 /* The apply-time switch lands within this across the clients. */
 #define SPREAD_MAX_NS 2000000ll
 
@@ -39,166 +34,41 @@ static int failures;
 		}                                                                         \
 	} while (0)
 
-static char dir[128], broker_conf[192], url[96];
-static int port;
-static pid_t broker_pid = -1;
-static struct daemon *skyd[N_SKYD];
-static sky_client *client[N_SKYD];
+static struct sync_rig rig;
+#define client rig.client
 
 static int64_t realtime_ns(void)
 {
-	struct timespec ts;
-	clock_gettime(CLOCK_REALTIME, &ts);
-	return (int64_t)ts.tv_sec * 1000000000ll + ts.tv_nsec;
-}
-
-static int free_port(void)
-{
-	struct sockaddr_in a = { .sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK) };
-	socklen_t len = sizeof(a);
-	int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0), p = -1;
-
-	if (fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof(a)) == 0 &&
-	    getsockname(fd, (struct sockaddr *)&a, &len) == 0)
-		p = ntohs(a.sin_port);
-	if (fd >= 0)
-		close(fd);
-	return p;
-}
-
-static int tcp_accepts(void)
-{
-	struct sockaddr_in a = { .sin_family = AF_INET, .sin_port = htons((uint16_t)port),
-				 .sin_addr.s_addr = htonl(INADDR_LOOPBACK) };
-	int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-	int ok = fd >= 0 && connect(fd, (struct sockaddr *)&a, sizeof(a)) == 0;
-
-	if (fd >= 0)
-		close(fd);
-	return ok;
-}
-
-/* Starts mosquitto (no persistence) and waits on its output pipe until
- * it accepts a connection or dies. */
-static int broker_start(void)
-{
-	int p[2];
-
-	if (pipe2(p, O_CLOEXEC) < 0)
-		return -1;
-	broker_pid = fork();
-	if (broker_pid == 0) {
-		dup2(p[1], 1);
-		dup2(p[1], 2);
-		execl(MOSQUITTO_BIN, "mosquitto", "-c", broker_conf, (char *)NULL);
-		_exit(127);
-	}
-	close(p[1]);
-	for (int i = 0; i < 1000; i++) {
-		struct pollfd pfd = { .fd = p[0], .events = POLLIN };
-		char buf[256];
-		if (tcp_accepts()) {
-			close(p[0]);
-			return 0;
-		}
-		if (poll(&pfd, 1, 10) > 0 && read(p[0], buf, sizeof(buf)) == 0)
-			break;
-	}
-	close(p[0]);
-	return -1;
-}
-
-static void broker_kill(void)
-{
-	if (broker_pid > 0) {
-		kill(broker_pid, SIGKILL);
-		waitpid(broker_pid, NULL, 0);
-	}
-	broker_pid = -1;
+	return sync_realtime_ns();
 }
 
 static void setup_broker(void)
 {
-	struct passwd *pw = getpwuid(getuid());
-
-	if (access(MOSQUITTO_BIN, X_OK) != 0 || access(MOSQUITTO_PUB, X_OK) != 0) {
-		printf("skipped: no %s or %s\n", MOSQUITTO_BIN, MOSQUITTO_PUB);
+	if (!sync_have_mosquitto()) {
+		printf("skipped: no %s or %s\n", SYNC_MOSQUITTO_BIN, SYNC_MOSQUITTO_PUB);
 		exit(77);
 	}
 	harness_need_device();
-	if (harness_mkdtemp(dir, sizeof(dir)) < 0)
-		exit(1);
-	port = free_port();
-	snprintf(broker_conf, sizeof(broker_conf), "%s/mosquitto.conf", dir);
-	FILE *f = fopen(broker_conf, "w");
-	if (!f)
-		exit(1);
-	fprintf(f, "listener %d 127.0.0.1\npersistence false\nallow_anonymous true\n", port);
-	if (pw)
-		fprintf(f, "user %s\n", pw->pw_name);
-	fclose(f);
-	snprintf(url, sizeof(url), "mqtt://127.0.0.1:%d/sky", port);
-	if (broker_start() < 0) {
+	if (sync_broker_setup(&rig) < 0) {
 		fprintf(stderr, "mosquitto did not start\n");
 		exit(1);
 	}
 }
 
-static const char *const role_of[N_SKYD] = { "controller", "follower", "follower" };
-
 static int start_skyd(int i)
 {
-	const char *args[] = { "--sync", url, "--sync-role", role_of[i], "sync_lead_ms=300",
-			       HARNESS_SMALL, NULL };
-	/* sync_lead_ms is a config key, not a state key: it goes in a file. */
-	char conf[256], cdir[sizeof(skyd[0]->dir)];
-	int r;
-
-	/* A restart keeps its directory. */
-	if (!skyd[i]->dir[0] && harness_mkdtemp(skyd[i]->dir, sizeof(skyd[0]->dir)) < 0)
-		return -1;
-	snprintf(conf, sizeof(conf), "%s/skyd.conf", skyd[i]->dir);
-	FILE *f = fopen(conf, "w");
-	if (!f)
-		return -1;
-	fprintf(f, "sync_lead_ms = 300\n");
-	fclose(f);
-	const char *argv[32];
-	int n = 0;
-	argv[n++] = "--config";
-	argv[n++] = conf;
-	for (int k = 0; args[k]; k++)
-		if (strncmp(args[k], "sync_lead_ms", 12) != 0)
-			argv[n++] = args[k];
-	argv[n] = NULL;
-	memcpy(cdir, skyd[i]->dir, sizeof(cdir));
-	r = daemon_start_in(skyd[i], cdir, argv);
-	if (r < 0)
-		return r;
-	if (sky_connect(skyd[i]->sock, &client[i]) < 0 ||
-	    sky_subscribe(client[i], 0xf, 0) < 0)
-		return -1;
-	return 0;
+	return sync_skyd_start(&rig, i);
 }
 
 static void stop_skyd(int i)
 {
-	sky_disconnect(client[i]);
-	client[i] = NULL;
-	daemon_stop(skyd[i], SIGKILL);
+	sync_skyd_stop(&rig, i);
 }
 
-/* One request to skyd i; its reply in buf; the ACK code or 0. */
+/* One request to skyd i; its reply in buf; the ACK code or -1. */
 static int request(int i, const char *line, char *buf, size_t size)
 {
-	struct conn c;
-	int r;
-
-	if (conn_open(&c, skyd[i]->sock) < 0)
-		return -1;
-	r = conn_request(&c, line, buf, size);
-	conn_close(&c);
-	return r;
+	return sync_request(&rig, i, line, buf, size);
 }
 
 static uint64_t status_u64(int i, const char *key)
@@ -212,25 +82,14 @@ static uint64_t status_u64(int i, const char *key)
 
 static int status_is(int i, const char *key, const char *want)
 {
-	char buf[8192], v[128];
-
-	return request(i, "status", buf, sizeof(buf)) == 0 && reply_value(buf, key, v, sizeof(v)) &&
-	       strcmp(v, want) == 0;
+	return sync_status_is(&rig, i, key, want);
 }
 
-/* The z of the sun direction in client i's current slot; NAN none. */
+/* The z of the sun direction in client i's slot as libsky hands it out;
+ * NAN none. */
 static double sun_z(int i)
 {
-	struct sky_view v;
-
-	for (int k = 0; k < 100; k++) {
-		if (sky_view_begin(client[i], &v) < 0)
-			continue;
-		double z = v.slot->state.sun_direction[2];
-		if (sky_view_end(client[i], &v))
-			return z;
-	}
-	return NAN;
+	return sync_sun_z(&rig, i, NULL);
 }
 
 /* Waits on client i's futex (a publication) until pred holds or about
@@ -389,10 +248,10 @@ static void scenario_restart(void)
 	char buf[1024];
 	int64_t late;
 
-	broker_kill();
+	sync_broker_kill(&rig);
 	for (int i = 0; i < N_SKYD; i++)
 		CHECK(wait_until(i, lost, i) == 0);
-	CHECK(broker_start() == 0);
+	CHECK(sync_broker_start(&rig) == 0);
 	for (int i = 0; i < N_SKYD; i++)
 		CHECK(wait_until(i, connected, i) == 0);
 	printf("spread after the restart %.3f ms\n", (double)switch_to(30.0, &late) / 1e6);
@@ -418,10 +277,10 @@ static void scenario_garbage(void)
 
 	snprintf(topic, sizeof(topic), "sky/state");
 	char portstr[16];
-	snprintf(portstr, sizeof(portstr), "%d", port);
+	snprintf(portstr, sizeof(portstr), "%d", rig.port);
 	pid_t p = fork();
 	if (p == 0) {
-		execl(MOSQUITTO_PUB, "mosquitto_pub", "-h", "127.0.0.1", "-p", portstr, "-t", topic,
+		execl(SYNC_MOSQUITTO_PUB, "mosquitto_pub", "-h", "127.0.0.1", "-p", portstr, "-t", topic,
 		      "-q", "1", "-m", "skysync=1\ncontroller=x/1/2\ngarbage\n", (char *)NULL);
 		_exit(127);
 	}
@@ -452,14 +311,11 @@ static void scenario_garbage(void)
 int main(int argc, char **argv)
 {
 	const char *scenario = argc > 1 ? argv[1] : "switch";
-	char cmd[192];
 
 	setup_broker();
 	for (int i = 0; i < N_SKYD; i++)
-		skyd[i] = calloc(1, sizeof(*skyd[i]));
-	for (int i = 0; i < N_SKYD; i++)
 		if (start_skyd(i) < 0) {
-			broker_kill();
+			sync_rig_finish(&rig);
 			return 1;
 		}
 	for (int i = 0; i < N_SKYD; i++)
@@ -472,13 +328,7 @@ int main(int argc, char **argv)
 		scenario_garbage();
 	else
 		fprintf(stderr, "unknown scenario %s\n", scenario), failures++;
-	for (int i = 0; i < N_SKYD; i++) {
-		sky_disconnect(client[i]);
-		daemon_cleanup(skyd[i]);
-	}
-	broker_kill();
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", dir);
-	(void)!system(cmd);
+	sync_rig_finish(&rig);
 	printf("%s: %s\n", scenario, failures ? "FAILED" : "ok");
 	return failures ? 1 : 0;
 }
