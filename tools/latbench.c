@@ -5,8 +5,11 @@
  * to the generation it makes, visible in a client. Starts its own skyd
  * (default layout) on a private socket; the sensor figure runs latbench
  * again under umockdev-run with a replayed MCP2221A and BH1750
- * (tests/sensor/mcp-ramp.pcap), skipped without umockdev-run. A
- * benchmark, not a test: it prints, it does not judge. */
+ * (tests/sensor/mcp-ramp.pcap), skipped without umockdev-run.
+ * `latbench --sync [N]` instead measures replication: mosquitto and three
+ * skyd (testkit/sync_harness.h), N sets on the controller, the latency to
+ * the new sky on every follower and the spread of their switches; skipped
+ * without mosquitto. A benchmark, not a test: it prints, it does not judge. */
 #include <linux/futex.h>
 #include <math.h>
 #include <pthread.h>
@@ -19,6 +22,7 @@
 #include "daemon_harness.h"
 #include "sky.h"
 #include "skyproto.h"
+#include "sync_harness.h"
 
 static char reply[1 << 16];
 
@@ -430,8 +434,154 @@ static void run_sensor_bench(void)
 		waitpid(pid, NULL, 0);
 }
 
+/* ---- --sync: a controller and two followers through mosquitto ---- */
+
+struct sync_watch {
+	const struct sync_rig *rig;
+	int index;
+	double target_z;
+	int64_t ahead_ns;		/* the new sky first found in the spare slot */
+	int64_t seen_ns;		/* libsky first handed it out */
+	int64_t apply_ns;
+	pthread_t thread;
+};
+
+/* The sun z in the spare slot of client i's region, NAN while written. */
+static double spare_z(const struct sync_rig *rig, int i)
+{
+	const struct sky_shm_header *h = sky_header(rig->client[i]);
+	const struct sky_shm_slot *s = (const void *)((const uint8_t *)h + h->header_bytes +
+						      (uint64_t)(h->n_slots - 1) * h->slot_bytes);
+	uint32_t seq = atomic_load_explicit((_Atomic uint32_t *)&s->seq, memory_order_acquire);
+	double z = s->state.sun_direction[2];
+
+	atomic_thread_fence(memory_order_acquire);
+	if ((seq & 1u) || atomic_load_explicit((_Atomic uint32_t *)&s->seq, memory_order_relaxed) != seq)
+		return NAN;
+	return z;
+}
+
+/* Follows one follower's client through one change: when the new sky
+ * arrives in the spare slot and when libsky hands it out. */
+static void *sync_watch(void *arg)
+{
+	struct sync_watch *w = arg;
+	sky_client *c = w->rig->client[w->index];
+
+	for (int k = 0; k < 4000; k++) {
+		struct sky_view v;
+		uint32_t next;
+		if (!w->ahead_ns && fabs(spare_z(w->rig, w->index) - w->target_z) < 1e-9)
+			w->ahead_ns = sync_realtime_ns();
+		if (sky_view_begin(c, &v) < 0)
+			continue;
+		double z = v.slot->state.sun_direction[2];
+		int64_t at = v.slot->apply_time_ns;
+		if (!sky_view_end(c, &v))
+			continue;
+		if (fabs(z - w->target_z) < 1e-9) {
+			w->seen_ns = sync_realtime_ns();
+			w->apply_ns = at;
+			return NULL;
+		}
+		if (w->ahead_ns) {
+			sky_wait(c, v.generation, 100, &next);
+			continue;
+		}
+		/* sky_wait sleeps through the arrival ahead of the apply time
+		 * (it hands out nothing new then): the header's futex wakes. */
+		const uint32_t *word = &sky_header(c)->generation;
+		struct timespec ts = { 0, 100000000L };
+		syscall(SYS_futex, word, FUTEX_WAIT, v.generation, &ts, NULL, 0);
+	}
+	return NULL;
+}
+
+/* One set on the controller, watched on every follower: fills the
+ * latency to the last follower's switch, to the last follower's spare
+ * slot, and the spread of the switches, in ms. -1 when one never came. */
+static int sync_one(struct sync_rig *rig, int run, double *ret_visible, double *ret_ahead,
+		    double *ret_spread)
+{
+	struct sync_watch w[SYNC_N_SKYD - 1];
+	double el = 10.0 + 0.01 * run;
+	char req[96], buf[1024];
+	int64_t lo = INT64_MAX, hi = INT64_MIN, ahead = INT64_MIN, t0;
+
+	for (int i = 0; i < SYNC_N_SKYD - 1; i++) {
+		w[i] = (struct sync_watch){ .rig = rig, .index = i + 1,
+					    .target_z = sin(el * M_PI / 180.0) };
+		pthread_create(&w[i].thread, NULL, sync_watch, &w[i]);
+	}
+	snprintf(req, sizeof(req), "set sun_elevation_deg=%.4f", el);
+	t0 = sync_realtime_ns();
+	int e = sync_request(rig, 0, req, buf, sizeof(buf));
+	for (int i = 0; i < SYNC_N_SKYD - 1; i++) {
+		pthread_join(w[i].thread, NULL);
+		if (!w[i].seen_ns)
+			e = -1;
+		lo = w[i].seen_ns < lo ? w[i].seen_ns : lo;
+		hi = w[i].seen_ns > hi ? w[i].seen_ns : hi;
+		/* A follower that only saw it when it became current: no time ahead. */
+		int64_t a = w[i].ahead_ns ? w[i].ahead_ns : w[i].seen_ns;
+		ahead = a > ahead ? a : ahead;
+	}
+	*ret_visible = (double)(hi - t0) / 1e6;
+	*ret_ahead = (double)(ahead - t0) / 1e6;
+	*ret_spread = (double)(hi - lo) / 1e6;
+	return e ? -1 : 0;
+}
+
+/* latbench --sync [N]: mosquitto on a free loopback port, a controller and
+ * two followers (testkit/sync_harness.h: small tables, sync_lead_ms 300),
+ * N sets on the controller. */
+static int bench_sync(int n)
+{
+	struct sync_rig rig = { 0 };
+	int ok = 1;
+
+	if (!sync_have_mosquitto()) {
+		printf("sync: skipped (no %s or %s)\n", SYNC_MOSQUITTO_BIN, SYNC_MOSQUITTO_PUB);
+		return 0;
+	}
+	harness_need_device();
+	if (sync_broker_setup(&rig) < 0) {
+		fprintf(stderr, "sync: mosquitto did not start\n");
+		sync_rig_finish(&rig);
+		return 1;
+	}
+	for (int i = 0; i < SYNC_N_SKYD && ok; i++)
+		ok = sync_skyd_start(&rig, i) == 0;
+	for (int i = 0; i < SYNC_N_SKYD && ok; i++)
+		for (int k = 0; k < 2000 && !sync_status_is(&rig, i, "sync", "connected"); k++)
+			sky_wait(rig.client[i], sky_header(rig.client[i])->generation, 10, NULL);
+	double *vis = calloc((size_t)n, sizeof(double)), *ahead = calloc((size_t)n, sizeof(double));
+	double *spread = calloc((size_t)n, sizeof(double));
+	int m = 0;
+	for (int i = 0; ok && vis && ahead && spread && i < n; i++)
+		if (sync_one(&rig, i, &vis[m], &ahead[m], &spread[m]) == 0)
+			m++;
+	if (m > 0) {
+		printf("sync: %d sets on the controller, 2 followers, sync_lead_ms %d, %d lost\n", m,
+		       SYNC_LEAD_MS, n - m);
+		printf("set -> new sky in every follower's spare slot: median %.2f ms, p99 %.2f ms\n",
+		       pct(ahead, m, 0.5), pct(ahead, m, 0.99));
+		printf("set -> visible in a client on every follower: median %.2f ms, p99 %.2f ms\n",
+		       pct(vis, m, 0.5), pct(vis, m, 0.99));
+		printf("spread of the followers' switches: median %.3f ms, p99 %.3f ms\n",
+		       pct(spread, m, 0.5), pct(spread, m, 0.99));
+	}
+	free(vis);
+	free(ahead);
+	free(spread);
+	sync_rig_finish(&rig);
+	return ok && m == n ? 0 : 1;
+}
+
 int main(int argc, char **argv)
 {
+	if (argc > 1 && !strcmp(argv[1], "--sync"))
+		return bench_sync(argc > 2 ? atoi(argv[2]) : 50);
 	if (argc > 1 && !strcmp(argv[1], "--sensor")) {
 		if (getenv("UMOCKDEV_DIR"))
 			return bench_sensor();
