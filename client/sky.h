@@ -304,7 +304,9 @@ SKY_EXPORT int sky_subscribe(sky_client *c, uint32_t tables, unsigned flags);
 SKY_EXPORT const struct sky_shm_header *sky_header(const sky_client *c);
 
 /* A consistent view of one slot. Filled by sky_view_begin() (zero copy) or
- * sky_snapshot() (a copy). Read the fields, do not write them. */
+ * sky_snapshot() (a copy). Read the fields, do not write them. The state
+ * (slot->state, skyproto.h) also carries the light sensor's suggested
+ * exposure, slot->state.exposure_ev100 (NaN when skyd suggests none). */
 struct sky_view {
 	const struct sky_shm_header *header;
 	const struct sky_shm_slot *slot;	/* state, generation, valid tables */

@@ -11,7 +11,7 @@
 #include <stdint.h>
 
 /* Text protocol: greeting "OK skyd <SKY_PROTO_VERSION>". */
-#define SKY_PROTO_VERSION "3"
+#define SKY_PROTO_VERSION "4"
 #define SKY_PROTO_LINE_MAX 4096		/* bytes per request line, newline included */
 
 /* ACK codes: "ACK [code] {verb} message". */
@@ -52,7 +52,7 @@ enum sky_ack {
  * control socket with a "layout:" line (PROTOCOL.md).
  */
 #define SKY_SHM_MAGIC 0x31594b53u	/* "SKY1" little-endian */
-#define SKY_SHM_LAYOUT_VERSION 4u
+#define SKY_SHM_LAYOUT_VERSION 5u
 #define SKY_SHM_MAX_TABLES 4u
 #define SKY_SHM_MIN_SLOTS 3u
 /* Views (`view add`): at most this many, each with its own aerial volume. */
@@ -109,7 +109,10 @@ struct sky_shm_state {
 	 * enum sky_shm_format); 0 for float32 tables. The views' aerial
 	 * volumes share the aerial table's. */
 	int32_t rgb_scale_log2[SKY_SHM_MAX_TABLES];
-	double reserved[14];
+	/* The light sensor's suggested EV100 (sensor_mode=exposure, as of the
+	 * slot's publication); NaN when none. */
+	double exposure_ev100;
+	double reserved[13];
 };
 
 /* One view: a camera with its own aerial-perspective volume, of the aerial

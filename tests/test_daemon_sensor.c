@@ -9,6 +9,7 @@
  *   elevation  the readings place the sun (refined until the tables give
  *              the reading); one outside the curve is reported, not applied;
  *   exposure   EV100 of each reading in events and status; no generation;
+ *              the next slot carries the last one;
  *   garbage    refused readings are counted by reason, the sky stays;
  *   vanish     the device stops answering: the value goes stale and stays,
  *              get sensor says why (started with sensor_mode=cloud);
@@ -19,6 +20,7 @@
 #include <math.h>
 
 #include "daemon_harness.h"
+#include "sky.h"
 #include "test.h"
 #include "umockdev_exec.h"
 
@@ -368,6 +370,32 @@ static void run_elevation(void)
 	conn_close(&c);
 }
 
+/* The next slot carries the last EV100 (sky_shm_state.exposure_ev100): a
+ * set publishes one, read through libsky. */
+static void check_slot_exposure(struct conn *c, double ev100)
+{
+	sky_client *sc = NULL;
+	struct sky_view v;
+
+	CHECK(request(c, "set sun_azimuth_deg=170") == 0);
+	uint64_t g = reply_u64(reply, "generation");
+	CHECK(wait_generation(c, g) == 0);
+	CHECK(sky_connect(d.sock, &sc) == 0);
+	if (!sc)
+		return;
+	sky_set_timeout(sc, 30000);
+	CHECK(sky_subscribe(sc, SKY_TABLES_ALL, 0) == 0);
+	CHECK(sky_view_begin(sc, &v) == 0);
+	uint64_t slot_g = v.slot->generation;
+	double slot_ev = v.slot->state.exposure_ev100;
+	CHECK(sky_view_end(sc, &v));
+	printf("exposure: slot of generation %llu carries EV100 %.4f\n", (unsigned long long)slot_g,
+	       slot_ev);
+	CHECK(slot_g >= g);
+	CHECK(REL(slot_ev, ev100, 1e-8));
+	sky_disconnect(sc);
+}
+
 static void run_exposure(void)
 {
 	static const char *const args[] = { HARNESS_SMALL, FAST, NULL };
@@ -398,6 +426,7 @@ static void run_exposure(void)
 	CHECK(num(&c, "status", "generation") == (double)g);
 	CHECK(num(&c, "get sensor", "changes") == 0.0);
 	CHECK(num(&c, "get sensor", "cloud_factor") == 1.0);
+	check_slot_exposure(&c, evs[from - 1].ev100);
 	conn_close(&c);
 }
 

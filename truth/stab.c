@@ -408,9 +408,13 @@ int stab_engine(void *ctx, const struct sky_state *s, uint32_t mask, struct mode
 			continue;
 		size_t n = (size_t)m.w[t] * m.h[t] * m.d[t] * 4;
 		const void *src = eng_table(e, (enum state_table)t, NULL);
+		/* Half RGB is stored over 2^k (eng.h); A is never scaled. */
+		int32_t k = eng_table_scale_log2(e, (enum state_table)t);
 		for (size_t i = 0; i < n; i++)
-			m.t[t][i] = s->quality.storage == STATE_F16 ? half_to_double(((const uint16_t *)src)[i])
-								   : ((const float *)src)[i];
+			m.t[t][i] = s->quality.storage == STATE_F16
+					    ? ldexp(half_to_double(((const uint16_t *)src)[i]),
+						    i % 4 == 3 ? 0 : k)
+					    : ((const float *)src)[i];
 	}
 	*ret = m;
 	return 0;

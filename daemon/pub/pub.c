@@ -214,6 +214,7 @@ void pub_shm_state(const struct sky_state *s, struct sky_shm_state *ret)
 	o.camera_aspect = s->camera.aspect;
 	o.aerial_range_km = s->quality.aerial_range_km;
 	o.aerial_squared = s->quality.aerial_spacing == STATE_SQUARED;
+	o.exposure_ev100 = s->exposure_ev100;
 	*ret = o;
 }
 

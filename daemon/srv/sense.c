@@ -275,6 +275,24 @@ static int apply(struct sense *s, const struct sky_state *next, uint32_t dirty)
 	return 1;
 }
 
+/* The exposure mode's EV100 into the served state, for the next slot to
+ * carry (sky_shm_state.exposure_ev100): no table depends on it, so it
+ * names no generation of its own and counts as no change. */
+static void set_exposure(struct sense *s, double ev100)
+{
+	const struct sky_state *cur = srv_state(s->srv);
+	char err[256] = "";
+	uint64_t generation;
+	uint32_t all;
+
+	if (cur->exposure_ev100 == ev100 || (isnan(cur->exposure_ev100) && isnan(ev100)))
+		return;
+	struct sky_state next = *cur;
+	next.exposure_ev100 = ev100;
+	if (srv_apply(s->srv, s->clock, &next, 0, &generation, &all, err, sizeof(err)) < 0)
+		log_warning("sensor: EV100 not kept in the state: %s", err);
+}
+
 #define NOTE(...) snprintf(s->st.not_applied, sizeof(s->st.not_applied), __VA_ARGS__)
 
 /* Each eval_* returns 1 when it changed the served state. */
@@ -372,6 +390,7 @@ static int evaluate(struct sense *s, enum cause cause)
 		return eval_elevation(s, cause);
 	case STATE_SENSOR_EXPOSURE:
 		s->st.not_applied[0] = 0;
+		set_exposure(s, s->st.ev100);
 		return 0;
 	default:
 		NOTE("sensor_mode is off");
@@ -471,6 +490,8 @@ static int apply_keys(struct sense *s)
 		s->waiting = 0;
 		s->refinements = 0;
 		s->st.not_applied[0] = 0;
+		if (k->mode != STATE_SENSOR_EXPOSURE)
+			set_exposure(s, NAN);
 		evaluate(s, CAUSE_MODE);
 		if (s->sensor)
 			emit(s);

@@ -264,8 +264,8 @@ static void check_storage(struct srv *s, uint32_t computed)
 		return;
 	}
 	snprintf(s->st.storage_warning, sizeof(s->st.storage_warning),
-		 "storage=f16 breaks: %llu values above 65504, %llu of %llu sky radiance values "
-		 "subnormal; use storage=f32",
+		 "storage=f16 breaks: %llu values not finite, %llu of %llu sky radiance values "
+		 "above the night floor subnormal; use storage=f32",
 		 (unsigned long long)r.overflow, (unsigned long long)r.subnormal,
 		 (unsigned long long)r.radiance_values);
 	log_warning("%s", s->st.storage_warning);

@@ -100,6 +100,7 @@ void state_default(struct sky_state *ret)
 		.horizon_refraction_deg = 0.5667, .threshold_deg = 0.1, .cadence_s = 60.0,
 		.sun_mode = STATE_MANUAL, .moon_mode = STATE_MANUAL };
 	s.lights_utc_s = NAN;
+	s.exposure_ev100 = NAN;
 	s.night = (struct state_night){ .zenith_luminance_cd_m2 = 2.0e-4, .illuminance_lx = 0.002 };
 	weather_init(&s.weather.in);
 	s.weather.cloud_factor = 1.0;

@@ -174,6 +174,9 @@ struct sky_state {
 	struct state_view views[STATE_MAX_VIEWS];
 	struct state_weather weather;
 	struct state_sensor sensor;
+	double exposure_ev100;		/* the sensor's suggested EV100 (exposure
+					 * mode); NAN when none. Not a key: set by
+					 * the sensor, published, not replicated */
 };
 
 /* The default camera (and a new view's): south, level, 60 degrees, 16:9. */
