@@ -21,6 +21,7 @@
 #include "once.h"
 #include "proto.h"
 #include "repl.h"
+#include "role.h"
 #include "sense.h"
 #include "sensor.h"
 #include "simclock.h"
@@ -36,6 +37,10 @@ struct sync_settings {
 	char password_file[SYNC_PATH_MAX];
 };
 
+/* The config keys of role.h, in the order of their options (OPT_ROLE +). */
+static const char *const role_keys[4] = { "controllers", "max_connections",
+					  "max_subscriptions_per_uid", "max_views_per_uid" };
+
 struct options {
 	const char *socket_path;
 	const char *config_path;
@@ -47,6 +52,8 @@ struct options {
 	const char *sync_url;		/* --sync */
 	const char *sync_role;		/* --sync-role */
 	struct sync_settings sync;
+	const char *role_opts[4];	/* --controllers ..., as role_keys */
+	struct role_settings roles;
 };
 
 static void usage(FILE *f)
@@ -70,6 +77,11 @@ static void usage(FILE *f)
 		"  --sync URL        one sky on several machines through an MQTT broker,\n"
 		"                    mqtt://HOST[:PORT]/PREFIX or mqtts://... (docs/sync.md)\n"
 		"  --sync-role R     controller or follower (default)\n"
+		"  --controllers LIST  who may change the sky: users, @groups, uids, @gids\n"
+		"                    (default root,@skyd; skyd's own uid always may)\n"
+		"  --max-connections N           (default 1024)\n"
+		"  --max-subscriptions-per-uid N (default 64)\n"
+		"  --max-views-per-uid N         (default 64)\n"
 		"  --list-sensors    the USB light sensors found, each opened to see what it is\n"
 		"                    (sensor_select and the other sensor_* keys apply)\n"
 		"  -h, --help        this text\n"
@@ -82,7 +94,8 @@ static void usage(FILE *f)
 static int parse_options(int argc, char **argv, struct options *o)
 {
 	enum { OPT_SOCKET = 256, OPT_CONFIG, OPT_DEVICE, OPT_LOG, OPT_VERSION, OPT_LIST_KEYS,
-	       OPT_MARKDOWN, OPT_SENSORS, OPT_SYNC, OPT_SYNC_ROLE };
+	       OPT_MARKDOWN, OPT_SENSORS, OPT_SYNC, OPT_SYNC_ROLE, OPT_ROLE,
+	       OPT_ROLE_END = OPT_ROLE + 4 };
 	static const struct option longs[] = {
 		{ "socket", required_argument, NULL, OPT_SOCKET },
 		{ "config", required_argument, NULL, OPT_CONFIG },
@@ -95,6 +108,10 @@ static int parse_options(int argc, char **argv, struct options *o)
 		{ "list-sensors", no_argument, NULL, OPT_SENSORS },
 		{ "sync", required_argument, NULL, OPT_SYNC },
 		{ "sync-role", required_argument, NULL, OPT_SYNC_ROLE },
+		{ "controllers", required_argument, NULL, OPT_ROLE },
+		{ "max-connections", required_argument, NULL, OPT_ROLE + 1 },
+		{ "max-subscriptions-per-uid", required_argument, NULL, OPT_ROLE + 2 },
+		{ "max-views-per-uid", required_argument, NULL, OPT_ROLE + 3 },
 		{ 0 },
 	};
 	int c, list_keys = 0, markdown = 0;
@@ -122,7 +139,13 @@ static int parse_options(int argc, char **argv, struct options *o)
 			return 0;
 		case OPT_LIST_KEYS: list_keys = 1; break;
 		case OPT_MARKDOWN: markdown = 1; break;
-		default: usage(stderr); return 2;
+		default:
+			if (c >= OPT_ROLE && c < OPT_ROLE_END) {
+				o->role_opts[c - OPT_ROLE] = optarg;
+				break;
+			}
+			usage(stderr);
+			return 2;
 		}
 	}
 	if (list_keys) {
@@ -189,6 +212,37 @@ static int sync_key(void *ctx, const char *key, const char *value, char *err, si
 	return 0;
 }
 
+/* config_key_fn: the daemon's own keys, sync_* and role.h's. */
+static int daemon_key(void *ctx, const char *key, const char *value, char *err, size_t err_size)
+{
+	struct options *o = ctx;
+	int r = sync_key(&o->sync, key, value, err, err_size);
+
+	return r ? r : role_settings_parse_key(&o->roles, key, value, err, err_size);
+}
+
+/* --controllers and the bounds over the config file's. 0 or -EINVAL
+ * (logged). */
+static int role_settings_finish(struct options *o)
+{
+	char err[512];
+
+	for (int i = 0; i < 4; i++) {
+		if (!o->role_opts[i] || role_settings_parse_key(&o->roles, role_keys[i],
+								o->role_opts[i], err, sizeof(err)) > 0)
+			continue;
+		/* err starts with the key; the option says it with '-'. */
+		size_t k = strlen(role_keys[i]);
+		const char *m = strncmp(err, role_keys[i], k) == 0 && err[k] == ':' ? err + k + 2 : err;
+		char name[32];
+		for (size_t j = 0; j <= k && j < sizeof(name); j++)
+			name[j] = role_keys[i][j] == '_' ? '-' : role_keys[i][j];
+		log_error("--%s: %s", name, m);
+		return -EINVAL;
+	}
+	return 0;
+}
+
 /* The command line over the config file, then the whole checked. 0 or
  * -EINVAL (logged). */
 static int sync_settings_finish(const struct options *o, struct sync_settings *ss)
@@ -223,7 +277,7 @@ static int sync_settings_finish(const struct options *o, struct sync_settings *s
 }
 
 /* The initial state: defaults, the config file, then key=value args; the
- * config file's sync_* keys go to o->sync. */
+ * config file's sync_* keys go to o->sync, its role.h keys to o->roles. */
 static int initial_state(struct options *o, int argc, char **argv, struct sky_state *ret)
 {
 	char err[512];
@@ -231,7 +285,8 @@ static int initial_state(struct options *o, int argc, char **argv, struct sky_st
 
 	state_default(&s);
 	sync_config_defaults(&o->sync.cfg);
-	if (o->config_path && config_load_with(o->config_path, &s, sync_key, &o->sync, err,
+	role_settings_default(&o->roles);
+	if (o->config_path && config_load_with(o->config_path, &s, daemon_key, o, err,
 					       sizeof(err)) < 0) {
 		log_error("%s", err);
 		return -EINVAL;
@@ -245,7 +300,7 @@ static int initial_state(struct options *o, int argc, char **argv, struct sky_st
 		log_error("%s", err);
 		return -EINVAL;
 	}
-	if (sync_settings_finish(o, &o->sync) < 0)
+	if (sync_settings_finish(o, &o->sync) < 0 || role_settings_finish(o) < 0)
 		return -EINVAL;
 	*ret = s;
 	return 0;
@@ -389,6 +444,7 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 		log_error("%s", err);
 		goto out;
 	}
+	ctl_set_roles(ctl, &o->roles);
 	hooks.ctl = ctl;
 	srv_set_listener(srv, &(struct srv_listener){ on_published, on_failed }, &hooks);
 	r = drive_new(loop, srv, &drive);

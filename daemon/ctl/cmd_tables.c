@@ -22,11 +22,13 @@ int ctl_cmd_status(struct client *c, const struct proto_request *req, struct rep
 	const struct eng_device *d = srv_device(s);
 	struct srv_status st;
 	char names[64];
-	int subscribers = 0;
+	int subscribers = 0, controllers = 0;
 
 	srv_status(s, &st);
-	for (struct client *k = c->ctl->clients; k; k = k->next)
+	for (struct client *k = c->ctl->clients; k; k = k->next) {
 		subscribers += k->sub_tables || k->sub_events;
+		controllers += k->role == ROLE_CONTROLLER;
+	}
 	ctl_reply_add(r, "generation: %llu\n", (unsigned long long)st.generation);
 	ctl_reply_add(r, "computing: %d\npending: %d\n", st.computing, st.pending);
 	state_format_tables(st.last_computed, names, sizeof(names));
@@ -54,6 +56,8 @@ int ctl_cmd_status(struct client *c, const struct proto_request *req, struct rep
 	ctl_reply_add(r, "storage_warning: %s\n", st.storage_warning[0] ? st.storage_warning : "none");
 	ctl_reply_add(r, "device: %s\ndevice_type: %s\n", d->name, d->type_name);
 	ctl_reply_add(r, "clients: %d\nsubscribers: %d\n", c->ctl->n_clients, subscribers);
+	ctl_reply_add(r, "role: %s\ncontroller_clients: %d\nmax_connections: %u\n",
+		      role_name(c->role), controllers, c->ctl->roles.max_connections);
 	ctl_reply_add(r, "shm_bytes: %llu\n", (unsigned long long)pub_bytes(srv_pub(s)));
 	ctl_reply_add(r, "protocol: %s\n", SKY_PROTO_VERSION);
 	if (c->ctl->drive) {
@@ -103,6 +107,12 @@ int ctl_cmd_subscribe(struct client *c, const struct proto_request *req, struct 
 			return CTL_ACK(SKY_ACK_NO_EXIST, "%s: unknown key (tables, events)", a->key);
 		}
 	}
+	int held = c->sub_tables || c->sub_events;
+	int holds = tables || (events >= 0 ? events : c->sub_events) || c->sub_tables;
+	unsigned mine = ctl_uid_subscriptions(c->ctl, c->cred.uid);
+	if (!held && holds && mine >= c->ctl->roles.max_subscriptions_per_uid)
+		return CTL_ACK(SKY_ACK_LIMIT, "uid %d holds %u subscriptions (max_subscriptions_per_uid = %u); unsubscribe or close one",
+			   (int)c->cred.uid, mine, c->ctl->roles.max_subscriptions_per_uid);
 	if (tables) {
 		/* Taken before anything changes, so that a refusal changes nothing. */
 		fd = fcntl(pub_fd(srv_pub(c->ctl->srv)), F_DUPFD_CLOEXEC, 3);

@@ -97,6 +97,10 @@ static int view_add(struct client *c, const struct proto_request *req, struct re
 		return CTL_ACK(SKY_ACK_ARG, "name: view '%s' belongs to another connection", v.name);
 	if (i < 0 && next.n_views == STATE_MAX_VIEWS)
 		return CTL_ACK(SKY_ACK_LIMIT, "%d views already (SKY_SHM_MAX_VIEWS)", STATE_MAX_VIEWS);
+	unsigned mine = ctl_uid_views(c->ctl, c->cred.uid);
+	if (i < 0 && mine >= c->ctl->roles.max_views_per_uid)
+		return CTL_ACK(SKY_ACK_LIMIT, "uid %d holds %u views (max_views_per_uid = %u); delete one or close its connection",
+			   (int)c->cred.uid, mine, c->ctl->roles.max_views_per_uid);
 	if (i < 0)
 		i = (int)next.n_views++;
 	int same = memcmp(&next.views[i], &v, sizeof(v)) == 0;
@@ -112,6 +116,9 @@ int ctl_cmd_view(struct client *c, const struct proto_request *req, struct reply
 
 	if (req->args[0].value)
 		return CTL_ACK(SKY_ACK_SYNTAX, "usage: view add|del|list ...");
+	if ((strcmp(what, "add") == 0 || strcmp(what, "del") == 0) &&
+	    ctl_need_role(c, ROLE_CONTROLLER, msg, msg_size))
+		return SKY_ACK_PERMISSION;
 	if (strcmp(what, "add") == 0)
 		return view_add(c, req, r, msg, msg_size);
 	if (strcmp(what, "del") == 0) {

@@ -315,7 +315,10 @@ static int handle_line(struct client *c, char *line)
 		snprintf(msg, sizeof(msg), "usage: %s", e->usage);
 		return send_ack(c, SKY_ACK_SYNTAX, verb, msg);
 	}
-	int code = e->fn(c, &req, &r, msg, sizeof(msg));
+	int code = ctl_need_role(c, e->need, msg, sizeof(msg));
+	if (code)
+		return send_ack(c, code, verb, msg);
+	code = e->fn(c, &req, &r, msg, sizeof(msg));
 	c->line = NULL;
 	ret = answer(c, verb, code, &r, msg);
 	free(r.buf);
@@ -444,6 +447,7 @@ int ctl_client_add(struct ctl *ctl, int fd)
 	c->id = ++ctl->next_id;
 	if (getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &c->cred, &len) < 0)
 		c->cred = (struct ucred){ .pid = 0, .uid = (uid_t)-1, .gid = (gid_t)-1 };
+	c->role = role_of_peer(&ctl->roles, fd, &c->cred);
 	c->io_events = EPOLLIN;
 	r = loop_io_add(ctl->loop, fd, EPOLLIN, client_ready, c, &c->io);
 	if (r < 0) {
@@ -456,8 +460,8 @@ int ctl_client_add(struct ctl *ctl, int fd)
 		c->next->prev = c;
 	ctl->clients = c;
 	ctl->n_clients++;
-	log_debug("client %llu: pid %d uid %d gid %d", (unsigned long long)c->id,
-		  (int)c->cred.pid, (int)c->cred.uid, (int)c->cred.gid);
+	log_debug("client %llu: pid %d uid %d gid %d, %s", (unsigned long long)c->id,
+		  (int)c->cred.pid, (int)c->cred.uid, (int)c->cred.gid, role_name(c->role));
 	char greeting[64];
 	int n = snprintf(greeting, sizeof(greeting), "OK skyd %s\n", SKY_PROTO_VERSION);
 	if (ctl_client_queue(c, greeting, (size_t)n, -1) == 0)

@@ -89,6 +89,67 @@ static void accept_resume(void *ctx)
 	}
 }
 
+/* Logs a refused connection from cred's uid if that uid's last such line
+ * is a minute old or more; otherwise counts it for that line. */
+static void refusal_log(struct ctl *ctl, const struct ucred *cred)
+{
+	struct ctl_refusals *rf = &ctl->refusals;
+	struct ctl_refusal *e = NULL, *free_e = NULL;
+	uint64_t now = loop_now_ns();
+
+	for (int i = 0; i < CTL_REFUSAL_UIDS; i++) {
+		struct ctl_refusal *k = &rf->uids[i];
+		if (k->logged_ns && k->uid == cred->uid)
+			e = k;
+		else if (!free_e && (!k->logged_ns || now - k->logged_ns >= CTL_REFUSAL_LOG_NS))
+			free_e = k;
+	}
+	if (e && now - e->logged_ns < CTL_REFUSAL_LOG_NS) {
+		e->unlogged++;
+		return;
+	}
+	if (!e && !free_e) {
+		rf->unlisted++;
+		return;
+	}
+	uint64_t before = e ? e->unlogged : 0;
+	if (!e) {
+		e = free_e;
+		e->uid = cred->uid;
+	}
+	char more[160] = "";
+	int n = 0;
+	if (before)
+		n = snprintf(more, sizeof(more), "; %llu more from this uid since its last line",
+			     (unsigned long long)before);
+	if (rf->unlisted)
+		snprintf(more + n, sizeof(more) - (size_t)n, "; %llu from other uids not logged",
+			 (unsigned long long)rf->unlisted);
+	log_warning("connection from uid %d (pid %d) refused: %d clients, max_connections = %u (one line per uid a minute)%s",
+		    (int)cred->uid, (int)cred->pid, ctl->n_clients, ctl->roles.max_connections, more);
+	e->logged_ns = now ? now : 1;
+	e->unlogged = 0;
+	rf->unlisted = 0;
+}
+
+/* Past max_connections: one ACK line, then the connection closes. Those
+ * already connected do not notice. */
+static void refuse_connection(struct ctl *ctl, int fd)
+{
+	struct ucred cred = { .pid = 0, .uid = (uid_t)-1, .gid = (gid_t)-1 };
+	socklen_t len = sizeof(cred);
+	char line[160];
+	int n = snprintf(line, sizeof(line),
+			 "ACK [%d] {connect} too many connections (max_connections = %u); try again later\n",
+			 SKY_ACK_LIMIT, ctl->roles.max_connections);
+
+	(void)!send(fd, line, (size_t)n, MSG_NOSIGNAL | MSG_DONTWAIT);
+	getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &cred, &len);
+	/* Logged before the close, so the peer's EOF comes after the line. */
+	refusal_log(ctl, &cred);
+	close(fd);
+}
+
 static void accept_ready(void *ctx, uint32_t events)
 {
 	struct ctl *ctl = ctx;
@@ -114,14 +175,53 @@ static void accept_ready(void *ctx, uint32_t events)
 			log_info("accepting connections again");
 			ctl->accept_warned = 0;
 		}
-		if (ctl->n_clients >= CTL_MAX_CLIENTS) {
-			static const char line[] = "ACK [52] {} too many clients\n";
-			(void)!send(fd, line, sizeof(line) - 1, MSG_NOSIGNAL | MSG_DONTWAIT);
-			close(fd);
+		/* max_connections is at most CTL_MAX_CLIENTS (role.c). */
+		if (ctl->n_clients >= (int)ctl->roles.max_connections) {
+			refuse_connection(ctl, fd);
 			continue;
 		}
 		ctl_client_add(ctl, fd);
 	}
+}
+
+/* Roles and bounds ------------------------------------------------------ */
+
+void ctl_set_roles(struct ctl *ctl, const struct role_settings *s)
+{
+	ctl->roles = *s;
+	for (struct client *c = ctl->clients; c; c = c->next)
+		c->role = role_of_peer(&ctl->roles, c->fd, &c->cred);
+}
+
+int ctl_need_role(struct client *c, enum role need, char *msg, size_t msg_size)
+{
+	const char *list = c->ctl->roles.controllers;
+
+	if (c->role >= need)
+		return 0;
+	return CTL_ACK(SKY_ACK_PERMISSION, "%s role needed: uid %d reads only (controllers = %s)",
+		       role_name(need), (int)c->cred.uid, list[0] ? list : "none");
+}
+
+unsigned ctl_uid_subscriptions(struct ctl *ctl, uid_t uid)
+{
+	unsigned n = 0;
+
+	for (struct client *k = ctl->clients; k; k = k->next)
+		n += k->cred.uid == uid && (k->sub_tables || k->sub_events);
+	return n;
+}
+
+unsigned ctl_uid_views(struct ctl *ctl, uid_t uid)
+{
+	const struct sky_state *s = srv_state(ctl->srv);
+	unsigned n = 0;
+
+	for (struct client *k = ctl->clients; k; k = k->next)
+		if (k->cred.uid == uid)
+			for (uint32_t i = 0; i < s->n_views; i++)
+				n += s->views[i].owner == k->id;
+	return n;
 }
 
 /* Socket ---------------------------------------------------------------- */
@@ -174,8 +274,12 @@ static int check_dir(const char *path, char *err, size_t err_size)
 		return -EPERM;
 	}
 	if (st.st_mode & 022) {
-		SET_ERR("'%s' is writable by group or others (mode %04o); chmod go-w it",
-			dir, (unsigned)(st.st_mode & 07777));
+		/* Not "chmod go-w": the directory is usually shared on purpose
+		 * (/tmp); a directory of our own is the fix. */
+		const char *base = strrchr(path, '/');
+		SET_ERR("'%s' is writable by others (mode %04o): any local user can put a socket of their own at that name and clients would talk to it; give the socket a directory of its own, e.g. --socket %s%sskyd-%d/%s (skyd creates it, mode 0700), or leave --socket out ($XDG_RUNTIME_DIR/skyd/control)",
+			dir, (unsigned)(st.st_mode & 07777), dir, dir[strlen(dir) - 1] == '/' ? "" : "/",
+			(int)geteuid(), base ? base + 1 : path);
 		return -EPERM;
 	}
 	return 0;
@@ -234,6 +338,7 @@ int ctl_new(struct loop *l, struct srv *s, const char *path, int listen_fd, char
 	ctl->loop = l;
 	ctl->srv = s;
 	ctl->listen_fd = -1;
+	role_settings_default(&ctl->roles);
 	snprintf(ctl->path, sizeof(ctl->path), "%s", path);
 	if (listen_fd >= 0) {
 		ctl->listen_fd = listen_fd;

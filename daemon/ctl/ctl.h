@@ -21,6 +21,7 @@
 #define CTL_BATCH_MAX 256		/* set lines in one batch */
 
 struct ctl;
+struct role_settings;
 struct drive;
 struct sense;
 struct sense_status;
@@ -40,6 +41,12 @@ int ctl_new(struct loop *l, struct srv *s, const char *path, int listen_fd, char
 	    size_t err_size, struct ctl **ret);
 /* Closes every connection and removes the socket it created. */
 void ctl_free(struct ctl *c);
+
+/* Who controls and the bounds (role.h), all at once: a copy is kept.
+ * Connections open now get their role again from the new list (the
+ * credentials they connected with, no lookup); bounds apply to what comes
+ * next: nobody is dropped when they shrink. Until called: the defaults. */
+void ctl_set_roles(struct ctl *ctl, const struct role_settings *s);
 
 /* The clock told of every committed change (re-arms its timer), and asked
  * for its counters in status. d must outlive ctl; NULL: no clock. */

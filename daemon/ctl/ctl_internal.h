@@ -18,6 +18,7 @@
 #include "ctl.h"
 #include "metar.h"
 #include "proto.h"
+#include "role.h"
 #include "state.h"
 
 struct chunk;
@@ -42,6 +43,23 @@ struct batch {
 	char error[300];
 };
 
+/* Connections refused past max_connections, logged once a minute per uid
+ * (a full backlog of retries must not flood the journal). An entry is
+ * reused once its minute is over; while every entry is younger, the
+ * refusals of further uids are counted in unlisted and told with the
+ * next line logged. */
+#define CTL_REFUSAL_UIDS 64
+#define CTL_REFUSAL_LOG_NS (60ull * 1000000000ull)
+struct ctl_refusal {
+	uid_t uid;
+	uint64_t logged_ns;		/* 0: unused */
+	uint64_t unlogged;		/* refused since */
+};
+struct ctl_refusals {
+	struct ctl_refusal uids[CTL_REFUSAL_UIDS];
+	uint64_t unlisted;
+};
+
 struct client {
 	struct ctl *ctl;
 	struct client *prev, *next;
@@ -49,7 +67,8 @@ struct client {
 	int fd;
 	struct loop_io *io;
 	uint32_t io_events;
-	struct ucred cred;		/* peer, recorded for roles */
+	struct ucred cred;		/* peer, at accept */
+	enum role role;			/* from cred and the settings (role.h) */
 
 	char in[SKY_PROTO_LINE_MAX];
 	size_t in_len;
@@ -85,6 +104,8 @@ struct ctl {
 	struct drive *drive;		/* the clock; NULL: none */
 	struct sense *sense;		/* the light sensor; NULL: none */
 	struct ctl_sync sync;		/* replication; may_change NULL: none */
+	struct role_settings roles;	/* who controls, the bounds */
+	struct ctl_refusals refusals;	/* connections refused, for the log */
 	int finishing;
 };
 
@@ -110,10 +131,20 @@ struct ctl_cmd {
 	const char *help;
 	int min_args, max_args;
 	ctl_handler_fn *fn;
+	enum role need;			/* ROLE_READER unless it changes the sky */
 };
 
 /* In a handler: writes the message and yields the ACK code. */
 #define CTL_ACK(code, ...) (snprintf(msg, msg_size, __VA_ARGS__), (code))
+
+/* SKY_ACK_PERMISSION with msg naming the role c lacks, or 0 when c has
+ * need. For handlers whose sub-commands differ (view list reads, view add
+ * changes); the table's need covers whole verbs. */
+int ctl_need_role(struct client *c, enum role need, char *msg, size_t msg_size);
+/* The subscriptions (connections with tables or events) and the views
+ * held by connections of uid. */
+unsigned ctl_uid_subscriptions(struct ctl *ctl, uid_t uid);
+unsigned ctl_uid_views(struct ctl *ctl, uid_t uid);
 
 /* conn.c: connections. */
 int ctl_client_add(struct ctl *ctl, int fd);
