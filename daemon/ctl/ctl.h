@@ -4,7 +4,9 @@
  * Every client has a line buffer of SKY_PROTO_LINE_MAX bytes and an output
  * queue: past CTL_OUT_HIGH queued bytes its requests wait until it reads;
  * past CTL_OUT_MAX (only events can get there) it is dropped. Accepting
- * pauses while the process is out of fds.
+ * pauses while the process is out of fds. Each connection has a role from
+ * its peer's credentials, and connections, subscriptions and views per uid
+ * are bounded (role.h, ctl_set_roles).
  */
 #ifndef SKYD_CTL_H
 #define SKYD_CTL_H
