@@ -355,6 +355,7 @@ static void scenario_bounds(void)
 {
 	struct daemon d;
 	struct conn c[3];
+	char want[128];
 
 	CHECK(daemon_start(&d, (const char *const[]){ "--controllers", "root,65534",
 						      "--max-subscriptions-per-uid", "2",
@@ -363,15 +364,19 @@ static void scenario_bounds(void)
 		CHECK(conn_open(&c[i], d.sock) == 0);
 	expect_ok(&c[0], "subscribe events=1");
 	expect_ok(&c[1], "subscribe tables=all");
-	expect_ack(&c[2], "subscribe events=1", 52,
-		   "{subscribe} uid 0 holds 2 subscriptions (max_subscriptions_per_uid = 2)");
+	snprintf(want, sizeof(want),
+		 "{subscribe} uid %d holds 2 subscriptions (max_subscriptions_per_uid = 2)",
+		 (int)geteuid());
+	expect_ack(&c[2], "subscribe events=1", 52, want);
 	expect_ack(&c[2], "subscribe tables=skyview", 52, "max_subscriptions_per_uid = 2");
 	CHECK(c[2].n_fds == 0);
 	expect_ok(&c[2], "subscribe events=0");		/* holds nothing: allowed */
 	expect_ok(&c[0], "subscribe tables=all events=1");	/* already holds one */
 	expect_ok(&c[0], "view add name=a");
 	expect_ok(&c[1], "view add name=b");
-	expect_ack(&c[2], "view add name=c", 52, "{view} uid 0 holds 2 views (max_views_per_uid = 2)");
+	snprintf(want, sizeof(want), "{view} uid %d holds 2 views (max_views_per_uid = 2)",
+		 (int)geteuid());
+	expect_ack(&c[2], "view add name=c", 52, want);
 	expect_ok(&c[0], "view add name=a yaw_deg=90");	/* replacing is no new view */
 	if (geteuid() == 0) {
 		open_to_all(&d);
