@@ -2,7 +2,9 @@
  * played by the test: socket activation through systemd-socket-activate,
  * READY, STATUS, the watchdog's keep-alives and STOPPING on a notify
  * socket of ours (scenario "activate"); SIGHUP re-reading the config file
- * all or nothing (scenario "reload"). */
+ * all or nothing (scenario "reload"). "with SKYD CMD..." serves another
+ * skyd (an installed one) while CMD runs with $SKYD_TEST_SOCKET naming its
+ * socket, and exits with CMD's status (test_install.sh). */
 #include <signal.h>
 #include <sys/stat.h>
 
@@ -233,12 +235,56 @@ static void reload_scenario(void)
 	child = 0;
 }
 
+/* Starts skyd (a path) on dir/control, waits for READY=1, runs cmd with
+ * SKYD_TEST_SOCKET set, stops skyd; cmd's exit status, or 1. */
+static int with_skyd(const char *skyd, char **cmd)
+{
+	char sock[192], logp[192];
+	struct notify_msg m;
+	int st;
+
+	snprintf(sock, sizeof(sock), "%s/control", dir);
+	snprintf(logp, sizeof(logp), "%s/skyd.log", dir);
+	child = fork();
+	if (child == 0) {
+		int fd = open(logp, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0600);
+		dup2(fd, 2);
+		setenv("NOTIFY_SOCKET", ns.path, 1);
+		execl(skyd, skyd, "--socket", sock, HARNESS_SMALL, (char *)NULL);
+		_exit(127);
+	}
+	REQUIRE(notify_sock_wait(&ns, "READY", "1", HARNESS_TIMEOUT_MS, &m) == 0);
+	pid_t run = fork();
+	if (run == 0) {
+		setenv("SKYD_TEST_SOCKET", sock, 1);
+		execvp(cmd[0], cmd);
+		_exit(127);
+	}
+	REQUIRE(waitpid(run, &st, 0) == run);
+	kill(child, SIGTERM);
+	REQUIRE(notify_sock_wait(&ns, "STOPPING", "1", HARNESS_TIMEOUT_MS, &m) == 0);
+	int dst;
+	REQUIRE(waitpid(child, &dst, 0) == child && WIFEXITED(dst) && WEXITSTATUS(dst) == 0);
+	child = 0;
+	return WIFEXITED(st) ? WEXITSTATUS(st) : 1;
+}
+
 int main(int argc, char **argv)
 {
 	char cmd[192];
 
+	if (argc >= 4 && strcmp(argv[1], "with") == 0) {
+		harness_need_device();
+		REQUIRE(harness_mkdtemp(dir, sizeof(dir)) == 0);
+		REQUIRE(notify_sock_open(&ns, dir) == 0);
+		int r = with_skyd(argv[2], argv + 3);
+		notify_sock_close(&ns);
+		snprintf(cmd, sizeof(cmd), "rm -rf '%s'", dir);
+		(void)!system(cmd);
+		return r;
+	}
 	if (argc != 2) {
-		fprintf(stderr, "usage: test_units_notify activate|reload\n");
+		fprintf(stderr, "usage: test_units_notify activate|reload|with SKYD CMD...\n");
 		return 2;
 	}
 	harness_need_device();
