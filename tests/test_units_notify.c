@@ -3,8 +3,9 @@
  * READY, STATUS, the watchdog's keep-alives and STOPPING on a notify
  * socket of ours (scenario "activate"); SIGHUP re-reading the config file
  * all or nothing (scenario "reload"). "with SKYD CMD..." serves another
- * skyd (an installed one) while CMD runs with $SKYD_TEST_SOCKET naming its
- * socket, and exits with CMD's status (test_install.sh). */
+ * skyd (an installed one, or one under a wrapper) while CMD runs with
+ * $SKYD_TEST_SOCKET naming its socket, and exits with CMD's status
+ * (test_install.sh, test_units_sandbox.sh). */
 #include <signal.h>
 #include <sys/stat.h>
 
@@ -254,6 +255,8 @@ static int with_skyd(const char *skyd, char **cmd)
 		_exit(127);
 	}
 	REQUIRE(notify_sock_wait(&ns, "READY", "1", HARNESS_TIMEOUT_MS, &m) == 0);
+	/* skyd itself, which may run under a wrapper (test_units_sandbox.sh). */
+	pid_t skyd_pid = m.pid;
 	pid_t run = fork();
 	if (run == 0) {
 		setenv("SKYD_TEST_SOCKET", sock, 1);
@@ -261,7 +264,7 @@ static int with_skyd(const char *skyd, char **cmd)
 		_exit(127);
 	}
 	REQUIRE(waitpid(run, &st, 0) == run);
-	kill(child, SIGTERM);
+	kill(skyd_pid, SIGTERM);
 	REQUIRE(notify_sock_wait(&ns, "STOPPING", "1", HARNESS_TIMEOUT_MS, &m) == 0);
 	int dst;
 	REQUIRE(waitpid(child, &dst, 0) == child && WIFEXITED(dst) && WEXITSTATUS(dst) == 0);
