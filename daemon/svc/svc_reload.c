@@ -113,6 +113,7 @@ static int prepare(struct svc_reload *r, struct sky_state *next, char *err, size
 	return 0;
 }
 
+/* Makes every step's checked candidate current. */
 static void apply_steps(struct svc_reload *r)
 {
 	for (int i = 0; i < r->n_steps; i++)
@@ -152,9 +153,9 @@ int svc_reload_run(struct svc_reload *r, char *err, size_t err_size)
 	if (e == 0) {
 		/* The sky last: srv_apply is the one step that can still refuse
 		 * (device limits, lights astro cannot place), and it changes
-		 * nothing when it does. */
-		/* A reload is rare: what the file changed recomputes every table
-		 * rather than tracking each key's mask through the parse. */
+		 * nothing when it does. A reload is rare: a changed state
+		 * recomputes every table rather than tracking each key's mask
+		 * through the parse. */
 		dirty = memcmp(srv_state(r->srv), &next, sizeof(next)) ? STATE_ALL_TABLES : 0;
 		e = srv_apply(r->srv, r->clock, &next, dirty, &generation, &dirty, msg, sizeof(msg));
 		if (e < 0)
