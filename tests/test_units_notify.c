@@ -106,7 +106,7 @@ static void activate(void)
 	REQUIRE(notify_sock_wait(&ns, "READY", "1", HARNESS_TIMEOUT_MS, &m) == 0);
 	REQUIRE(m.pid == pid);
 	const char *status = notify_msg_get(&m, "STATUS");
-	REQUIRE(status && strstr(status, "generation ") && strstr(status, "clients") &&
+	REQUIRE(status && strstr(status, "generation ") && strstr(status, "clients ") &&
 		    strstr(status, "last compute"));
 
 	/* Keep-alives from skyd's own pid, well inside the watchdog's period. */
@@ -123,7 +123,7 @@ static void activate(void)
 	REQUIRE(conn_request(&c, "set sun_elevation_deg=7", reply, sizeof(reply)) == 0);
 	uint64_t gen = reply_u64(reply, "generation");
 	char want[64];
-	snprintf(want, sizeof(want), "generation %llu, 1 clients", (unsigned long long)gen);
+	snprintf(want, sizeof(want), "generation %llu, clients 1", (unsigned long long)gen);
 	int seen = 0;
 	while (!seen) {
 		REQUIRE(notify_sock_wait(&ns, "STATUS", NULL, HARNESS_TIMEOUT_MS, &m) == 0);

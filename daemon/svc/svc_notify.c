@@ -27,7 +27,7 @@ void svc_notify_format_status(const struct svc_notify *n, char *buf, size_t size
 	struct srv_status st;
 
 	srv_status(n->srv, &st);
-	snprintf(buf, size, "generation %llu, %d clients, last compute %.1f ms",
+	snprintf(buf, size, "generation %llu, clients %d, last compute %.1f ms",
 		 (unsigned long long)st.generation, n->ctl ? ctl_clients(n->ctl) : 0,
 		 st.last_total_ms);
 }

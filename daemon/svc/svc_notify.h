@@ -40,7 +40,7 @@ void svc_notify_reloaded(struct svc_notify *n);
 /* STOPPING=1: the loop is over, skyd is tearing down. */
 void svc_notify_stopping(struct svc_notify *n);
 
-/* The STATUS text now, as sent: "generation G, C clients, last compute
+/* The STATUS text now, as sent: "generation G, clients C, last compute
  * T ms". */
 void svc_notify_format_status(const struct svc_notify *n, char *buf, size_t size);
 
