@@ -210,7 +210,7 @@ static void reload_scenario(void)
 	/* A file bad on its last line is refused whole: its first line does
 	 * not apply, the generation stays. First the sky comes to rest: a
 	 * change's generation, waited for. */
-	REQUIRE(conn_request(&c, "subscribe events=1", reply, sizeof(reply)) == 0);
+	REQUIRE(conn_request(&c, "subscribe tables=all events=1", reply, sizeof(reply)) == 0);
 	c.event_generation = reply_u64(reply, "generation");	/* published */
 	REQUIRE(conn_request(&c, "set ground_albedo=0.2", reply, sizeof(reply)) == 0);
 	uint64_t gen = reply_u64(reply, "generation");
@@ -230,11 +230,21 @@ static void reload_scenario(void)
 	REQUIRE(reply_u64(reply, "generation") == gen);
 	REQUIRE(reply_u64(reply, "computing") == 0 && reply_u64(reply, "pending") == 0);
 
+	/* A reload recomputes only what its changed keys invalidate: the sun
+	 * moves sky-view and aerial perspective, not transmittance. */
+	write_config(conf, "sun_elevation_deg = 14\nground_albedo = 0.2\nmax_connections = 77\n");
+	reload(pid);
+	REQUIRE(conn_wait_generation(&c, gen + 1) == 0);
+	REQUIRE(conn_request(&c, "status", reply, sizeof(reply)) == 0);
+	REQUIRE(reply_u64(reply, "generation") == gen + 1);
+	if (strcmp(value_of(reply, "tables_computed"), "skyview,aerial") != 0)
+		FAIL("tables_computed: %s", value_of(reply, "tables_computed"));
+
 	/* An unreadable file too; skyd keeps serving. */
 	REQUIRE(unlink(conf) == 0);
 	reload(pid);
 	REQUIRE(conn_request(&c, "get sun_elevation_deg", reply, sizeof(reply)) == 0);
-	REQUIRE(strcmp(value_of(reply, "sun_elevation_deg"), "12.5") == 0);
+	REQUIRE(strcmp(value_of(reply, "sun_elevation_deg"), "14") == 0);
 	conn_close(&c);
 
 	kill(pid, SIGTERM);

@@ -53,41 +53,6 @@ static void committed(void *ctx, const struct sky_state *st, uint64_t generation
 			    strerror(-e));
 }
 
-/* The tables a follower's change invalidates: the masks of the keys whose
- * text differs from the served state's, as state_set gives them. */
-struct diff {
-	const struct sky_state *cur;
-	struct sky_state scratch;
-	uint32_t dirty;
-};
-
-static void diff_key(void *ctx, const char *key, const char *value)
-{
-	struct diff *d = ctx;
-	char cur[512], err[256];
-
-	if (state_get(d->cur, key, cur, sizeof(cur)) == 0 && strcmp(cur, value) == 0)
-		return;
-	if (state_set(&d->scratch, key, value, &d->dirty, err, sizeof(err)) < 0)
-		d->dirty = STATE_ALL_TABLES;
-}
-
-static uint32_t follower_dirty(const struct sky_state *cur, const struct sky_state *next)
-{
-	struct diff *d = malloc(sizeof(*d));
-	uint32_t dirty;
-
-	if (!d)
-		return STATE_ALL_TABLES;
-	d->cur = cur;
-	d->scratch = *cur;
-	d->dirty = 0;
-	state_foreach(next, diff_key, d);
-	dirty = d->dirty;
-	free(d);
-	return dirty;
-}
-
 /* The sync client's hook: the controller's state, committed as a local
  * set would be, with this machine's views, visible at apply_time_ns. */
 static void on_state(void *ctx, const struct sky_state *candidate, uint64_t generation,
@@ -107,7 +72,7 @@ static void on_state(void *ctx, const struct sky_state *candidate, uint64_t gene
 	*next = *candidate;
 	next->n_views = cur->n_views;
 	memcpy(next->views, cur->views, sizeof(next->views));
-	dirty = follower_dirty(cur, next);
+	dirty = state_diff(cur, next);
 	srv_set_next_apply_time(r->srv, apply_time_ns);
 	int e = srv_apply(r->srv, r->drive, next, dirty, &shown, &dirty, err, sizeof(err));
 	srv_set_next_apply_time(r->srv, 0);

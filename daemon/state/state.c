@@ -382,6 +382,43 @@ void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx)
 	state_foreach_sensor(s, fn, ctx);
 }
 
+/* state_diff's walk: each key of one state whose text the other state
+ * does not show, set on a scratch copy of the other to learn its mask. */
+struct diff {
+	const struct sky_state *other;
+	struct sky_state scratch;
+	uint32_t dirty;
+};
+
+static void diff_key(void *ctx, const char *key, const char *value)
+{
+	struct diff *d = ctx;
+	char other[512], err[256];
+
+	if (state_get(d->other, key, other, sizeof(other)) == 0 && strcmp(other, value) == 0)
+		return;
+	if (state_set(&d->scratch, key, value, &d->dirty, err, sizeof(err)) < 0)
+		d->dirty = STATE_ALL_TABLES;
+}
+
+uint32_t state_diff(const struct sky_state *a, const struct sky_state *b)
+{
+	struct diff *d = malloc(sizeof(*d));
+	uint32_t dirty;
+
+	if (!d)
+		return STATE_ALL_TABLES;
+	/* Both ways: `get` lists some keys only away from their defaults. */
+	*d = (struct diff){ .other = a, .scratch = *a };
+	state_foreach(b, diff_key, d);
+	dirty = d->dirty;
+	*d = (struct diff){ .other = b, .scratch = *b };
+	state_foreach(a, diff_key, d);
+	dirty |= d->dirty;
+	free(d);
+	return dirty;
+}
+
 int state_get(const struct sky_state *s, const char *key, char *buf, size_t size)
 {
 	if (strcmp(key, "preset") == 0) {

@@ -234,7 +234,8 @@ void state_night_floor(const struct sky_state *s, double *ret_zenith_cd_m2, doub
 extern const char *const state_sensor_keys[];
 const char *state_sensor_mode_name(enum state_sensor_mode m);
 
-/* Tables that differ between a and b given what they depend on. */
+/* The tables to recompute going from a to b: the masks state_set gives
+ * for each key whose text differs (every table for one it cannot set). */
 uint32_t state_diff(const struct sky_state *a, const struct sky_state *b);
 
 /* The camera's unit basis in the observer's east-north-up frame from yaw

@@ -153,10 +153,9 @@ int svc_reload_run(struct svc_reload *r, char *err, size_t err_size)
 	if (e == 0) {
 		/* The sky last: srv_apply is the one step that can still refuse
 		 * (device limits, lights astro cannot place), and it changes
-		 * nothing when it does. A reload is rare: a changed state
-		 * recomputes every table rather than tracking each key's mask
-		 * through the parse. */
-		dirty = memcmp(srv_state(r->srv), &next, sizeof(next)) ? STATE_ALL_TABLES : 0;
+		 * nothing when it does; only the tables the changed keys
+		 * invalidate are recomputed. */
+		dirty = state_diff(srv_state(r->srv), &next);
 		e = srv_apply(r->srv, r->clock, &next, dirty, &generation, &dirty, msg, sizeof(msg));
 		if (e < 0)
 			snprintf(err, err_size, "%s: %s", r->path, msg[0] ? msg : strerror(-e));
