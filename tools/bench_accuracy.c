@@ -13,7 +13,7 @@
 #include <time.h>
 #include <unistd.h>
 
-const char *const acc_cat_names[N_CAT] = { "day", "horizon", "twilight" };
+const char *const acc_cat_names[N_CAT] = { "day", "horizon", "twilight", "down" };
 
 const struct config acc_configs[] = {
 	{ "low", { "quality=low" }, true },
@@ -252,7 +252,7 @@ static int run_truth(const struct opts *o, const struct scene *sc, size_t n_sc, 
 	int rc = 0;
 	for (size_t i = 0; i < n_sc && rc == 0; i++) {
 		progress("truth", i, n_sc, sc[i].name, t0);
-		acc_direction_set(&gts[i]);
+		acc_direction_set(&sc[i], &gts[i]);
 		rc = acc_ground_truth(o, &sc[i], sc[i].sun_elevation_deg >= 2 ? o->day_error : o->twilight_error,
 				      &gts[i], "directions");
 	}
@@ -278,7 +278,8 @@ static int run_tables(const struct run *r, struct eng *e)
 		fprintf(stderr, "skybench: cannot write '%s/directions.csv'\n", o->out);
 	else
 		fprintf(dirs, "config,scene,category,elevation_deg,azimuth_deg,weight,tables_cd_m2,"
-			      "truth_cd_m2,truth_se_cd_m2,rel\n");
+			      "truth_cd_m2,truth_se_cd_m2,rel,tables_r,tables_g,tables_b,truth_r,"
+			      "truth_g,truth_b,duv\n");
 	double t1 = now_s();
 	for (size_t c = 0; c < N_CONFIGS && rc == 0; c++)
 		for (size_t i = 0; i < r->n_sc && rc == 0; i++) {
