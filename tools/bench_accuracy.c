@@ -86,12 +86,13 @@ static void usage(FILE *f)
 		"  --cache DIR      ground-truth cache, read and written (OUT/gt-cache)\n"
 		"  --cache-ro DIR   a cache read first and never written (e.g. committed truth)\n"
 		"  --list-truth     print each scene's ground-truth cache file name and exit\n"
-		"  --reduced        the CI matrix: six scenes, default preset only\n"
+		"  --reduced        the CI matrix: eight scenes, default preset only\n"
 		"  --scenes TEXT    only the scenes whose name contains TEXT\n"
 		"  --configs A,B    only these configurations besides medium (low, high, ultra,\n"
 		"                   T128x32, Mdirs2, S384x216, f16, ...: see accuracy.md)\n"
-		"  --limits FILE    exit 1 when the default preset's largest per-scene mean\n"
-		"                   relative error in a category exceeds the file's limit\n"
+		"  --limits FILE    exit 1 when the default preset's largest per-scene value\n"
+		"                   of a metric (luminance, per channel, u'v', gradient: see\n"
+		"                   tests/accuracy_goals.txt) in a category exceeds the limit\n"
 		"exit status: 0, 1 on a failure or an exceeded limit, 2 on a usage error,\n"
 		"77 when no Vulkan device can be opened\n");
 }

@@ -135,7 +135,7 @@ static inline int cmp_double(const void *a, const void *b)
 
 /* ---- scenes and the ground truth (bench_accuracy_truth.c) ---- */
 
-/* Fills sc (at most max) with the matrix, or the CI's six scenes when
+/* Fills sc (at most max) with the matrix, or the CI's eight scenes when
  * reduced; returns how many. */
 size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced);
 /* The state of a scene under a configuration (NULL: the default preset).
@@ -192,7 +192,8 @@ bool acc_metric(const char *name, const struct stats *st, double *ret);
 /* --limits FILE: lines "category [metric] limit [scene]" for the default
  * preset's largest per-scene value of metric (lum_mean when left out; see
  * the file tests/accuracy_goals.txt for the others) over the scenes whose
- * name contains scene (every scene without it); returns the number of
+ * name contains scene, or matches it as a pattern with '*' (every scene
+ * without it); returns the number of
  * limits exceeded, or -errno. */
 int acc_check_limits(const char *file, const struct scene *sc, size_t n_sc, const struct result *r);
 

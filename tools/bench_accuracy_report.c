@@ -3,6 +3,7 @@
 #include "bench_accuracy_internal.h"
 
 #include <errno.h>
+#include <fnmatch.h>
 #include <locale.h>
 #include <math.h>
 #include <stdlib.h>
@@ -274,7 +275,8 @@ int acc_write_plot(const struct opts *o, const struct scene *sc, size_t n_sc,
 
 /* --limits FILE: lines "category [metric] limit [scene]" for the default
  * preset's largest per-scene value of metric (lum_mean when left out) over
- * the scenes whose name contains scene (every scene without it); returns
+ * the scenes whose name contains scene, or matches it when it holds a '*'
+ * (fnmatch; every scene without it); returns
  * the number of limits exceeded, or -errno. */
 int acc_check_limits(const char *file, const struct scene *sc, size_t n_sc,
 		     const struct result *r)
@@ -308,7 +310,8 @@ int acc_check_limits(const char *file, const struct scene *sc, size_t n_sc,
 		int n = 0;
 		for (size_t i = 0; k < N_CAT && i < n_sc; i++) {
 			const struct result *x = &r[DEFAULT_CONFIG * n_sc + i];
-			if (!x->done || !(x->cat[k].weight > 0) || !strstr(sc[i].name, only))
+			bool in = strchr(only, '*') ? fnmatch(only, sc[i].name, 0) == 0 : !!strstr(sc[i].name, only);
+			if (!x->done || !(x->cat[k].weight > 0) || !in)
 				continue;
 			if (!acc_metric(metric, &x->cat[k], &v)) {
 				n = -1;

@@ -32,7 +32,7 @@ size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced)
 
 #define ADD(...) do { if (n < max) sc[n++] = (struct scene){ __VA_ARGS__ }; } while (0)
 	if (reduced) {
-		/* CI: a day sky with its horizon band and one twilight sky. */
+		/* CI: a day sky with its horizon band and one twilight sky, */
 		ADD("earth-s20-h0.2-a0.3", "earth", 0.2, 20, 0.3, 1, true, false, false);
 		ADD("earth-s2-h0.2-a0.3", "earth", 0.2, 2, 0.3, 1, true, false, false);
 		ADD("earth-s-4-h0.2-a0.3", "earth", 0.2, -4, 0.3, 1, true, false, false);
@@ -41,6 +41,10 @@ size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced)
 		ADD("earth10x-s30-h0.2-a0.3", "earth", 0.2, 30, 0.3, 10, true, false, false);
 		ADD("mars-s30-h0.2", "mars", 0.2, 30, -1, 1, true, false, false);
 		ADD("mars-s5-h0.2", "mars", 0.2, 5, -1, 1, true, false, false);
+		/* and two observers: 1 m over black ground, and 30 km looking
+		 * up and down at the limb. */
+		ADD("earth-s60-h0.001-a0", "earth", 0.001, 60, 0, 1, false, false, false);
+		ADD("earth-s60-h30-a0", "earth", 30, 60, 0, 1, false, false, true);
 		return n;
 	}
 	for (size_t a = 0; a < 2; a++)
