@@ -5,13 +5,16 @@
 # the plots, the fisheye images and the CSV to docs/accuracy/.
 #   usage: tools/accuracy_doc.sh --run [BUILD_DIR]
 #          tools/accuracy_doc.sh OUT_DIR "machine description"
-# --run runs the report's own command first (BUILD_DIR defaults to build/,
-# where skybench was built; the truth is cached in BUILD_DIR/acc-gt, so a
-# second run only recomputes the tables) and describes the machine itself.
+# --run runs the report's own command first in BUILD_DIR, where skybench was
+# built (absolute or from the repository's root; build/ by default), and
+# describes the machine itself. The truth is cached in BUILD_DIR/acc-gt: the
+# first run traces it (about 15 minutes on the 2-core machine, loaded), later
+# runs only recompute the tables (about 5 minutes).
 set -eu
 root=$(cd "$(dirname "$0")/.." && pwd)
 if [ "${1:-}" = --run ]; then
-	build=${2:-$root/build}
+	cd "$root"
+	build=${2:-build}
 	out=$build/acc-doc
 	mkdir -p "$out"
 	"$build/tools/skybench" accuracy --out "$out" --cache "$build/acc-gt" \

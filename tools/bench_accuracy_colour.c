@@ -200,10 +200,14 @@ void acc_write_md_colour(FILE *f, const struct scene *sc, size_t n_sc, const str
 		"air as the horizon band's do); u'v' at most 0.003 mean by day; the gradient "
 		"within 5 %%. The worst direction and the pair are read against the truth's "
 		"own noise: a row \"less 2 standard errors\" counts a scene when |error| - 2 "
-		"se <= the limit, the error that noise alone cannot explain. Observers: 1 m, "
-		"0.2, 2, 10 and 30 km look up (day, horizon) and, from 2 km up, down; from 100 "
-		"km (the top of Earth's atmosphere) and 400 km there is no air above, so they "
-		"look down only.\n\n");
+		"se <= the limit, the error that noise alone cannot explain. Observers "
+		"(Earth): 1 m, 0.2, 2, 10 and 30 km look up (day, horizon); 2, 30, 100 and 400 "
+		"km also look down (down: rays that graze the air at tangent altitudes of 80 "
+		"km to 0.5 km, then 1, 5 and 20 deg below the geometric horizon, and the "
+		"nadir); from 100 km (the top of Earth's atmosphere) and 400 km (the ISS) "
+		"there is no air above, so they look down only. The same goals hold for every "
+		"observer; what bounds the limb from 100 and 400 km is in docs/findings.md, "
+		"\"Colour and observers from the ground to orbit\".\n\n");
 	write_goals(f, sc, n_sc, r);
 	fprintf(f, "\nEvery configuration over the scenes of the sweeps, per channel "
 		   "(R / G / B, mean relative error in %%, mean of the per-scene means), the "
