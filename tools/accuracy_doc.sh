@@ -2,15 +2,33 @@
 # accuracy_doc.sh - writes docs/accuracy.md from the output of `skybench
 # accuracy`: a short header that links to the findings (docs/findings.md,
 # prose written from the figures), then the generated tables verbatim; copies
-# the plot, the fisheye images and the CSV to docs/accuracy/.
-#   usage: tools/accuracy_doc.sh OUT_DIR "machine description"
+# the plots, the fisheye images and the CSV to docs/accuracy/.
+#   usage: tools/accuracy_doc.sh --run [BUILD_DIR]
+#          tools/accuracy_doc.sh OUT_DIR "machine description"
+# --run runs the report's own command first in BUILD_DIR, where skybench was
+# built (absolute or from the repository's root; build/ by default), and
+# describes the machine itself. The truth is cached in BUILD_DIR/acc-gt: the
+# first run traces it (about 15 minutes on the 2-core machine, loaded), later
+# runs only recompute the tables (about 5 minutes).
 set -eu
-out=${1:?usage: tools/accuracy_doc.sh OUT_DIR "machine description"}
-machine=${2:?usage: tools/accuracy_doc.sh OUT_DIR "machine description"}
 root=$(cd "$(dirname "$0")/.." && pwd)
+if [ "${1:-}" = --run ]; then
+	cd "$root"
+	build=${2:-build}
+	out=$build/acc-doc
+	mkdir -p "$out"
+	"$build/tools/skybench" accuracy --out "$out" --cache "$build/acc-gt" \
+		--day-error 0.02 --twilight-error 0.05 --max-samples 262144 \
+		--fisheye-n 24 --fisheye-error 0.08
+	cpu=$(sed -n 's/^model name[[:space:]]*: //p' /proc/cpuinfo | head -n 1)
+	machine="$(nproc) cores ($cpu), $(sed -n 's/^# device: //p' "$out/accuracy.csv")"
+else
+	out=${1:?usage: tools/accuracy_doc.sh --run [BUILD_DIR] | OUT_DIR "machine description"}
+	machine=${2:?usage: tools/accuracy_doc.sh --run [BUILD_DIR] | OUT_DIR "machine description"}
+fi
 docs=$root/docs
 mkdir -p "$docs/accuracy"
-cp "$out/accuracy.csv" "$out/errtime.png" "$docs/accuracy/"
+cp "$out/accuracy.csv" "$out/errtime.png" "$out/errtime-rgb.png" "$docs/accuracy/"
 for f in "$out"/fisheye-*.png; do
 	[ -e "$f" ] && cp "$f" "$docs/accuracy/"
 done
@@ -20,17 +38,22 @@ done
 
 The sky radiance a client reads from the published sky-view table, sampled
 with `proto/skysample.h` as libsky does, against the CPU path tracer
-(`truth/pt.c`), for a matrix of scenes and for every quality preset and a
-sweep of each knob, put against the engine's run time. Written by
-`tools/accuracy_doc.sh` from the output of `build/tools/skybench accuracy`;
-do not edit by hand.
+(`truth/pt.c`), for a matrix of scenes and observers and for every quality
+preset and a sweep of each knob, put against the engine's run time: the
+error of luminance, of each channel and of chromaticity. Written by
+`tools/accuracy_doc.sh --run` (which runs `build/tools/skybench accuracy`
+and keeps the truth it traced in `build/acc-gt`, so a second run takes
+minutes); do not edit by hand.
 
 What the figures mean, whether the truth is good enough, what was changed
 to reach them and what bounds the rest:
-[findings.md, "Accuracy against a path-traced truth"](findings.md#accuracy-against-a-path-traced-truth).
+[findings.md, "Accuracy against a path-traced truth"](findings.md#accuracy-against-a-path-traced-truth)
+and, for colour and the observers,
+[findings.md, "Colour and observers from the ground to orbit"](findings.md#colour-and-observers-from-the-ground-to-orbit).
 HEADER
 	printf '\n## The report\n\nMachine: %s.\n\n' "$machine"
 	printf '![error against run time](accuracy/errtime.png)\n\n'
+	printf '![colour error against run time](accuracy/errtime-rgb.png)\n\n'
 	for f in "$docs"/accuracy/fisheye-*.png; do
 		[ -e "$f" ] || continue
 		n=$(basename "$f" .png)

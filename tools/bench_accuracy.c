@@ -13,7 +13,7 @@
 #include <time.h>
 #include <unistd.h>
 
-const char *const acc_cat_names[N_CAT] = { "day", "horizon", "twilight" };
+const char *const acc_cat_names[N_CAT] = { "day", "horizon", "twilight", "down" };
 
 const struct config acc_configs[] = {
 	{ "low", { "quality=low" }, true },
@@ -86,12 +86,13 @@ static void usage(FILE *f)
 		"  --cache DIR      ground-truth cache, read and written (OUT/gt-cache)\n"
 		"  --cache-ro DIR   a cache read first and never written (e.g. committed truth)\n"
 		"  --list-truth     print each scene's ground-truth cache file name and exit\n"
-		"  --reduced        the CI matrix: six scenes, default preset only\n"
+		"  --reduced        the CI matrix: eight scenes, default preset only\n"
 		"  --scenes TEXT    only the scenes whose name contains TEXT\n"
 		"  --configs A,B    only these configurations besides medium (low, high, ultra,\n"
 		"                   T128x32, Mdirs2, S384x216, f16, ...: see accuracy.md)\n"
-		"  --limits FILE    exit 1 when the default preset's largest per-scene mean\n"
-		"                   relative error in a category exceeds the file's limit\n"
+		"  --limits FILE    exit 1 when the default preset's largest per-scene value\n"
+		"                   of a metric (luminance, per channel, u'v', gradient: see\n"
+		"                   tests/accuracy_goals.txt) in a category exceeds the limit\n"
 		"exit status: 0, 1 on a failure or an exceeded limit, 2 on a usage error,\n"
 		"77 when no Vulkan device can be opened\n");
 }
@@ -252,7 +253,7 @@ static int run_truth(const struct opts *o, const struct scene *sc, size_t n_sc, 
 	int rc = 0;
 	for (size_t i = 0; i < n_sc && rc == 0; i++) {
 		progress("truth", i, n_sc, sc[i].name, t0);
-		acc_direction_set(&gts[i]);
+		acc_direction_set(&sc[i], &gts[i]);
 		rc = acc_ground_truth(o, &sc[i], sc[i].sun_elevation_deg >= 2 ? o->day_error : o->twilight_error,
 				      &gts[i], "directions");
 	}
@@ -278,7 +279,8 @@ static int run_tables(const struct run *r, struct eng *e)
 		fprintf(stderr, "skybench: cannot write '%s/directions.csv'\n", o->out);
 	else
 		fprintf(dirs, "config,scene,category,elevation_deg,azimuth_deg,weight,tables_cd_m2,"
-			      "truth_cd_m2,truth_se_cd_m2,rel\n");
+			      "truth_cd_m2,truth_se_cd_m2,rel,tables_r,tables_g,tables_b,truth_r,"
+			      "truth_g,truth_b,duv\n");
 	double t1 = now_s();
 	for (size_t c = 0; c < N_CONFIGS && rc == 0; c++)
 		for (size_t i = 0; i < r->n_sc && rc == 0; i++) {

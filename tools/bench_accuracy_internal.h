@@ -6,6 +6,7 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 
@@ -16,7 +17,10 @@
 #define MAX_DIRS 2048
 #define MAX_KEYS 8
 
-enum category { CAT_DAY = 0, CAT_HORIZON = 1, CAT_TWILIGHT = 2, N_CAT = 3 };
+/* day: sun >= 2 deg, views >= 3 deg; horizon: sun >= 2 deg, views 0 to 3 deg;
+ * twilight: sun < 2 deg, all views; down: sun >= 2 deg, views below the
+ * observer's horizontal plane (the limb and the planet under it). */
+enum category { CAT_DAY = 0, CAT_HORIZON = 1, CAT_TWILIGHT = 2, CAT_DOWN = 3, N_CAT = 4 };
 extern const char *const acc_cat_names[N_CAT];
 
 struct scene {
@@ -26,6 +30,7 @@ struct scene {
 	double scattering_scale;
 	bool sweep;		/* also measured under the knob sweeps */
 	bool fisheye;		/* gets a side-by-side image */
+	bool down;		/* also views below the horizontal (acc_direction_set) */
 };
 
 struct config {
@@ -52,12 +57,28 @@ struct gt {
 	struct pt_dir dir[MAX_DIRS];
 	double weight[MAX_DIRS];
 	double lum[MAX_DIRS], lum_se[MAX_DIRS];
-	double rgb[MAX_DIRS][3];
+	double rgb[MAX_DIRS][3], rgb_se[MAX_DIRS][3];
 };
 
+/* The error of one category of one scene. Luminance: mean_rel to gt_rel_se.
+ * Per channel (R, G, B): the mean absolute and mean signed relative error,
+ * the worst direction's signed error, where it is and the truth's relative
+ * standard error there. Chromaticity: the CIE 1976 u'v' distance between the
+ * tables' and the truth's colour (acc_uv), its mean, worst and where, and
+ * the truth's own mean u'v' standard error. Gradient (day only): per
+ * channel, grad_zl = how much the ratio of the low sky (views 3 to 10 deg)
+ * to the zenith cap (views >= 65 deg) is off, (low/cap)_tables /
+ * (low/cap)_truth - 1; grad_pair = the largest |(L_i/L_j)_tables /
+ * (L_i/L_j)_truth - 1| over every pair of directions i, j and every
+ * channel, at grad_el/grad_az (i, then j), and grad_pair_se the truth's
+ * standard error of that ratio. */
 struct stats {
 	double weight, mean_rel, p95_rel, bias_rel, rmse_lum, worst_rel, worst_el, worst_az;
 	double gt_rel_se;
+	double ch_mean[3], ch_bias[3], ch_worst[3], ch_worst_el[3], ch_worst_az[3], ch_worst_se[3];
+	double duv_mean, duv_worst, duv_worst_el, duv_worst_az, duv_se;
+	double grad_zl[3], grad_pair, grad_pair_se, grad_el[2], grad_az[2];
+	int grad_ch;
 };
 
 struct result {
@@ -68,10 +89,12 @@ struct result {
 
 /* Error of a configuration over the scenes it ran on, per category: the
  * mean of the per-scene means (and the largest per-scene mean), the time as
- * the mean of the per-scene medians. */
+ * the mean of the per-scene medians; per channel and of u'v' the same, and
+ * the largest per-scene worst channel direction and u'v' mean. */
 struct summary {
 	double time_ms, mean[N_CAT], max_mean[N_CAT], p95[N_CAT], all;
-	int n_scenes;
+	double ch_mean[N_CAT][3], ch_max_worst[N_CAT], duv_mean[N_CAT], duv_max_mean[N_CAT];
+	int n_scenes, n_cat[N_CAT];
 };
 
 /* snprintf into a path-sized buffer; false when the result did not fit. */
@@ -80,6 +103,27 @@ struct summary {
 static inline double luminance(const double rgb[3])
 {
 	return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+}
+
+/* The CIE 1976 u'v' chromaticity of linear RGB, read as Rec. 709 / sRGB
+ * primaries with a D65 white (whose Y row is luminance()'s weights). */
+static inline void acc_uv(const double rgb[3], double ret_uv[2])
+{
+	double x = 0.4124 * rgb[0] + 0.3576 * rgb[1] + 0.1805 * rgb[2];
+	double y = luminance(rgb);
+	double z = 0.0193 * rgb[0] + 0.1192 * rgb[1] + 0.9505 * rgb[2];
+	double d = x + 15.0 * y + 3.0 * z;
+	ret_uv[0] = d > 0 ? 4.0 * x / d : 0.0;
+	ret_uv[1] = d > 0 ? 9.0 * y / d : 0.0;
+}
+
+/* The u'v' distance between two linear RGB colours. */
+static inline double acc_duv(const double a[3], const double b[3])
+{
+	double ua[2], ub[2];
+	acc_uv(a, ua);
+	acc_uv(b, ub);
+	return hypot(ua[0] - ub[0], ua[1] - ub[1]);
 }
 
 /* qsort's comparison of doubles, ascending. */
@@ -91,14 +135,16 @@ static inline int cmp_double(const void *a, const void *b)
 
 /* ---- scenes and the ground truth (bench_accuracy_truth.c) ---- */
 
-/* Fills sc (at most max) with the matrix, or the CI's six scenes when
+/* Fills sc (at most max) with the matrix, or the CI's eight scenes when
  * reduced; returns how many. */
 size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced);
 /* The state of a scene under a configuration (NULL: the default preset).
  * Returns 0 or -EINVAL (said on stderr). */
 int acc_scene_state(const struct scene *sc, const struct config *cf, struct sky_state *ret);
-/* g's directions: the measured set, weighted for the sun's mirror plane. */
-void acc_direction_set(struct gt *g);
+/* g's directions for scene sc: the measured set, weighted for the sun's
+ * mirror plane; views up while the observer is inside the atmosphere, and
+ * for a scene marked down the limb (by tangent altitude) and the planet. */
+void acc_direction_set(const struct scene *sc, struct gt *g);
 /* The ground truth for g's directions: from the read-only cache, the cache,
  * or the path tracer (then written to the cache). kind names the set in the
  * cache file and in --list-truth. Returns 0 or -errno. */
@@ -136,10 +182,19 @@ int acc_write_md(const struct opts *o, const struct scene *sc, size_t n_sc, cons
 		 const char *device, const char *cmdline, double gt_s, double total_s);
 int acc_write_plot(const struct opts *o, const struct scene *sc, size_t n_sc, const struct result *r,
 		   const char *device);
-/* --limits FILE: lines "category max_mean_rel [scene]" for the default
- * preset's largest per-scene mean over the scenes whose name contains scene
- * (every scene without it); returns the number of limits exceeded, or
- * -errno. */
+/* The colour part of accuracy.md (bench_accuracy_colour.c): the goals per
+ * channel, of chromaticity and of the gradient, where each scene stands
+ * against them, and every configuration's colour error. */
+void acc_write_md_colour(FILE *f, const struct scene *sc, size_t n_sc, const struct result *r);
+/* A metric of --limits by name, of one category of one scene; false when
+ * there is no metric of that name. */
+bool acc_metric(const char *name, const struct stats *st, double *ret);
+/* --limits FILE: lines "category [metric] limit [scene]" for the default
+ * preset's largest per-scene value of metric (lum_mean when left out; see
+ * the file tests/accuracy_goals.txt for the others) over the scenes whose
+ * name contains scene, or matches it as a pattern with '*' (every scene
+ * without it); returns the number of
+ * limits exceeded, or -errno. */
 int acc_check_limits(const char *file, const struct scene *sc, size_t n_sc, const struct result *r);
 
 #endif

@@ -31,73 +31,189 @@ struct err_sample {
 	double rel, weight;
 };
 
+static enum category category(const struct scene *sc, double el_deg)
+{
+	if (sc->sun_elevation_deg < 2.0)
+		return CAT_TWILIGHT;
+	return el_deg < 0.0 ? CAT_DOWN : el_deg < 3.0 ? CAT_HORIZON : CAT_DAY;
+}
+
+/* The truth's standard error of u'v' at rgb, each channel's error carried
+ * through by a finite difference (the channels are traced independently). */
+static double duv_se(const double rgb[3], const double se[3])
+{
+	double v = 0;
+	for (int c = 0; c < 3; c++) {
+		double p[3] = { rgb[0], rgb[1], rgb[2] };
+		p[c] += se[c];
+		double d = acc_duv(p, rgb);
+		v += d * d;
+	}
+	return sqrt(v);
+}
+
+/* One direction of a category, kept for the percentile and the gradient. */
+struct dir_err {
+	double rel[3], se[3], w, el, az;
+};
+
+/* The relative error of value against truth; an infinite one for a value
+ * that is not finite, never a NaN that would vanish from the means. */
+static double rel_error(double value, double truth)
+{
+	if (!isfinite(value))
+		return INFINITY;
+	return truth > 0 ? (value - truth) / truth : (value > 0 ? INFINITY : 0);
+}
+
+/* The gradient statistics of one category's n directions d into st. */
+static void gradient(const struct dir_err *d, size_t n, struct stats *st)
+{
+	double low[2][3] = { { 0 } }, cap[2][3] = { { 0 } };
+	st->grad_pair = 0;
+	for (int c = 0; c < 3; c++) {
+		size_t hi = 0, lo = 0;
+		for (size_t i = 0; i < n; i++) {
+			if (d[i].rel[c] > d[hi].rel[c])
+				hi = i;
+			if (d[i].rel[c] < d[lo].rel[c])
+				lo = i;
+			/* (1 + rel) is tables / truth: sums of both in the truth's unit. */
+			double (*sum)[3] = d[i].el >= 65.0 ? cap : d[i].el <= 10.0 ? low : NULL;
+			if (sum) {
+				sum[0][c] += d[i].w * (1.0 + d[i].rel[c]);
+				sum[1][c] += d[i].w;
+			}
+		}
+		double pair = n ? (1.0 + d[hi].rel[c]) / (1.0 + d[lo].rel[c]) - 1.0 : 0.0;
+		if (!(pair <= st->grad_pair)) {
+			st->grad_pair = pair;
+			st->grad_pair_se = hypot(d[hi].se[c], d[lo].se[c]);
+			st->grad_el[0] = d[hi].el, st->grad_az[0] = d[hi].az;
+			st->grad_el[1] = d[lo].el, st->grad_az[1] = d[lo].az;
+			st->grad_ch = c;
+		}
+		st->grad_zl[c] = low[1][c] > 0 && cap[1][c] > 0 ?
+			(low[0][c] / low[1][c]) / (cap[0][c] / cap[1][c]) - 1.0 : NAN;
+	}
+}
+
+/* Sums of one category over its directions, turned into statistics. */
+struct cat_acc {
+	size_t n;
+	double sum_sq, sum_se;
+	struct dir_err *d;
+};
+
+/* Adds one direction i of g, read from the tables as rgb, to st and a. */
+static void add_direction(const struct gt *g, size_t i, const double rgb[3], double rel_lum,
+			  struct stats *st, struct cat_acc *a)
+{
+	double w = g->weight[i], el = g->dir[i].elevation_deg, az = g->dir[i].azimuth_deg;
+	double y = luminance(rgb);
+	struct dir_err *e = &a->d[a->n++];
+	*e = (struct dir_err){ .w = w, .el = el, .az = az };
+	st->weight += w;
+	st->mean_rel += w * fabs(rel_lum);
+	st->bias_rel += w * rel_lum;
+	a->sum_sq += w * (y - g->lum[i]) * (y - g->lum[i]);
+	a->sum_se += w * (g->lum[i] > 0 ? g->lum_se[i] / g->lum[i] : 0);
+	if (!(fabs(rel_lum) <= fabs(st->worst_rel))) {
+		st->worst_rel = rel_lum;
+		st->worst_el = el;
+		st->worst_az = az;
+	}
+	for (int c = 0; c < 3; c++) {
+		double t = g->rgb[i][c];
+		e->rel[c] = rel_error(rgb[c], t);
+		e->se[c] = t > 0 ? g->rgb_se[i][c] / t : 0;
+		st->ch_mean[c] += w * fabs(e->rel[c]);
+		st->ch_bias[c] += w * e->rel[c];
+		if (!(fabs(e->rel[c]) <= fabs(st->ch_worst[c]))) {
+			st->ch_worst[c] = e->rel[c];
+			st->ch_worst_el[c] = el;
+			st->ch_worst_az[c] = az;
+			st->ch_worst_se[c] = e->se[c];
+		}
+	}
+	double duv = isfinite(y) ? acc_duv(rgb, g->rgb[i]) : INFINITY;
+	st->duv_mean += w * duv;
+	st->duv_se += w * duv_se(g->rgb[i], g->rgb_se[i]);
+	if (!(duv <= st->duv_worst)) {
+		st->duv_worst = duv;
+		st->duv_worst_el = el;
+		st->duv_worst_az = az;
+	}
+}
+
 static int cmp_err(const void *a, const void *b)
 {
 	double x = ((const struct err_sample *)a)->rel, y = ((const struct err_sample *)b)->rel;
 	return x < y ? -1 : x > y;
 }
 
-static enum category category(const struct scene *sc, double el_deg)
+/* The weighted 95th percentile of |rel| of luminance over a's directions. */
+static double p95(const struct cat_acc *a, const double *rel_lum_of, double weight)
 {
-	if (sc->sun_elevation_deg < 2.0)
-		return CAT_TWILIGHT;
-	return el_deg < 3.0 ? CAT_HORIZON : CAT_DAY;
+	static struct err_sample es[MAX_DIRS];
+	for (size_t i = 0; i < a->n; i++)
+		es[i] = (struct err_sample){ fabs(rel_lum_of[i]), a->d[i].w };
+	qsort(es, a->n, sizeof(es[0]), cmp_err);
+	double acc = 0;
+	for (size_t i = 0; i < a->n; i++) {
+		acc += es[i].weight;
+		if (acc >= 0.95 * weight)
+			return es[i].rel;
+	}
+	return es[a->n - 1].rel;
 }
 
 /* Each direction's row goes to dirs (directions.csv) when it is open. */
 void acc_measure(const struct eng *e, const struct sky_state *s, const struct scene *sc,
 		 const char *config, const struct gt *g, struct result *res, FILE *dirs)
 {
-	static struct err_sample es[N_CAT][MAX_DIRS];
-	size_t n[N_CAT] = { 0 };
-	double sum_sq[N_CAT] = { 0 }, sum_se[N_CAT] = { 0 };
+	static struct dir_err d[N_CAT][MAX_DIRS];
+	static double rel_lum[N_CAT][MAX_DIRS];
+	struct cat_acc a[N_CAT];
 
-	for (int c = 0; c < N_CAT; c++)
-		res->cat[c] = (struct stats){ .worst_rel = 0, .worst_el = NAN, .worst_az = NAN };
+	for (int c = 0; c < N_CAT; c++) {
+		a[c] = (struct cat_acc){ .d = d[c] };
+		res->cat[c] = (struct stats){ .worst_el = NAN, .worst_az = NAN, .duv_worst_el = NAN,
+					      .duv_worst_az = NAN };
+		for (int k = 0; k < 3; k++)
+			res->cat[c].ch_worst_el[k] = res->cat[c].ch_worst_az[k] = NAN;
+	}
 	for (size_t i = 0; i < g->n; i++) {
 		double rgb[3];
 		acc_table_radiance(e, s, g->dir[i].elevation_deg, g->dir[i].azimuth_deg, rgb);
-		double y = luminance(rgb), w = g->weight[i];
-		/* A table value that is not finite is an infinite error, never a
-		 * NaN that would vanish from the means. */
-		double rel = !isfinite(y) ? INFINITY
-			     : g->lum[i] > 0 ? (y - g->lum[i]) / g->lum[i] : (y > 0 ? INFINITY : 0);
+		double y = luminance(rgb), rel = rel_error(y, g->lum[i]);
 		enum category c = category(sc, g->dir[i].elevation_deg);
-		struct stats *st = &res->cat[c];
 		if (dirs)
-			fprintf(dirs, "%s,%s,%s,%g,%g,%g,%.6g,%.6g,%.6g,%.6g\n", config, sc->name,
-				acc_cat_names[c], g->dir[i].elevation_deg, g->dir[i].azimuth_deg, w, y,
-				g->lum[i], g->lum_se[i], rel);
-		es[c][n[c]++] = (struct err_sample){ fabs(rel), w };
-		st->weight += w;
-		st->mean_rel += w * fabs(rel);
-		st->bias_rel += w * rel;
-		sum_sq[c] += w * (y - g->lum[i]) * (y - g->lum[i]);
-		sum_se[c] += w * (g->lum[i] > 0 ? g->lum_se[i] / g->lum[i] : 0);
-		if (!(fabs(rel) <= fabs(st->worst_rel))) {
-			st->worst_rel = rel;
-			st->worst_el = g->dir[i].elevation_deg;
-			st->worst_az = g->dir[i].azimuth_deg;
-		}
+			fprintf(dirs, "%s,%s,%s,%g,%g,%g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
+				config, sc->name, acc_cat_names[c], g->dir[i].elevation_deg,
+				g->dir[i].azimuth_deg, g->weight[i], y, g->lum[i], g->lum_se[i], rel,
+				rgb[0], rgb[1], rgb[2], g->rgb[i][0], g->rgb[i][1], g->rgb[i][2],
+				isfinite(y) ? acc_duv(rgb, g->rgb[i]) : INFINITY);
+		rel_lum[c][a[c].n] = rel;
+		add_direction(g, i, rgb, rel, &res->cat[c], &a[c]);
 	}
 	for (int c = 0; c < N_CAT; c++) {
 		struct stats *st = &res->cat[c];
-		if (!n[c])
+		if (!a[c].n)
 			continue;
-		st->mean_rel /= st->weight;
-		st->bias_rel /= st->weight;
-		st->rmse_lum = sqrt(sum_sq[c] / st->weight);
-		st->gt_rel_se = sum_se[c] / st->weight;
-		qsort(es[c], n[c], sizeof(es[c][0]), cmp_err);
-		double acc = 0;
-		st->p95_rel = es[c][n[c] - 1].rel;
-		for (size_t i = 0; i < n[c]; i++) {
-			acc += es[c][i].weight;
-			if (acc >= 0.95 * st->weight) {
-				st->p95_rel = es[c][i].rel;
-				break;
-			}
+		double w = st->weight;
+		st->mean_rel /= w;
+		st->bias_rel /= w;
+		st->rmse_lum = sqrt(a[c].sum_sq / w);
+		st->gt_rel_se = a[c].sum_se / w;
+		for (int k = 0; k < 3; k++) {
+			st->ch_mean[k] /= w;
+			st->ch_bias[k] /= w;
 		}
+		st->duv_mean /= w;
+		st->duv_se /= w;
+		st->p95_rel = p95(&a[c], rel_lum[c], w);
+		gradient(a[c].d, a[c].n, st);
 	}
 }
 

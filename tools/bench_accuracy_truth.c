@@ -32,15 +32,19 @@ size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced)
 
 #define ADD(...) do { if (n < max) sc[n++] = (struct scene){ __VA_ARGS__ }; } while (0)
 	if (reduced) {
-		/* CI: a day sky with its horizon band and one twilight sky. */
-		ADD("earth-s20-h0.2-a0.3", "earth", 0.2, 20, 0.3, 1, true, false);
-		ADD("earth-s2-h0.2-a0.3", "earth", 0.2, 2, 0.3, 1, true, false);
-		ADD("earth-s-4-h0.2-a0.3", "earth", 0.2, -4, 0.3, 1, true, false);
+		/* CI: a day sky with its horizon band and one twilight sky, */
+		ADD("earth-s20-h0.2-a0.3", "earth", 0.2, 20, 0.3, 1, true, false, false);
+		ADD("earth-s2-h0.2-a0.3", "earth", 0.2, 2, 0.3, 1, true, false, false);
+		ADD("earth-s-4-h0.2-a0.3", "earth", 0.2, -4, 0.3, 1, true, false, false);
 		/* and the atmospheres whose own terms only they switch on: the
 		 * iteration (Earth x10), the shape and delta-M (Mars). */
-		ADD("earth10x-s30-h0.2-a0.3", "earth", 0.2, 30, 0.3, 10, true, false);
-		ADD("mars-s30-h0.2", "mars", 0.2, 30, -1, 1, true, false);
-		ADD("mars-s5-h0.2", "mars", 0.2, 5, -1, 1, true, false);
+		ADD("earth10x-s30-h0.2-a0.3", "earth", 0.2, 30, 0.3, 10, true, false, false);
+		ADD("mars-s30-h0.2", "mars", 0.2, 30, -1, 1, true, false, false);
+		ADD("mars-s5-h0.2", "mars", 0.2, 5, -1, 1, true, false, false);
+		/* and two observers: 1 m over black ground, and 30 km looking
+		 * up and down at the limb. */
+		ADD("earth-s60-h0.001-a0", "earth", 0.001, 60, 0, 1, false, false, false);
+		ADD("earth-s60-h30-a0", "earth", 30, 60, 0, 1, false, false, true);
 		return n;
 	}
 	for (size_t a = 0; a < 2; a++)
@@ -50,15 +54,27 @@ size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced)
 				snprintf(name, sizeof(name), "earth-s%g-h%g-a%g", suns[s], alts[a], albedos[b]);
 				bool main_row = a == 0 && b == 1;
 				ADD("", "earth", alts[a], suns[s], albedos[b], 1, main_row,
-				    main_row && (suns[s] == 20 || suns[s] == 2 || suns[s] == -2));
+				    main_row && (suns[s] == 20 || suns[s] == 2 || suns[s] == -2), false);
 				snprintf(sc[n - 1].name, sizeof(sc[n - 1].name), "%s", name);
 			}
-	ADD("mars-s30-h0.2", "mars", 0.2, 30, -1, 1, true, false);
-	ADD("mars-s5-h0.2", "mars", 0.2, 5, -1, 1, true, false);
+	ADD("mars-s30-h0.2", "mars", 0.2, 30, -1, 1, true, false, false);
+	ADD("mars-s5-h0.2", "mars", 0.2, 5, -1, 1, true, false, false);
 	/* Not in the reduced matrix: a Mars sky that no constant was chosen
 	 * by, to check one (PHASE_DELTA_ORDER). */
-	ADD("mars-s15-h0.2", "mars", 0.2, 15, -1, 1, true, false);
-	ADD("earth10x-s30-h0.2-a0.3", "earth", 0.2, 30, 0.3, 10, true, false);
+	ADD("mars-s15-h0.2", "mars", 0.2, 15, -1, 1, true, false, false);
+	ADD("earth10x-s30-h0.2-a0.3", "earth", 0.2, 30, 0.3, 10, true, false, false);
+	/* Observers from the ground to orbit over black ground, looking up
+	 * while there is air above them and down at the limb: 1 m, a mountain,
+	 * a balloon, the top of the atmosphere and the ISS. */
+	static const double obs_alts[] = { 0.001, 2, 30, 100, 400 };
+	static const double obs_suns[] = { 60, 10 };
+	for (size_t a = 0; a < sizeof(obs_alts) / sizeof(obs_alts[0]); a++)
+		for (size_t s = 0; s < sizeof(obs_suns) / sizeof(obs_suns[0]); s++) {
+			char name[48];
+			snprintf(name, sizeof(name), "earth-s%g-h%g-a0", obs_suns[s], obs_alts[a]);
+			ADD("", "earth", obs_alts[a], obs_suns[s], 0, 1, false, false, obs_alts[a] > 1);
+			snprintf(sc[n - 1].name, sizeof(sc[n - 1].name), "%s", name);
+		}
 #undef ADD
 	return n;
 }
@@ -86,6 +102,8 @@ int acc_scene_state(const struct scene *sc, const struct config *cf, struct sky_
 	s.altitude_km = sc->altitude_km;
 	s.sun.elevation_deg = sc->sun_elevation_deg;
 	s.sun.azimuth_deg = SUN_AZIMUTH_DEG;
+	/* The truth has no night-sky floor; in daylight it is 1e-6 of the sky. */
+	s.night.zenith_luminance_cd_m2 = 0.0;
 	if (sc->albedo >= 0)
 		for (int c = 0; c < 3; c++)
 			s.atmo.ground_albedo[c] = sc->albedo;
@@ -104,16 +122,51 @@ int acc_scene_state(const struct scene *sc, const struct config *cf, struct sky_
 	return 0;
 }
 
-void acc_direction_set(struct gt *g)
+/* Views down, for an observer above the ground: rays that graze the air
+ * at these tangent altitudes (the limb), then rays this far below the
+ * geometric horizon (the planet's disk, seen through the air), then the
+ * nadir. */
+static const double limb_tangent_km[] = { 80, 60, 40, 30, 20, 10, 5, 2, 0.5 };
+static const double disk_below_deg[] = { 1, 5, 20 };
+
+/* The set's ring at elevation el_deg: N_AZ azimuths, weighted. */
+static void add_ring(struct gt *g, double el_deg)
 {
+	for (int a = 0; a < N_AZ && g->n < MAX_DIRS; a++) {
+		g->dir[g->n] = (struct pt_dir){ el_deg, 30.0 * a };
+		g->weight[g->n++] = a == 0 || a == N_AZ - 1 ? 1.0 : 2.0;
+	}
+}
+
+void acc_direction_set(const struct scene *sc, struct gt *g)
+{
+	struct sky_state s;
 	g->n = 0;
-	for (size_t e = 0; e < N_EL; e++)
-		for (int a = 0; a < N_AZ; a++) {
-			g->dir[g->n] = (struct pt_dir){ dir_elevations[e], 30.0 * a };
-			g->weight[g->n++] = a == 0 || a == N_AZ - 1 ? 1.0 : 2.0;
-		}
-	g->dir[g->n] = (struct pt_dir){ 90.0, 0.0 };
-	g->weight[g->n++] = 1.0;
+	if (acc_scene_state(sc, NULL, &s) < 0)
+		return;
+	double rb = s.atmo.bottom_radius_km, shell = s.atmo.top_radius_km - rb;
+	/* Up only with at least 1 km of air above: from the top and beyond,
+	 * tables and truth alike read 0 there, which would flatter the means. */
+	if (sc->altitude_km < shell - 1.0) {
+		for (size_t e = 0; e < N_EL; e++)
+			add_ring(g, dir_elevations[e]);
+		g->dir[g->n] = (struct pt_dir){ 90.0, 0.0 };
+		g->weight[g->n++] = 1.0;
+	}
+	if (!sc->down)
+		return;
+	double r = rb + sc->altitude_km, deg = 180.0 / M_PI;
+	for (size_t k = 0; k < sizeof(limb_tangent_km) / sizeof(limb_tangent_km[0]); k++)
+		if (limb_tangent_km[k] < sc->altitude_km)
+			add_ring(g, -acos((rb + limb_tangent_km[k]) / r) * deg);
+	double dip_deg = acos(rb / r) * deg;
+	for (size_t k = 0; k < sizeof(disk_below_deg) / sizeof(disk_below_deg[0]); k++)
+		if (dip_deg + disk_below_deg[k] < 89.0)
+			add_ring(g, -(dip_deg + disk_below_deg[k]));
+	if (g->n < MAX_DIRS) {
+		g->dir[g->n] = (struct pt_dir){ -90.0, 0.0 };
+		g->weight[g->n++] = 1.0;
+	}
 }
 
 /* FNV-1a, 64 bits. */
@@ -192,6 +245,7 @@ static void fill_gt(struct gt *g, const struct pt_result *r)
 		double v = 0;
 		for (int c = 0; c < 3; c++) {
 			g->rgb[i][c] = r[i].radiance[c];
+			g->rgb_se[i][c] = r[i].std_error[c];
 			v += w[c] * w[c] * r[i].std_error[c] * r[i].std_error[c];
 		}
 		g->lum[i] = luminance(g->rgb[i]);

@@ -7,6 +7,11 @@
  *            [--min-samples N] [--max-samples N] [--batch N] [--reference]
  *            [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]
  *
+ * A direction of --dirs is elevation:azimuth, or tTANGENT_KM:azimuth for
+ * the view down that grazes the air at that altitude (the limb, as seen
+ * from altitude_km above it, inside the air or above it: the tracer starts
+ * such rays where they enter the air).
+ *
  * --isotropic and --delta-m trace the sky tables' assumptions (pt_approx):
  * light scattered once already scatters isotropically; the constituent's
  * phase delta-M scaled for the orders >= 2 (f its second Legendre moment,
@@ -32,6 +37,10 @@
 
 #define MAX_DIRS 4096
 
+/* The tangent altitude of each direction given as tH:AZ, NaN for the
+ * others; resolve_tangents turns them into elevations. */
+static double tangent_km[MAX_DIRS];
+
 static const char default_dirs[] = "90:0,60:180,30:180,30:0,10:90,2:180,2:0,-5:180";
 
 static void usage(FILE *f)
@@ -42,6 +51,8 @@ static void usage(FILE *f)
 		"                [--min-samples N] [--max-samples N] [--batch N] [--reference]\n"
 		"                [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]\n"
 		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...).\n"
+		"--dirs EL:AZ in degrees, or tKM:AZ: the view down that grazes the air at\n"
+		"KM of altitude (the limb; KM below altitude_km).\n"
 		"default --dirs %s\n", default_dirs);
 }
 
@@ -71,9 +82,13 @@ static int parse_dirs(const char *list, struct pt_dir *dirs, size_t *ret_n)
 		if (!colon || n == MAX_DIRS)
 			return -EINVAL;
 		*colon = 0;
-		if (proto_parse_number(tok, &dirs[n].elevation_deg) < 0 ||
-		    proto_parse_number(colon + 1, &dirs[n].azimuth_deg) < 0 ||
-		    fabs(dirs[n].elevation_deg) > 90.0)
+		tangent_km[n] = NAN;
+		dirs[n].elevation_deg = 0.0;	/* for tH: resolve_tangents sets it */
+		if (tok[0] == 't' ? proto_parse_number(tok + 1, &tangent_km[n]) < 0 || !(tangent_km[n] >= 0.0)
+				  : proto_parse_number(tok, &dirs[n].elevation_deg) < 0 ||
+				    fabs(dirs[n].elevation_deg) > 90.0)
+			return -EINVAL;
+		if (proto_parse_number(colon + 1, &dirs[n].azimuth_deg) < 0)
 			return -EINVAL;
 		n++;
 	}
@@ -261,6 +276,25 @@ static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_resu
 	return 0;
 }
 
+/* Turns the tangent altitudes of --dirs into elevations below the
+ * horizontal of the observer of g. Returns 0, or 2 for a tangent altitude
+ * at or above the observer's (said on stderr). */
+static int resolve_tangents(const struct args *g, struct pt_dir *dirs)
+{
+	double rb = g->s.atmo.bottom_radius_km, h = g->s.altitude_km > 0.0 ? g->s.altitude_km : 0.0;
+	for (size_t i = 0; i < g->n; i++) {
+		if (isnan(tangent_km[i]))
+			continue;
+		if (!(tangent_km[i] < h)) {
+			fprintf(stderr, "skytruth: --dirs t%g: the tangent altitude must be below altitude_km %g\n",
+				tangent_km[i], h);
+			return 2;
+		}
+		dirs[i].elevation_deg = -acos((rb + tangent_km[i]) / (rb + h)) * 180.0 / M_PI;
+	}
+	return 0;
+}
+
 int main(int argc, char **argv)
 {
 	static struct pt_dir dirs[MAX_DIRS];
@@ -270,5 +304,7 @@ int main(int argc, char **argv)
 	int status = parse_args(argc, argv, &g, dirs);
 	if (status >= 0)
 		return status;
+	if (resolve_tangents(&g, dirs))
+		return 2;
 	return trace(&g, dirs, res);
 }
