@@ -77,6 +77,16 @@ struct sky_client {
 	const struct sky_shm_header *map;
 	size_t map_bytes;
 	const struct sky_shm_header *old_map;	/* sky_wait: the superseded region */
+
+	/* sky_gpu_tables(): what each table held when last seen, in the
+	 * mapping gpu_map (another mapping starts afresh). */
+	const struct sky_shm_header *gpu_map;
+	struct sky_gpu_seen {
+		bool known;
+		uint32_t generation;	/* the view generation it was hashed in */
+		uint32_t changed;	/* changed_generation */
+		uint64_t hash;		/* format, sizes, scale and texels */
+	} gpu_seen[SKY_SHM_MAX_TABLES];
 };
 
 /* ---- sky.c: clocks and replies ---------------------------------------- */
