@@ -560,8 +560,10 @@ struct sky_gpu_state {
 	float sun_illuminance_lx[4];	/* rgb at the top of the atmosphere, w 0 */
 	float moon[4];			/* xyz moon_direction, w moon_angular_radius_rad */
 	float moon_illuminance_lx[4];	/* rgb, 0 when the moon lights nothing; w 0 */
-	float planet[4];		/* bottom_radius_km, top_radius_km, altitude_km,
-					 * the horizon's cos-zenith at the observer */
+	float planet[4];		/* bottom_radius_km, top_radius_km, altitude_km, 0 */
+	float horizon[4];		/* the geometric horizon at the observer: cos-zenith
+					 * (skymap_horizon_cos), sin-zenith, zenith angle
+					 * (rad), 0; in double, then rounded */
 	float rgb_scale[4];		/* by table id: 2^rgb_scale_log2[id] (1 for float32) */
 	float aerial[4];		/* aerial_range_km, aerial_squared (1 or 0),
 					 * tan(vfov / 2) and aspect of the volume's camera */

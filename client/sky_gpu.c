@@ -135,7 +135,11 @@ int sky_gpu_state(const struct sky_view *v, const char *view_name, struct sky_gp
 	put4(g.moon, st->moon_direction, st->moon_angular_radius_rad);
 	put4(g.moon_illuminance_lx, st->moon_illuminance_lx, 0.0);
 	double planet[3] = { st->bottom_radius_km, st->top_radius_km, st->altitude_km };
-	put4(g.planet, planet, skymap_horizon_cos(st->bottom_radius_km, st->altitude_km));
+	put4(g.planet, planet, 0.0);
+	double hc = skymap_horizon_cos(st->bottom_radius_km, st->altitude_km);
+	double horizon[3] = { hc, st->bottom_radius_km / (st->bottom_radius_km + fmax(st->altitude_km, 0.0)),
+			      acos(hc) };
+	put4(g.horizon, horizon, 0.0);
 	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
 		struct skysample_table t;
 		bool half = skysample_table_from_slot(v->header, v->slot_base, id, &t) == 0 &&
