@@ -25,6 +25,10 @@
  *     verbs use the same code and agree bit for bit); sky_render() fills an
  *     RGB float image in the equirectangular, perspective or planetarium
  *     fisheye (domemaster) projection.
+ *   - sky_gpu_tables() and sky_gpu_state() serve a render client that
+ *     samples the tables on its own GPU with the GLSL library installed
+ *     beside this header (proto/glsl/sky.glsl; see GPU CLIENTS below and
+ *     docs/render-clients.md).
  *
  * A minimal reader:
  *
@@ -448,6 +452,8 @@ SKY_EXPORT int sky_sample_sun(const struct sky_view *v, double ret_lx[3]);
 SKY_EXPORT int sky_sample_ambient(const struct sky_view *v, double ret_lx[3]);
 
 /* ---- GPU clients ---------------------------------------------------------
+ *
+ * GPU CLIENTS
  *
  * A render client that samples the tables on its own GPU uploads each table
  * to an image and evaluates it in its shaders with the GLSL library

@@ -270,6 +270,7 @@ static void run_generation(struct gvk *g, const struct sky_view *v, const struct
 	struct sky_gpu_state st;
 	struct tables tb;
 	CHECK(sky_gpu_state(v, NULL, &st) == 0);
+	CHECK(sky_gpu_state(v, "no-such-view", &st) == -ENOENT);
 	struct gvk_image *im[SKY_SHM_MAX_TABLES];
 	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
 		CHECK(gt[id].present && gt[id].id == id);
@@ -385,6 +386,21 @@ static void step(struct gvk *g, sky_client *c, uint32_t gen, uint32_t fmt, uint3
 	struct sky_gpu_table again[SKY_SHM_MAX_TABLES];
 	CHECK(sky_gpu_tables(c, &v, again) == mask);
 	CHECK(memcmp(again, gt, sizeof(gt)) == 0);
+	/* A zero-copy view of the same generation: the same contents, the
+	 * texels in the mapping at map_offset. */
+	struct sky_view zv;
+	if (sky_view_begin(c, &zv) == 0 && zv.generation == v.generation) {
+		int r = sky_gpu_tables(c, &zv, again);
+		if (sky_view_end(c, &zv) && r >= 0) {
+			CHECK(r == mask);
+			for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
+				CHECK(again[id].changed_generation == gt[id].changed_generation);
+				CHECK(again[id].map_offset % 64 == 0 && again[id].map_offset > 0);
+				CHECK((const char *)zv.header + again[id].map_offset == again[id].texels);
+				CHECK(memcmp(again[id].texels, gt[id].texels, gt[id].bytes) == 0);
+			}
+		}
+	}
 	run_generation(g, &v, gt);
 	free(buf);
 }
