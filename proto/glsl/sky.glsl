@@ -35,13 +35,14 @@
 // which is REPEAT (azimuth is periodic).
 //
 // Filtering: by default the texture units filter (texture()). They weigh
-// texels with 8 bits of sub-texel position on most GPUs and on lavapipe, so
-// a result may differ from libsky's double bilinear by up to 1/512 of the
-// difference between neighbouring texels (test_glsl_sample measures it).
+// texels with 8 bits of sub-texel position on many GPUs, so a result may
+// differ from libsky's double bilinear by about 1/256 of the difference
+// between neighbouring texels (test_glsl_sample bounds it; lavapipe weighs
+// float formats in float).
 // Define SKY_GLSL_EXACT_FILTER before including to filter in the shader
 // instead (texelFetch and mix in float, 4 fetches a 2-D lookup, 8 for the
 // aerial volume): then the results agree with libsky to float rounding.
-// Needs GLSL 4.50 (or ES 3.10 with textureSize on sampler3D), no extension.
+// GLSL 4.50 (Vulkan or OpenGL 4.5), no extension.
 #ifndef SKY_GLSL
 #define SKY_GLSL
 
