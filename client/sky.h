@@ -558,6 +558,18 @@ struct sky_gpu_table {
 SKY_EXPORT int sky_gpu_tables(sky_client *c, const struct sky_view *v,
 			      struct sky_gpu_table ret_tables[SKY_SHM_MAX_TABLES]);
 
+/* The aerial-perspective volume of the view called name (`view add`; see
+ * sky_view_aerial_table()) described as sky_gpu_tables() describes a table
+ * (id SKY_TABLE_AERIAL, the aerial table's format, sizes and scale), with
+ * its own changed_generation: a view's volume changes when its camera or
+ * the sky does. Returns 1 if it changed in the view's generation, 0 if
+ * not, -ENOENT if the slot has no such view, -ENODATA if its volume is not
+ * valid there, -EAGAIN if a zero-copy view was torn, -EINVAL. Keeps what
+ * it has seen per name, for up to SKY_SHM_MAX_VIEWS names. Not thread-safe
+ * on one client. Since 0.2. */
+SKY_EXPORT int sky_gpu_view_table(sky_client *c, const struct sky_view *v, const char *name,
+				  struct sky_gpu_table *ret_table);
+
 /* The per-generation uniforms of the GLSL library (proto/glsl/sky.glsl,
  * struct SkyState): vec4s only, so the same bytes are its std140 and its
  * std430 layout. Filled from the slot's struct sky_shm_state by

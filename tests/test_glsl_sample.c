@@ -42,7 +42,7 @@
 #include "glsl_sample_hw.spv.h"
 
 #define N_QUERIES 4096
-#define RESULTS_PER_QUERY 7
+#define RESULTS_PER_QUERY 8
 #define REL_TOL 4e-6
 
 static const char *const args[] = {
@@ -84,16 +84,58 @@ static void near_dir(const double c[3], double a, double ret[3])
 		ret[k] = cos(a) * c[k] + sin(a) * (cos(ph) * t[k] + sin(ph) * b[k]);
 }
 
+/* The camera of an aerial volume: the state's, or a view's. */
+struct camera {
+	double fwd[3], right[3], up[3], tan_half, aspect;
+};
+
+static int camera_of(const struct sky_view *v, const char *name, struct camera *ret)
+{
+	const struct sky_shm_state *st = &v->slot->state;
+	const double *f = st->camera_forward, *r = st->camera_right, *u = st->camera_up;
+	double vfov = st->camera_vfov_rad, aspect = st->camera_aspect;
+	if (name) {
+		const struct sky_shm_view *vw;
+		struct skysample_table t;
+		if (skysample_view_from_slot(v->header, v->slot_base, name, &t, &vw) < 0)
+			return -ENOENT;
+		f = vw->camera_forward, r = vw->camera_right, u = vw->camera_up;
+		vfov = vw->camera_vfov_rad, aspect = vw->camera_aspect;
+	}
+	for (int k = 0; k < 3; k++)
+		ret->fwd[k] = f[k], ret->right[k] = r[k], ret->up[k] = u[k];
+	ret->tan_half = tan(0.5 * vfov);
+	ret->aspect = aspect;
+	return 0;
+}
+
+/* The direction through screen position (u, v) as aerial.comp makes it. */
+static void screen_dir(const struct camera *c, double u, double v, double ret[3])
+{
+	double x = (2.0 * u - 1.0) * c->tan_half * c->aspect, y = (2.0 * v - 1.0) * c->tan_half, n = 0.0;
+	for (int k = 0; k < 3; k++) {
+		ret[k] = c->fwd[k] + x * c->right[k] + y * c->up[k];
+		n += ret[k] * ret[k];
+	}
+	for (int k = 0; k < 3; k++)
+		ret[k] /= sqrt(n);
+}
+
 /* Queries: one in eight inside the sun's disk, one in eight inside the
- * moon's (within 0.9 of the radius: the edge is a step), the rest uniform
- * over the sphere; screen positions and distances (0 to 1.2 ranges, the
- * camera and the slices' edges among them) and (altitude, mu) over the
- * shell. */
-static void make_queries(const struct sky_shm_state *st, struct query *q)
+ * moon's (within 0.9 of the radius: the edge is a step), one in sixteen
+ * through the query's screen position of the aerial volume's camera, the
+ * rest uniform over the sphere; screen positions and distances (0 to 1.2
+ * ranges, the camera and the slices' edges among them) and (altitude, mu)
+ * over the shell. */
+static void make_queries(const struct sky_shm_state *st, const struct camera *cam, struct query *q)
 {
 	for (int i = 0; i < N_QUERIES; i++) {
 		double d[3];
-		if (i % 8 == 1)
+		q[i].p[0] = (float)rnd();
+		q[i].p[1] = (float)rnd();
+		if (i % 16 == 7)
+			screen_dir(cam, q[i].p[0], q[i].p[1], d);
+		else if (i % 8 == 1)
 			near_dir(st->sun_direction, 0.9 * rnd() * st->sun_angular_radius_rad, d);
 		else if (i % 8 == 2)
 			near_dir(st->moon_direction, 0.9 * rnd() * st->moon_angular_radius_rad, d);
@@ -103,8 +145,6 @@ static void make_queries(const struct sky_shm_state *st, struct query *q)
 			q[i].dir[k] = (float)d[k];
 		double range = st->aerial_range_km;
 		q[i].dir[3] = (float)(i % 16 == 3 ? 0.0 : i % 16 == 5 ? range : 1.2 * range * rnd());
-		q[i].p[0] = (float)rnd();
-		q[i].p[1] = (float)rnd();
 		q[i].p[2] = (float)((st->top_radius_km - st->bottom_radius_km) * rnd());
 		q[i].p[3] = (float)(2.0 * rnd() - 1.0);
 	}
@@ -167,8 +207,8 @@ static double tol2(double s, double x, int exact)
 	return (exact ? 1.0 : 2.0) * s / 256.0 + REL_TOL * fabs(x) + 1e-30;
 }
 
-static void compare(const struct sky_view *v, const struct tables *tb, const struct query *q,
-		    const float *res, int exact, struct tally *tl)
+static void compare(const struct sky_view *v, const struct tables *tb, const char *view_name,
+		    const struct query *q, const float *res, int exact, struct tally *tl)
 {
 	const struct sky_shm_state *st = &v->slot->state;
 	const char *mode = exact ? "exact filter" : "texture units";
@@ -219,7 +259,11 @@ static void compare(const struct sky_view *v, const struct tables *tb, const str
 
 		/* Aerial perspective: two slices (and the camera's (0, 1)). */
 		double t_ae;
-		CHECK(sky_sample_aerial(v, q[i].p[0], q[i].p[1], q[i].dir[3], rgb, &t_ae) == 0);
+		if (view_name)
+			CHECK(sky_sample_view_aerial(v, view_name, q[i].p[0], q[i].p[1], q[i].dir[3], rgb,
+						     &t_ae) == 0);
+		else
+			CHECK(sky_sample_aerial(v, q[i].p[0], q[i].p[1], q[i].dir[3], rgb, &t_ae) == 0);
 		double sl = skymap_aerial_slice(q[i].dir[3], ae->depth, st->aerial_range_km,
 						st->aerial_squared != 0);
 		uint32_t k0 = sl <= 0.0 ? 0 : (uint32_t)fmin(floor(sl), ae->depth - 1);
@@ -259,22 +303,34 @@ static void compare(const struct sky_view *v, const struct tables *tb, const str
 			expect(&tl[5], mode, i, c, o[24 + c], x,
 			       lx[c] * tol2(spread(tr, u, w, 0, 0, c), t_l[c], exact) + 1e-30);
 		}
+
+		/* The screen position of a direction made from one: float
+		 * rounding of the direction and the camera, about 1e-6. */
+		if (i % 16 == 7)
+			for (int c = 0; c < 2; c++)
+				expect(&tl[6], mode, i, c, o[28 + c], q[i].p[c], 1e-5);
 	}
 }
 
 /* Uploads the snapshot's tables as a client does, from sky_gpu_tables(),
  * and runs both builds of the shader; compares each with libsky. */
-static void run_generation(struct gvk *g, const struct sky_view *v, const struct sky_gpu_table *gt)
+static void run_generation(struct gvk *g, const struct sky_view *v, const struct sky_gpu_table *gt,
+			   const char *view_name)
 {
 	int mark_b = g->n_buffers, mark_i = g->n_images;
 	struct sky_gpu_state st;
 	struct tables tb;
-	CHECK(sky_gpu_state(v, NULL, &st) == 0);
+	struct camera cam = { { 0 }, { 0 }, { 0 }, 1.0, 1.0 };
 	CHECK(sky_gpu_state(v, "no-such-view", &st) == -ENOENT);
+	CHECK(sky_gpu_state(v, view_name, &st) == 0);
+	CHECK(camera_of(v, view_name, &cam) == 0);
 	struct gvk_image *im[SKY_SHM_MAX_TABLES];
 	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
 		CHECK(gt[id].present && gt[id].id == id);
-		CHECK(skysample_table_from_slot(v->header, v->slot_base, id, &tb.t[id]) == 0);
+		if (id == SKY_TABLE_AERIAL && view_name)
+			CHECK(skysample_view_from_slot(v->header, v->slot_base, view_name, &tb.t[id], NULL) == 0);
+		else
+			CHECK(skysample_table_from_slot(v->header, v->slot_base, id, &tb.t[id]) == 0);
 		CHECK(gt[id].texels == tb.t[id].texels);
 		CHECK(gt[id].bytes == (uint64_t)gt[id].width * gt[id].height * gt[id].depth * gt[id].texel_bytes);
 		VkFormat f = (VkFormat)gt[id].vk_format;
@@ -293,7 +349,7 @@ static void run_generation(struct gvk *g, const struct sky_view *v, const struct
 					       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
 	struct gvk_buffer *rb = gvk_buffer_new(g, 16 * RESULTS_PER_QUERY * N_QUERIES,
 					       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
-	make_queries(&v->slot->state, qb->map);
+	make_queries(&v->slot->state, &cam, qb->map);
 	struct gvk_binding b[7] = {
 		{ VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, ubo, NULL },
 		{ VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, NULL, im[SKY_TABLE_TRANSMITTANCE] },
@@ -306,7 +362,8 @@ static void run_generation(struct gvk *g, const struct sky_view *v, const struct
 	for (int exact = 0; exact <= 1; exact++) {
 		struct tally tl[] = { { "sky radiance", 0, 0, 0, 0 }, { "disks", 0, 0, 0, 0 },
 				      { "transmittance", 0, 0, 0, 0 }, { "aerial", 0, 0, 0, 0 },
-				      { "multiscatter", 0, 0, 0, 0 }, { "sun/moon illuminance", 0, 0, 0, 0 } };
+				      { "multiscatter", 0, 0, 0, 0 }, { "sun/moon illuminance", 0, 0, 0, 0 },
+				      { "aerial screen uv", 0, 0, 0, 0 } };
 		memset(rb->map, 0xff, rb->bytes);	/* NaN: a result not written fails */
 		if (exact)
 			gvk_dispatch(g, glsl_sample_exact_spv, sizeof(glsl_sample_exact_spv), b, 7,
@@ -314,11 +371,11 @@ static void run_generation(struct gvk *g, const struct sky_view *v, const struct
 		else
 			gvk_dispatch(g, glsl_sample_hw_spv, sizeof(glsl_sample_hw_spv), b, 7,
 				     (N_QUERIES + 63) / 64);
-		compare(v, &tb, qb->map, rb->map, exact, tl);
-		printf("generation %u, %s, %s (worst error / tolerance, largest relative error, "
-		       "largest value):\n", v->generation,
+		compare(v, &tb, view_name, qb->map, rb->map, exact, tl);
+		printf("generation %u, %s, %s, aerial of %s (worst error / tolerance, largest relative "
+		       "error, largest value):\n", v->generation,
 		       gt[0].format == SKY_FORMAT_RGBA16F ? "float16" : "float32",
-		       exact ? "exact filter" : "texture units");
+		       exact ? "exact filter" : "texture units", view_name ? view_name : "the state's camera");
 		for (size_t k = 0; k < sizeof(tl) / sizeof(tl[0]); k++)
 			printf("  %-22s %.3f  %.2e  %.4g\n", tl[k].what, tl[k].worst, tl[k].rel, tl[k].largest);
 	}
@@ -326,25 +383,28 @@ static void run_generation(struct gvk *g, const struct sky_view *v, const struct
 }
 
 /* Waits until the newest slot has generation >= gen, every table valid,
- * in format fmt, and copies it into buf. 0 or -errno. */
-static int snapshot_at(sky_client *c, uint32_t gen, uint32_t fmt, void *buf, size_t size,
-		       struct sky_view *ret)
+ * in format fmt, and copies it into a buffer of its own (the slot's size
+ * changes with the region), which the caller frees; NULL on failure. */
+static void *snapshot_at(sky_client *c, uint32_t gen, uint32_t fmt, struct sky_view *ret)
 {
 	for (int i = 0; i < 1000; i++) {
-		int r = sky_snapshot(c, buf, size, ret);
-		if (r < 0)
-			return r;
+		size_t size = (sky_snapshot_size(c) + 63) / 64 * 64;
+		void *buf = size ? aligned_alloc(64, size) : NULL;
+		if (!buf || sky_snapshot(c, buf, size, ret) < 0) {
+			free(buf);
+			return NULL;
+		}
 		if (ret->slot->generation >= gen && ret->valid_tables == SKY_TABLES_ALL &&
 		    ret->header->tables[0].format == fmt)
-			return 0;
+			return buf;
+		free(buf);
 		struct sky_event ev;
 		while (sky_dispatch(c, &ev) == 1)
 			;
-		r = sky_wait(c, ret->generation, 30000, NULL);
-		if (r < 0)
-			return r;
+		if (sky_wait(c, ret->generation, 30000, NULL) < 0)
+			return NULL;
 	}
-	return -ETIMEDOUT;
+	return NULL;
 }
 
 static uint32_t set_and_generation(sky_client *c, const char *line)
@@ -363,15 +423,15 @@ static uint32_t set_and_generation(sky_client *c, const char *line)
 /* Takes the generation at least gen in format fmt, checks which tables
  * sky_gpu_tables() says changed in it (mask), and runs it. */
 static void step(struct gvk *g, sky_client *c, uint32_t gen, uint32_t fmt, uint32_t changed_mask,
-		 const uint32_t before[SKY_SHM_MAX_TABLES], uint32_t ret_changed[SKY_SHM_MAX_TABLES])
+		 const uint32_t before[SKY_SHM_MAX_TABLES], uint32_t ret_changed[SKY_SHM_MAX_TABLES],
+		 const char *view_name)
 {
 	struct sky_view v;
 	struct sky_gpu_table gt[SKY_SHM_MAX_TABLES];
-	size_t size = sky_snapshot_size(c);
-	void *buf = aligned_alloc(64, (size + 63) / 64 * 64);
-	if (!buf || snapshot_at(c, gen, fmt, buf, size, &v) < 0) {
+	void *buf = snapshot_at(c, gen, fmt, &v);
+	if (!buf) {
 		FAIL("no generation %u in format %u", gen, fmt);
-		free(buf);
+		memset(ret_changed, 0, SKY_SHM_MAX_TABLES * sizeof(ret_changed[0]));
 		return;
 	}
 	int mask = sky_gpu_tables(c, &v, gt);
@@ -401,7 +461,18 @@ static void step(struct gvk *g, sky_client *c, uint32_t gen, uint32_t fmt, uint3
 			}
 		}
 	}
-	run_generation(g, &v, gt);
+	/* The view's volume, uploaded in place of the aerial table: it
+	 * changed in this generation (the view is new or moved). */
+	struct sky_gpu_table vt;
+	if (view_name) {
+		CHECK(sky_gpu_view_table(c, &v, view_name, &vt) == 1);
+		CHECK(vt.present && vt.changed_generation == v.generation &&
+		      vt.bytes == gt[SKY_TABLE_AERIAL].bytes && vt.format == gt[SKY_TABLE_AERIAL].format);
+		CHECK(sky_gpu_view_table(c, &v, view_name, &vt) == 1);
+		CHECK(sky_gpu_view_table(c, &v, "no-such-view", &vt) == -ENOENT);
+		CHECK(sky_gpu_view_table(c, &v, view_name, &gt[SKY_TABLE_AERIAL]) == 1);
+	}
+	run_generation(g, &v, gt, view_name);
 	free(buf);
 }
 
@@ -424,15 +495,22 @@ int main(void)
 	CHECK(sky_connect(d.sock, &c) == 0);
 	if (c) {
 		uint32_t none[SKY_SHM_MAX_TABLES] = { 0 }, first[SKY_SHM_MAX_TABLES], second[SKY_SHM_MAX_TABLES],
-			 third[SKY_SHM_MAX_TABLES];
+			 third[SKY_SHM_MAX_TABLES], fourth[SKY_SHM_MAX_TABLES], fifth[SKY_SHM_MAX_TABLES];
 		sky_set_timeout(c, 60000);
 		CHECK(sky_subscribe(c, SKY_TABLES_ALL, 0) == 0);
-		step(&g, c, 0, SKY_FORMAT_RGBA32F, SKY_TABLES_ALL, none, first);
+		step(&g, c, 0, SKY_FORMAT_RGBA32F, SKY_TABLES_ALL, none, first, NULL);
 		uint32_t gen = set_and_generation(c, "set storage=f16");
-		step(&g, c, gen, SKY_FORMAT_RGBA16F, SKY_TABLES_ALL, first, second);
+		step(&g, c, gen, SKY_FORMAT_RGBA16F, SKY_TABLES_ALL, first, second, NULL);
 		gen = set_and_generation(c, "set sun_elevation_deg=25");
 		step(&g, c, gen, SKY_FORMAT_RGBA16F,
-		     SKY_TABLE_BIT(SKY_TABLE_SKYVIEW) | SKY_TABLE_BIT(SKY_TABLE_AERIAL), second, third);
+		     SKY_TABLE_BIT(SKY_TABLE_SKYVIEW) | SKY_TABLE_BIT(SKY_TABLE_AERIAL), second, third, NULL);
+		/* A view: a new region (every table counts as changed), then
+		 * the view moved: the state's aerial table is recomputed with
+		 * the same bytes and is not reported, the view's volume is. */
+		gen = set_and_generation(c, "view add name=wall yaw_deg=200 pitch_deg=4 vfov_deg=50 aspect=2");
+		step(&g, c, gen, SKY_FORMAT_RGBA16F, SKY_TABLES_ALL, third, fourth, "wall");
+		gen = set_and_generation(c, "view add name=wall yaw_deg=80 pitch_deg=-3 vfov_deg=35 aspect=1.5");
+		step(&g, c, gen, SKY_FORMAT_RGBA16F, 0, fourth, fifth, "wall");
 		sky_disconnect(c);
 	}
 	daemon_cleanup(&d);
