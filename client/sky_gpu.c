@@ -34,6 +34,7 @@ static bool torn(const sky_client *c, const struct sky_view *v)
 	return !sky_view_end(c, v);
 }
 
+/* Fills ret (zeroed by the caller) for table t of view v. */
 static void describe(const struct sky_view *v, const struct skysample_table *t,
 		     struct sky_gpu_table *ret)
 {

@@ -1,8 +1,9 @@
 /* test_glsl_map.c - proto/glsl/skymap.glsl against proto/skymap.h: every
  * mapping run on the Vulkan device (lavapipe) at many points, including the
  * edges (horizon, zenith, nadir, the top of the shell, outside the range),
- * compared with the double-precision C functions. The two files are the
- * one definition of the mappings in two languages; this keeps them one.
+ * compared with the double-precision C functions, and the file's
+ * SKYMAP_GLSL_VERSION with SKYMAP_VERSION. The two files are the one
+ * definition of the mappings in two languages; this keeps them one.
  *
  * Tolerance: a texture coordinate may differ by TOL_TEXEL of a texel, 1/512:
  * half the 8-bit sub-texel precision with which texture units weigh
@@ -198,6 +199,9 @@ static void check(const struct record *rec, const float *out, int n, struct wors
 		if (sqrt(dx * dx + dy * dy) > 1e-5)
 			note(&w[9], wrap_diff(o[20], u), TOL_TEXEL / W, i);
 		note(&w[9], fabs(o[21] - v), kink_tol(sk, H) + fabs(dn - 1.0), i);
+		/* The file's version is skymap.h's. */
+		if (i == 0)
+			CHECK(o[22] == SKYMAP_VERSION);
 		double zen, az;
 		skymap_skyview_inverse(hc, r->tex[0], r->tex[1], H, &zen, &az);
 		note(&w[5], fabs(o[10] - zen), 2e-6 * SKYMAP_PI, i);

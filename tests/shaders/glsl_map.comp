@@ -43,5 +43,6 @@ void main()
 			  skymap_horizon_cos(rb, alt), skymap_distance_to_top(rb, rt, alt, mu));
 	O.v[o + 4] = vec4(skymap_rho2(rb, alt), skymap_unit_to_tex(r.tex.z, w),
 			  skymap_tex_to_unit(r.tex.x, w), 0.0);
-	O.v[o + 5] = vec4(skymap_skyview_uv_dir(r.hor.x, r.hor.y, r.hor.z, r.dir.xyz, h), 0.0, 0.0);
+	O.v[o + 5] = vec4(skymap_skyview_uv_dir(r.hor.x, r.hor.y, r.hor.z, r.dir.xyz, h),
+			  float(SKYMAP_GLSL_VERSION), 0.0);
 }
