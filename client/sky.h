@@ -25,6 +25,10 @@
  *     verbs use the same code and agree bit for bit); sky_render() fills an
  *     RGB float image in the equirectangular, perspective or planetarium
  *     fisheye (domemaster) projection.
+ *   - sky_gpu_tables() and sky_gpu_state() serve a render client that
+ *     samples the tables on its own GPU with the GLSL library installed
+ *     beside this header (proto/glsl/sky.glsl; see GPU CLIENTS below and
+ *     docs/render-clients.md).
  *
  * A minimal reader:
  *
@@ -446,6 +450,153 @@ SKY_EXPORT int sky_sample_sun(const struct sky_view *v, double ret_lx[3]);
  * integrated over the upper hemisphere. The same number as `sample
  * ambient`. About 8000 bilinear samples. Since 0.1. */
 SKY_EXPORT int sky_sample_ambient(const struct sky_view *v, double ret_lx[3]);
+
+/* ---- GPU clients ---------------------------------------------------------
+ *
+ * GPU CLIENTS
+ *
+ * A render client that samples the tables on its own GPU uploads each table
+ * to an image and evaluates it in its shaders with the GLSL library
+ * installed beside this header (include/sky/glsl: sky.glsl and the uv
+ * mappings skymap.glsl; docs/render-clients.md). Per frame:
+ *
+ *     struct sky_view v;
+ *     struct sky_gpu_table t[SKY_SHM_MAX_TABLES];
+ *     struct sky_gpu_state st;
+ *     if (sky_view_begin(c, &v) == 0 && v.generation != shown) {
+ *         sky_gpu_tables(c, &v, t);          // which tables changed since
+ *         sky_gpu_state(&v, NULL, &st);      // the uniforms of this slot
+ *         for each present t[i] with t[i].changed_generation != uploaded[i]:
+ *             memcpy t[i].texels (t[i].bytes) into a staging buffer
+ *         copy st into the staging buffer too
+ *         if (sky_view_end(c, &v)) {         // intact: record the copy
+ *             submit the staging -> image copies into the back set of images
+ *             uploaded[i] = t[i].changed_generation, shown = v.generation
+ *         }                                  // else torn: drop the copy, begin again
+ *     }
+ *
+ * Keeping the previous tables until the new upload is done: skyd reuses a
+ * slot a couple of publications later, so never let the GPU read the
+ * mapping itself while frames render from it. Copy the texels out
+ * under sky_view_begin() / sky_view_end() (above), or take a sky_snapshot()
+ * and copy from it at leisure, into host memory the client owns; keep two
+ * sets of images (and uniforms): frames sample the front set while the copy
+ * into the back set runs, and the client swaps them when the copy's fence
+ * (or timeline semaphore) has signalled, never before. Every table of a set
+ * and its struct sky_gpu_state must come from the same generation (the
+ * scale of a float16 table changes from slot to slot): a set whose tables
+ * did not all change is completed by copying the unchanged images from the
+ * front set on the GPU, or by keeping one image per table per set and
+ * uploading to the back set every table whose changed_generation differs
+ * from what that set holds.
+ *
+ * Importing instead of copying (VK_EXT_external_memory_host): the mapping is
+ * read-only and page-aligned, each table at map_offset from its start (a
+ * multiple of 64 bytes). A driver that accepts read-only host memory can
+ * import the pages that hold a table (round map_offset down and the end up
+ * to minImportedHostPointerAlignment) as a transfer source and copy from
+ * it into an image on the GPU, which saves the CPU copy; the copy must then
+ * complete, and sky_view_end() be called after its fence, before the
+ * result is trusted (a torn copy is dropped like a torn CPU copy). Images
+ * never alias the mapping.
+ */
+
+/* Texel formats of sky_gpu_table.vk_format: the VkFormat enumerants (stable
+ * across Vulkan versions) of the two table formats, so that libsky needs no
+ * Vulkan header. OpenGL's internal formats are GL_RGBA32F and GL_RGBA16F. */
+#define SKY_VK_FORMAT_R32G32B32A32_SFLOAT 109u	/* SKY_FORMAT_RGBA32F */
+#define SKY_VK_FORMAT_R16G16B16A16_SFLOAT 97u	/* SKY_FORMAT_RGBA16F */
+
+/* One table of a slot as a GPU client uploads it. Rows are tightly packed
+ * (row_pitch_bytes = width * texel_bytes), row 0 first, slices after each
+ * other; the texels' RGB times 2^rgb_scale_log2 is the value (float16
+ * tables; 0 for float32): pass 2^rgb_scale_log2 to the shaders
+ * (sky_gpu_state()'s rgb_scale does), never rescale the texels. */
+struct sky_gpu_table {
+	uint32_t id;			/* enum sky_shm_table_id, the index in the array */
+	uint32_t present;		/* 1: valid in this view; 0: the fields below are 0 */
+	uint32_t format;		/* enum sky_shm_format */
+	uint32_t vk_format;		/* SKY_VK_FORMAT_* */
+	uint32_t width, height, depth;	/* texels; depth 1 for 2-D tables */
+	uint32_t texel_bytes;		/* 16 (RGBA32F) or 8 (RGBA16F) */
+	uint64_t row_pitch_bytes;	/* width * texel_bytes */
+	uint64_t slice_pitch_bytes;	/* row_pitch_bytes * height */
+	uint64_t bytes;			/* slice_pitch_bytes * depth */
+	const void *texels;		/* the first texel, in the view's memory */
+	uint64_t map_offset;		/* texels' offset from the start of the mapping
+					 * (zero-copy views; 0 for a snapshot's) */
+	int32_t rgb_scale_log2;		/* the slot state's rgb_scale_log2[id] */
+	uint32_t changed_generation;	/* the generation from which this table holds
+					 * what it holds now: upload when it differs
+					 * from the one your image was filled at */
+};
+
+/* Describes every table of the view for upload: ret_tables[id] for each id
+ * in [0, SKY_SHM_MAX_TABLES), with present = 0 for a table the view does not
+ * hold. texels point into the view's memory: valid as the view is (see
+ * LIFETIMES), and for a zero-copy view the bytes are only trustworthy once
+ * sky_view_end() has returned true after you copied them.
+ *
+ * changed_generation: skyd republishes a table it did not recompute with the
+ * same bytes, so libsky tells a change by the table's contents (format,
+ * size, scale and a 64-bit FNV-1a of its bytes, skyproto.h's checksum
+ * function): the first generation in which this client saw the present
+ * contents, in the generations of its views. Comparing it with the one an
+ * image was uploaded at tells whether to upload again. The contents are
+ * hashed once per table per new generation (a pass over the tables'
+ * bytes: 0.15 ms of CPU for the default 1.1 MB layout on a small machine,
+ * docs/render-clients.md); further calls in the same generation cost
+ * nothing. A new mapping (layout change, reconnection)
+ * starts afresh: every table counts as changed.
+ *
+ * Returns the SKY_TABLE_BIT mask of the present tables whose
+ * changed_generation is the view's generation (>= 0), -EINVAL, or -EAGAIN
+ * when the slot of a zero-copy view was rewritten while it was hashed
+ * (nothing is recorded: begin a new view). Takes the client (it keeps what
+ * it has seen): not thread-safe on one client, like every call that takes
+ * one (see THREADS). Since 0.2. */
+SKY_EXPORT int sky_gpu_tables(sky_client *c, const struct sky_view *v,
+			      struct sky_gpu_table ret_tables[SKY_SHM_MAX_TABLES]);
+
+/* The aerial-perspective volume of the view called name (`view add`; see
+ * sky_view_aerial_table()) described as sky_gpu_tables() describes a table
+ * (id SKY_TABLE_AERIAL, the aerial table's format, sizes and scale), with
+ * its own changed_generation: a view's volume changes when its camera or
+ * the sky does. Returns 1 if it changed in the view's generation, 0 if
+ * not, -ENOENT if the slot has no such view, -ENODATA if its volume is not
+ * valid there, -EAGAIN if a zero-copy view was torn, -EINVAL. Keeps what
+ * it has seen per name, for up to SKY_SHM_MAX_VIEWS names. Not thread-safe
+ * on one client. Since 0.2. */
+SKY_EXPORT int sky_gpu_view_table(sky_client *c, const struct sky_view *v, const char *name,
+				  struct sky_gpu_table *ret_table);
+
+/* The per-generation uniforms of the GLSL library (proto/glsl/sky.glsl,
+ * struct SkyState): vec4s only, so the same bytes are its std140 and its
+ * std430 layout. Filled from the slot's struct sky_shm_state by
+ * sky_gpu_state(); directions in the observer's east-north-up frame. */
+struct sky_gpu_state {
+	float sun[4];			/* xyz sun_direction, w sun_angular_radius_rad */
+	float sun_illuminance_lx[4];	/* rgb at the top of the atmosphere, w 0 */
+	float moon[4];			/* xyz moon_direction, w moon_angular_radius_rad */
+	float moon_illuminance_lx[4];	/* rgb, 0 when the moon lights nothing; w 0 */
+	float planet[4];		/* bottom_radius_km, top_radius_km, altitude_km, 0 */
+	float horizon[4];		/* the geometric horizon at the observer: cos-zenith
+					 * (skymap_horizon_cos), sin-zenith, zenith angle
+					 * (rad), 0; in double, then rounded */
+	float rgb_scale[4];		/* by table id: 2^rgb_scale_log2[id] (1 for float32) */
+	float aerial[4];		/* aerial_range_km, aerial_squared (1 or 0),
+					 * tan(vfov / 2) and aspect of the volume's camera */
+	float camera_forward[4];	/* the aerial volume's camera: xyz, w 0 */
+	float camera_right[4];		/* xyz, w 0 */
+	float camera_up[4];		/* xyz, w the camera's altitude_km */
+};
+
+/* Fills ret_state from the view's slot for the GLSL library. view_name NULL:
+ * the aerial volume is the state's camera's (the aerial table); else the
+ * camera of the view of that name (`view add`, sky_view_aerial_table()),
+ * -ENOENT if the slot has none. Thread-safe on a view. Since 0.2. */
+SKY_EXPORT int sky_gpu_state(const struct sky_view *v, const char *view_name,
+			     struct sky_gpu_state *ret_state);
 
 /* ---- Rendering --------------------------------------------------------- */
 

@@ -77,6 +77,21 @@ struct sky_client {
 	const struct sky_shm_header *map;
 	size_t map_bytes;
 	const struct sky_shm_header *old_map;	/* sky_wait: the superseded region */
+
+	/* sky_gpu_tables(): what each table held when last seen, in the
+	 * mapping gpu_map (another mapping starts afresh). */
+	const struct sky_shm_header *gpu_map;
+	struct sky_gpu_seen {
+		bool known;
+		uint32_t generation;	/* the view generation it was hashed in */
+		uint32_t changed;	/* changed_generation */
+		uint64_t hash;		/* format, sizes, scale and texels */
+	} gpu_seen[SKY_SHM_MAX_TABLES];
+	/* sky_gpu_view_table(): the same per view volume, by name. */
+	struct sky_gpu_seen_view {
+		char name[SKY_SHM_VIEW_NAME_MAX];
+		struct sky_gpu_seen seen;
+	} gpu_views[SKY_SHM_MAX_VIEWS];
 };
 
 /* ---- sky.c: clocks and replies ---------------------------------------- */

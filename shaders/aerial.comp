@@ -53,8 +53,7 @@ void main()
 	float tau_view = 0.0;		// the peak's optical depth along it (scaled_step)
 	float prev_depth = 0.0;
 	for (int k = 0; k < OUT_D; k++) {
-		float xk = float(k + 1) / float(OUT_D);
-		float depth = range * (P.misc.z > 0.5 ? xk * xk : xk);
+		float depth = skymap_aerial_depth_km(k, OUT_D, range, P.misc.z > 0.5);
 		// The part of this slice inside the atmosphere and above the ground.
 		float a = max(prev_depth, t0), b = inside ? min(depth, t1) : a;
 		prev_depth = depth;

@@ -1,11 +1,13 @@
 // common.glsl - parameters, table storage and the physics every pass shares.
 //
-// Mirrors truth/model.c (the double-precision oracle) and proto/skymap.h
-// (the mappings): a change here is a change there. Lengths in km,
-// coefficients in 1/km, directions in the observer's east-north-up frame
-// with the planet centre at (0, 0, -(Rb + altitude)).
+// Mirrors truth/model.c (the double-precision oracle); the uv mappings are
+// proto/glsl/skymap.glsl, the file render clients include too (checked
+// against proto/skymap.h by test_glsl_map). Lengths in km, coefficients in
+// 1/km, directions in the observer's east-north-up frame with the planet
+// centre at (0, 0, -(Rb + altitude)).
 
 #include "sky_params.h"
+#include "skymap.glsl"
 
 const float PI = 3.14159265358979;
 
@@ -121,15 +123,11 @@ void flush_range(int table)
 		atomicMax(PB.max_bits[table], range_bits);
 }
 
-float safe_sqrt(float x) { return sqrt(max(x, 0.0)); }
-
-// A texel centre's unit coordinate: the inverse of proto/skymap.h's
-// unit_to_tex (lookups go the other way through axis()).
-float tex_to_unit(float u, int n) { return (u - 0.5 / float(n)) / (1.0 - 1.0 / float(n)); }
-
-// r^2 - Rb^2 as h (2 Rb + h): exact at small altitudes.
-float rho2(float h) { return h * (2.0 * P.planet.x + h); }
-float horizon_cos(float h) { h = max(h, 0.0); return -safe_sqrt(rho2(h)) / (P.planet.x + h); }
+// skymap.glsl's, at this planet.
+float safe_sqrt(float x) { return skymap_safe_sqrt(x); }
+float tex_to_unit(float u, int n) { return skymap_tex_to_unit(u, n); }
+float rho2(float h) { return skymap_rho2(P.planet.x, h); }
+float horizon_cos(float h) { return skymap_horizon_cos(P.planet.x, h); }
 
 // Layer 0 below its width, layer 1 above: (exp_term, exp_scale_per_km,
 // linear_per_km, constant), so that one exp() serves either layer.
@@ -309,9 +307,7 @@ TAlt t_alt(float h)
 // from the altitude of a (Bruneton's mapping of the distance to the top).
 float transmittance_x(TAlt a, float mu)
 {
-	mu = clamp(mu, -1.0, 1.0);
-	float d = max(-a.r * mu + safe_sqrt(a.r * a.r * mu * mu + a.top_c), 0.0);
-	return (d - a.d_min) * a.inv_range;
+	return skymap_transmittance_x(a.r, mu, a.top_c, a.d_min, a.inv_range);
 }
 
 // Transmittance to the top of the atmosphere along mu, whether or not the
@@ -390,9 +386,7 @@ struct MsTaps {
 // 1 / (1 - mh), the scales below and above it.
 float ms_u(float mu_s, float mh, float below, float above)
 {
-	float d = clamp(mu_s, -1.0, 1.0) - mh;
-	float sn = clamp(d * (d < 0.0 ? below : above), -1.0, 1.0);
-	return 0.5 + 0.5 * sign(sn) * sqrt(abs(sn));
+	return skymap_multiscatter_x(mu_s, mh, below, above);
 }
 
 MsTaps ms_taps(TAlt a, float mu_s)

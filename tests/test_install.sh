@@ -33,6 +33,7 @@ expected=$tmp/expected
 	echo "$LIBDIR/libsky.so.0"
 	echo "$LIBDIR/libsky.so.0.1.0"
 	for h in sky.h skyproto.h skymap.h skysample.h; do echo "$INCLUDEDIR/$h"; done
+	for g in sky.glsl skymap.glsl; do echo "$INCLUDEDIR/sky/glsl/$g"; done
 	echo "$LIBDIR/pkgconfig/libsky.pc"
 	for f in skyConfig.cmake skyConfigVersion.cmake skyTargets.cmake; do
 		echo "$LIBDIR/cmake/sky/$f"
@@ -43,7 +44,7 @@ expected=$tmp/expected
 	echo "$TMPFILESDIR/skyd.conf"
 	echo "$UDEVRULESDIR/70-skyd-sensor.rules"
 	echo "$SYSCONFDIR/skyd/skyd.conf"
-	for d in README.md PROTOCOL.md sensor.md sync.md weather.md README-skyctl.md examples/skyd.conf; do
+	for d in README.md PROTOCOL.md sensor.md sync.md weather.md render-clients.md README-skyctl.md examples/skyd.conf; do
 		echo "$DOCDIR/$d"
 	done
 	if [ -f "$build/man/skyd.8" ]; then
