@@ -29,6 +29,7 @@ struct bench {
 	struct sky_state s;
 	int runs;
 	bool markdown;
+	bool wall_only;			/* --wall: the views' rows only */
 };
 
 struct result {
@@ -206,12 +207,35 @@ static void add_views(struct sky_state *s, uint32_t n)
 	}
 }
 
+static const char *const time_of_day[2] = { "sun_elevation_deg=20", "sun_elevation_deg=20.25" };
+static const char *const weather[2] = { "mie_scattering_per_km=0.004", "mie_scattering_per_km=0.0041" };
+static const char *const atmosphere[2] = { "mie_scale_height_km=1.2", "mie_scale_height_km=1.2001" };
+static const char *const camera[2] = { "camera_yaw_deg=170", "camera_yaw_deg=171" };
+
+/* The scenes without views, against a full recompute. */
+static int other_rows(struct bench *b)
+{
+	int rc = row(b, "full recompute (atmosphere, every table in use)", atmosphere, ALL, REF_FULL,
+		     "reference");
+	if (rc == 0)
+		rc = row(b, "weather change, full scene", weather, ALL, REF_FULL, "");
+	if (rc == 0)
+		rc = row(b, "time-of-day change, full scene", time_of_day, ALL, REF_FULL, "<= 35 %");
+	if (rc == 0)
+		rc = row(b, "camera change, full scene", camera, ALL, REF_FULL, "");
+	if (rc == 0)
+		rc = row(b, "transmittance-only scene, weather change", weather, T, REF_FULL, "<= 5 %");
+	if (rc == 0)
+		rc = row(b, "transmittance-only scene, time of day", time_of_day, T, REF_FULL, "");
+	if (rc == 0)
+		rc = row(b, "sky-view-only dome, weather change", weather, S, REF_FULL, "");
+	if (rc == 0)
+		rc = row(b, "sky-view-only dome, time of day", time_of_day, S, REF_FULL, "");
+	return rc;
+}
+
 int bench_demand_main(int argc, char **argv)
 {
-	static const char *const time_of_day[2] = { "sun_elevation_deg=20", "sun_elevation_deg=20.25" };
-	static const char *const weather[2] = { "mie_scattering_per_km=0.004", "mie_scattering_per_km=0.0041" };
-	static const char *const atmosphere[2] = { "mie_scale_height_km=1.2", "mie_scale_height_km=1.2001" };
-	static const char *const camera[2] = { "camera_yaw_deg=170", "camera_yaw_deg=171" };
 	struct bench b = { .runs = 30 };
 	const char *device = NULL;
 	char err[512];
@@ -225,6 +249,8 @@ int bench_demand_main(int argc, char **argv)
 			device = argv[++i];
 		else if (!strcmp(argv[i], "--markdown"))
 			b.markdown = true;
+		else if (!strcmp(argv[i], "--wall"))
+			b.wall_only = true;
 		else if (state_set_pair(&b.s, argv[i], NULL, err, sizeof(err)) < 0) {
 			fprintf(stderr, "skybench: %s\n", err);
 			return 2;
@@ -247,23 +273,9 @@ int bench_demand_main(int argc, char **argv)
 	b.runs = 2;
 	rc = measure(&b, NULL, ALL, REF_ONE_VIEW, &warm);
 	b.runs = runs;
-	if (rc == 0)
-		rc = row(&b, "full recompute (atmosphere, every table in use)", atmosphere, ALL,
-			 REF_FULL, "reference");
-	if (rc == 0)
-		rc = row(&b, "weather change, full scene", weather, ALL, REF_FULL, "");
-	if (rc == 0)
-		rc = row(&b, "time-of-day change, full scene", time_of_day, ALL, REF_FULL, "<= 35 %");
-	if (rc == 0)
-		rc = row(&b, "camera change, full scene", camera, ALL, REF_FULL, "");
-	if (rc == 0)
-		rc = row(&b, "transmittance-only scene, weather change", weather, T, REF_FULL, "<= 5 %");
-	if (rc == 0)
-		rc = row(&b, "transmittance-only scene, time of day", time_of_day, T, REF_FULL, "");
-	if (rc == 0)
-		rc = row(&b, "sky-view-only dome, weather change", weather, S, REF_FULL, "");
-	if (rc == 0)
-		rc = row(&b, "sky-view-only dome, time of day", time_of_day, S, REF_FULL, "");
+	if (rc == 0 && !b.wall_only)
+		rc = other_rows(&b);
+
 	/* Views: the state's camera is one view; a display wall adds 8 views
 	 * on the same eye point, all in the aerial pass's one dispatch. */
 	if (rc == 0)
@@ -281,9 +293,9 @@ int bench_demand_main(int argc, char **argv)
 	if (rc == 0)
 		add_views(&b.s, 0);
 	/* A clock animation: one time-of-day step per 60 Hz frame. */
-	if (rc == 0)
+	if (rc == 0 && !b.wall_only)
 		rc = row(&b, "clock animation step, full scene", time_of_day, ALL, REF_FRAME, "");
-	if (rc == 0)
+	if (rc == 0 && !b.wall_only)
 		rc = row(&b, "clock animation step, sky-view dome", time_of_day, S, REF_FRAME, "");
 	eng_free(b.ref_e);
 	eng_free(b.e);
