@@ -311,7 +311,9 @@ int eng_buffer_new(struct eng *e, VkDeviceSize bytes, VkBufferUsageFlags usage,
 		.allocationSize = req.size, .memoryTypeIndex = (uint32_t)type };
 	VK_TRY(e->vk.vkAllocateMemory(e->dev, &ai, NULL, &b.mem));
 	VK_TRY(e->vk.vkBindBufferMemory(e->dev, b.buf, b.mem, 0));
-	if (want & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT)
+	/* Mapped where host-visible memory was asked for, or preferred and got. */
+	if (((want | prefer) & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) &&
+	    (e->mem_props.memoryTypes[type].propertyFlags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT))
 		VK_TRY(e->vk.vkMapMemory(e->dev, b.mem, 0, VK_WHOLE_SIZE, 0, &b.map));
 	*ret = b;
 	return 0;

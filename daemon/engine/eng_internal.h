@@ -128,6 +128,11 @@ struct eng {
 	 * (pack.comp), and that copy is what reaches host memory. */
 	struct gpu_buffer table[STATE_N_TABLES];
 	struct gpu_buffer readback[STATE_N_TABLES];	/* host memory, the published format */
+	/* Where the device's memory is the host's, cached (lavapipe, most
+	 * integrated GPUs), the tables are read where the passes wrote them,
+	 * from published_offset on: no copy, no readback buffer. */
+	bool direct[STATE_N_TABLES];
+	size_t published_offset[STATE_N_TABLES];
 	size_t table_bytes[STATE_N_TABLES];		/* the published table (readback) */
 	size_t device_bytes[STATE_N_TABLES];		/* float32 part plus the copy */
 	/* The published RGB scale, log2, of each table as last computed

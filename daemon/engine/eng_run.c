@@ -141,8 +141,16 @@ static int table_new(struct eng *e, const struct sky_state *s, int t, char *err,
 	rc = eng_buffer_new(e, device, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
 				  VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
 				  VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-			    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->table[t], err, err_size);
-	if (rc == 0)
+			    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT,
+			    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_CACHED_BIT,
+			    &e->table[t], err, err_size);
+	if (rc < 0)
+		return rc;
+	/* Mapped only where host-visible and cached (eng_buffer_new got what
+	 * it preferred): reading it costs what reading host memory does. */
+	e->direct[t] = e->table[t].map != NULL;
+	e->published_offset[t] = s->quality.storage == STATE_F16 ? float_bytes(s, t) : 0;
+	if (!e->direct[t])
 		rc = eng_buffer_new(e, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
 				    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT,
 				    VK_MEMORY_PROPERTY_HOST_CACHED_BIT, &e->readback[t], err, err_size);
@@ -160,7 +168,8 @@ static int table_new(struct eng *e, const struct sky_state *s, int t, char *err,
 			.range = device / 16 * 16 };
 		VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->aerial_view));
 	}
-	memset(e->readback[t].map, 0, bytes);
+	memset(e->direct[t] ? (uint8_t *)e->table[t].map + e->published_offset[t] : e->readback[t].map,
+	       0, bytes);
 	e->table_bytes[t] = bytes;
 	e->device_bytes[t] = device;
 	e->rgb_scale_log2[t] = 0;
@@ -482,9 +491,10 @@ static int record_plan(struct eng *e, const struct sky_state *s, const struct pl
 		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT };
 	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 				   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &to_copy, 0, NULL, 0, NULL);
-	/* The published copy: the float32 texels, or the binary16 ones after them. */
+	/* The published copy: the float32 texels, or the binary16 ones after
+	 * them; none where the host reads the device's memory. */
 	for (int t = 0; t < STATE_N_TABLES; t++)
-		if (pl->mask & STATE_BIT(t)) {
+		if ((pl->mask & STATE_BIT(t)) && !e->direct[t]) {
 			VkBufferCopy c = { s->quality.storage == STATE_F16 ? float_bytes(s, t) : 0, 0,
 					   e->table_bytes[t] };
 			e->vk.vkCmdCopyBuffer(e->cmd, e->table[t].buf, e->readback[t].buf, 1, &c);
@@ -591,7 +601,7 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 		if (!(mask & STATE_BIT(i)))
 			continue;
 		VkMappedMemoryRange r = { .sType = VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE,
-			.memory = e->readback[i].mem, .size = VK_WHOLE_SIZE };
+			.memory = e->direct[i] ? e->table[i].mem : e->readback[i].mem, .size = VK_WHOLE_SIZE };
 		VK_TRY(e->vk.vkInvalidateMappedMemoryRanges(e->dev, 1, &r));
 		e->rgb_scale_log2[i] = !e->pack_in_flight ? 0
 				       : i == STATE_TRANSMITTANCE ? SKY_F16_TRANSMITTANCE_LOG2
