@@ -31,6 +31,7 @@ struct bench {
 	int runs;
 	bool markdown;
 	bool wall_only;			/* --wall: the views' rows only */
+	bool march_views;		/* --march-views: no panorama (the reference) */
 };
 
 struct result {
@@ -272,6 +273,8 @@ int bench_demand_main(int argc, char **argv)
 			b.markdown = true;
 		else if (!strcmp(argv[i], "--wall"))
 			b.wall_only = true;
+		else if (!strcmp(argv[i], "--march-views"))
+			b.march_views = true;
 		else if (state_set_pair(&b.s, argv[i], NULL, err, sizeof(err)) < 0) {
 			fprintf(stderr, "skybench: %s\n", err);
 			return 2;
@@ -287,6 +290,7 @@ int bench_demand_main(int argc, char **argv)
 		eng_free(b.e);
 		return 1;
 	}
+	eng_set_view_sharing(b.e, !b.march_views);
 	machine(&b);
 	/* Warm-up: pipelines built, buffers sized (not printed). */
 	struct result warm;
