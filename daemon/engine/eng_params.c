@@ -340,7 +340,9 @@ static void panorama_mapping(const struct sky_state *s, const struct volume *vol
 	size_t cap = (size_t)q->width * q->height * AERIAL_VOLUMES;
 	double *az = malloc(2 * cap * sizeof(double)), *el = az ? az + cap : NULL;
 	uint32_t pw, ph, n = 0;
-	double two_pi = 2.0 * SKYMAP_PI, start = 0.0, span = two_pi, el_lo = -0.5, el_hi = 0.5;
+	/* Without the memory to place the columns: every direction. */
+	double two_pi = 2.0 * SKYMAP_PI, start = 0.0, span = two_pi;
+	double el_lo = -0.5 * SKYMAP_PI, el_hi = 0.5 * SKYMAP_PI;
 	const struct volume *v = &vol[first];
 
 	panorama_size(s, &pw, &ph);
