@@ -43,23 +43,25 @@ void main()
 {
 	load_params();
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-	if (px.x >= OUT_W || px.y >= OUT_H)
-		return;
-	// Rows that look at the ground end early: interleave the volume's rows
-	// from both ends so that lavapipe's contiguous shares of workgroups
-	// carry the same work (as in skyview.comp).
-	px.y = (px.y & 1) == 0 ? px.y >> 1 : OUT_H - 1 - (px.y >> 1);
-
 	int job = 1 + AERIAL_JOB_VEC4 * int(gl_GlobalInvocationID.z);
 	vec4 j0 = VB.v[job], j1 = VB.v[job + 1], j2 = VB.v[job + 2];
 	vec3 sun_dir = VB.v[job + 3].xyz, moon_dir = VB.v[job + 4].xyz;
 	int out_base = int(floatBitsToUint(VB.v[job + 3].w));
 	bool panorama = VB.v[job + 4].w > 0.5;
+	// A panorama's columns, row-major, take rows of OUT_W invocations,
+	// as many as they need (the dispatch has enough for the largest).
+	int pw = int(j1.y), rows = panorama ? (pw * int(j1.z) + OUT_W - 1) / OUT_W : OUT_H;
+	if (px.x >= OUT_W || px.y >= rows)
+		return;
+	// Rows that look at the ground end early: interleave the volume's rows
+	// from both ends so that lavapipe's contiguous shares of workgroups
+	// carry the same work (as in skyview.comp).
+	px.y = (px.y & 1) == 0 ? px.y >> 1 : rows - 1 - (px.y >> 1);
+
 	float h0 = j2.w, range = P.cam_up.w;
 	vec3 dir;
-	int col = px.y * OUT_W + px.x;		// the panorama's column, row-major
+	int col = px.y * OUT_W + px.x;		// the panorama's column
 	if (panorama) {
-		int pw = int(j1.y);
 		if (col >= pw * int(j1.z))
 			return;
 		dir = panorama_dir(j0, j1, col % pw, col / pw);

@@ -9,6 +9,7 @@
 
 #include "eng.h"
 #include "skymap.h"
+#include "skysample.h"
 #include "test.h"
 #include "vk_or_skip.h"
 
@@ -33,8 +34,9 @@ static void set(struct sky_state *s, const char *pair)
 		FAIL("%s", err);
 }
 
-/* The aerial volumes of s (the state's camera, then each view), float32,
- * marched one by one (share 0) or shared per eye point (share 1). */
+/* The aerial volumes of s (the state's camera, then each view) as float32
+ * values (a float16 table decoded with its scale), marched one by one
+ * (share 0) or shared per eye point (share 1). */
 static float *aerial(const struct sky_state *s, int share)
 {
 	char err[512];
@@ -47,9 +49,13 @@ static float *aerial(const struct sky_state *s, int share)
 		return NULL;
 	}
 	const void *p = eng_table(eng, STATE_AERIAL, &bytes);
-	float *copy = malloc(bytes);
-	if (copy)
-		memcpy(copy, p, bytes);
+	size_t n = bytes / state_texel_bytes(s->quality.storage) * 4;
+	float *copy = malloc(n * sizeof(float));
+	double scale = ldexp(1.0, eng_table_scale_log2(eng, STATE_AERIAL));
+	for (size_t i = 0; copy && i < n; i++)
+		copy[i] = s->quality.storage == STATE_F16
+				  ? (float)(skysample_half(((const uint16_t *)p)[i]) * (i % 4 == 3 ? 1.0 : scale))
+				  : ((const float *)p)[i];
 	return copy;
 }
 
@@ -146,11 +152,23 @@ static void accuracy(void)
 	set(&s, "sun_elevation_deg=15");
 	shared_against_marched("wall of 8 on Mars, sun 15 deg", &s);
 
+	state_default(&s);
+	add_wall(&s, 4, 60, 90);	/* the zenith inside every view */
+	shared_against_marched("4 views looking up, sun 30 deg", &s);
+	state_default(&s);
+	add_wall(&s, 5, 0, 45);
+	set(&s, "quality=high");
+	shared_against_marched("wall of 5, quality=high", &s);
+	state_default(&s);
+	add_wall(&s, 5, 0, 45);
+	set(&s, "quality=low");	/* float16 storage too */
+	shared_against_marched("wall of 5, quality=low", &s);
+
 	/* Without views nothing is shared: the camera's volume is marched,
 	 * bit for bit the reference's. */
 	state_default(&s);
 	float *a = aerial(&s, 1), *b = aerial(&s, 0);
-	size_t bytes = state_table_bytes(&s, STATE_AERIAL);
+	size_t bytes = state_table_bytes(&s, STATE_AERIAL) / state_texel_bytes(s.quality.storage) * 16;
 	CHECK(a && b && memcmp(a, b, bytes) == 0);
 	free(a);
 	free(b);

@@ -224,6 +224,9 @@ void eng_fill_views(const struct sky_state *s, bool share, float *out, uint32_t 
 /* The texels of the panoramas s can need after its volumes: room for one
  * per two volumes. */
 uint64_t eng_panorama_texels(const struct sky_state *s);
+/* The rows of aerial_width invocations the march dispatch needs: the
+ * volume's, or a panorama's columns where they are more. */
+uint32_t eng_aerial_march_rows(const struct sky_state *s);
 struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t);
 struct spec eng_column_spec(const struct spec *base, const struct sky_state *s);
 void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,

@@ -247,12 +247,12 @@ static void groups(const struct sky_state *s, int t, uint32_t *x, uint32_t *y)
 
 /* Records one pass: its dispatch between two timestamps (queries 2 pass and
  * 2 pass + 1), then a barrier so that the next pass reads what it wrote;
- * with then_gz > 0, a second dispatch of then over (gx, gy, then_gz) that
+ * with then_gz > 0, a second dispatch of then over (gx, then_gy, then_gz) that
  * reads the first's output (the views' resampling), and its barrier; with
  * pack_groups > 0, also the pack pass of its table (pack.comp), which
  * needs that barrier and which no later pass reads (nor waits for). */
 static void record_pass(struct eng *e, int pass, VkPipeline pipe, uint32_t gx, uint32_t gy,
-			uint32_t gz, VkPipeline then, uint32_t then_gz, VkPipeline pack,
+			uint32_t gz, uint32_t then_gy, VkPipeline then, uint32_t then_gz, VkPipeline pack,
 			uint32_t pack_groups)
 {
 	const VkMemoryBarrier compute_to_compute = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
@@ -268,7 +268,7 @@ static void record_pass(struct eng *e, int pass, VkPipeline pipe, uint32_t gx, u
 				   NULL, 0, NULL);
 	if (then_gz) {
 		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, then);
-		e->vk.vkCmdDispatch(e->cmd, gx, gy, then_gz);
+		e->vk.vkCmdDispatch(e->cmd, gx, then_gy, then_gz);
 		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &compute_to_compute,
 					   0, NULL, 0, NULL);
@@ -474,7 +474,7 @@ static int record_plan(struct eng *e, const struct sky_state *s, const struct pl
 		uint32_t gx, gy;
 		groups(s, t, &gx, &gy);
 		if (t == STATE_TRANSMITTANCE && pl->run_columns)
-			record_pass(e, PASS_COLUMNS, pl->column_pipe, gx, gy, 1, VK_NULL_HANDLE, 0,
+			record_pass(e, PASS_COLUMNS, pl->column_pipe, gx, gy, 1, 0, VK_NULL_HANDLE, 0,
 				    VK_NULL_HANDLE, 0);
 		/* Every aerial march in one dispatch, z the job, then every
 		 * resampled volume in another. The float16 copies follow the
@@ -482,8 +482,10 @@ static int record_plan(struct eng *e, const struct sky_state *s, const struct pl
 		bool last = !(pl->mask >> (t + 1)), iterate = t == STATE_MULTISCATTER && pl->iterations > 0;
 		bool aerial = t == STATE_AERIAL;
 		uint32_t pack = last ? pl->pack_groups : 0;
-		record_pass(e, t, pl->pipes[t], gx, gy, aerial ? pl->aerial_march : 1, pl->resample_pipe,
-			    aerial ? pl->aerial_resample : 0, pl->pack_pipe, iterate ? 0 : pack);
+		uint32_t march_gy = aerial ? (eng_aerial_march_rows(s) + 7) / 8 : gy;
+		record_pass(e, t, pl->pipes[t], gx, march_gy, aerial ? pl->aerial_march : 1, gy,
+			    pl->resample_pipe, aerial ? pl->aerial_resample : 0, pl->pack_pipe,
+			    iterate ? 0 : pack);
 		if (iterate)
 			record_iteration(e, s, pl->iterate_pipes, pl->iterations, pl->pack_pipe, pack);
 	}
