@@ -313,10 +313,13 @@ static int cmp_double(const void *a, const void *b)
 	return x < y ? -1 : x > y;
 }
 
-/* The azimuths and elevations of the column centres of volumes vol[i] for
- * i in members (a mask), as aerial_resample.comp places them. */
+/* The azimuths and elevations of the column centres on the border of
+ * volumes vol[i], i in members (a mask), as aerial_resample.comp places
+ * them: a pinhole's directions cover the azimuths and elevations of its
+ * border, unless the zenith or the nadir is inside, which sets
+ * *ret_pole (1 zenith, -1 nadir; the full circle of azimuths). */
 static uint32_t column_directions(const struct sky_state *s, const struct volume *vol,
-				  uint32_t members, double *az, double *el)
+				  uint32_t members, double *az, double *el, int *ret_pole)
 {
 	const struct state_table_quality *q = &s->quality.t[STATE_AERIAL];
 	uint32_t n = 0;
@@ -324,8 +327,15 @@ static uint32_t column_directions(const struct sky_state *s, const struct volume
 		if (!(members & (1u << i)))
 			continue;
 		const struct volume *v = &vol[i];
-		for (uint32_t y = 0; y < q->height; y++)
-			for (uint32_t x = 0; x < q->width; x++) {
+		for (int pole = -1; pole <= 1; pole += 2) {
+			double f = pole * v->fwd[2], nx = pole * v->right[2] / (f * v->tan_half * v->aspect);
+			double ny = pole * v->up[2] / (f * v->tan_half);
+			if (f > 0 && fabs(nx) <= 1.0 - 1.0 / q->width && fabs(ny) <= 1.0 - 1.0 / q->height)
+				*ret_pole = pole;
+		}
+		for (uint32_t y = 0; y < q->height; y++) {
+			bool edge = y == 0 || y + 1 == q->height;
+			for (uint32_t x = 0; x < q->width; x += edge || q->width < 2 ? 1 : q->width - 1) {
 				double nx = (x + 0.5) / q->width * 2.0 - 1.0, ny = (y + 0.5) / q->height * 2.0 - 1.0;
 				double d[3];
 				for (int k = 0; k < 3; k++)
@@ -335,6 +345,7 @@ static uint32_t column_directions(const struct sky_state *s, const struct volume
 				az[n] = atan2(d[0], d[1]);
 				el[n++] = asin(d[2] < -1.0 ? -1.0 : d[2] > 1.0 ? 1.0 : d[2]);
 			}
+		}
 	}
 	return n;
 }
@@ -348,7 +359,7 @@ static void panorama_mapping(const struct sky_state *s, const struct volume *vol
 			     uint32_t first, float m0[4], float m1[4])
 {
 	const struct state_table_quality *q = &s->quality.t[STATE_AERIAL];
-	size_t cap = (size_t)q->width * q->height * AERIAL_VOLUMES;
+	size_t cap = (size_t)2 * (q->width + q->height) * AERIAL_VOLUMES;
 	double *az = malloc(2 * cap * sizeof(double)), *el = az ? az + cap : NULL;
 	uint32_t pw, ph, n = 0;
 	/* Without the memory to place the columns: every direction. */
@@ -357,14 +368,17 @@ static void panorama_mapping(const struct sky_state *s, const struct volume *vol
 	const struct volume *v = &vol[first];
 
 	panorama_size(s, &pw, &ph);
+	int pole = 0;
 	if (az)
-		n = column_directions(s, vol, members, az, el);
+		n = column_directions(s, vol, members, az, el, &pole);
 	if (n > 0) {
 		el_lo = el_hi = el[0];
 		for (uint32_t i = 1; i < n; i++) {
 			el_lo = fmin(el_lo, el[i]);
 			el_hi = fmax(el_hi, el[i]);
 		}
+		el_lo = pole < 0 ? -0.5 * SKYMAP_PI : el_lo;
+		el_hi = pole > 0 ? 0.5 * SKYMAP_PI : el_hi;
 		qsort(az, n, sizeof(double), cmp_double);
 		double gap = az[0] + two_pi - az[n - 1];
 		start = az[0];
@@ -373,7 +387,7 @@ static void panorama_mapping(const struct sky_state *s, const struct volume *vol
 				gap = az[i] - az[i - 1];
 				start = az[i];
 			}
-		span = two_pi - gap;
+		span = pole ? two_pi : two_pi - gap;
 	}
 	free(az);
 	bool full = two_pi / pw <= span / (pw - 1);
