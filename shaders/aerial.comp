@@ -1,16 +1,23 @@
-// aerial.comp - aerial perspective for each camera (view) in one dispatch:
-// per froxel column, one march through all slices; slice k holds the
-// integral from the camera to the slice's far edge (see proto/skymap.h).
-// gl_GlobalInvocationID.z is the view: 0 the state's camera, then the
-// registered views, each volume after the other in the output.
+// aerial.comp - aerial perspective, every march job in one dispatch: per
+// froxel column, one march through all slices; slice k holds the integral
+// from the eye to the slice's far edge (see proto/skymap.h).
+// gl_GlobalInvocationID.z is the job (sky_params.h, AERIAL_JOB_VEC4): a
+// camera's volume (the state's camera, a view), or the panorama of an eye
+// point that several cameras share, which aerial_resample.comp resamples
+// into each of their volumes.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
-// Per view, three vec4: forward (w = tan(vfov / 2)), right (w = aspect),
-// up (w = the view's altitude in km).
+// The jobs: see eng_fill_views. A camera: forward (w = tan(vfov / 2)),
+// right (w = aspect), up (w = the eye's altitude in km). A panorama:
+// (first azimuth, azimuth step, first row's x, row step) with x =
+// sign(e) sqrt(|e|), e the elevation above the eye's horizon in radians,
+// (the horizon's elevation, columns, rows, 1 for a full circle), (w = the
+// eye's altitude). Both: the sun and the moon in the eye's local frame,
+// with the output's texel offset and the kind in w.
 layout(std430, binding = BINDING_VIEWS) readonly buffer ViewBuf { vec4 v[]; } VB;
 
 // The aerial table again, a texel per element: lavapipe stores a vector
@@ -24,27 +31,48 @@ void store_texel(int i, vec4 v)
 	note_range(v.rgb);
 }
 
+// The direction of a panorama's column i, row j (job vec4s m0, m1).
+vec3 panorama_dir(vec4 m0, vec4 m1, int i, int j)
+{
+	float az = m0.x + float(i) * m0.y, x = m0.z + float(j) * m0.w;
+	float el = m1.x + sign(x) * x * x;
+	return vec3(cos(el) * sin(az), cos(el) * cos(az), sin(el));
+}
+
 void main()
 {
 	load_params();
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-	if (px.x >= OUT_W || px.y >= OUT_H)
+	int job = 1 + AERIAL_JOB_VEC4 * int(gl_GlobalInvocationID.z);
+	vec4 j0 = VB.v[job], j1 = VB.v[job + 1], j2 = VB.v[job + 2];
+	vec3 sun_dir = VB.v[job + 3].xyz, moon_dir = VB.v[job + 4].xyz;
+	int out_base = int(floatBitsToUint(VB.v[job + 3].w));
+	bool panorama = VB.v[job + 4].w > 0.5;
+	// A panorama's columns, row-major, take rows of OUT_W invocations,
+	// as many as they need (the dispatch has enough for the largest).
+	int pw = int(j1.y), rows = panorama ? (pw * int(j1.z) + OUT_W - 1) / OUT_W : OUT_H;
+	if (px.x >= OUT_W || px.y >= rows)
 		return;
 	// Rows that look at the ground end early: interleave the volume's rows
 	// from both ends so that lavapipe's contiguous shares of workgroups
 	// carry the same work (as in skyview.comp).
-	px.y = (px.y & 1) == 0 ? px.y >> 1 : OUT_H - 1 - (px.y >> 1);
+	px.y = (px.y & 1) == 0 ? px.y >> 1 : rows - 1 - (px.y >> 1);
 
-	int view = int(gl_GlobalInvocationID.z);
-	vec4 fwd = VB.v[3 * view], right = VB.v[3 * view + 1], cup = VB.v[3 * view + 2];
-	float h0 = cup.w, range = P.cam_up.w;
-	vec2 ndc = (vec2(px) + 0.5) / vec2(OUT_W, OUT_H) * 2.0 - 1.0;
-	float tan_half = fwd.w;
-	vec3 dir = normalize(fwd.xyz + ndc.x * tan_half * right.w * right.xyz +
-			     ndc.y * tan_half * cup.xyz);
+	float h0 = j2.w, range = P.cam_up.w;
+	vec3 dir;
+	int col = px.y * OUT_W + px.x;		// the panorama's column
+	if (panorama) {
+		if (col >= pw * int(j1.z))
+			return;
+		dir = panorama_dir(j0, j1, col % pw, col / pw);
+	} else {
+		vec2 ndc = (vec2(px) + 0.5) / vec2(OUT_W, OUT_H) * 2.0 - 1.0;
+		float tan_half = j0.w;
+		dir = normalize(j0.xyz + ndc.x * tan_half * j1.w * j1.xyz + ndc.y * tan_half * j2.xyz);
+	}
 
-	Phases ph_sun = ray_phases(dir, P.sun_dir.xyz), ph_moon = ray_phases(dir, P.moon_dir.xyz);
-	float sun_v = dot(dir, P.sun_dir.xyz), moon_v = dot(dir, P.moon_dir.xyz);
+	Phases ph_sun = ray_phases(dir, sun_dir), ph_moon = ray_phases(dir, moon_dir);
+	float sun_v = dot(dir, sun_dir), moon_v = dot(dir, moon_dir);
 	Entry en;
 	bool inside = ray_in_shell(h0, dir, en);
 	float t0 = en.t0, t1 = en.t0 + en.len;
@@ -70,11 +98,11 @@ void main()
 				vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);
 				Scaled ds = scaled_step(sc, m, view_up, dt, tau_view);
 				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
-				float mu_l = dot(up, P.sun_dir.xyz);
+				float mu_l = dot(up, sun_dir);
 				march_source(ta, mu_l, light_visible(ta, mu_l, P.sun_dir.w), P.sun_illum.rgb, sc, ph_sun, m,
 					     ground, forward, ds, view_up, sun_v, s, s_scaled);
 				if (MOON_LIT) {
-					mu_l = dot(up, P.moon_dir.xyz);
+					mu_l = dot(up, moon_dir);
 					march_source(ta, mu_l, light_visible(ta, mu_l, P.moon_dir.w), P.moon_illum.rgb, sc,
 						     ph_moon, m, ground, forward, ds, view_up, moon_v, s, s_scaled);
 				}
@@ -90,8 +118,17 @@ void main()
 		}
 		// Night-sky floor: airlight (1 - T) of a sky of the floor's mean level L_z (1 + c / 3).
 		vec3 night = P.night.rgb * (1.0 + P.night.w / 3.0) * (1.0 - tr);
-		store_texel(((view * OUT_D + k) * OUT_H + px.y) * OUT_W + px.x,
-			    vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0));
+		vec4 texel = vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0);
+		// A panorama is scratch: the range is noted where it is resampled.
+		// Its radiance is kept as a logarithm, which the resampling
+		// interpolates: below the horizon the airlight goes as the
+		// distance to the ground, about 1 / sin of the depression, which
+		// is far closer to linear in log than in radiance.
+		if (panorama)
+			AT.d[out_base + k * int(j1.y * j1.z) + col] =
+				floatBitsToUint(vec4(log(max(texel.rgb, vec3(1e-30))), texel.a));
+		else
+			store_texel(out_base + (k * OUT_H + px.y) * OUT_W + px.x, texel);
 	}
 	flush_range(BINDING_AERIAL - BINDING_TRANSMITTANCE);
 }

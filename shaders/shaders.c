@@ -8,6 +8,7 @@
 #include "columns.spv.h"
 #include "msiterate.spv.h"
 #include "pack.spv.h"
+#include "aerial_resample.spv.h"
 
 const struct shader_code shader_code[SHADER_COUNT] = {
 	{ "transmittance", shader_transmittance_spv, sizeof(shader_transmittance_spv) },
@@ -17,4 +18,5 @@ const struct shader_code shader_code[SHADER_COUNT] = {
 	{ "columns", shader_columns_spv, sizeof(shader_columns_spv) },
 	{ "msiterate", shader_msiterate_spv, sizeof(shader_msiterate_spv) },
 	{ "pack", shader_pack_spv, sizeof(shader_pack_spv) },
+	{ "aerial_resample", shader_aerial_resample_spv, sizeof(shader_aerial_resample_spv) },
 };

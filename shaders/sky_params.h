@@ -54,7 +54,19 @@
 #define BINDING_MOMENT_TEX 11		/* the same memory as a lookup */
 #define BINDING_COLUMNS_TEX 12		/* the column densities as a lookup */
 #define BINDING_PACK 13			/* struct gpu_pack: pack.comp's counts, ranges, scales */
-#define BINDING_COUNT 14
+#define BINDING_AERIAL_TEX 14		/* the aerial table's memory as a lookup: the
+					 * eye-point panoramas aerial_resample.comp reads */
+#define BINDING_COUNT 15
+
+/* The aerial jobs at BINDING_VIEWS (eng_fill_views, aerial.comp,
+ * aerial_resample.comp): vec4 0 holds the number of march jobs in x; then
+ * AERIAL_JOB_VEC4 vec4s per job, the march jobs (a dispatch's z each) and
+ * after them the resample jobs. A march job marches a camera's volume or an
+ * eye point's panorama; a resample job fills a camera's volume from a
+ * panorama. Offsets are in texels of the aerial buffer, as uint bits. */
+#define AERIAL_JOB_VEC4 6
+#define AERIAL_JOB_CAMERA 0	/* march job kinds, in vec4 4's w */
+#define AERIAL_JOB_PANORAMA 1
 
 #define SKY_MAX_CONSTITUENTS 4	/* ATMO_MAX_CONSTITUENTS */
 #define SKY_GROUND_FIT 8	/* PHASE_GROUND_FIT */

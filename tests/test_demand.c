@@ -242,6 +242,21 @@ static void test_views(struct conn *ctl, struct daemon *d)
 			     h->tables[STATE_AERIAL].bytes) == 0);
 	}
 
+	/* A view elsewhere on the ground: its own eye, its own march. */
+	CHECK(conn_request(&wall, "view add name=far east_km=20000", reply, sizeof(reply)) == SKY_ACK_RANGE);
+	CHECK(conn_request(&wall, "view del name=same", reply, sizeof(reply)) == 0);
+	mirror.n_views--;
+	CHECK(conn_request(&wall, "view add name=far east_km=1000 north_km=-20 yaw_deg=90", reply,
+			   sizeof(reply)) == 0);
+	mirror_view("far", 90, 0);
+	mirror.views[7].east_km = 1000;
+	mirror.views[7].north_km = -20;
+	settle(ctl, reply_u64(reply, "generation"));
+	check_slot(map, T | M | S | A, "a view moved");
+	check_views(map, 8, "a view moved");
+	CHECK(conn_request(&wall, "view list", reply, sizeof(reply)) == 0);
+	CHECK(strstr(reply, "view: name=far index=7 altitude_km=observer yaw_deg=90 pitch_deg=0 roll_deg=0 vfov_deg=60 aspect=1.77777778 east_km=1000 north_km=-20 mine=1") != NULL);
+
 	/* A time-of-day change recomputes every view, in one dispatch. */
 	change(ctl, "sun_elevation_deg=8");
 	EXPECT(ctl, "last_computed", "aerial");

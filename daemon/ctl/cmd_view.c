@@ -49,6 +49,8 @@ static const struct {
 	double min, max;
 } view_keys[] = {
 	{ "altitude_km", offsetof(struct state_view, altitude_km), -1e300, 1e7 },
+	{ "east_km", offsetof(struct state_view, east_km), -1e4, 1e4 },
+	{ "north_km", offsetof(struct state_view, north_km), -1e4, 1e4 },
 	{ "yaw_deg", offsetof(struct state_view, camera.yaw_deg), -360, 720 },
 	{ "pitch_deg", offsetof(struct state_view, camera.pitch_deg), -90, 90 },
 	{ "roll_deg", offsetof(struct state_view, camera.roll_deg), -180, 180 },
@@ -65,7 +67,7 @@ static int view_add(struct client *c, const struct proto_request *req, struct re
 
 	state_default_camera(&v.camera);
 	if (!name)
-		return CTL_ACK(SKY_ACK_SYNTAX, "usage: view add name=NAME [altitude_km=H] [yaw_deg=] [pitch_deg=] [roll_deg=] [vfov_deg=] [aspect=]");
+		return CTL_ACK(SKY_ACK_SYNTAX, "usage: view add name=NAME [altitude_km=H] [east_km=] [north_km=] [yaw_deg=] [pitch_deg=] [roll_deg=] [vfov_deg=] [aspect=]");
 	size_t n = strlen(name);
 	if (n == 0 || n >= STATE_VIEW_NAME_MAX || strspn(name, "abcdefghijklmnopqrstuvwxyz"
 		"ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-.") != n)
@@ -84,7 +86,7 @@ static int view_add(struct client *c, const struct proto_request *req, struct re
 			if (strcmp(view_keys[k].key, a->key) == 0)
 				break;
 		if (k == sizeof(view_keys) / sizeof(view_keys[0]))
-			return CTL_ACK(SKY_ACK_NO_EXIST, "%s: unknown key (name, altitude_km, yaw_deg, pitch_deg, roll_deg, vfov_deg, aspect)", a->key);
+			return CTL_ACK(SKY_ACK_NO_EXIST, "%s: unknown key (name, altitude_km, east_km, north_km, yaw_deg, pitch_deg, roll_deg, vfov_deg, aspect)", a->key);
 		if (proto_parse_number(a->value, &d) < 0)
 			return CTL_ACK(SKY_ACK_ARG, "%s: '%s' is not a finite number", a->key, a->value);
 		if (d < view_keys[k].min || d > view_keys[k].max)
@@ -142,9 +144,9 @@ int ctl_cmd_view(struct client *c, const struct proto_request *req, struct reply
 				snprintf(alt, sizeof(alt), "observer");
 			else
 				snprintf(alt, sizeof(alt), "%.9g", v->altitude_km);
-			ctl_reply_add(r, "view: name=%s index=%u altitude_km=%s yaw_deg=%.9g pitch_deg=%.9g roll_deg=%.9g vfov_deg=%.9g aspect=%.9g mine=%d\n",
+			ctl_reply_add(r, "view: name=%s index=%u altitude_km=%s yaw_deg=%.9g pitch_deg=%.9g roll_deg=%.9g vfov_deg=%.9g aspect=%.9g east_km=%.9g north_km=%.9g mine=%d\n",
 				  v->name, i, alt, v->camera.yaw_deg, v->camera.pitch_deg,
-				  v->camera.roll_deg, v->camera.vfov_deg, v->camera.aspect,
+				  v->camera.roll_deg, v->camera.vfov_deg, v->camera.aspect, v->east_km, v->north_km,
 				  v->owner == c->id);
 		}
 		return 0;

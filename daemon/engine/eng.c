@@ -78,7 +78,7 @@ const void *eng_table(const struct eng *e, enum state_table t, size_t *ret_bytes
 {
 	if (ret_bytes)
 		*ret_bytes = e->table_bytes[t];
-	return e->readback[t].map;
+	return e->direct[t] ? (const uint8_t *)e->table[t].map + e->published_offset[t] : e->readback[t].map;
 }
 
 int32_t eng_table_scale_log2(const struct eng *e, enum state_table t)

@@ -111,6 +111,13 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
  * transmittance table does all of its work (benchmarks of a computation
  * from scratch). */
 void eng_forget_columns(struct eng *e);
+/* Whether cameras on one eye point (the state's camera and views of the
+ * same altitude and position) share one march of aerial perspective, a
+ * panorama of the eye point resampled into each volume (the default), or
+ * each volume is marched on its own: the reference the shared volumes are
+ * measured against (tests/test_views.c, docs/performance.md). Applies
+ * from the next eng_submit. */
+void eng_set_view_sharing(struct eng *e, int share);
 /* Blocks until the submitted work has finished. */
 int eng_wait(struct eng *e, struct eng_timing *ret, char *err, size_t err_size);
 /* eng_submit then eng_wait. */

@@ -15,6 +15,9 @@
 
 #include "shaders.h"
 
+_Static_assert(N_PASSES == SHADER_COUNT && PASS_PACK == SHADER_PACK &&
+	       PASS_RESAMPLE == SHADER_AERIAL_RESAMPLE, "a pass per shader, in shaders.h's order");
+
 void eng_set_err(char *err, size_t n, const char *fmt, ...)
 {
 	va_list ap;
@@ -308,7 +311,9 @@ int eng_buffer_new(struct eng *e, VkDeviceSize bytes, VkBufferUsageFlags usage,
 		.allocationSize = req.size, .memoryTypeIndex = (uint32_t)type };
 	VK_TRY(e->vk.vkAllocateMemory(e->dev, &ai, NULL, &b.mem));
 	VK_TRY(e->vk.vkBindBufferMemory(e->dev, b.buf, b.mem, 0));
-	if (want & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT)
+	/* Mapped where host-visible memory was asked for, or preferred and got. */
+	if (((want | prefer) & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) &&
+	    (e->mem_props.memoryTypes[type].propertyFlags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT))
 		VK_TRY(e->vk.vkMapMemory(e->dev, b.mem, 0, VK_WHOLE_SIZE, 0, &b.map));
 	*ret = b;
 	return 0;
@@ -372,7 +377,7 @@ VkDescriptorType eng_binding_type(int binding)
 {
 	if (binding == 0)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-	if (binding == BINDING_MOMENT_TEX || binding == BINDING_COLUMNS_TEX)
+	if (binding == BINDING_MOMENT_TEX || binding == BINDING_COLUMNS_TEX || binding == BINDING_AERIAL_TEX)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 	return binding <= STATE_N_TABLES || binding >= BINDING_VIEWS
 		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
@@ -440,7 +445,7 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
 		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 5 },
-		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 2 } };
+		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 3 } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
 	VK_TRY(e->vk.vkCreateDescriptorPool(e->dev, &dpi, NULL, &e->desc_pool));
@@ -494,6 +499,7 @@ int eng_new(const char *selector, char *err, size_t err_size, struct eng **ret)
 	if (!e)
 		return -ENOMEM;
 	e->event_fd = -1;
+	e->share_views = true;
 	pthread_mutex_init(&e->lock, NULL);
 	pthread_cond_init(&e->cond, NULL);
 	rc = load_loader(&e->vk, &e->loader, err, err_size);
@@ -537,6 +543,8 @@ void eng_free(struct eng *e)
 		for (int i = 0; i < N_LOOKUPS; i++)
 			if (e->lookup_view[i])
 				e->vk.vkDestroyBufferView(e->dev, e->lookup_view[i], NULL);
+		if (e->aerial_view)
+			e->vk.vkDestroyBufferView(e->dev, e->aerial_view, NULL);
 		for (int t = 0; t < N_PASSES; t++) {
 			if (t < STATE_N_TABLES) {
 				eng_buffer_free(e, &e->table[t]);

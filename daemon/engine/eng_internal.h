@@ -23,8 +23,10 @@
  * until the registers run out; docs/findings.md). */
 #define MS_SUN_GROUP 4
 #define SV_AZ_GROUP 12
-/* The state's camera and STATE_MAX_VIEWS views, 3 vec4 each. */
-#define VIEW_BUFFER_BYTES ((1 + STATE_MAX_VIEWS) * 3 * 4 * sizeof(float))
+/* The aerial jobs (sky_params.h): a count, then at most one march and one
+ * resample job per volume (the state's camera and STATE_MAX_VIEWS views). */
+#define AERIAL_VOLUMES (1 + STATE_MAX_VIEWS)
+#define VIEW_BUFFER_BYTES ((1 + 2 * AERIAL_VOLUMES * AERIAL_JOB_VEC4) * 4 * sizeof(float))
 
 /* The tables later passes look up: transmittance and multi-scattering. */
 #define N_LOOKUPS 2
@@ -40,12 +42,15 @@ _Static_assert(BINDING_TRANSMITTANCE + STATE_TRANSMITTANCE == 1 &&
 _Static_assert(SKY_MAX_CONSTITUENTS == ATMO_MAX_CONSTITUENTS && SKY_GROUND_FIT == PHASE_GROUND_FIT,
 	       "sky_params.h's array lengths");
 /* Compute passes: one per table, then the column densities (SHADER_COLUMNS),
- * the iteration of psi_ms (SHADER_MSITERATE) and the binary16 copies of
- * storage=f16 (SHADER_PACK, timed with the last table's pass). */
+ * the iteration of psi_ms (SHADER_MSITERATE), the binary16 copies of
+ * storage=f16 (SHADER_PACK, timed with the last table's pass) and the
+ * views' resampling of the aerial panoramas (SHADER_AERIAL_RESAMPLE, timed
+ * with the aerial pass). */
 #define PASS_COLUMNS STATE_N_TABLES
 #define PASS_MSITERATE (STATE_N_TABLES + 1)
 #define PASS_PACK (STATE_N_TABLES + 2)
-#define N_PASSES (STATE_N_TABLES + 3)
+#define PASS_RESAMPLE (STATE_N_TABLES + 3)
+#define N_PASSES (STATE_N_TABLES + 4)
 _Static_assert(SKY_PACK_TABLES == STATE_N_TABLES, "pack.comp packs every table");
 
 /* phase_ground_excess of one constituent, kept while its phase stays: it
@@ -112,12 +117,22 @@ struct eng {
 	VkFence fence;
 
 	struct gpu_buffer params;
-	struct gpu_buffer views;			/* 3 vec4 per aerial volume */
+	struct gpu_buffer views;			/* the aerial jobs (eng_fill_views) */
+	/* Cameras on one eye point share one march, a panorama resampled
+	 * into each volume (aerial_resample.comp); off: each volume is
+	 * marched (eng_set_view_sharing, the reference). */
+	bool share_views;
+	VkBufferView aerial_view;			/* BINDING_AERIAL_TEX */
 	/* Device memory: every table in float32 RGBA, as the passes compute
 	 * it whatever the storage; with storage=f16 its binary16 copy follows
 	 * (pack.comp), and that copy is what reaches host memory. */
 	struct gpu_buffer table[STATE_N_TABLES];
 	struct gpu_buffer readback[STATE_N_TABLES];	/* host memory, the published format */
+	/* Where the device's memory is the host's, cached (lavapipe, most
+	 * integrated GPUs), the tables are read where the passes wrote them,
+	 * from published_offset on: no copy, no readback buffer. */
+	bool direct[STATE_N_TABLES];
+	size_t published_offset[STATE_N_TABLES];
 	size_t table_bytes[STATE_N_TABLES];		/* the published table (readback) */
 	size_t device_bytes[STATE_N_TABLES];		/* float32 part plus the copy */
 	/* The published RGB scale, log2, of each table as last computed
@@ -199,8 +214,19 @@ VkDescriptorType eng_binding_type(int binding);
  * keeps the phases' fits in e while a constituent's phase stays. */
 void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p,
 		     struct spec *base);
-/* The cameras of the aerial volumes, 3 vec4 each (VIEW_BUFFER_BYTES). */
-void eng_fill_views(const struct sky_state *s, float *out);
+/* The aerial jobs of s (sky_params.h, VIEW_BUFFER_BYTES): the volumes
+ * (the state's camera, then the views) grouped by eye point; a group of
+ * two or more, with share, is marched once as a panorama after the
+ * volumes and resampled into each. ret_march and ret_resample get the
+ * jobs' counts (the dispatches' z). */
+void eng_fill_views(const struct sky_state *s, bool share, float *out, uint32_t *ret_march,
+		    uint32_t *ret_resample);
+/* The texels of the panoramas s can need after its volumes: room for one
+ * per two volumes. */
+uint64_t eng_panorama_texels(const struct sky_state *s);
+/* The rows of aerial_width invocations the march dispatch needs: the
+ * volume's, or a panorama's columns where they are more. */
+uint32_t eng_aerial_march_rows(const struct sky_state *s);
 struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t);
 struct spec eng_column_spec(const struct spec *base, const struct sky_state *s);
 void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,

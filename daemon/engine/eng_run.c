@@ -71,6 +71,10 @@ static void bind_buffers(struct eng *e)
 			w[i].pTexelBufferView = &e->columns_view;
 			continue;
 		}
+		if (i == BINDING_AERIAL_TEX) {
+			w[i].pTexelBufferView = &e->aerial_view;
+			continue;
+		}
 		if (i == BINDING_VIEWS)
 			bi[i] = (VkDescriptorBufferInfo){ e->views.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_PACK)
@@ -108,7 +112,11 @@ static VkDeviceSize float_bytes(const struct sky_state *s, int t)
 static VkDeviceSize device_bytes(const struct sky_state *s, int t)
 {
 	VkDeviceSize pairs = (table_texels(s, t) + 1) / 2;
-	return float_bytes(s, t) + (s->quality.storage == STATE_F16 ? 16 * pairs : 0);
+	VkDeviceSize after = s->quality.storage == STATE_F16 ? 16 * pairs : 0;
+	/* The aerial buffer holds the eye points' panoramas there too, which
+	 * are read before the binary16 copy overwrites them. */
+	VkDeviceSize panoramas = t == STATE_AERIAL ? 16 * eng_panorama_texels(s) : 0;
+	return float_bytes(s, t) + (after > panoramas ? after : panoramas);
 }
 
 /* (Re)allocates table t: its device buffer (float32, then the published
@@ -123,14 +131,26 @@ static int table_new(struct eng *e, const struct sky_state *s, int t, char *err,
 		e->vk.vkDestroyBufferView(e->dev, e->lookup_view[t], NULL);
 		e->lookup_view[t] = VK_NULL_HANDLE;
 	}
+	if (t == STATE_AERIAL && e->aerial_view) {
+		e->vk.vkDestroyBufferView(e->dev, e->aerial_view, NULL);
+		e->aerial_view = VK_NULL_HANDLE;
+	}
 	eng_buffer_free(e, &e->table[t]);
 	eng_buffer_free(e, &e->readback[t]);
 	e->table_bytes[t] = e->device_bytes[t] = 0;
 	rc = eng_buffer_new(e, device, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
 				  VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
 				  VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-			    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->table[t], err, err_size);
-	if (rc == 0)
+			    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT,
+			    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_CACHED_BIT,
+			    &e->table[t], err, err_size);
+	if (rc < 0)
+		return rc;
+	/* Mapped only where host-visible and cached (eng_buffer_new got what
+	 * it preferred): reading it costs what reading host memory does. */
+	e->direct[t] = e->table[t].map != NULL;
+	e->published_offset[t] = s->quality.storage == STATE_F16 ? float_bytes(s, t) : 0;
+	if (!e->direct[t])
 		rc = eng_buffer_new(e, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
 				    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT,
 				    VK_MEMORY_PROPERTY_HOST_CACHED_BIT, &e->readback[t], err, err_size);
@@ -142,7 +162,14 @@ static int table_new(struct eng *e, const struct sky_state *s, int t, char *err,
 			.range = float_bytes(s, t) };
 		VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->lookup_view[t]));
 	}
-	memset(e->readback[t].map, 0, bytes);
+	if (t == STATE_AERIAL) {
+		VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
+			.buffer = e->table[t].buf, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
+			.range = device / 16 * 16 };
+		VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->aerial_view));
+	}
+	memset(e->direct[t] ? (uint8_t *)e->table[t].map + e->published_offset[t] : e->readback[t].map,
+	       0, bytes);
 	e->table_bytes[t] = bytes;
 	e->device_bytes[t] = device;
 	e->rgb_scale_log2[t] = 0;
@@ -220,10 +247,13 @@ static void groups(const struct sky_state *s, int t, uint32_t *x, uint32_t *y)
 
 /* Records one pass: its dispatch between two timestamps (queries 2 pass and
  * 2 pass + 1), then a barrier so that the next pass reads what it wrote;
- * with pack_groups > 0, also the pack pass of its table (pack.comp), which
+ * with then_gz > 0, a second dispatch of then over (gx, then_gy, then_gz) that
+ * reads the first's output (the views' resampling), and its barrier; with
+ * pack_groups > 0, also the pack pass of its table (pack.comp), which
  * needs that barrier and which no later pass reads (nor waits for). */
 static void record_pass(struct eng *e, int pass, VkPipeline pipe, uint32_t gx, uint32_t gy,
-			uint32_t gz, VkPipeline pack, uint32_t pack_groups)
+			uint32_t gz, uint32_t then_gy, VkPipeline then, uint32_t then_gz, VkPipeline pack,
+			uint32_t pack_groups)
 {
 	const VkMemoryBarrier compute_to_compute = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
 		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_SHADER_READ_BIT };
@@ -236,6 +266,13 @@ static void record_pass(struct eng *e, int pass, VkPipeline pipe, uint32_t gx, u
 	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 				   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &compute_to_compute, 0,
 				   NULL, 0, NULL);
+	if (then_gz) {
+		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, then);
+		e->vk.vkCmdDispatch(e->cmd, gx, then_gy, then_gz);
+		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &compute_to_compute,
+					   0, NULL, 0, NULL);
+	}
 	if (pack_groups) {
 		e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pack);
 		e->vk.vkCmdDispatch(e->cmd, pack_groups, 1, 1);
@@ -319,6 +356,11 @@ static int check_limits(const struct eng *e, const struct sky_state *s, char *er
 		}
 		/* The device holds float32 texels, and the binary16 copy too. */
 		uint64_t device = device_bytes(s, t);
+		if (t == STATE_AERIAL && device / 16 > e->limits.maxTexelBufferElements) {
+			eng_set_err(err, err_size, "aerial_width: %ux%ux%u for %u volumes exceeds the device's %u texels for a lookup",
+				q->width, q->height, q->depth, 1 + s->n_views, e->limits.maxTexelBufferElements);
+			return -EINVAL;
+		}
 		if (device > e->limits.maxStorageBufferRange) {
 			eng_set_err(err, err_size, "%s_width: %ux%u needs %llu bytes of device buffer, above the device's %u",
 				state_table_names[t], q->width, q->height, (unsigned long long)device,
@@ -343,6 +385,8 @@ struct plan {
 	uint32_t iterations;
 	VkPipeline pack_pipe;
 	uint32_t pack_groups;
+	uint32_t aerial_march, aerial_resample;	/* eng_fill_views' jobs */
+	VkPipeline resample_pipe;
 };
 
 /* The pack pass's plan: its pipeline for the tables of mask it packs (all
@@ -375,6 +419,13 @@ static int make_plan(struct eng *e, const struct sky_state *s, uint32_t mask, st
 	memset(ret, 0, sizeof(*ret));
 	ret->mask = mask;
 	eng_fill_params(e, s, params, &base);
+	eng_fill_views(s, e->share_views, e->views.map, &ret->aerial_march, &ret->aerial_resample);
+	if ((mask & STATE_BIT(STATE_AERIAL)) && ret->aerial_resample) {
+		struct spec k = eng_pass_spec(&base, s, STATE_AERIAL);
+		rc = get_pipeline(e, PASS_RESAMPLE, &k, &ret->resample_pipe, err, err_size);
+		if (rc < 0)
+			return rc;
+	}
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if (mask & STATE_BIT(t)) {
 			struct spec k = eng_pass_spec(&base, s, t);
@@ -423,13 +474,18 @@ static int record_plan(struct eng *e, const struct sky_state *s, const struct pl
 		uint32_t gx, gy;
 		groups(s, t, &gx, &gy);
 		if (t == STATE_TRANSMITTANCE && pl->run_columns)
-			record_pass(e, PASS_COLUMNS, pl->column_pipe, gx, gy, 1, VK_NULL_HANDLE, 0);
-		/* Every view's volume in one dispatch: z is the view. The float16
-		 * copies follow the last pass, in its time. */
+			record_pass(e, PASS_COLUMNS, pl->column_pipe, gx, gy, 1, 0, VK_NULL_HANDLE, 0,
+				    VK_NULL_HANDLE, 0);
+		/* Every aerial march in one dispatch, z the job, then every
+		 * resampled volume in another. The float16 copies follow the
+		 * last pass, in its time. */
 		bool last = !(pl->mask >> (t + 1)), iterate = t == STATE_MULTISCATTER && pl->iterations > 0;
+		bool aerial = t == STATE_AERIAL;
 		uint32_t pack = last ? pl->pack_groups : 0;
-		record_pass(e, t, pl->pipes[t], gx, gy, t == STATE_AERIAL ? 1 + s->n_views : 1,
-			    pl->pack_pipe, iterate ? 0 : pack);
+		uint32_t march_gy = aerial ? (eng_aerial_march_rows(s) + 7) / 8 : gy;
+		record_pass(e, t, pl->pipes[t], gx, march_gy, aerial ? pl->aerial_march : 1, gy,
+			    pl->resample_pipe, aerial ? pl->aerial_resample : 0, pl->pack_pipe,
+			    iterate ? 0 : pack);
 		if (iterate)
 			record_iteration(e, s, pl->iterate_pipes, pl->iterations, pl->pack_pipe, pack);
 	}
@@ -437,9 +493,10 @@ static int record_plan(struct eng *e, const struct sky_state *s, const struct pl
 		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT, .dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT };
 	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 				   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &to_copy, 0, NULL, 0, NULL);
-	/* The published copy: the float32 texels, or the binary16 ones after them. */
+	/* The published copy: the float32 texels, or the binary16 ones after
+	 * them; none where the host reads the device's memory. */
 	for (int t = 0; t < STATE_N_TABLES; t++)
-		if (pl->mask & STATE_BIT(t)) {
+		if ((pl->mask & STATE_BIT(t)) && !e->direct[t]) {
 			VkBufferCopy c = { s->quality.storage == STATE_F16 ? float_bytes(s, t) : 0, 0,
 					   e->table_bytes[t] };
 			e->vk.vkCmdCopyBuffer(e->cmd, e->table[t].buf, e->readback[t].buf, 1, &c);
@@ -482,7 +539,6 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 	if (rc < 0)
 		return rc;
 	memcpy(e->params.map, &params, sizeof(params));
-	eng_fill_views(s, e->views.map);
 	if (s->quality.storage == STATE_F16) {
 		struct gpu_pack pack;
 		memset(&pack, 0, sizeof(pack));
@@ -547,7 +603,7 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 		if (!(mask & STATE_BIT(i)))
 			continue;
 		VkMappedMemoryRange r = { .sType = VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE,
-			.memory = e->readback[i].mem, .size = VK_WHOLE_SIZE };
+			.memory = e->direct[i] ? e->table[i].mem : e->readback[i].mem, .size = VK_WHOLE_SIZE };
 		VK_TRY(e->vk.vkInvalidateMappedMemoryRanges(e->dev, 1, &r));
 		e->rgb_scale_log2[i] = !e->pack_in_flight ? 0
 				       : i == STATE_TRANSMITTANCE ? SKY_F16_TRANSMITTANCE_LOG2
@@ -581,6 +637,11 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 	return 0;
 fail:
 	return rc;
+}
+
+void eng_set_view_sharing(struct eng *e, int share)
+{
+	e->share_views = share != 0;
 }
 
 int eng_wait(struct eng *e, struct eng_timing *ret, char *err, size_t err_size)

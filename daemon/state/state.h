@@ -55,6 +55,12 @@ struct state_camera {
 struct state_view {
 	char name[STATE_VIEW_NAME_MAX];
 	double altitude_km;		/* NAN: the observer's altitude_km */
+	/* The eye's horizontal position from the observer's site, along the
+	 * ground: east_km and north_km of the azimuthal equidistant projection
+	 * about the site (hypot is the great-circle distance, atan2(east,
+	 * north) its bearing). The camera's angles are in the local frame
+	 * there: its vertical, and true north for a site at clock.lat_deg. */
+	double east_km, north_km;
 	struct state_camera camera;
 	uint64_t owner;			/* the connection that added it */
 };
