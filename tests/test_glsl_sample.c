@@ -506,10 +506,13 @@ int main(void)
 		     SKY_TABLE_BIT(SKY_TABLE_SKYVIEW) | SKY_TABLE_BIT(SKY_TABLE_AERIAL), second, third, NULL);
 		/* A view: a new region (every table counts as changed), then
 		 * the view moved: the state's aerial table is recomputed with
-		 * the same bytes and is not reported, the view's volume is. */
-		gen = set_and_generation(c, "view add name=wall yaw_deg=200 pitch_deg=4 vfov_deg=50 aspect=2");
+		 * the same bytes and is not reported, the view's volume is. The
+		 * view's eye is not the camera's: views on one eye point share
+		 * one march, and the camera's volume would follow the panorama
+		 * the moved view widens (PROTOCOL.md, "Views on one eye point"). */
+		gen = set_and_generation(c, "view add name=wall altitude_km=1.5 yaw_deg=200 pitch_deg=4 vfov_deg=50 aspect=2");
 		step(&g, c, gen, SKY_FORMAT_RGBA16F, SKY_TABLES_ALL, third, fourth, "wall");
-		gen = set_and_generation(c, "view add name=wall yaw_deg=80 pitch_deg=-3 vfov_deg=35 aspect=1.5");
+		gen = set_and_generation(c, "view add name=wall altitude_km=1.5 yaw_deg=80 pitch_deg=-3 vfov_deg=35 aspect=1.5");
 		step(&g, c, gen, SKY_FORMAT_RGBA16F, 0, fourth, fifth, "wall");
 		sky_disconnect(c);
 	}
