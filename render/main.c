@@ -306,9 +306,13 @@ static int link_open(struct link *l, const struct opts *o)
 	snprintf(l->view_name, sizeof(l->view_name), "skyrender-%ld", (long)getpid());
 	if (o->rvk.terrain)
 		add_view(l, o);
+	/* The first frame shows the sky as it is: wait for the tables, and for
+	 * our view's aerial volume once skyd took the view. */
 	for (uint32_t seen = 0;;) {
 		struct sky_view v;
-		if (sky_view_begin(l->c, &v) == 0 && (v.valid_tables & NEEDED_TABLES) == NEEDED_TABLES)
+		const void *texels;
+		if (sky_view_begin(l->c, &v) == 0 && (v.valid_tables & NEEDED_TABLES) == NEEDED_TABLES &&
+		    (!l->view_added || sky_view_aerial_table(&v, l->view_name, &texels, NULL) == 0))
 			return 0;
 		if ((r = sky_wait(l->c, seen, FIRST_TABLES_TIMEOUT_MS, &seen)) < 0 && r != -EINTR) {
 			fprintf(stderr, "skyrender: no tables from skyd: %s\n", sky_strerror(r));
