@@ -49,7 +49,7 @@ double terrain_height_km(double x_km, double y_km, uint32_t seed)
 	double t = (d - NEAR_FLAT_KM) / (HILLS_FROM_KM - NEAR_FLAT_KM);
 	t = t < 0.0 ? 0.0 : t > 1.0 ? 1.0 : t;
 	t = t * t * (3.0 - 2.0 * t);
-	return t * h * 3.0 - EYE_CLEARANCE_KM;
+	return t * h * 2.0 - EYE_CLEARANCE_KM;
 }
 
 /* Grid coordinate s in [-1, 1] to km: quadratic, so that cells are small

@@ -20,6 +20,9 @@ vec3 light_at(vec3 dir, vec3 illuminance, float altitude_km)
 
 void main()
 {
+	vec3 dir;
+	if (!view_direction(gl_FragCoord.xy + F.wall.zw, dir))
+		discard;		// outside the dome master's circle
 	vec3 n = normalize(in_normal);
 	float dist = length(in_eye_km);
 	vec3 view = in_eye_km / dist;
