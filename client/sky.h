@@ -25,6 +25,10 @@
  *     verbs use the same code and agree bit for bit); sky_render() fills an
  *     RGB float image in the equirectangular, perspective or planetarium
  *     fisheye (domemaster) projection.
+ *   - sky_gpu_tables() and sky_gpu_state() serve a render client that
+ *     samples the tables on its own GPU with the GLSL library installed
+ *     beside this header (proto/glsl/sky.glsl; see GPU CLIENTS below and
+ *     docs/render-clients.md).
  *
  * A minimal reader:
  *
@@ -449,6 +453,8 @@ SKY_EXPORT int sky_sample_ambient(const struct sky_view *v, double ret_lx[3]);
 
 /* ---- GPU clients ---------------------------------------------------------
  *
+ * GPU CLIENTS
+ *
  * A render client that samples the tables on its own GPU uploads each table
  * to an image and evaluates it in its shaders with the GLSL library
  * installed beside this header (include/sky/glsl: sky.glsl and the uv
@@ -537,9 +543,10 @@ struct sky_gpu_table {
  * function): the first generation in which this client saw the present
  * contents, in the generations of its views. Comparing it with the one an
  * image was uploaded at tells whether to upload again. The contents are
- * hashed once per table per new generation (about 1 ms of CPU for the
- * default 1.1 MB layout on a small machine); further calls in the same
- * generation cost nothing. A new mapping (layout change, reconnection)
+ * hashed once per table per new generation (a pass over the tables'
+ * bytes: 0.15 ms of CPU for the default 1.1 MB layout on a small machine,
+ * docs/render-clients.md); further calls in the same generation cost
+ * nothing. A new mapping (layout change, reconnection)
  * starts afresh: every table counts as changed.
  *
  * Returns the SKY_TABLE_BIT mask of the present tables whose
@@ -551,6 +558,18 @@ struct sky_gpu_table {
 SKY_EXPORT int sky_gpu_tables(sky_client *c, const struct sky_view *v,
 			      struct sky_gpu_table ret_tables[SKY_SHM_MAX_TABLES]);
 
+/* The aerial-perspective volume of the view called name (`view add`; see
+ * sky_view_aerial_table()) described as sky_gpu_tables() describes a table
+ * (id SKY_TABLE_AERIAL, the aerial table's format, sizes and scale), with
+ * its own changed_generation: a view's volume changes when its camera or
+ * the sky does. Returns 1 if it changed in the view's generation, 0 if
+ * not, -ENOENT if the slot has no such view, -ENODATA if its volume is not
+ * valid there, -EAGAIN if a zero-copy view was torn, -EINVAL. Keeps what
+ * it has seen per name, for up to SKY_SHM_MAX_VIEWS names. Not thread-safe
+ * on one client. Since 0.2. */
+SKY_EXPORT int sky_gpu_view_table(sky_client *c, const struct sky_view *v, const char *name,
+				  struct sky_gpu_table *ret_table);
+
 /* The per-generation uniforms of the GLSL library (proto/glsl/sky.glsl,
  * struct SkyState): vec4s only, so the same bytes are its std140 and its
  * std430 layout. Filled from the slot's struct sky_shm_state by
@@ -560,8 +579,10 @@ struct sky_gpu_state {
 	float sun_illuminance_lx[4];	/* rgb at the top of the atmosphere, w 0 */
 	float moon[4];			/* xyz moon_direction, w moon_angular_radius_rad */
 	float moon_illuminance_lx[4];	/* rgb, 0 when the moon lights nothing; w 0 */
-	float planet[4];		/* bottom_radius_km, top_radius_km, altitude_km,
-					 * the horizon's cos-zenith at the observer */
+	float planet[4];		/* bottom_radius_km, top_radius_km, altitude_km, 0 */
+	float horizon[4];		/* the geometric horizon at the observer: cos-zenith
+					 * (skymap_horizon_cos), sin-zenith, zenith angle
+					 * (rad), 0; in double, then rounded */
 	float rgb_scale[4];		/* by table id: 2^rgb_scale_log2[id] (1 for float32) */
 	float aerial[4];		/* aerial_range_km, aerial_squared (1 or 0),
 					 * tan(vfov / 2) and aspect of the volume's camera */

@@ -4,6 +4,7 @@
  * library (proto/glsl/sky.glsl). */
 #include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "sky_internal.h"
@@ -33,6 +34,7 @@ static bool torn(const sky_client *c, const struct sky_view *v)
 	return !sky_view_end(c, v);
 }
 
+/* Fills ret (zeroed by the caller) for table t of view v. */
 static void describe(const struct sky_view *v, const struct skysample_table *t,
 		     struct sky_gpu_table *ret)
 {
@@ -64,6 +66,7 @@ int sky_gpu_tables(sky_client *c, const struct sky_view *v,
 		return -EINVAL;
 	if (c->gpu_map != v->header) {
 		memset(c->gpu_seen, 0, sizeof(c->gpu_seen));
+		memset(c->gpu_views, 0, sizeof(c->gpu_views));
 		c->gpu_map = v->header;
 	}
 	memcpy(seen, c->gpu_seen, sizeof(seen));
@@ -97,6 +100,67 @@ int sky_gpu_tables(sky_client *c, const struct sky_view *v,
 	memcpy(c->gpu_seen, seen, sizeof(seen));
 	memcpy(ret_tables, out, sizeof(out));
 	return changed;
+}
+
+/* The record of what view name's volume held, reusing the record of a
+ * name the slot no longer has when name is new. */
+static struct sky_gpu_seen_view *seen_view(sky_client *c, const struct sky_view *v, const char *name)
+{
+	struct sky_gpu_seen_view *free_one = NULL;
+	for (uint32_t i = 0; i < SKY_SHM_MAX_VIEWS; i++) {
+		struct sky_gpu_seen_view *e = &c->gpu_views[i];
+		if (strncmp(e->name, name, SKY_SHM_VIEW_NAME_MAX) == 0)
+			return e;
+		bool live = false;
+		for (uint32_t k = 0; e->name[0] && k < v->slot->n_views && k < SKY_SHM_MAX_VIEWS; k++)
+			live |= strncmp(v->slot->views[k].name, e->name, SKY_SHM_VIEW_NAME_MAX) == 0;
+		if (!live && !free_one)
+			free_one = e;
+	}
+	if (free_one) {
+		memset(free_one, 0, sizeof(*free_one));
+		snprintf(free_one->name, sizeof(free_one->name), "%s", name);
+	}
+	return free_one;
+}
+
+int sky_gpu_view_table(sky_client *c, const struct sky_view *v, const char *name,
+		       struct sky_gpu_table *ret_table)
+{
+	struct skysample_table t;
+	struct sky_gpu_table out;
+
+	if (!c || !v || !v->header || !v->slot || !v->slot_base || !name || !ret_table ||
+	    strlen(name) >= SKY_SHM_VIEW_NAME_MAX)
+		return -EINVAL;
+	int r = skysample_view_from_slot(v->header, v->slot_base, name, &t, NULL);
+	if (r < 0)
+		return r;
+	if (c->gpu_map != v->header) {
+		memset(c->gpu_seen, 0, sizeof(c->gpu_seen));
+		memset(c->gpu_views, 0, sizeof(c->gpu_views));
+		c->gpu_map = v->header;
+	}
+	memset(&out, 0, sizeof(out));
+	out.id = SKY_TABLE_AERIAL;
+	describe(v, &t, &out);
+	struct sky_gpu_seen_view *e = seen_view(c, v, name);
+	struct sky_gpu_seen seen = e ? e->seen : (struct sky_gpu_seen){ 0 };
+	if (!seen.known || seen.generation != v->generation) {
+		uint64_t h = table_hash(&t, out.bytes);
+		if (!seen.known || h != seen.hash)
+			seen.changed = v->generation;
+		seen.known = true;
+		seen.hash = h;
+		seen.generation = v->generation;
+	}
+	if (torn(c, v))
+		return -EAGAIN;
+	if (e)
+		e->seen = seen;
+	out.changed_generation = seen.changed;
+	*ret_table = out;
+	return seen.changed == v->generation;
 }
 
 static void put4(float ret[4], const double xyz[3], double w)
@@ -135,7 +199,11 @@ int sky_gpu_state(const struct sky_view *v, const char *view_name, struct sky_gp
 	put4(g.moon, st->moon_direction, st->moon_angular_radius_rad);
 	put4(g.moon_illuminance_lx, st->moon_illuminance_lx, 0.0);
 	double planet[3] = { st->bottom_radius_km, st->top_radius_km, st->altitude_km };
-	put4(g.planet, planet, skymap_horizon_cos(st->bottom_radius_km, st->altitude_km));
+	put4(g.planet, planet, 0.0);
+	double hc = skymap_horizon_cos(st->bottom_radius_km, st->altitude_km);
+	double horizon[3] = { hc, st->bottom_radius_km / (st->bottom_radius_km + fmax(st->altitude_km, 0.0)),
+			      acos(hc) };
+	put4(g.horizon, horizon, 0.0);
 	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
 		struct skysample_table t;
 		bool half = skysample_table_from_slot(v->header, v->slot_base, id, &t) == 0 &&

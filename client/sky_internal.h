@@ -87,6 +87,11 @@ struct sky_client {
 		uint32_t changed;	/* changed_generation */
 		uint64_t hash;		/* format, sizes, scale and texels */
 	} gpu_seen[SKY_SHM_MAX_TABLES];
+	/* sky_gpu_view_table(): the same per view volume, by name. */
+	struct sky_gpu_seen_view {
+		char name[SKY_SHM_VIEW_NAME_MAX];
+		struct sky_gpu_seen seen;
+	} gpu_views[SKY_SHM_MAX_VIEWS];
 };
 
 /* ---- sky.c: clocks and replies ---------------------------------------- */

@@ -1,9 +1,12 @@
 /* skymap.h - the uv mappings of the published tables, shared by the daemon's
- * CPU model, libsky and (mirrored line for line) shaders/common.glsl.
+ * CPU model and libsky; proto/glsl/skymap.glsl is the same functions in
+ * GLSL for skyd's shaders and render clients' (test_glsl_map checks the
+ * pair).
  *
  * Header-only, double precision, no dependencies beyond <math.h>. A change
- * to any mapping here bumps SKYMAP_VERSION, which is published in the shared
- * memory header and in manifest.json.
+ * to any mapping here is made in skymap.glsl too and bumps SKYMAP_VERSION
+ * (and SKYMAP_GLSL_VERSION), which is published in the shared memory header
+ * and in manifest.json.
  *
  * Conventions: lengths in km, angles in radians. Texel (i, j) of a W x H
  * table holds the value at the texel centre; a texel's RGBA is at index

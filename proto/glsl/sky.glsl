@@ -35,13 +35,14 @@
 // which is REPEAT (azimuth is periodic).
 //
 // Filtering: by default the texture units filter (texture()). They weigh
-// texels with 8 bits of sub-texel position on most GPUs and on lavapipe, so
-// a result may differ from libsky's double bilinear by up to 1/512 of the
-// difference between neighbouring texels (test_glsl_sample measures it).
+// texels with 8 bits of sub-texel position on many GPUs, so a result may
+// differ from libsky's double bilinear by about 1/256 of the difference
+// between neighbouring texels (test_glsl_sample bounds it; lavapipe weighs
+// float formats in float).
 // Define SKY_GLSL_EXACT_FILTER before including to filter in the shader
 // instead (texelFetch and mix in float, 4 fetches a 2-D lookup, 8 for the
 // aerial volume): then the results agree with libsky to float rounding.
-// Needs GLSL 4.50 (or ES 3.10 with textureSize on sampler3D), no extension.
+// GLSL 4.50 (Vulkan or OpenGL 4.5), no extension.
 #ifndef SKY_GLSL
 #define SKY_GLSL
 
@@ -56,8 +57,9 @@ struct SkyState {
 	vec4 sun_illuminance;	// rgb: sun_illuminance_lx at the top of the atmosphere
 	vec4 moon;		// xyz: moon_direction; w: moon_angular_radius_rad
 	vec4 moon_illuminance;	// rgb: moon_illuminance_lx (0 when the moon lights nothing)
-	vec4 planet;		// x: bottom_radius_km, y: top_radius_km, z: altitude_km (the observer),
-				// w: skymap_horizon_cos at the observer (computed in double)
+	vec4 planet;		// x: bottom_radius_km, y: top_radius_km, z: altitude_km (the observer), w: 0
+	vec4 horizon;		// the geometric horizon at the observer, in double on the CPU:
+				// x: skymap_horizon_cos, y: the sine, z: the zenith angle (rad), w: 0
 	vec4 rgb_scale;		// by table id: 2^rgb_scale_log2[id] (1 for float32 tables)
 	vec4 aerial;		// x: aerial_range_km, y: aerial_squared (1 or 0),
 				// z: tan(camera_vfov_rad / 2), w: camera_aspect
@@ -171,7 +173,7 @@ vec3 sky_transmittance(SkyState s, sampler2D transmittance, float altitude_km, f
 // ENU): 0 below the geometric horizon. skysample_light_transmittance.
 vec3 sky_light_transmittance(SkyState s, sampler2D transmittance, vec3 dir)
 {
-	if (dir.z < s.planet.w)
+	if (dir.z < s.horizon.x)
 		return vec3(0.0);
 	return sky_transmittance(s, transmittance, s.planet.z, dir.z);
 }
@@ -195,10 +197,7 @@ vec3 sky_moon_illuminance(SkyState s, sampler2D transmittance)
 // ground as the table holds it. skysample_sky.
 vec3 sky_radiance(SkyState s, sampler2D skyview, vec3 dir)
 {
-	// atan rather than acos(dir.z): keeps its bits at the zenith.
-	float zenith = atan(length(dir.xy), dir.z);
-	float azimuth = atan(dir.x, dir.y);
-	vec2 uv = skymap_skyview_uv(s.planet.w, zenith, azimuth, textureSize(skyview, 0).y);
+	vec2 uv = skymap_skyview_uv_dir(s.horizon.x, s.horizon.y, s.horizon.z, dir, textureSize(skyview, 0).y);
 	return sky_read_2d(skyview, uv, true, s.rgb_scale[SKY_TABLE_SKYVIEW]).rgb;
 }
 

@@ -115,12 +115,22 @@ vec2 skymap_multiscatter_inverse(float rb, float rt, vec2 uv, int w, int h)
 	return vec2(alt, clamp(mh + sn * (sn < 0.0 ? 1.0 + mh : 1.0 - mh), -1.0, 1.0));
 }
 
+// The horizon's zenith angle acos(horizon_cos), as pi/2 plus the small
+// angle below the horizontal: GPU acos is approximate near the result's
+// scale (Mesa's errs by 1e-4 rad), atan of a small ratio keeps its relative
+// precision.
+float skymap_horizon_rad(float horizon_cos)
+{
+	float c = clamp(horizon_cos, -1.0, 1.0);
+	return 0.5 * SKYMAP_PI + atan(-c, skymap_safe_sqrt((1.0 - c) * (1.0 + c)));
+}
+
 // Sky-view table: u = azimuth / 2 pi (eastward from north, periodic: sample
 // it with a repeating address mode), v packs texels at the horizon, whose
 // zenith angle comes from horizon_cos (skymap_horizon_cos at the observer).
 vec2 skymap_skyview_uv(float horizon_cos, float view_zenith_rad, float azimuth_rad, int h)
 {
-	float th = acos(clamp(horizon_cos, -1.0, 1.0));
+	float th = skymap_horizon_rad(horizon_cos);
 	float t = clamp(view_zenith_rad, 0.0, SKYMAP_PI), x;
 	if (t < th)
 		x = 0.5 * (1.0 - skymap_safe_sqrt(1.0 - t / th));
@@ -130,10 +140,29 @@ vec2 skymap_skyview_uv(float horizon_cos, float view_zenith_rad, float azimuth_r
 	return vec2(a - floor(a), skymap_unit_to_tex(x, h));
 }
 
+// skymap_skyview_uv for a view direction (unit, ENU), from the horizon's
+// cos-zenith, sin-zenith and zenith angle (horizon_cos, horizon_sin,
+// horizon_rad) taken in double on the CPU. Shaders use this form: GPU
+// inverse trigonometry is approximate (Vulkan allows 4096 ulp for atan;
+// Mesa's is good to about 1e-5 rad), and the latitude's square root at the
+// horizon turns an error e of the view's angle from the horizon into
+// sqrt(e) of v. Here that angle is atan(sin, cos) of the difference, whose
+// error shrinks with it, and the azimuth alone goes through atan whole.
+vec2 skymap_skyview_uv_dir(float horizon_cos, float horizon_sin, float horizon_rad, vec3 dir, int h)
+{
+	float s = length(dir.xy);
+	// The view's zenith angle less the horizon's, in (-pi, pi).
+	float dt = atan(s * horizon_cos - dir.z * horizon_sin, s * horizon_sin + dir.z * horizon_cos);
+	float x = dt < 0.0 ? 0.5 * (1.0 - skymap_safe_sqrt(min(-dt / horizon_rad, 1.0)))
+			   : 0.5 + 0.5 * skymap_safe_sqrt(min(dt / (SKYMAP_PI - horizon_rad), 1.0));
+	float a = atan(dir.x, dir.y) / (2.0 * SKYMAP_PI);
+	return vec2(a - floor(a), skymap_unit_to_tex(x, h));
+}
+
 // The inverse: uv -> (view zenith, azimuth).
 vec2 skymap_skyview_inverse(float horizon_cos, vec2 uv, int h)
 {
-	float th = acos(clamp(horizon_cos, -1.0, 1.0));
+	float th = skymap_horizon_rad(horizon_cos);
 	float x = clamp(skymap_tex_to_unit(uv.y, h), 0.0, 1.0), zenith;
 	if (x < 0.5) {
 		float a = 1.0 - 2.0 * x;
