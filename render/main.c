@@ -259,10 +259,9 @@ static void try_reconnect(struct link *l, struct rvk *r, const struct opts *o)
 static int refresh(struct link *l, struct rvk *r)
 {
 	struct sky_view v;
-	struct sky_gpu_table t[SKY_SHM_MAX_TABLES];
+	struct sky_gpu_table t[SKY_SHM_MAX_TABLES], view_volume;
 	struct sky_gpu_state st;
 	struct rvk_upload u = { .tables = t, .state = &st };
-	const char *name = l->view_added ? l->view_name : NULL;
 	char err[512];
 	int rc = sky_view_begin(l->c, &v);
 	if (rc < 0)
@@ -271,11 +270,14 @@ static int refresh(struct link *l, struct rvk *r)
 		return 0;
 	if ((rc = sky_gpu_tables(l->c, &v, t)) < 0)
 		return rc;
-	if (!name || sky_gpu_state(&v, name, &st) < 0 ||
-	    sky_view_aerial_table(&v, name, &u.aerial_texels, NULL) < 0) {
+	if (l->view_added && sky_gpu_view_table(l->c, &v, l->view_name, &view_volume) >= 0 &&
+	    sky_gpu_state(&v, l->view_name, &st) == 0) {
+		u.aerial = &view_volume;
+		u.aerial_is_view = true;
+	} else {
 		/* Our view's volume is not in this slot (yet): the state's camera's. */
 		sky_gpu_state(&v, NULL, &st);
-		u.aerial_texels = t[SKY_TABLE_AERIAL].present ? t[SKY_TABLE_AERIAL].texels : NULL;
+		u.aerial = &t[SKY_TABLE_AERIAL];
 	}
 	u.generation = v.generation;
 	sky_sample_ambient(&v, u.ambient_lx);

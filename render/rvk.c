@@ -385,19 +385,16 @@ static void find_tables(const struct rvk_upload *u, const void *ret_src[RVK_TABL
 						  SKY_TABLE_AERIAL };
 	uint64_t off = 0;
 	for (int i = 0; i < RVK_TABLES; i++) {
-		const struct sky_gpu_table *t = &u->tables[ids[i]];
-		const void *texels = i == RVK_AERIAL ? u->aerial_texels : t->texels;
+		const struct sky_gpu_table *t = i == RVK_AERIAL ? u->aerial : &u->tables[ids[i]];
 		struct rvk_table_layout *l = &ret[i];
 		memset(l, 0, sizeof(*l));
-		if (t->present && texels) {
+		if (t && t->present && t->texels) {
 			l->format = t->format;
 			l->width = t->width;
 			l->height = t->height;
 			l->depth = t->depth;
-			ret_src[i] = texels;
-			/* A camera view's volume has no change generation of
-			 * its own: it goes up with every generation. */
-			ret_changed[i] = i == RVK_AERIAL ? u->generation : t->changed_generation;
+			ret_src[i] = t->texels;
+			ret_changed[i] = t->changed_generation;
 		} else {
 			l->width = l->height = l->depth = 1;
 			ret_src[i] = stand_in_texel;
@@ -574,7 +571,9 @@ int rvk_upload(struct rvk *r, const struct rvk_upload *u, char *err, size_t err_
 		return rc;
 	for (int i = 0; i < RVK_TABLES; i++) {
 		l[i].uploaded_generation = s->layout[i].uploaded_generation;
-		l[i].copy = l[i].uploaded_generation != changed[i] || changed[i] == UINT32_MAX;
+		l[i].from_view = i == RVK_AERIAL && u->aerial_is_view;
+		l[i].copy = l[i].uploaded_generation != changed[i] || changed[i] == UINT32_MAX ||
+			    l[i].from_view != s->layout[i].from_view;
 		if (l[i].copy)
 			memcpy((unsigned char *)s->staging.map + l[i].staging_offset, src[i], l[i].bytes);
 		l[i].uploaded_generation = changed[i];

@@ -55,20 +55,21 @@ const char *rvk_device_name(const struct rvk *r);
 
 /* What one upload takes from a stable view (sky_view_begin() or
  * sky_snapshot()): the tables as sky_gpu_tables() describes them, the
- * library's uniforms of the same slot (sky_gpu_state(), with the camera
- * of the aerial volume given), and that volume's texels: a camera view's
- * (sky_view_aerial_table()) or the state's aerial table's. */
+ * aerial volume to draw with (a camera view's, sky_gpu_view_table(), or
+ * the state's aerial table) and the library's uniforms of the same slot
+ * with that volume's camera (sky_gpu_state()). */
 struct rvk_upload {
 	const struct sky_gpu_table *tables;	/* [SKY_SHM_MAX_TABLES] */
+	const struct sky_gpu_table *aerial;	/* NULL or not present: no aerial perspective */
+	bool aerial_is_view;			/* a view's volume: its own change generations */
 	const struct sky_gpu_state *state;
-	const void *aerial_texels;		/* NULL: no aerial perspective */
 	uint32_t generation;			/* the view's */
 	double ambient_lx[3];			/* sky_sample_ambient() of the view */
 };
 
 /* Starts uploading into the set of images frames are not drawing from:
- * each table whose changed_generation differs from what that set holds,
- * the aerial volume and the uniforms. The texels are copied out of the
+ * each table (the aerial volume among them) whose changed_generation
+ * differs from what that set holds, and the uniforms. The texels are copied out of the
  * view before this returns, so the caller may check sky_view_end() right
  * after: when it says torn, call rvk_cancel_upload() and begin again. A set
  * still uploading is waited for and replaced. */

@@ -68,6 +68,8 @@ struct rvk_table_layout {
 	uint64_t bytes;
 	uint64_t staging_offset;
 	uint32_t uploaded_generation;	/* sky_gpu_table.changed_generation the image holds; 0: none */
+	bool from_view;			/* the aerial image holds a view's volume (whose
+					 * generations count apart from the table's) */
 	bool copy;			/* upload this table in the running upload */
 };
 
