@@ -19,6 +19,7 @@
 #include "proto.h"
 #include "rvk.h"
 #include "sky.h"
+#include "window.h"
 
 enum { EXIT_OK = 0, EXIT_FAILED = 1, EXIT_USAGE = 2 };
 
@@ -30,7 +31,10 @@ struct opts {
 	const char *out;
 	struct rvk_options rvk;
 	double exposure;		/* <= 0: automatic, as skyctl render */
-	long frames;			/* 0: until SIGINT or SIGTERM */
+	long frames;			/* 0: until SIGINT or SIGTERM (or the window closes) */
+	bool window;			/* show the frames in an X11 window */
+	bool out_given;			/* --out: with --window, write PNGs too */
+	bool frames_given;
 	int interval_ms;		/* between frames */
 };
 
@@ -73,6 +77,8 @@ static void usage(FILE *f)
 		"  --out PATH           a PNG per frame: a pattern with %%d (frame number), a\n"
 		"                       directory (DIR/frame-%%04d.png), or one file overwritten\n"
 		"                       (default frame-%%04d.png)\n"
+		"  --window             show the frames in a window on $DISPLAY (X11; Escape or q\n"
+		"                       closes it); PNGs then only with --out; --frames 0 by default\n"
 		"  --device SEL         Vulkan device, an index or a name substring\n"
 		"Prints one line per frame: frame N generation G PATH.\n");
 }
@@ -115,6 +121,7 @@ static int parse_args(int argc, char **argv, struct opts *o)
 			o->socket = v;
 		} else if (!strcmp(k, "--out") && v) {
 			o->out = v;
+			o->out_given = true;
 		} else if (!strcmp(k, "--device") && v) {
 			o->rvk.device = v;
 		} else if (!strcmp(k, "--size")) {
@@ -142,6 +149,7 @@ static int parse_args(int argc, char **argv, struct opts *o)
 		} else if (!strcmp(k, "--frames")) {
 			bad = parse_number(v, 0.0, 1e9, &x) < 0 || x != floor(x);
 			o->frames = (long)x;
+			o->frames_given = true;
 		} else if (!strcmp(k, "--interval")) {
 			bad = parse_number(v, 0.0, 3.6e6, &x) < 0;
 			interval = (int)x;
@@ -149,6 +157,8 @@ static int parse_args(int argc, char **argv, struct opts *o)
 			takes = false;
 			if (!strcmp(k, "--fisheye"))
 				cam->projection = RVK_FISHEYE;
+			else if (!strcmp(k, "--window"))
+				o->window = true;
 			else if (!strcmp(k, "--no-terrain"))
 				o->rvk.terrain = false;
 			else if (!strcmp(k, "--no-disks"))
@@ -168,6 +178,8 @@ static int parse_args(int argc, char **argv, struct opts *o)
 			cam->row, cam->cols, cam->rows);
 		return EXIT_USAGE;
 	}
+	if (o->window && !o->frames_given)
+		o->frames = 0;
 	o->interval_ms = interval >= 0 ? interval : o->frames == 0 ? 100 : 0;
 	return 0;
 }
@@ -325,13 +337,35 @@ static int link_open(struct link *l, const struct opts *o)
 	}
 }
 
+/* Shows the frame in the window with the PNGs' encoding and exposure
+ * (automatic: dump_auto_exposure, as dump_png does). */
+static int show(struct win *w, const float *rgba, uint32_t width, uint32_t height, double exposure)
+{
+	if (!(exposure > 0.0)) {
+		struct dump_table t = { .name = "frame", .width = width, .height = height, .depth = 1,
+					.format = SKY_FORMAT_RGBA32F, .texels = rgba };
+		dump_auto_exposure(&t, &exposure);
+	}
+	return win_show(w, rgba, exposure);
+}
+
+/* Until the next frame is due, or skyd or the window says something. */
+static void wait_frame(const struct link *l, struct win *w, int interval_ms)
+{
+	struct pollfd p[2] = { { l->connected ? sky_get_fd(l->c) : -1, POLLIN, 0 },
+			       { w ? win_fd(w) : -1, POLLIN, 0 } };
+	if (interval_ms > 0)
+		poll(p, 2, interval_ms);
+}
+
 /* Draws frames until done: each frame takes what skyd published (when it
- * is reachable), draws from the images uploaded last and writes a PNG. */
-static int run(struct link *l, struct rvk *r, const struct opts *o)
+ * is reachable), draws from the images uploaded last, writes a PNG and
+ * shows it in the window. */
+static int run(struct link *l, struct rvk *r, struct win *w, const struct opts *o)
 {
 	const struct rvk_camera *c = &o->rvk.camera;
 	float *scratch = malloc((size_t)c->width * c->height * 4 * sizeof(float));
-	char path[PATH_MAX], err[512];
+	char path[PATH_MAX] = "-", err[512];
 	int status = EXIT_OK;
 	if (!scratch)
 		return EXIT_FAILED;
@@ -353,18 +387,18 @@ static int run(struct link *l, struct rvk *r, const struct opts *o)
 			status = EXIT_FAILED;
 			break;
 		}
-		frame_path(o->out, n, path, sizeof(path));
-		if (write_png(path, rgba, c->width, c->height, o->exposure, scratch) < 0) {
-			status = EXIT_FAILED;
-			break;
+		if (!w || o->out_given) {
+			frame_path(o->out, n, path, sizeof(path));
+			if (write_png(path, rgba, c->width, c->height, o->exposure, scratch) < 0) {
+				status = EXIT_FAILED;
+				break;
+			}
 		}
+		if (w && (show(w, rgba, c->width, c->height, o->exposure) < 0 || win_closed(w)))
+			quit = 1;
 		printf("frame %ld generation %llu %s\n", n, (unsigned long long)gen, path);
 		fflush(stdout);
-		if (o->interval_ms > 0) {
-			/* Wait for the next frame's time, or for skyd to say something. */
-			struct pollfd p = { l->connected ? sky_get_fd(l->c) : -1, POLLIN, 0 };
-			poll(&p, 1, o->interval_ms);
-		}
+		wait_frame(l, w, o->interval_ms);
 	}
 	free(scratch);
 	return status;
@@ -396,7 +430,16 @@ int main(int argc, char **argv)
 		fprintf(stderr, "skyrender: %s\n", err);
 		return EXIT_FAILED;
 	}
-	e = link_open(&l, &o) < 0 ? EXIT_FAILED : run(&l, r, &o);
+	struct win *w = NULL;
+	if (o.window && (rc = win_new(o.rvk.camera.width, o.rvk.camera.height, "skyrender", &w)) < 0) {
+		fprintf(stderr, "skyrender: window: %s\n", rc == -ENOTSUP ?
+			"not built in (libxcb missing at build time) or not a 24-bit screen" :
+			rc == -ENXIO ? "no display ($DISPLAY)" : strerror(-rc));
+		rvk_free(r);
+		return EXIT_FAILED;
+	}
+	e = link_open(&l, &o) < 0 ? EXIT_FAILED : run(&l, r, w, &o);
+	win_free(w);
 	rvk_free(r);
 	sky_disconnect(l.c);
 	return e;

@@ -5,7 +5,9 @@
  *   wall     three skyrender processes as the three tiles of one wall meet
  *            at their shared edges (and make the one-process wall);
  *   restart  while it draws without end, skyd restarts on the same socket
- *            and changes its layout: frames go on, and follow the new sky.
+ *            and changes its layout: frames go on, and follow the new sky;
+ *   window   --window on an Xvfb shows the bytes the PNG holds (skipped
+ *            without Xvfb or libxcb).
  * Frames are compared as the 8-bit sRGB PNGs both programs write with
  * dump_png's encoding at the same fixed exposure. */
 #include <math.h>
@@ -284,11 +286,8 @@ struct stream {
 	size_t len;
 };
 
-static int stream_start(struct stream *st, const char *out)
+static int stream_start_argv(struct stream *st, const char *const *argv)
 {
-	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
-			       "--size", "64x36", "--frames", "0", "--interval", "20", "--out", out,
-			       NULL };
 	int p[2];
 	if (pipe2(p, O_CLOEXEC) < 0)
 		return -1;
@@ -302,6 +301,14 @@ static int stream_start(struct stream *st, const char *out)
 	st->fd = p[0];
 	st->len = 0;
 	return 0;
+}
+
+static int stream_start(struct stream *st, const char *out)
+{
+	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
+			       "--size", "64x36", "--frames", "0", "--interval", "20", "--out", out,
+			       NULL };
+	return stream_start_argv(st, argv);
 }
 
 /* The generation of the next "frame N generation G PATH" line, or -1 when
@@ -413,14 +420,132 @@ static int case_restart(const char *dir)
 	return 0;
 }
 
+#ifdef TEST_RENDER_XCB
+#include <xcb/xcb.h>
+
+/* Starts Xvfb on a display it picks (-displayfd: it writes the number
+ * once it accepts clients); the number, or -1 (77 when there is no Xvfb). */
+static int xvfb_start(pid_t *ret_pid)
+{
+	int p[2];
+	if (access(XVFB_BINARY, X_OK) < 0) {
+		printf("skipped: no %s (Debian's xvfb)\n", XVFB_BINARY);
+		exit(77);
+	}
+	if (pipe(p) < 0)
+		return -1;
+	pid_t pid = fork();
+	if (pid == 0) {
+		char fd[16];
+		snprintf(fd, sizeof(fd), "%d", p[1]);
+		close(p[0]);
+		int null = open("/dev/null", O_WRONLY);
+		dup2(null, 2);
+		execl(XVFB_BINARY, XVFB_BINARY, "-displayfd", fd, "-nolisten", "tcp", "-screen", "0",
+		      "320x240x24", (char *)NULL);
+		_exit(127);
+	}
+	close(p[1]);
+	/* Read up to the newline: Xvfb dies if the pipe closes before it has
+	 * written all of it. */
+	char buf[16] = "";
+	size_t n = 0;
+	struct pollfd pf = { p[0], POLLIN, 0 };
+	while (n + 1 < sizeof(buf) && !memchr(buf, '\n', n) && poll(&pf, 1, HARNESS_TIMEOUT_MS) > 0) {
+		ssize_t k = read(p[0], buf + n, sizeof(buf) - 1 - n);
+		if (k <= 0)
+			break;
+		n += (size_t)k;
+	}
+	close(p[0]);
+	*ret_pid = pid;
+	return memchr(buf, '\n', n) ? atoi(buf) : -1;
+}
+
+/* The top-left w x h of the root window as 8-bit RGB (a 24-bit screen,
+ * little-endian BGRX), or NULL. */
+static uint8_t *grab(const char *display, uint32_t w, uint32_t h)
+{
+	xcb_connection_t *c = xcb_connect(display, NULL);
+	uint8_t *rgb = NULL;
+	if (!xcb_connection_has_error(c)) {
+		xcb_screen_t *s = xcb_setup_roots_iterator(xcb_get_setup(c)).data;
+		xcb_get_image_reply_t *r = xcb_get_image_reply(c, xcb_get_image(c,
+			XCB_IMAGE_FORMAT_Z_PIXMAP, s->root, 0, 0, (uint16_t)w, (uint16_t)h, ~0u), NULL);
+		if (r && xcb_get_image_data_length(r) >= (int)(w * h * 4) && (rgb = malloc(w * h * 3))) {
+			const uint8_t *px4 = xcb_get_image_data(r);
+			for (size_t i = 0; i < (size_t)w * h; i++) {
+				rgb[3 * i] = px4[4 * i + 2];
+				rgb[3 * i + 1] = px4[4 * i + 1];
+				rgb[3 * i + 2] = px4[4 * i];
+			}
+		}
+		free(r);
+	}
+	xcb_disconnect(c);
+	return rgb;
+}
+
+/* skyrender --window on an Xvfb: the window shows what the PNG holds. */
+static int case_window(const char *dir)
+{
+	pid_t xvfb;
+	int n = xvfb_start(&xvfb);
+	char display[16], out[256];
+	struct stream st;
+	struct image im = { 0 };
+	if (n < 0) {
+		FAIL("Xvfb did not start");
+		return 0;
+	}
+	snprintf(display, sizeof(display), ":%d", n);
+	snprintf(out, sizeof(out), "%s/window.png", dir);
+	setenv("DISPLAY", display, 1);
+	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
+			       "--size", "64x36", "--window", "--interval", "20", "--out", out, NULL };
+	CHECK(stream_start_argv(&st, argv) == 0);
+	long g = stream_frame(&st), g1 = stream_frame(&st);
+	CHECK(g > 0 && g1 == g);
+	uint8_t *shown = grab(display, 64, 36);
+	CHECK(shown != NULL);
+	if (shown && image_read(out, &im) == 0) {
+		size_t differ = 0;
+		for (size_t i = 0; i < 64 * 36 * 3; i++)
+			differ += shown[i] != im.rgb[i];
+		printf("window: %zu of %d values differ from the PNG\n", differ, 64 * 36 * 3);
+		CHECK(differ == 0);
+	} else {
+		FAIL("nothing to compare");
+	}
+	free(shown);
+	free(im.rgb);
+	kill(st.pid, SIGTERM);
+	int status = 0;
+	waitpid(st.pid, &status, 0);
+	close(st.fd);
+	CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+	kill(xvfb, SIGTERM);
+	waitpid(xvfb, NULL, 0);
+	return 0;
+}
+#else
+static int case_window(const char *dir)
+{
+	(void)dir;
+	printf("skipped: built without libxcb\n");
+	exit(77);
+}
+#endif
+
 int main(int argc, char **argv)
 {
 	const char *which = argc > 1 ? argv[1] : "";
 	int (*fn)(const char *) = !strcmp(which, "sky") ? case_sky :
 				   !strcmp(which, "wall") ? case_wall :
-				   !strcmp(which, "restart") ? case_restart : NULL;
+				   !strcmp(which, "restart") ? case_restart :
+				   !strcmp(which, "window") ? case_window : NULL;
 	if (!fn) {
-		fprintf(stderr, "usage: test_render sky|wall|restart\n");
+		fprintf(stderr, "usage: test_render sky|wall|restart|window\n");
 		return 2;
 	}
 	eng_free(vk_or_skip());
