@@ -565,7 +565,6 @@ int rvk_upload(struct rvk *r, const struct rvk_upload *u, char *err, size_t err_
 
 	if (rc < 0)
 		return rc;
-	s->ready = false;
 	find_tables(u, src, l, changed);
 	if ((rc = set_reshape(r, s, l, err, err_size)) < 0)
 		return rc;
@@ -603,7 +602,6 @@ void rvk_cancel_upload(struct rvk *r)
 	/* What it copied may be torn: every table goes up again next time. */
 	for (int i = 0; i < RVK_TABLES; i++)
 		s->layout[i].uploaded_generation = 0;
-	s->ready = false;
 }
 
 void rvk_forget_tables(struct rvk *r)
@@ -630,7 +628,6 @@ static int take_upload(struct rvk *r, char *err, size_t err_size)
 	}
 	if ((rc = set_settle(r, s, err, err_size)) < 0)
 		return rc;
-	s->ready = true;
 	r->active = (int)(s - r->sets);
 	return 0;
 fail:

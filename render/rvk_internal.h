@@ -80,7 +80,7 @@ struct rvk_set {
 	VkDescriptorSet desc;
 	VkFence upload_fence;
 	VkCommandBuffer upload_cmd;
-	bool uploading, ready;
+	bool uploading;			/* a copy into the set is in flight */
 	uint64_t generation;
 	struct rvk_table_layout layout[RVK_TABLES];
 };
