@@ -73,15 +73,18 @@ fail:
 
 static int layout_init(struct rvk *r, char *err, size_t err_size)
 {
-	VkDescriptorSetLayoutBinding b[1 + RVK_TABLES];
+	/* 0: the uniform block; 1, 2: transmittance, sky-view; 3: the aerial
+	 * volumes, an array. */
+	VkDescriptorSetLayoutBinding b[1 + RVK_AERIAL + 1];
 	int rc = 0;
-	for (uint32_t i = 0; i < 1 + RVK_TABLES; i++)
-		b[i] = (VkDescriptorSetLayoutBinding){ .binding = i, .descriptorCount = 1,
+	for (uint32_t i = 0; i < 1 + RVK_AERIAL + 1; i++)
+		b[i] = (VkDescriptorSetLayoutBinding){ .binding = i,
+			.descriptorCount = i == 1 + RVK_AERIAL ? RVK_MAX_AERIAL : 1,
 			.descriptorType = i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER :
 						   VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
 			.stageFlags = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT };
 	VkDescriptorSetLayoutCreateInfo li = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
-		.bindingCount = 1 + RVK_TABLES, .pBindings = b };
+		.bindingCount = 1 + RVK_AERIAL + 1, .pBindings = b };
 	VK_TRY(vkCreateDescriptorSetLayout(r->dev, &li, NULL, &r->set_layout));
 	VkPipelineLayoutCreateInfo pli = { .sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
 		.setLayoutCount = 1, .pSetLayouts = &r->set_layout };
@@ -235,22 +238,23 @@ int rvk_frame_bind_set(struct rvk *r, struct rvk_set *s, char *err, size_t err_s
 {
 	VkDescriptorBufferInfo bi = { s->ubo.buf, 0, sizeof(struct rvk_frame_ubo) };
 	VkDescriptorImageInfo ii[RVK_TABLES];
-	VkWriteDescriptorSet w[1 + RVK_TABLES];
+	VkWriteDescriptorSet w[1 + RVK_AERIAL + 1];
 	w[0] = (VkWriteDescriptorSet){ .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
 		.dstSet = s->desc, .dstBinding = 0, .descriptorCount = 1,
 		.descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, .pBufferInfo = &bi };
-	for (uint32_t i = 0; i < RVK_TABLES; i++) {
+	for (uint32_t i = 0; i < RVK_TABLES; i++)
 		ii[i] = (VkDescriptorImageInfo){
 			i == RVK_SKYVIEW ? r->sampler_wrap_u : r->sampler_clamp, s->tables[i].view,
 			VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL };
+	for (uint32_t i = 0; i <= RVK_AERIAL; i++)
 		w[1 + i] = (VkWriteDescriptorSet){ .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
-			.dstSet = s->desc, .dstBinding = 1 + i, .descriptorCount = 1,
+			.dstSet = s->desc, .dstBinding = 1 + i,
+			.descriptorCount = i == RVK_AERIAL ? RVK_MAX_AERIAL : 1,
 			.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
 			.pImageInfo = &ii[i] };
-	}
 	(void)err;
 	(void)err_size;
-	vkUpdateDescriptorSets(r->dev, 1 + RVK_TABLES, w, 0, NULL);
+	vkUpdateDescriptorSets(r->dev, 1 + RVK_AERIAL + 1, w, 0, NULL);
 	return 0;
 }
 

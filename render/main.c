@@ -42,9 +42,10 @@ struct opts {
 struct link {
 	sky_client *c;
 	bool connected;
-	bool view_added;		/* our camera view is registered on this connection */
+	uint32_t n_views;		/* our camera views: 1, or RVK_MAX_AERIAL for a dome */
+	bool view_added[RVK_MAX_AERIAL];	/* registered on this connection */
 	uint32_t shown;			/* the generation last uploaded */
-	char view_name[SKY_SHM_VIEW_NAME_MAX];
+	char view_name[RVK_MAX_AERIAL][SKY_SHM_VIEW_NAME_MAX];
 };
 
 static volatile sig_atomic_t quit;
@@ -214,25 +215,31 @@ static int write_png(const char *path, const float *rgba, uint32_t w, uint32_t h
 	return r;
 }
 
-/* Registers the camera whose aerial-perspective volume the terrain reads:
- * the wall's camera (a fisheye: a wide one facing the front). Without it
+/* Registers the cameras whose aerial-perspective volumes the terrain
+ * reads: the wall's camera, or for a dome master four quarters of the
+ * horizon (the first facing the front; 110 degrees wide so that
+ * neighbours overlap where the shader blends them, 60 high). Without one
  * (refused: a reader, or 8 views taken) the state's camera serves. */
-static void add_view(struct link *l, const struct opts *o)
+static void add_views(struct link *l, const struct opts *o)
 {
 	const struct rvk_camera *c = &o->rvk.camera;
-	char line[256];
 	bool fish = c->projection == RVK_FISHEYE;
-	double aspect = fish ? 2.0 : (double)c->cols * c->width / ((double)c->rows * c->height);
-	snprintf(line, sizeof(line), "view add name=%s yaw_deg=%.9g pitch_deg=%.9g vfov_deg=%.9g aspect=%.9g",
-		 l->view_name, c->yaw_deg, fish ? 0.0 : c->pitch_deg, fish ? 90.0 : c->vfov_deg,
-		 aspect);
-	sky_reply *rep = NULL;
-	int r = sky_request(l->c, line, &rep);
-	l->view_added = r == 0;
-	if (r != 0)
-		fprintf(stderr, "skyrender: view add: %s%s%s; aerial perspective of the state's camera\n",
-			sky_strerror(r), rep ? ": " : "", rep ? sky_reply_message(rep) : "");
-	sky_reply_free(rep);
+	double aspect = fish ? tan(55.0 * M_PI / 180.0) / tan(30.0 * M_PI / 180.0) :
+			       (double)c->cols * c->width / ((double)c->rows * c->height);
+	for (uint32_t k = 0; k < l->n_views; k++) {
+		char line[256];
+		snprintf(line, sizeof(line),
+			 "view add name=%s yaw_deg=%.9g pitch_deg=%.9g vfov_deg=%.9g aspect=%.9g",
+			 l->view_name[k], fmod(c->yaw_deg + 90.0 * k, 360.0), fish ? 0.0 : c->pitch_deg,
+			 fish ? 60.0 : c->vfov_deg, aspect);
+		sky_reply *rep = NULL;
+		int r = sky_request(l->c, line, &rep);
+		l->view_added[k] = r == 0;
+		if (r != 0)
+			fprintf(stderr, "skyrender: view add: %s%s%s; aerial perspective of the state's camera\n",
+				sky_strerror(r), rep ? ": " : "", rep ? sky_reply_message(rep) : "");
+		sky_reply_free(rep);
+	}
 }
 
 /* Handles what arrived on the socket; notes a hang-up. */
@@ -243,7 +250,7 @@ static void drain_events(struct link *l, struct rvk *r)
 	while (l->connected && (n = sky_dispatch(l->c, &ev)) != 0) {
 		if (n < 0 || ev.type == SKY_EVENT_HANGUP) {
 			l->connected = false;
-			l->view_added = false;
+			memset(l->view_added, 0, sizeof(l->view_added));
 			fprintf(stderr, "skyrender: skyd went away; drawing the last tables\n");
 		} else if (ev.type == SKY_EVENT_LAYOUT) {
 			rvk_forget_tables(r);
@@ -262,7 +269,7 @@ static void try_reconnect(struct link *l, struct rvk *r, const struct opts *o)
 	rvk_forget_tables(r);
 	fprintf(stderr, "skyrender: reconnected to skyd\n");
 	if (o->rvk.terrain)
-		add_view(l, o);
+		add_views(l, o);
 }
 
 /* Uploads the newest generation if it is not the one shown: the tables
@@ -271,9 +278,9 @@ static void try_reconnect(struct link *l, struct rvk *r, const struct opts *o)
 static int refresh(struct link *l, struct rvk *r)
 {
 	struct sky_view v;
-	struct sky_gpu_table t[SKY_SHM_MAX_TABLES], view_volume;
-	struct sky_gpu_state st;
-	struct rvk_upload u = { .tables = t, .state = &st };
+	struct sky_gpu_table t[SKY_SHM_MAX_TABLES], volume[RVK_MAX_AERIAL];
+	struct sky_gpu_state st[RVK_MAX_AERIAL];
+	struct rvk_upload u = { .tables = t, .n_aerial = l->n_views };
 	char err[512];
 	int rc = sky_view_begin(l->c, &v);
 	if (rc < 0)
@@ -282,14 +289,17 @@ static int refresh(struct link *l, struct rvk *r)
 		return 0;
 	if ((rc = sky_gpu_tables(l->c, &v, t)) < 0)
 		return rc;
-	if (l->view_added && sky_gpu_view_table(l->c, &v, l->view_name, &view_volume) >= 0 &&
-	    sky_gpu_state(&v, l->view_name, &st) == 0) {
-		u.aerial = &view_volume;
-		u.aerial_is_view = true;
-	} else {
-		/* Our view's volume is not in this slot (yet): the state's camera's. */
-		sky_gpu_state(&v, NULL, &st);
-		u.aerial = &t[SKY_TABLE_AERIAL];
+	for (uint32_t k = 0; k < l->n_views; k++) {
+		u.state[k] = &st[k];
+		if (l->view_added[k] && sky_gpu_view_table(l->c, &v, l->view_name[k], &volume[k]) >= 0 &&
+		    sky_gpu_state(&v, l->view_name[k], &st[k]) == 0) {
+			u.aerial[k] = &volume[k];
+			u.aerial_is_view[k] = true;
+		} else {
+			/* This view's volume is not in the slot (yet): the state's camera's. */
+			sky_gpu_state(&v, NULL, &st[k]);
+			u.aerial[k] = &t[SKY_TABLE_AERIAL];
+		}
 	}
 	u.generation = v.generation;
 	sky_sample_ambient(&v, u.ambient_lx);
@@ -317,16 +327,22 @@ static int link_open(struct link *l, const struct opts *o)
 		return -1;
 	}
 	l->connected = true;
-	snprintf(l->view_name, sizeof(l->view_name), "skyrender-%ld", (long)getpid());
+	l->n_views = o->rvk.camera.projection == RVK_FISHEYE ? RVK_MAX_AERIAL : 1;
+	for (uint32_t k = 0; k < l->n_views; k++)
+		snprintf(l->view_name[k], sizeof(l->view_name[k]), "skyrender-%d-%u", (int)getpid(), k % 10);
 	if (o->rvk.terrain)
-		add_view(l, o);
+		add_views(l, o);
 	/* The first frame shows the sky as it is: wait for the tables, and for
 	 * our view's aerial volume once skyd took the view. */
 	for (uint32_t seen = 0;;) {
 		struct sky_view v;
 		const void *texels;
-		if (sky_view_begin(l->c, &v) == 0 && (v.valid_tables & NEEDED_TABLES) == NEEDED_TABLES &&
-		    (!l->view_added || sky_view_aerial_table(&v, l->view_name, &texels, NULL) == 0))
+		bool all = sky_view_begin(l->c, &v) == 0 &&
+			   (v.valid_tables & NEEDED_TABLES) == NEEDED_TABLES;
+		for (uint32_t k = 0; all && k < l->n_views; k++)
+			all = !l->view_added[k] ||
+			      sky_view_aerial_table(&v, l->view_name[k], &texels, NULL) == 0;
+		if (all)
 			return 0;
 		if ((r = sky_wait(l->c, seen, FIRST_TABLES_TIMEOUT_MS, &seen)) < 0 && r != -EINTR) {
 			fprintf(stderr, "skyrender: no tables from skyd: %s\n", sky_strerror(r));

@@ -381,11 +381,12 @@ static const float stand_in_texel[4] = { 0.0f, 0.0f, 0.0f, 1.0f };
 static void find_tables(const struct rvk_upload *u, const void *ret_src[RVK_TABLES],
 			struct rvk_table_layout ret[RVK_TABLES], uint32_t ret_changed[RVK_TABLES])
 {
-	static const uint32_t ids[RVK_TABLES] = { SKY_TABLE_TRANSMITTANCE, SKY_TABLE_SKYVIEW,
-						  SKY_TABLE_AERIAL };
+	static const uint32_t ids[RVK_AERIAL] = { SKY_TABLE_TRANSMITTANCE, SKY_TABLE_SKYVIEW };
 	uint64_t off = 0;
 	for (int i = 0; i < RVK_TABLES; i++) {
-		const struct sky_gpu_table *t = i == RVK_AERIAL ? u->aerial : &u->tables[ids[i]];
+		int k = i - RVK_AERIAL;
+		const struct sky_gpu_table *t = i < RVK_AERIAL ? &u->tables[ids[i]] :
+						(uint32_t)k < u->n_aerial ? u->aerial[k] : NULL;
 		struct rvk_table_layout *l = &ret[i];
 		memset(l, 0, sizeof(*l));
 		if (t && t->present && t->texels) {
@@ -426,7 +427,7 @@ static int set_reshape(struct rvk *r, struct rvk_set *s, const struct rvk_table_
 			continue;
 		rvk_image_free(r, im);
 		s->layout[i].uploaded_generation = 0;
-		rc = rvk_image_new(r, i == RVK_AERIAL ? VK_IMAGE_TYPE_3D : VK_IMAGE_TYPE_2D,
+		rc = rvk_image_new(r, i >= RVK_AERIAL ? VK_IMAGE_TYPE_3D : VK_IMAGE_TYPE_2D,
 				   vk_format(l[i].format), l[i].width, l[i].height, l[i].depth,
 				   VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
 				   VK_IMAGE_ASPECT_COLOR_BIT, im, err, err_size);
@@ -476,7 +477,8 @@ static void fill_ubo(const struct rvk *r, const struct rvk_upload *up, struct rv
 	double wall_w = (double)c->cols * c->width, wall_h = (double)c->rows * c->height;
 
 	memset(u, 0, sizeof(*u));
-	u->sky = *up->state;
+	for (uint32_t k = 0; k < RVK_MAX_AERIAL; k++)
+		u->sky[k] = *up->state[k < up->n_aerial ? k : 0];
 	camera_basis(c, f, rt, upv);
 	u->wall[0] = (float)wall_w;
 	u->wall[1] = (float)wall_h;
@@ -491,7 +493,7 @@ static void fill_ubo(const struct rvk *r, const struct rvk_upload *up, struct rv
 	vec4(u->cam_u, upv, 1e-4);	/* near plane: 10 cm */
 	vec4(u->ambient_lx, up->ambient_lx, r->opt.disk_flags);
 	double albedo[3] = { r->opt.terrain_albedo, r->opt.terrain_albedo, r->opt.terrain_albedo };
-	vec4(u->terrain, albedo, 0.0);
+	vec4(u->terrain, albedo, up->n_aerial);
 }
 
 static void image_barrier(VkCommandBuffer cmd, VkImage image, VkImageLayout from, VkImageLayout to,
@@ -555,8 +557,11 @@ fail:
 
 int rvk_upload(struct rvk *r, const struct rvk_upload *u, char *err, size_t err_size)
 {
-	if (!r || !u || !u->tables || !u->state)
+	if (!r || !u || !u->tables || !u->n_aerial || u->n_aerial > RVK_MAX_AERIAL)
 		return -EINVAL;
+	for (uint32_t k = 0; k < u->n_aerial; k++)
+		if (!u->state[k])
+			return -EINVAL;
 	struct rvk_set *s = &r->sets[r->active == 0 ? 1 : 0];
 	const void *src[RVK_TABLES];
 	struct rvk_table_layout l[RVK_TABLES];
@@ -570,7 +575,7 @@ int rvk_upload(struct rvk *r, const struct rvk_upload *u, char *err, size_t err_
 		return rc;
 	for (int i = 0; i < RVK_TABLES; i++) {
 		l[i].uploaded_generation = s->layout[i].uploaded_generation;
-		l[i].from_view = i == RVK_AERIAL && u->aerial_is_view;
+		l[i].from_view = i >= RVK_AERIAL && u->aerial_is_view[i - RVK_AERIAL];
 		l[i].copy = l[i].uploaded_generation != changed[i] || changed[i] == UINT32_MAX ||
 			    l[i].from_view != s->layout[i].from_view;
 		if (l[i].copy)

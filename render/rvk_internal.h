@@ -47,19 +47,21 @@ struct rvk_image {
  * agree without padding rules): the GLSL library's SkyState, then the
  * camera; render/shaders/frame.glsl declares it. */
 struct rvk_frame_ubo {
-	struct sky_gpu_state sky;
+	struct sky_gpu_state sky[RVK_MAX_AERIAL];	/* the same but for each volume's camera */
 	float wall[4];			/* wall width, height (px); tile origin x, y (px) */
 	float tile[4];			/* tile width, height (px); projection; tan(vfov / 2) */
 	float cam_f[4];			/* wall camera forward (ENU); w: yaw (rad) */
 	float cam_r[4];			/* right; w: aspect of the wall */
 	float cam_u[4];			/* up; w: near plane (km) */
 	float ambient_lx[4];		/* horizontal sky irradiance (rgb); w: disk flags */
-	float terrain[4];		/* albedo (rgb); w: 0 */
+	float terrain[4];		/* albedo (rgb); w: number of aerial volumes */
 };
 
 /* The tables a frame samples, in binding order after the uniform block;
- * the aerial volume is the one of the client's camera view when it has one. */
-enum rvk_table { RVK_TRANSMITTANCE, RVK_SKYVIEW, RVK_AERIAL, RVK_TABLES };
+ * the aerial volumes (one binding, an array) are the client's camera
+ * views' when it has them. */
+enum rvk_table { RVK_TRANSMITTANCE, RVK_SKYVIEW, RVK_AERIAL,
+		 RVK_TABLES = RVK_AERIAL + RVK_MAX_AERIAL };
 
 /* Where one table's texels come from in a slot and how they are stored. */
 struct rvk_table_layout {

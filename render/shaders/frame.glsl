@@ -5,24 +5,61 @@
 // it, and a point -> the tile's clip position for the terrain.
 #include "sky.glsl"
 
+// The aerial volumes: one for a perspective tile, four quarters of the
+// horizon for a dome master (volume k faces yaw + 90 k degrees).
+const int MAX_AERIAL = 4;
+
 layout(std140, set = 0, binding = 0) uniform FrameBlock {
-	SkyState sky;
+	SkyState sky[MAX_AERIAL];	// the same sky, each with its volume's camera
 	vec4 wall;		// wall width, height (px); this tile's origin in it (px)
 	vec4 tile;		// tile width, height (px); projection (0 perspective, 1 fisheye); tan(vfov / 2)
 	vec4 cam_f;		// the wall camera's forward (ENU); w: yaw (rad)
 	vec4 cam_r;		// right; w: the wall's aspect
 	vec4 cam_u;		// up; w: near plane (km)
 	vec4 ambient_lx;	// horizontal sky irradiance; w: disk flags (SKY_DISK_*)
-	vec4 terrain;		// the ground's albedo (rgb)
+	vec4 terrain;		// the ground's albedo (rgb); w: the number of aerial volumes
 } F;
 
 layout(set = 0, binding = 1) uniform sampler2D transmittance_tex;
 layout(set = 0, binding = 2) uniform sampler2D skyview_tex;
-layout(set = 0, binding = 3) uniform sampler3D aerial_tex;
+layout(set = 0, binding = 3) uniform sampler3D aerial_tex[MAX_AERIAL];
 
 const float HALF_PI = 0.5 * SKYMAP_PI;
 
 bool is_fisheye() { return F.tile.z > 0.5; }
+
+// The aerial perspective of volume k (a constant index for the sampler
+// array in each branch: k differs from fragment to fragment).
+vec4 aerial_of(int k, vec3 view, float distance_km)
+{
+	if (k == 1)
+		return sky_aerial(F.sky[1], aerial_tex[1], sky_aerial_screen_uv(F.sky[1], view), distance_km);
+	if (k == 2)
+		return sky_aerial(F.sky[2], aerial_tex[2], sky_aerial_screen_uv(F.sky[2], view), distance_km);
+	if (k == 3)
+		return sky_aerial(F.sky[3], aerial_tex[3], sky_aerial_screen_uv(F.sky[3], view), distance_km);
+	return sky_aerial(F.sky[0], aerial_tex[0], sky_aerial_screen_uv(F.sky[0], view), distance_km);
+}
+
+// A dome's quarters blend over this many quarters either side of their
+// boundary (8 degrees), inside both volumes' frusta (55 degrees either side
+// of their axes) and clear of their border froxels, so no seam shows.
+const float QUARTER_BLEND = 8.0 / 90.0;
+
+// The aerial perspective toward the unit ENU direction view at distance_km
+// (RGB in-scattered, A transmittance): the one volume of a perspective
+// tile, or the dome's quarter (or two) that faces that way.
+vec4 aerial_toward(vec3 view, float distance_km)
+{
+	if (int(F.terrain.w) != MAX_AERIAL)
+		return aerial_of(0, view, distance_km);
+	float q = (atan(view.x, view.y) - F.cam_f.w) / HALF_PI;
+	float kf = floor(q + 0.5), f = q - kf;	// f in [-0.5, 0.5] inside quarter kf
+	int k = int(mod(kf, 4.0)), k2 = int(mod(kf + sign(f), 4.0));
+	float w = 0.5 * smoothstep(0.5 - QUARTER_BLEND, 0.5, abs(f));
+	vec4 a = aerial_of(k, view, distance_km);
+	return w > 0.0 ? mix(a, aerial_of(k2, view, distance_km), w) : a;
+}
 
 // The unit ENU direction through wall position p (pixels, y down): false
 // outside the fisheye's circle. sky_render_direction(), in float.

@@ -14,7 +14,7 @@ void main()
 		out_colour = vec4(0.0, 0.0, 0.0, 1.0);
 		return;
 	}
-	vec3 l = sky_radiance(F.sky, skyview_tex, dir) +
-		 sky_disks(F.sky, transmittance_tex, dir, int(F.ambient_lx.w));
+	vec3 l = sky_radiance(F.sky[0], skyview_tex, dir) +
+		 sky_disks(F.sky[0], transmittance_tex, dir, int(F.ambient_lx.w));
 	out_colour = vec4(l, 1.0);
 }

@@ -13,9 +13,9 @@ layout(location = 0) out vec4 out_colour;
 // altitude_km, zero once the light is under that point's horizon.
 vec3 light_at(vec3 dir, vec3 illuminance, float altitude_km)
 {
-	if (dir.z < skymap_horizon_cos(F.sky.planet.x, altitude_km))
+	if (dir.z < skymap_horizon_cos(F.sky[0].planet.x, altitude_km))
 		return vec3(0.0);
-	return illuminance * sky_transmittance(F.sky, transmittance_tex, altitude_km, dir.z);
+	return illuminance * sky_transmittance(F.sky[0], transmittance_tex, altitude_km, dir.z);
 }
 
 void main()
@@ -26,13 +26,13 @@ void main()
 	vec3 n = normalize(in_normal);
 	float dist = length(in_eye_km);
 	vec3 view = in_eye_km / dist;
-	float altitude = max(F.sky.planet.z + in_eye_km.z, 0.0);
-	vec3 e = light_at(F.sky.sun.xyz, F.sky.sun_illuminance.rgb, altitude) *
-		 max(dot(n, F.sky.sun.xyz), 0.0) +
-		 light_at(F.sky.moon.xyz, F.sky.moon_illuminance.rgb, altitude) *
-		 max(dot(n, F.sky.moon.xyz), 0.0) +
+	float altitude = max(F.sky[0].planet.z + in_eye_km.z, 0.0);
+	vec3 e = light_at(F.sky[0].sun.xyz, F.sky[0].sun_illuminance.rgb, altitude) *
+		 max(dot(n, F.sky[0].sun.xyz), 0.0) +
+		 light_at(F.sky[0].moon.xyz, F.sky[0].moon_illuminance.rgb, altitude) *
+		 max(dot(n, F.sky[0].moon.xyz), 0.0) +
 		 F.ambient_lx.rgb * (0.5 + 0.5 * n.z);
 	vec3 surface = F.terrain.rgb / SKYMAP_PI * e;
-	vec2 uv = sky_aerial_screen_uv(F.sky, view);
-	out_colour = vec4(sky_apply_aerial(F.sky, aerial_tex, uv, dist, surface), 1.0);
+	vec4 a = aerial_toward(view, dist);
+	out_colour = vec4(surface * a.a + a.rgb, 1.0);
 }

@@ -16,7 +16,7 @@ out gl_PerVertex {
 
 void main()
 {
-	vec3 q = in_position_km - vec3(0.0, 0.0, F.sky.planet.z);
+	vec3 q = in_position_km - vec3(0.0, 0.0, F.sky[0].planet.z);
 	float elevation;
 	gl_Position = tile_position(q, elevation);
 	// The fisheye's projection folds at the nadir: what lies more than 20
