@@ -606,7 +606,7 @@ int dump_auto_exposure(const struct dump_table *t, double *ret_exposure)
 	return 0;
 }
 
-static uint8_t tonemap_srgb8(float x, double exposure, enum dump_curve curve)
+uint8_t dump_tonemap_srgb8(float x, double exposure, enum dump_curve curve)
 {
 	double v = x * exposure;
 
@@ -661,7 +661,7 @@ static int png_encode(png_structp png, png_infop info, FILE *f, const struct dum
 		for (uint32_t i = 0; i < t->width; i++) {
 			texel_rgba(t, base + i, rgba);
 			for (int c = 0; c < 3; c++)
-				row[3 * i + c] = tonemap_srgb8(rgba[c], exposure, curve);
+				row[3 * i + c] = dump_tonemap_srgb8(rgba[c], exposure, curve);
 		}
 		png_write_row(png, row);
 	}

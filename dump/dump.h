@@ -80,6 +80,11 @@ struct dump_tonemap {
  * one float per texel and a sort. */
 int dump_auto_exposure(const struct dump_table *table, double *ret_exposure);
 
+/* One value as dump_png encodes it: times exposure, the curve, the sRGB
+ * transfer function, 8 bits; negative and NaN give 0. For a program that
+ * shows frames the way dump_png writes them (skyrender's window). */
+uint8_t dump_tonemap_srgb8(float x, double exposure, enum dump_curve curve);
+
 /* Write an 8-bit sRGB PNG preview of a table (with an sRGB chunk): exposure,
  * then the curve per channel, then the sRGB transfer function; negative and
  * NaN values show black, +inf white; alpha dropped; same orientation as the

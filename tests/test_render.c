@@ -1,0 +1,557 @@
+/* test_render.c - skyrender, the example render client, against the real
+ * skyd on a private socket, as three cases (argv[1]):
+ *   sky      its frame's sky pixels match `skyctl render` for the same view
+ *            and generation (perspective, a tile of a wall, the dome master);
+ *   wall     three skyrender processes as the three tiles of one wall meet
+ *            at their shared edges (and make the one-process wall);
+ *   restart  while it draws without end, skyd restarts on the same socket
+ *            and changes its layout: frames go on, and follow the new sky;
+ *   window   --window on an Xvfb shows the bytes the PNG holds (skipped
+ *            without Xvfb or libxcb).
+ * Frames are compared as the 8-bit sRGB PNGs both programs write with
+ * dump_png's encoding at the same fixed exposure. */
+#include <math.h>
+#include <png.h>
+#include <poll.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include "daemon_harness.h"
+#include "test.h"
+#include "vk_or_skip.h"
+
+/* Tables of a fair size: large enough that the sky is smooth at these
+ * frame sizes, small enough for lavapipe on two cores. */
+static const char *const tables[] = {
+	"transmittance_width=128", "transmittance_height=32", "multiscatter_width=16",
+	"multiscatter_height=16", "multiscatter_dirs=2", "skyview_width=96", "skyview_height=54",
+	"aerial_width=16", "aerial_height=16", "aerial_depth=16", "sun_elevation_deg=12",
+	"sun_azimuth_deg=160", NULL
+};
+static const char *const exposure = "0.0002";	/* about 1 / the sky's radiance, cd/m2 */
+static struct daemon d;
+
+struct image {
+	uint32_t w, h;
+	uint8_t *rgb;
+};
+
+static int image_read(const char *path, struct image *ret)
+{
+	png_image im = { .version = PNG_IMAGE_VERSION };
+	if (!png_image_begin_read_from_file(&im, path)) {
+		fprintf(stderr, "%s: %s\n", path, im.message);
+		return -1;
+	}
+	im.format = PNG_FORMAT_RGB;
+	ret->w = im.width;
+	ret->h = im.height;
+	ret->rgb = malloc(PNG_IMAGE_SIZE(im));
+	if (!ret->rgb || !png_image_finish_read(&im, NULL, ret->rgb, 0, NULL)) {
+		free(ret->rgb);
+		return -1;
+	}
+	return 0;
+}
+
+static int px(const struct image *im, uint32_t x, uint32_t y, int c)
+{
+	return im->rgb[((size_t)y * im->w + x) * 3 + c];
+}
+
+/* Runs argv to its end with stdout into out; the exit status or -1. */
+static int run(const char *const *argv, char *out, size_t size)
+{
+	int p[2];
+	if (pipe2(p, O_CLOEXEC) < 0)
+		return -1;
+	pid_t pid = fork();
+	if (pid == 0) {
+		dup2(p[1], 1);
+		execv(argv[0], (char *const *)argv);
+		_exit(127);
+	}
+	close(p[1]);
+	size_t n = 0;
+	ssize_t k;
+	while ((k = read(p[0], out + n, size - 1 - n)) > 0 && n + 1 < size)
+		n += (size_t)k;
+	out[n] = 0;
+	close(p[0]);
+	int status;
+	if (waitpid(pid, &status, 0) < 0 || !WIFEXITED(status))
+		return -1;
+	return WEXITSTATUS(status);
+}
+
+/* The generation after "generation " in a program's output, or -1. */
+static long generation_of(const char *out)
+{
+	const char *g = strstr(out, "generation ");
+	return g ? strtol(g + 11, NULL, 10) : -1;
+}
+
+/* skyrender with our socket, an exposure and args; the frame to path. */
+static long skyrender(const char *path, const char *const *args)
+{
+	const char *argv[40] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
+				 "--out", path };
+	int n = 7;
+	char out[4096];
+	for (int i = 0; args[i] && n < 39; i++)
+		argv[n++] = args[i];
+	int code = run(argv, out, sizeof(out));
+	if (code != 0) {
+		FAIL("skyrender exited %d", code);
+		return -1;
+	}
+	return generation_of(out);
+}
+
+static long skyctl_render(const char *path, const char *const *args)
+{
+	const char *argv[40] = { SKYCTL_BINARY, "--socket", d.sock, "render", "--exposure",
+				 exposure };
+	int n = 6;
+	char out[4096];
+	for (int i = 0; args[i] && n < 38; i++)
+		argv[n++] = args[i];
+	argv[n++] = path;
+	int code = run(argv, out, sizeof(out));
+	if (code != 0) {
+		FAIL("skyctl render exited %d", code);
+		return -1;
+	}
+	return generation_of(out);
+}
+
+/* Compares b with the sub-rectangle of a at (x0, y0). The tolerance: both
+ * are 8-bit sRGB of the same radiance through the same exposure and curve;
+ * the GPU reads the tables through the texture units (8 bits of sub-texel
+ * weight: at most 1/512 of a neighbouring texel's difference) and computes
+ * directions in float where libsky uses double, which moves a value by
+ * well under one level, so 1 level may come from rounding at the 8-bit
+ * step and 2 is the bound; only pixels whose centre lies on the rim of the
+ * sun's or the moon's disk (inside in one, outside in the other, by a
+ * float's rounding of the direction) may differ more: at most 0.1 % of the
+ * pixels, a handful along a rim 0.27 degrees across. */
+static void compare(const char *what, const struct image *a, uint32_t x0, uint32_t y0,
+		    const struct image *b)
+{
+	size_t over = 0, n = (size_t)b->w * b->h;
+	int worst = 0;
+	double sum = 0.0;
+	for (uint32_t y = 0; y < b->h; y++)
+		for (uint32_t x = 0; x < b->w; x++) {
+			int m = 0;
+			for (int c = 0; c < 3; c++) {
+				int e = abs(px(a, x0 + x, y0 + y, c) - px(b, x, y, c));
+				m = e > m ? e : m;
+				sum += e;
+			}
+			over += m > 2;
+			worst = m > worst ? m : worst;
+		}
+	printf("%s: %zu pixels, mean |diff| %.4f levels, max %d, %zu over 2 levels\n", what, n,
+	       sum / (3.0 * n), worst, over);
+	CHECK(over * 1000 <= n);
+	CHECK(sum / (3.0 * n) < 0.05);
+}
+
+static int case_sky(const char *dir)
+{
+	char a[256], b[256];
+	struct image ia = { 0 }, ib = { 0 };
+
+	/* A perspective view facing the sun, disks included, terrain off. */
+	snprintf(a, sizeof(a), "%s/skyctl.png", dir);
+	snprintf(b, sizeof(b), "%s/skyrender.png", dir);
+	long ga = skyctl_render(a, (const char *const[]){ "--view", "perspective", "--size",
+		"256x144", "--yaw", "165", "--pitch", "8", "--vfov", "50", NULL });
+	long gb = skyrender(b, (const char *const[]){ "--no-terrain", "--size", "256x144",
+		"--yaw", "165", "--pitch", "8", "--fov", "50", NULL });
+	printf("perspective: skyctl generation %ld, skyrender generation %ld\n", ga, gb);
+	CHECK(ga > 0 && ga == gb);
+	if (image_read(a, &ia) == 0 && image_read(b, &ib) == 0) {
+		CHECK(ia.w == 256 && ib.w == 256 && ia.h == 144 && ib.h == 144);
+		compare("perspective", &ia, 0, 0, &ib);
+	} else {
+		FAIL("frames not readable");
+	}
+	free(ib.rgb);
+	ib.rgb = NULL;
+
+	/* The right tile of a 2 x 1 wall is the right half of the whole view. */
+	gb = skyrender(b, (const char *const[]){ "--no-terrain", "--size", "128x144", "--yaw",
+		"165", "--pitch", "8", "--fov", "50", "--grid", "2x1", "--tile", "1,0", NULL });
+	CHECK(gb == ga);
+	if (ia.rgb && image_read(b, &ib) == 0)
+		compare("tile 1,0 of 2x1", &ia, 128, 0, &ib);
+	else
+		FAIL("tile not readable");
+	free(ia.rgb);
+	free(ib.rgb);
+	ia.rgb = ib.rgb = NULL;
+
+	/* The dome master, front at azimuth 160 (the sun's). */
+	ga = skyctl_render(a, (const char *const[]){ "--view", "fisheye", "--size", "192x192",
+		"--yaw", "160", NULL });
+	gb = skyrender(b, (const char *const[]){ "--no-terrain", "--fisheye", "--size", "192x192",
+		"--yaw", "160", NULL });
+	CHECK(ga > 0 && ga == gb);
+	if (image_read(a, &ia) == 0 && image_read(b, &ib) == 0)
+		compare("fisheye", &ia, 0, 0, &ib);
+	else
+		FAIL("fisheye frames not readable");
+	free(ia.rgb);
+	free(ib.rgb);
+	return 0;
+}
+
+/* Across each seam between tiles (the last column of tile k, the first of
+ * tile k + 1: adjacent directions of the wall) the step must be the step
+ * the one-process wall has between the same two columns, to 2 levels (the
+ * rounding of each of the four values at the 8-bit step, see compare()),
+ * and on the whole as good as exact (a mean under 0.03 level: a tile off by
+ * one pixel's direction departs by about the sky's step between pixels,
+ * 1 level in a third of the rows, 0.07 on the mean). Returns the largest
+ * departure and the mean. */
+static int seam_departure(const struct image *const t[3], const struct image *wall, uint32_t w,
+			  uint32_t h, double *ret_mean)
+{
+	int worst = 0;
+	double sum = 0.0;
+	for (uint32_t k = 0; k + 1 < 3; k++)
+		for (uint32_t y = 0; y < h; y++)
+			for (int c = 0; c < 3; c++) {
+				int step = px(t[k + 1], 0, y, c) - px(t[k], w - 1, y, c);
+				int want = px(wall, (k + 1) * w, y, c) - px(wall, (k + 1) * w - 1, y, c);
+				int e = abs(step - want);
+				worst = e > worst ? e : worst;
+				sum += e;
+			}
+	*ret_mean = sum / (2.0 * h * 3);
+	return worst;
+}
+
+static int case_wall(const char *dir)
+{
+	const uint32_t w = 96, h = 128;
+	char path[4][256], tile[8];
+	struct image im[4] = { 0 };
+	long gen[4];
+
+	/* Terrain on: the tiles' height field and aerial perspective must
+	 * continue too. Each process registers the wall's camera as its view. */
+	for (int k = 0; k < 4; k++) {
+		snprintf(path[k], sizeof(path[k]), "%s/tile%d.png", dir, k);
+		snprintf(tile, sizeof(tile), "%d,0", k);
+		gen[k] = k < 3 ?
+			skyrender(path[k], (const char *const[]){ "--size", "96x128", "--yaw", "170",
+				"--pitch", "4", "--fov", "40", "--grid", "3x1", "--tile", tile, NULL }) :
+			skyrender(path[k], (const char *const[]){ "--size", "288x128", "--yaw", "170",
+				"--pitch", "4", "--fov", "40", NULL });
+		if (image_read(path[k], &im[k]) < 0) {
+			FAIL("%s not readable", path[k]);
+			return 0;
+		}
+	}
+	/* Each process adds its camera view (a new generation), all the same. */
+	printf("generations: %ld %ld %ld, whole wall %ld\n", gen[0], gen[1], gen[2], gen[3]);
+	CHECK(gen[0] > 0 && gen[1] > 0 && gen[2] > 0 && gen[3] > 0);
+	const struct image *t[3] = { &im[0], &im[1], &im[2] };
+	double mean;
+	int seam = seam_departure(t, &im[3], w, h, &mean);
+	printf("step across the seams against the whole wall's: departure max %d, mean %.4f levels\n",
+	       seam, mean);
+	CHECK(seam <= 2);
+	CHECK(mean < 0.03);
+	/* And each tile is its part of the wall drawn by one process: the
+	 * same directions, the same terrain, the same aerial perspective. */
+	for (int k = 0; k < 3; k++) {
+		char what[32];
+		snprintf(what, sizeof(what), "tile %d,0 vs whole wall", k);
+		compare(what, &im[3], k * w, 0, &im[k]);
+	}
+	for (int k = 0; k < 4; k++)
+		free(im[k].rgb);
+	return 0;
+}
+
+/* A skyrender drawing without end, its stdout read line by line. */
+struct stream {
+	pid_t pid;
+	int fd;
+	char buf[8192];
+	size_t len;
+};
+
+static int stream_start_argv(struct stream *st, const char *const *argv)
+{
+	int p[2];
+	if (pipe2(p, O_CLOEXEC) < 0)
+		return -1;
+	st->pid = fork();
+	if (st->pid == 0) {
+		dup2(p[1], 1);
+		execv(argv[0], (char *const *)argv);
+		_exit(127);
+	}
+	close(p[1]);
+	st->fd = p[0];
+	st->len = 0;
+	return 0;
+}
+
+static int stream_start(struct stream *st, const char *out)
+{
+	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
+			       "--size", "64x36", "--frames", "0", "--interval", "20", "--out", out,
+			       NULL };
+	return stream_start_argv(st, argv);
+}
+
+/* The generation of the next "frame N generation G PATH" line, or -1 when
+ * none came within the harness's timeout or skyrender ended. */
+static long stream_frame(struct stream *st)
+{
+	for (;;) {
+		char *nl = memchr(st->buf, '\n', st->len);
+		if (nl) {
+			*nl = 0;
+			long g = strncmp(st->buf, "frame ", 6) == 0 ? generation_of(st->buf) : -2;
+			size_t n = (size_t)(nl - st->buf) + 1;
+			memmove(st->buf, nl + 1, st->len - n);
+			st->len -= n;
+			if (g == -2)
+				continue;
+			return g;
+		}
+		struct pollfd p = { st->fd, POLLIN, 0 };
+		if (st->len == sizeof(st->buf) || poll(&p, 1, HARNESS_TIMEOUT_MS) <= 0)
+			return -1;
+		ssize_t k = read(st->fd, st->buf + st->len, sizeof(st->buf) - st->len);
+		if (k <= 0)
+			return -1;
+		st->len += (size_t)k;
+	}
+}
+
+static int64_t now_ms(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+}
+
+/* Reads frames until one drew generation >= gen; that generation, or the
+ * last one drawn when none did within the harness's timeout (frames keep
+ * coming, so a deadline of its own). */
+static long stream_until(struct stream *st, long gen)
+{
+	int64_t deadline = now_ms() + HARNESS_TIMEOUT_MS;
+	long g;
+	while ((g = stream_frame(st)) >= 0 && g < gen && now_ms() < deadline)
+		;
+	return g;
+}
+
+/* Sends one request to skyd; the generation its reply names, or -1. */
+static long request(const char *line)
+{
+	struct conn c;
+	char reply[4096];
+	long g = -1;
+	if (conn_open(&c, d.sock) == 0 && conn_request(&c, line, reply, sizeof(reply)) == 0)
+		g = (long)reply_u64(reply, "generation");
+	conn_close(&c);
+	return g;
+}
+
+static int case_restart(const char *dir)
+{
+	char out[256];
+	struct stream st;
+	snprintf(out, sizeof(out), "%s/live.png", dir);
+	if (stream_start(&st, out) < 0) {
+		FAIL("cannot start skyrender");
+		return 0;
+	}
+	long g0 = stream_frame(&st);
+	CHECK(g0 > 0);
+
+	/* A new layout (another sky-view size): a new region, new images. */
+	long g1 = request("set skyview_width=48");
+	CHECK(g1 > g0);
+	long g = stream_until(&st, g1);
+	printf("layout change: generation %ld, skyrender drew %ld\n", g1, g);
+	CHECK(g >= g1);
+
+	/* skyd stops: frames go on with the last tables. */
+	daemon_stop(&d, SIGTERM);
+	long down[3];
+	for (int i = 0; i < 3; i++)
+		down[i] = stream_frame(&st);
+	printf("skyd down: frames of generation %ld %ld %ld\n", down[0], down[1], down[2]);
+	CHECK(down[0] >= g1 && down[1] == down[0] && down[2] == down[0]);
+
+	/* A new skyd on the same socket, with another sun; its generations may
+	 * start again from 1, so change it until its generation passes the
+	 * last one drawn, and wait for a frame of that. */
+	CHECK(daemon_start_in(&d, d.dir, tables) == 0);
+	long g2 = -1;
+	for (int i = 0; i < 1000 && g2 <= down[0]; i++) {
+		char line[64];
+		snprintf(line, sizeof(line), "set sun_elevation_deg=%d", 30 + i % 40);
+		g2 = request(line);
+		if (g2 < 0)
+			break;
+	}
+	CHECK(g2 > down[0]);
+	g = stream_until(&st, g2);
+	printf("skyd restarted: generation %ld, skyrender drew %ld\n", g2, g);
+	CHECK(g >= g2);
+
+	kill(st.pid, SIGTERM);
+	int status = 0;
+	waitpid(st.pid, &status, 0);
+	close(st.fd);
+	CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+	return 0;
+}
+
+#ifdef TEST_RENDER_XCB
+#include <xcb/xcb.h>
+
+/* Starts Xvfb on a display it picks (-displayfd: it writes the number
+ * once it accepts clients); the number, or -1 (77 when there is no Xvfb). */
+static int xvfb_start(pid_t *ret_pid)
+{
+	int p[2];
+	if (access(XVFB_BINARY, X_OK) < 0) {
+		printf("skipped: no %s (Debian's xvfb)\n", XVFB_BINARY);
+		exit(77);
+	}
+	if (pipe(p) < 0)
+		return -1;
+	pid_t pid = fork();
+	if (pid == 0) {
+		char fd[16];
+		snprintf(fd, sizeof(fd), "%d", p[1]);
+		close(p[0]);
+		int null = open("/dev/null", O_WRONLY);
+		dup2(null, 2);
+		execl(XVFB_BINARY, XVFB_BINARY, "-displayfd", fd, "-nolisten", "tcp", "-screen", "0",
+		      "320x240x24", (char *)NULL);
+		_exit(127);
+	}
+	close(p[1]);
+	/* Read up to the newline: Xvfb dies if the pipe closes before it has
+	 * written all of it. */
+	char buf[16] = "";
+	size_t n = 0;
+	struct pollfd pf = { p[0], POLLIN, 0 };
+	while (n + 1 < sizeof(buf) && !memchr(buf, '\n', n) && poll(&pf, 1, HARNESS_TIMEOUT_MS) > 0) {
+		ssize_t k = read(p[0], buf + n, sizeof(buf) - 1 - n);
+		if (k <= 0)
+			break;
+		n += (size_t)k;
+	}
+	close(p[0]);
+	*ret_pid = pid;
+	return memchr(buf, '\n', n) ? atoi(buf) : -1;
+}
+
+/* The top-left w x h of the root window as 8-bit RGB (a 24-bit screen,
+ * little-endian BGRX), or NULL. */
+static uint8_t *grab(const char *display, uint32_t w, uint32_t h)
+{
+	xcb_connection_t *c = xcb_connect(display, NULL);
+	uint8_t *rgb = NULL;
+	if (!xcb_connection_has_error(c)) {
+		xcb_screen_t *s = xcb_setup_roots_iterator(xcb_get_setup(c)).data;
+		xcb_get_image_reply_t *r = xcb_get_image_reply(c, xcb_get_image(c,
+			XCB_IMAGE_FORMAT_Z_PIXMAP, s->root, 0, 0, (uint16_t)w, (uint16_t)h, ~0u), NULL);
+		if (r && xcb_get_image_data_length(r) >= (int)(w * h * 4) && (rgb = malloc(w * h * 3))) {
+			const uint8_t *px4 = xcb_get_image_data(r);
+			for (size_t i = 0; i < (size_t)w * h; i++) {
+				rgb[3 * i] = px4[4 * i + 2];
+				rgb[3 * i + 1] = px4[4 * i + 1];
+				rgb[3 * i + 2] = px4[4 * i];
+			}
+		}
+		free(r);
+	}
+	xcb_disconnect(c);
+	return rgb;
+}
+
+/* skyrender --window on an Xvfb: the window shows what the PNG holds. */
+static int case_window(const char *dir)
+{
+	pid_t xvfb;
+	int n = xvfb_start(&xvfb);
+	char display[16], out[256];
+	struct stream st;
+	struct image im = { 0 };
+	if (n < 0) {
+		FAIL("Xvfb did not start");
+		return 0;
+	}
+	snprintf(display, sizeof(display), ":%d", n);
+	snprintf(out, sizeof(out), "%s/window.png", dir);
+	setenv("DISPLAY", display, 1);
+	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
+			       "--size", "64x36", "--window", "--interval", "20", "--out", out, NULL };
+	CHECK(stream_start_argv(&st, argv) == 0);
+	long g = stream_frame(&st), g1 = stream_frame(&st);
+	CHECK(g > 0 && g1 == g);
+	uint8_t *shown = grab(display, 64, 36);
+	CHECK(shown != NULL);
+	if (shown && image_read(out, &im) == 0) {
+		size_t differ = 0;
+		for (size_t i = 0; i < 64 * 36 * 3; i++)
+			differ += shown[i] != im.rgb[i];
+		printf("window: %zu of %d values differ from the PNG\n", differ, 64 * 36 * 3);
+		CHECK(differ == 0);
+	} else {
+		FAIL("nothing to compare");
+	}
+	free(shown);
+	free(im.rgb);
+	kill(st.pid, SIGTERM);
+	int status = 0;
+	waitpid(st.pid, &status, 0);
+	close(st.fd);
+	CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+	kill(xvfb, SIGTERM);
+	waitpid(xvfb, NULL, 0);
+	return 0;
+}
+#else
+static int case_window(const char *dir)
+{
+	(void)dir;
+	printf("skipped: built without libxcb\n");
+	exit(77);
+}
+#endif
+
+int main(int argc, char **argv)
+{
+	const char *which = argc > 1 ? argv[1] : "";
+	int (*fn)(const char *) = !strcmp(which, "sky") ? case_sky :
+				   !strcmp(which, "wall") ? case_wall :
+				   !strcmp(which, "restart") ? case_restart :
+				   !strcmp(which, "window") ? case_window : NULL;
+	if (!fn) {
+		fprintf(stderr, "usage: test_render sky|wall|restart|window\n");
+		return 2;
+	}
+	eng_free(vk_or_skip());
+	if (daemon_start(&d, tables) < 0)
+		return 1;
+	fn(d.dir);
+	daemon_cleanup(&d);
+	return test_report(which);
+}
