@@ -40,6 +40,9 @@ int ctl_new(struct loop *l, struct srv *s, const char *path, int listen_fd, char
 	    size_t err_size, struct ctl **ret);
 /* Closes every connection and removes the socket it created. */
 void ctl_free(struct ctl *c);
+/* The listening socket, which outlives this skyd (in systemd's fd store):
+ * ctl_free leaves its path in place. The fd stays ctl's. */
+int ctl_keep_socket(struct ctl *c);
 
 /* The clock told of every committed change (re-arms its timer), and asked
  * for its counters in status. d must outlive ctl; NULL: no clock. */
