@@ -218,8 +218,9 @@ SKY_EXPORT int sky_reconnect(sky_client *c);
  * fd may change: re-register it) is readable. sky_dispatch() then returns
  * 0 instead of -ENOTCONN, and no SKY_EVENT_HANGUP: one
  * SKY_EVENT_RECONNECTED when the greeting came and the subscription was
- * renewed. sky_wait() bounds its sleeps by interval_ms meanwhile. 0 or
- * -EINVAL. Since 0.2. */
+ * renewed. sky_wait() then reads the socket too (queueing what comes for
+ * sky_dispatch()) and sleeps at most interval_ms at a time, so that a
+ * client that only waits comes back as well. 0 or -EINVAL. Since 0.2. */
 SKY_EXPORT int sky_set_reconnect(sky_client *c, int interval_ms);
 
 /* The protocol version from the greeting ("1"), owned by the client, valid
@@ -407,7 +408,8 @@ SKY_EXPORT int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_vi
  * before sky_subscribe(). It reads the socket only when the region was
  * superseded (a layout change): then it waits there for the new region,
  * maps it (views into the old one end, as with sky_dispatch) and queues
- * what else arrives for sky_dispatch(). Since 0.1. */
+ * what else arrives for sky_dispatch(), or, reconnecting by itself
+ * (sky_set_reconnect), to hear of a hang-up. Since 0.1. */
 SKY_EXPORT int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generation);
 
 /* ---- Sampling (thread-safe on a view; see THREADS) ------------------------ */

@@ -582,7 +582,15 @@ static void reconnected(sky_client *c)
 
 int sky_reconnect_step(sky_client *c)
 {
-	if (c->reconnect_ms <= 0 || !c->lost)
+	if (c->reconnect_ms <= 0)
+		return 0;
+	/* A client that only waits on the futex hears of a hang-up here. */
+	if (!c->lost && c->fd >= 0) {
+		int r = pump_input(c);
+		if (r < 0 && r != -ECONNRESET)
+			return r;
+	}
+	if (!c->lost)
 		return 0;
 	if (c->fd < 0) {
 		int64_t now = sky_now_ms();

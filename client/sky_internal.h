@@ -143,9 +143,10 @@ sky_client *sky_client_alloc(void);
 int sky_pump_until(sky_client *c, bool (*cond)(const sky_client *), int timeout_ms,
 		   bool drop_on_timeout);
 
-/* Reconnecting by itself (sky_set_reconnect): one non-blocking step, at
- * most one connection attempt per interval. Returns 0 or -errno of a
- * garbled stream (the connection is then dropped and tried again later). */
+/* Reconnecting by itself (sky_set_reconnect): one non-blocking step that
+ * reads what the socket holds (to hear of a hang-up) and, disconnected,
+ * makes at most one connection attempt per interval. Returns 0 or -errno
+ * of a garbled stream (the connection is then dropped and tried again). */
 int sky_reconnect_step(sky_client *c);
 
 /* The re-subscription's reply r (taken) arrived: 0 and a

@@ -305,9 +305,9 @@ int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generat
 		int left = sky_left_ms(deadline);
 		if (left == 0)
 			return -ETIMEDOUT;
-		/* Reconnecting by itself: a new region may come on the socket,
-		 * which no futex wake announces. */
-		if (c->lost) {
+		/* Reconnecting by itself: a hang-up and a new region come on
+		 * the socket, which no futex wake announces. */
+		if (c->reconnect_ms > 0) {
 			const struct sky_shm_header *before = c->map;
 			int e = sky_reconnect_step(c);
 			if (e < 0)
