@@ -132,6 +132,29 @@ static inline int fdsim_wait_ready(struct fdsim *s, int pidfd, int timeout_ms)
 	}
 }
 
+/* Reads messages, applying them, until one stores an fd under name (0) or
+ * timeout_ms passes (-ETIMEDOUT): a store while the program runs. */
+static inline int fdsim_wait_store(struct fdsim *s, const char *name, int timeout_ms)
+{
+	long long end = notify_now_ns() + (long long)timeout_ms * 1000000LL;
+	struct notify_msg m;
+
+	for (;;) {
+		long long left = (end - notify_now_ns()) / 1000000LL;
+		if (left <= 0)
+			return -ETIMEDOUT;
+		int r = notify_sock_recv(&s->ns, (int)left, &m);
+		if (r < 0)
+			return r;
+		/* notify_msg_get's value lives until its next call. */
+		const char *n = notify_msg_get(&m, "FDNAME");
+		int hit = n && strcmp(n, name) == 0 && notify_msg_get(&m, "FDSTORE");
+		fdsim_apply(s, &m);
+		if (hit)
+			return 0;
+	}
+}
+
 /* Starts argv (argv[0] a path) with stderr appended to log, NOTIFY_SOCKET
  * and FDSTORE set, and the stored fds from 3 on, named in LISTEN_FDNAMES,
  * LISTEN_PID the child's. The child's pid, *ret_pidfd a pidfd of it. */

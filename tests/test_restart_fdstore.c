@@ -88,13 +88,14 @@ static unsigned long fd_inode(int fd)
 }
 
 /* Dispatches (polling the socket while there is one, else every 10 ms, as
- * sky_set_reconnect asks) until a SKY_EVENT_RECONNECTED, counting events. */
-static int await_reconnect(sky_client *c, struct events *ev)
+ * sky_set_reconnect asks) until an event of type, counting events. */
+static int await_event(sky_client *c, struct events *ev, enum sky_event_type type)
 {
 	long long end = (notify_now_ns() / 1000000LL) + HARNESS_TIMEOUT_MS;
-	int before = ev->reconnected;
+	int *count = type == SKY_EVENT_LAYOUT ? &ev->layouts : &ev->reconnected;
+	int before = *count;
 
-	while (ev->reconnected == before && (notify_now_ns() / 1000000LL) < end) {
+	while (*count == before && (notify_now_ns() / 1000000LL) < end) {
 		struct sky_event e;
 		int fd = sky_get_fd(c), r;
 		if (fd >= 0) {
@@ -113,7 +114,12 @@ static int await_reconnect(sky_client *c, struct events *ev)
 		if (r < 0)
 			return r;
 	}
-	return ev->reconnected > before ? 0 : -ETIMEDOUT;
+	return *count > before ? 0 : -ETIMEDOUT;
+}
+
+static int await_reconnect(sky_client *c, struct events *ev)
+{
+	return await_event(c, ev, SKY_EVENT_RECONNECTED);
 }
 
 /* Waits until the newest slot holds a generation > after with every table,
@@ -158,9 +164,12 @@ static bool sky_readable(sky_client *c)
 }
 
 /* One restart that keeps the region: stop with sig, start the next skyd
- * with the stored fds; the client and a plain reader stay on the memory. */
+ * with the stored fds (and extra arguments); the client and a plain reader
+ * (raw, a mapping of the stored memfd of the test's own) stay on the
+ * memory. */
 static void restart_keeps_mapping(struct fdsim *s, struct skyd *d, int sig, sky_client *c,
-				  struct events *ev, const struct sky_shm_header *raw)
+				  struct events *ev, const struct sky_shm_header *raw,
+				  const char *const *extra)
 {
 	struct sky_view v;
 	const struct sky_shm_header *addr = sky_header(c);
@@ -178,13 +187,14 @@ static void restart_keeps_mapping(struct fdsim *s, struct skyd *d, int sig, sky_
 	CHECK(sky_view_end(c, &v));
 	CHECK(fdsim_get(s, "shm") >= 0 && fdsim_get(s, "control") >= 0);
 
-	CHECK(start(s, d, NULL) == 0);
+	truncate(logpath, 0);
+	CHECK(start(s, d, extra) == 0);
 	CHECK(log_says("adopted the stored region"));
-	int before = ev->reconnected;
+	int before = ev->reconnected, layouts = ev->layouts;
 	CHECK(await_reconnect(c, ev) == 0);
 	CHECK(ev->reconnected == before + 1);
 	CHECK(ev->userdata == 0);
-	CHECK(ev->hangups == 0 && ev->layouts == 0);
+	CHECK(ev->hangups == 0 && ev->layouts == layouts);
 	/* The same mapping, the same memfd, and new tables in it. */
 	CHECK(sky_header(c) == addr);
 	CHECK(mapped_inode(sky_header(c)) == ino && ino == fd_inode(fdsim_get(s, "shm")));
@@ -236,33 +246,53 @@ int main(void)
 	CHECK(raw != MAP_FAILED);
 
 	/* systemctl restart (SIGTERM), then a crash (SIGKILL). */
-	restart_keeps_mapping(&s, &d, SIGTERM, c, &ev, raw);
-	restart_keeps_mapping(&s, &d, SIGKILL, c, &ev, raw);
+	restart_keeps_mapping(&s, &d, SIGTERM, c, &ev, raw, NULL);
+	restart_keeps_mapping(&s, &d, SIGKILL, c, &ev, raw, NULL);
 
-	/* Another layout: the stored region does not fit; it is superseded, a
-	 * new one is stored in its place and the client remaps, once. */
+	/* A new layout while skyd runs: the store gets the new region in
+	 * place of the old one (FDSTOREREMOVE=1, FDSTORE=1); the client
+	 * remaps as always; a restart with that layout adopts it. */
+	static const char *const wider[] = { "skyview_width=48", NULL };
+	unsigned long first_ino = fd_inode(shm);
+	int removes = s.removes;
+	CHECK(sky_request(c, "set skyview_width=48", NULL) == 0);
+	CHECK(await_event(c, &ev, SKY_EVENT_LAYOUT) == 0);
+	CHECK(fdsim_wait_store(&s, "shm", HARNESS_TIMEOUT_MS) == 0);
+	CHECK(raw->superseded == 1);
+	CHECK(s.removes > removes);
+	shm = fdsim_get(&s, "shm");
+	CHECK(fd_inode(shm) != first_ino && fd_inode(shm) == mapped_inode(sky_header(c)));
+	size_t raw2_bytes = (size_t)sky_header(c)->total_bytes;
+	const struct sky_shm_header *raw2 = mmap(NULL, raw2_bytes, PROT_READ, MAP_SHARED, shm, 0);
+	CHECK(raw2 != MAP_FAILED);
+	restart_keeps_mapping(&s, &d, SIGTERM, c, &ev, raw2, wider);
+
+	/* Another layout at the restart (the set above was not kept): the
+	 * stored region does not fit; it is superseded, a new one is stored
+	 * in its place, and the client remaps, told once. */
 	const struct sky_shm_header *addr = sky_header(c);
 	CHECK(sky_view_begin(c, &v) == 0);
 	uint64_t old_gen = v.slot->generation;
 	sky_view_end(c, &v);
 	unsigned long old_ino = fd_inode(fdsim_get(&s, "shm"));
-	int removes = s.removes;
+	int layouts = ev.layouts;
+	removes = s.removes;
 	stop(&d, SIGTERM);
-	static const char *const wider[] = { "skyview_width=48", NULL };
-	CHECK(start(&s, &d, wider) == 0);
+	CHECK(start(&s, &d, NULL) == 0);
 	CHECK(log_says("another layout"));
-	CHECK(raw->superseded == 1);
+	CHECK(raw2->superseded == 1);
 	CHECK(s.removes > removes);
 	CHECK(fd_inode(fdsim_get(&s, "shm")) != old_ino && fdsim_get(&s, "shm") >= 0);
 	CHECK(await_reconnect(c, &ev) == 0);
-	CHECK(ev.reconnected == 3 && ev.userdata == 1 && ev.hangups == 0);
-	CHECK(sky_header(c) != addr && sky_header(c)->tables[SKY_TABLE_SKYVIEW].width == 48);
+	CHECK(ev.reconnected == 4 && ev.userdata == 1 && ev.hangups == 0 && ev.layouts == layouts);
+	CHECK(sky_header(c) != addr && sky_header(c)->tables[SKY_TABLE_SKYVIEW].width == 32);
 	CHECK(mapped_inode(sky_header(c)) == fd_inode(fdsim_get(&s, "shm")));
 	CHECK(wait_newer(c, old_gen, &v) == 0);
 	CHECK(sky_readable(c));
 
 	sky_disconnect(c);
 	munmap((void *)raw, raw_bytes);
+	munmap((void *)raw2, raw2_bytes);
 	stop(&d, SIGTERM);
 	fdsim_close(&s);
 	char cmd[256];
