@@ -179,6 +179,7 @@ static void restart_keeps_mapping(struct fdsim *s, struct skyd *d, int sig, sky_
 	uint32_t old_word = __atomic_load_n(&addr->generation, __ATOMIC_ACQUIRE);
 	sky_view_end(c, &v);
 
+	long long t0 = notify_now_ns();
 	stop(d, sig);
 	/* The pause: the old tables stay readable, the socket's path stays. */
 	struct stat st;
@@ -206,8 +207,10 @@ static void restart_keeps_mapping(struct fdsim *s, struct skyd *d, int sig, sky_
 	CHECK(__atomic_load_n(&raw->generation, __ATOMIC_ACQUIRE) ==
 	      __atomic_load_n(&addr->generation, __ATOMIC_ACQUIRE));
 	CHECK(!raw->superseded);
-	printf("restart by signal %d: generation %" PRIu64 " -> %" PRIu64 " in the mapping at %p\n",
-	       sig, old_gen, v.slot->generation, (const void *)addr);
+	/* The pause: from the signal to the first new generation in place. */
+	printf("restart by signal %d: generation %" PRIu64 " -> %" PRIu64
+	       " in the mapping at %p, paused %.0f ms\n",
+	       sig, old_gen, v.slot->generation, (const void *)addr, (notify_now_ns() - t0) / 1e6);
 }
 
 int main(void)
