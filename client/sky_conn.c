@@ -532,7 +532,6 @@ int sky_reconnect(sky_client *c)
 	return 0;
 }
 
-
 int sky_set_reconnect(sky_client *c, int interval_ms)
 {
 	if (!c || interval_ms < 0)
