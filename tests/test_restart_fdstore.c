@@ -11,6 +11,7 @@
 #include <math.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
+#include <sys/un.h>
 
 #include "daemon_harness.h"
 #include "fdstore_harness.h"
@@ -33,11 +34,14 @@ static char dir[128], sock[192], logpath[192];
 
 /* Starts skyd with the store's fds and extra (NULL-terminated) arguments;
  * 0 once it said READY=1. */
-static int start(struct fdsim *s, struct skyd *d, const char *const *extra)
+static int start_as(struct fdsim *s, struct skyd *d, bool with_socket, const char *const *extra)
 {
 	const char *argv[40] = { SKYD_BINARY, "--socket", sock, SMALL_TABLES };
+	const char *activated[40] = { SKYD_BINARY, SMALL_TABLES };
 	int n = 0;
 
+	if (!with_socket)
+		memcpy(argv, activated, sizeof(argv));
 	while (argv[n])
 		n++;
 	for (int i = 0; extra && extra[i]; i++)
@@ -51,6 +55,31 @@ static int start(struct fdsim *s, struct skyd *d, const char *const *extra)
 		return -1;
 	}
 	return 0;
+}
+
+static int start(struct fdsim *s, struct skyd *d, const char *const *extra)
+{
+	return start_as(s, d, true, extra);
+}
+
+/* A listening socket at path, as systemd's socket unit makes it. */
+static int listen_at(const char *path)
+{
+	struct sockaddr_un sa = { .sun_family = AF_UNIX };
+	int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+
+	if (strlen(path) >= sizeof(sa.sun_path)) {
+		if (fd >= 0)
+			close(fd);
+		return -1;
+	}
+	memcpy(sa.sun_path, path, strlen(path) + 1);
+	if (fd < 0 || bind(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0 || listen(fd, 16) < 0) {
+		if (fd >= 0)
+			close(fd);
+		return -1;
+	}
+	return fd;
 }
 
 static void stop(struct skyd *d, int sig)
@@ -292,6 +321,42 @@ int main(void)
 	CHECK(mapped_inode(sky_header(c)) == fd_inode(fdsim_get(&s, "shm")));
 	CHECK(wait_newer(c, old_gen, &v) == 0);
 	CHECK(sky_readable(c));
+
+	/* Socket activation, as the unit runs skyd (skyd.socket): systemd
+	 * keeps the socket itself, skyd stores only its region and adopts it
+	 * again; the client above, on the old path, keeps its mapping and sees
+	 * the new generations in it. */
+	char act[192];
+	snprintf(act, sizeof(act), "%s/activated", dir);
+	for (int i = 0; i < s.n; i++)
+		if (strcmp(s.e[i].name, "control") == 0) {
+			close(s.e[i].fd);
+			s.e[i] = s.e[--s.n];
+		}
+	int lfd = listen_at(act);
+	CHECK(lfd >= 0 && s.n < FDSIM_MAX);
+	snprintf(s.e[s.n].name, sizeof(s.e[s.n].name), "skyd.socket");
+	s.e[s.n++].fd = lfd;
+	addr = sky_header(c);
+	unsigned long ino = fd_inode(fdsim_get(&s, "shm"));
+	uint32_t word = __atomic_load_n(&addr->generation, __ATOMIC_ACQUIRE);
+	CHECK(sky_view_begin(c, &v) == 0);
+	old_gen = v.slot->generation;
+	sky_view_end(c, &v);
+	stop(&d, SIGTERM);
+	truncate(logpath, 0);
+	CHECK(start_as(&s, &d, false, NULL) == 0);
+	CHECK(log_says("adopted the stored region") && log_says("socket activation"));
+	CHECK(fdsim_get(&s, "control") < 0 && fd_inode(fdsim_get(&s, "shm")) == ino);
+	sky_client *a = NULL;
+	CHECK(sky_connect(act, &a) == 0);
+	if (a) {
+		CHECK(sky_subscribe(a, SKY_TABLES_ALL, 0) == 0);
+		CHECK(mapped_inode(sky_header(a)) == ino);
+		CHECK(wait_newer(a, old_gen, &v) == 0);
+		sky_disconnect(a);
+	}
+	CHECK(sky_header(c) == addr && __atomic_load_n(&addr->generation, __ATOMIC_ACQUIRE) > word);
 
 	sky_disconnect(c);
 	munmap((void *)raw, raw_bytes);
