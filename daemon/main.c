@@ -27,6 +27,8 @@
 #include "simclock.h"
 #include "srv.h"
 #include "state.h"
+#include "svc_notify.h"
+#include "svc_reload.h"
 #include "sync.h"
 
 /* Replication's settings: the config file's sync_* keys, then --sync and
@@ -223,26 +225,51 @@ static int sync_settings_finish(const struct options *o, struct sync_settings *s
 	return 0;
 }
 
+/* The sync_* keys as a settings group of the config file (svc_reload.h):
+ * read at start into o->sync; a reload checks them, but replication keeps
+ * the settings it started with until skyd restarts. */
+struct sync_step {
+	struct sync_settings next;
+	struct sync_settings *cur;
+	int started;
+};
+
+static void sync_step_begin(void *ctx)
+{
+	struct sync_step *st = ctx;
+
+	memset(&st->next, 0, sizeof(st->next));
+	sync_config_defaults(&st->next.cfg);
+}
+
+static int sync_step_key(void *ctx, const char *key, const char *value, char *err,
+			 size_t err_size)
+{
+	return sync_key(&((struct sync_step *)ctx)->next, key, value, err, err_size);
+}
+
+static void sync_step_apply(void *ctx)
+{
+	struct sync_step *st = ctx;
+
+	if (!st->started) {
+		*st->cur = st->next;
+		st->started = 1;
+	} else if (strcmp(st->next.url, st->cur->url) != 0 ||
+		   st->next.cfg.role != st->cur->cfg.role) {
+		log_warning("reload: the sync settings changed; they apply when skyd restarts");
+	}
+}
+
 /* The initial state: defaults, the config file, then key=value args; the
  * config file's sync_* keys go to o->sync. */
-static int initial_state(struct options *o, int argc, char **argv, struct sky_state *ret)
+static int initial_state(struct options *o, struct svc_reload *reload, struct sky_state *ret)
 {
 	char err[512];
 	struct sky_state s;
 
 	state_default(&s);
-	sync_config_defaults(&o->sync.cfg);
-	if (o->config_path && config_load_with(o->config_path, &s, sync_key, &o->sync, err,
-					       sizeof(err)) < 0) {
-		log_error("%s", err);
-		return -EINVAL;
-	}
-	for (int i = o->first_pair; i < argc; i++)
-		if (state_set_pair(&s, argv[i], NULL, err, sizeof(err)) < 0) {
-			log_error("argument %d: %s", i, err);
-			return -EINVAL;
-		}
-	if (state_validate(&s, 0, err, sizeof(err)) < 0) {
+	if (svc_reload_load(reload, &s, err, sizeof(err)) < 0) {
 		log_error("%s", err);
 		return -EINVAL;
 	}
@@ -288,6 +315,9 @@ static int list_sensors(const struct sky_state *s)
 struct hooks {
 	struct ctl *ctl;
 	struct sense *sense;
+	struct svc_notify *notify;
+	struct svc_reload *reload;
+	struct loop *loop;
 	struct srv *srv;
 	struct fdstore *fdstore;
 };
@@ -298,6 +328,7 @@ static void on_published(void *ctx, uint64_t generation, uint32_t tables, int ne
 
 	ctl_published(h->ctl, generation, tables, new_region);
 	sense_published(h->sense, generation);
+	svc_notify_published(h->notify);
 	if (new_region)
 		fdstore_replaced(h->fdstore, srv_pub(h->srv));
 }
@@ -311,8 +342,15 @@ static void on_failed(void *ctx, uint64_t generation, const char *message)
 
 static void on_signal(void *ctx, int signo)
 {
+	struct hooks *h = ctx;
+	char err[512];
+
+	if (signo == SIGHUP) {
+		svc_reload_run(h->reload, err, sizeof(err));	/* logs its outcome */
+		return;
+	}
 	log_info("%s: shutting down", strsignal(signo));
-	loop_quit(ctx);
+	loop_quit(h->loop);
 }
 
 /* Many clients each hold a socket: take the whole hard limit of fds. */
@@ -326,9 +364,10 @@ static void raise_fd_limit(void)
 	}
 }
 
-static int run_daemon(const struct options *o, const struct sky_state *initial)
+static int run_daemon(const struct options *o, struct svc_reload *reload,
+		      const struct sky_state *initial)
 {
-	static const int signals[] = { SIGINT, SIGTERM };
+	static const int signals[] = { SIGINT, SIGTERM, SIGHUP };
 	struct loop *loop = NULL;
 	struct eng *eng = NULL;
 	struct srv *srv = NULL;
@@ -339,7 +378,8 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 	struct fdstore *fds = NULL;
 	struct pub *region = NULL;
 	uint64_t generation = 0;
-	struct hooks hooks = { 0 };
+	struct svc_notify *notify = NULL;
+	struct hooks hooks = { .reload = reload };
 	struct sky_state lit = *initial;
 	char err[512] = "", path[108];
 	int listen_fd = -1, r;
@@ -356,7 +396,8 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 		log_error("event loop: %s", strerror(-r));
 		goto out;
 	}
-	r = loop_signals(loop, signals, 2, on_signal, loop);
+	hooks.loop = loop;
+	r = loop_signals(loop, signals, 3, on_signal, &hooks);
 	if (r < 0) {
 		log_error("signalfd: %s", strerror(-r));
 		goto out;
@@ -392,6 +433,12 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 		log_error("publisher: %s", strerror(-r));
 		goto out;
 	}
+	r = svc_notify_new(loop, srv, &notify);
+	if (r < 0) {
+		log_error("sd_notify: %s", strerror(-r));
+		goto out;
+	}
+	hooks.notify = notify;
 	int activated = 0;
 	if (o->socket_path) {
 		snprintf(path, sizeof(path), "%s", o->socket_path);
@@ -412,6 +459,7 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 		goto out;
 	}
 	hooks.ctl = ctl;
+	svc_notify_set_ctl(notify, ctl);
 	hooks.srv = srv;
 	hooks.fdstore = fds;
 	if (fdstore_enabled(fds))
@@ -441,13 +489,15 @@ static int run_daemon(const struct options *o, const struct sky_state *initial)
 		}
 		log_info("sync: %s, %s", o->sync.url, sync_role_name(o->sync.cfg.role));
 	}
+	svc_reload_attach(reload, srv, drive, sense, notify);
 	log_info("listening on %s, protocol %s", path, SKY_PROTO_VERSION);
-	sd_notify(0, "READY=1");
+	svc_notify_ready(notify);
 	r = loop_run(loop);
 	if (r < 0)
 		log_error("event loop: %s", strerror(-r));
-	sd_notify(0, "STOPPING=1");
+	svc_notify_stopping(notify);
 out:
+	svc_reload_attach(reload, NULL, NULL, NULL, NULL);
 	repl_free(repl);
 	hooks.sense = NULL;
 	if (ctl)
@@ -455,6 +505,7 @@ out:
 	sense_free(sense);
 	ctl_free(ctl);
 	drive_free(drive);
+	svc_notify_free(notify);
 	srv_free(srv);
 	eng_free(eng);
 	loop_free(loop);
@@ -466,6 +517,8 @@ int main(int argc, char **argv)
 {
 	static struct options o;
 	struct sky_state initial;
+	struct svc_reload *reload;
+	struct sync_step sync_step = { .cur = &o.sync };
 	int r;
 
 	for (int i = 1; i < argc; i++)
@@ -476,13 +529,20 @@ int main(int argc, char **argv)
 		return r;
 	/* journald reads "<N>" priorities from the stream it gets. */
 	log_init(o.level, getenv("JOURNAL_STREAM") != NULL);
-	if (initial_state(&o, argc, argv, &initial) < 0)
+	if (svc_reload_new(o.config_path, argv + o.first_pair, argc - o.first_pair, &reload) < 0)
 		return 1;
-	if (o.check_only) {
-		printf("%s: ok\n", o.config_path ? o.config_path : "configuration");
-		return 0;
-	}
-	if (o.list_sensors)
-		return list_sensors(&initial);
-	return run_daemon(&o, &initial);
+	/* Every settings group of the config file, read at start and on
+	 * SIGHUP alike. */
+	svc_reload_add_step(reload, &(struct svc_reload_step){ "sync", sync_step_begin,
+			    sync_step_key, NULL, sync_step_apply, &sync_step });
+	if (initial_state(&o, reload, &initial) < 0)
+		r = 1;
+	else if (o.check_only)
+		r = printf("%s: ok\n", o.config_path ? o.config_path : "configuration") < 0;
+	else if (o.list_sensors)
+		r = list_sensors(&initial);
+	else
+		r = run_daemon(&o, reload, &initial);
+	svc_reload_free(reload);
+	return r;
 }

@@ -297,3 +297,8 @@ void ctl_free(struct ctl *ctl)
 		unlink(ctl->path);
 	free(ctl);
 }
+
+int ctl_clients(const struct ctl *ctl)
+{
+	return ctl->n_clients;
+}

@@ -68,6 +68,9 @@ struct ctl_sync {
 /* NULL: no replication ("sync: off" in status). */
 void ctl_set_sync(struct ctl *ctl, const struct ctl_sync *sync);
 
+/* The connections open now (systemd's STATUS line). */
+int ctl_clients(const struct ctl *ctl);
+
 /* The srv listener's hooks, to be wired by main. */
 void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_region);
 void ctl_failed(void *ctx, uint64_t generation, const char *message);
