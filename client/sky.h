@@ -85,7 +85,8 @@
  * A view from sky_view_begin() points into the client's mapping: it stays
  * readable until the next call on that client that can replace the mapping
  * (sky_dispatch, sky_request, sky_subscribe, sky_reconnect, sky_disconnect,
- * and sky_wait when the layout changes).
+ * and sky_wait when the layout changes or, reconnecting by itself, skyd
+ * hands out a new region).
  * A view filled by sky_snapshot() points into the caller's buffer and into
  * the mapping's header (read-only fields that never change): the same
  * rule applies to its header pointer only. The memory of the tables is
@@ -114,6 +115,19 @@
  * themselves and then send. A request that was delivered but whose reply
  * never came is never resent (it may have been applied): the call returns
  * -ECONNRESET and the caller decides.
+ *
+ * Or libsky reconnects by itself (sky_set_reconnect(), since 0.2): after a
+ * hang-up, sky_dispatch() and sky_wait() try again, without ever blocking
+ * on a connection, at most once per interval; once the greeting came and
+ * the subscription is renewed, sky_dispatch() returns one
+ * SKY_EVENT_RECONNECTED, and no SKY_EVENT_HANGUP comes before it. The
+ * mapping stays readable all along (LIFETIMES). A skyd restarted by
+ * systemd with its file-descriptor store (docs/restart.md) hands back the
+ * very memory that is mapped: the mapping, its address and the views into
+ * it stay, the generation goes on from where it was, and a reader saw a
+ * pause. Any other skyd (restarted by hand, or with another layout) hands
+ * out a new region: it is mapped in place of the old one, and the event
+ * says so (its userdata is 1).
  *
  * VERSIONS
  *
@@ -193,10 +207,25 @@ SKY_EXPORT void sky_disconnect(sky_client *c);
 /* Reconnects to the path given to sky_connect(): drops the old socket (and
  * every queued request and undelivered event), connects, reads the greeting
  * and, if the client had subscribed, subscribes again with the same tables
- * and flags and maps the new memory (the old mapping is released). 0 or the
- * error of sky_connect() / sky_subscribe(); on failure the client stays
- * disconnected and may try again. Since 0.1. */
+ * and flags and maps the new memory (the old mapping is released; since
+ * 0.2 the memory already mapped, handed back by a skyd that adopted it,
+ * stays mapped where it is). 0 or the error of sky_connect() /
+ * sky_subscribe(); on failure the client stays disconnected and may try
+ * again. Blocks like sky_connect(). Since 0.1. */
 SKY_EXPORT int sky_reconnect(sky_client *c);
+/* Reconnect by itself after a hang-up (RECONNECTING): interval_ms > 0
+ * turns it on, 0 off (the default). While disconnected, sky_dispatch() and
+ * sky_wait() make at most one connection attempt per interval_ms, the
+ * first at once, and never block on one: a loop that polls sky_get_fd()
+ * must call sky_dispatch() at least every interval_ms while it returns
+ * -ENOTCONN (a poll timeout does it), and again when the new socket (the
+ * fd may change: re-register it) is readable. sky_dispatch() then returns
+ * 0 instead of -ENOTCONN, and no SKY_EVENT_HANGUP: one
+ * SKY_EVENT_RECONNECTED when the greeting came and the subscription was
+ * renewed. sky_wait() then reads the socket too (queueing what comes for
+ * sky_dispatch()) and sleeps at most interval_ms at a time, so that a
+ * client that only waits comes back as well. 0 or -EINVAL. Since 0.2. */
+SKY_EXPORT int sky_set_reconnect(sky_client *c, int interval_ms);
 
 /* The protocol version from the greeting ("1"), owned by the client, valid
  * until sky_reconnect() or sky_disconnect(). Since 0.1. */
@@ -256,11 +285,18 @@ enum sky_event_type {
 	SKY_EVENT_HANGUP = 4,		/* skyd closed the connection; see RECONNECTING */
 	SKY_EVENT_FAILED = 5,		/* a recompute failed: generation, message; the
 					 * last good tables stay published */
+	SKY_EVENT_RECONNECTED = 6,	/* sky_set_reconnect: connected again and the
+					 * subscription renewed; generation: the
+					 * header's now; tables: those subscribed;
+					 * userdata: 1 if a new region was mapped (old
+					 * views are gone, as after SKY_EVENT_LAYOUT),
+					 * 0 if the same memory stays mapped. Since 0.2 */
 };
 
 struct sky_event {
 	enum sky_event_type type;
-	uint64_t userdata;		/* SKY_EVENT_REPLY: as given to sky_send() */
+	uint64_t userdata;		/* SKY_EVENT_REPLY: as given to sky_send();
+					 * SKY_EVENT_RECONNECTED: 1 new region, 0 same */
 	int ack;			/* SKY_EVENT_REPLY: 0 OK, else the ACK code */
 	const sky_reply *reply;		/* SKY_EVENT_REPLY: valid until the next sky_dispatch()
 					 * or any other call on the client */
@@ -279,8 +315,9 @@ SKY_EXPORT bool sky_want_write(const sky_client *c);
 /* Never blocks. Writes what is queued, reads what the socket holds, and
  * returns 1 with one event in *ret_event, or 0 when nothing is pending (poll
  * again). Call it until it returns 0 after every wake-up. After
- * SKY_EVENT_HANGUP it returns -ENOTCONN until sky_reconnect(). -EPROTO on a
- * garbled stream (the connection is then closed). Since 0.1. */
+ * SKY_EVENT_HANGUP it returns -ENOTCONN until sky_reconnect() (reconnecting
+ * by itself, sky_set_reconnect(), it tries again instead and returns 0).
+ * -EPROTO on a garbled stream (the connection is then closed). Since 0.1. */
 SKY_EXPORT int sky_dispatch(sky_client *c, struct sky_event *ret_event);
 
 /* ---- Shared memory --------------------------------------------------------- */
@@ -375,7 +412,8 @@ SKY_EXPORT int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_vi
  * before sky_subscribe(). It reads the socket only when the region was
  * superseded (a layout change): then it waits there for the new region,
  * maps it (views into the old one end, as with sky_dispatch) and queues
- * what else arrives for sky_dispatch(). Since 0.1. */
+ * what else arrives for sky_dispatch(), or, reconnecting by itself
+ * (sky_set_reconnect), to hear of a hang-up. Since 0.1. */
 SKY_EXPORT int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generation);
 
 /* ---- Sampling (thread-safe on a view; see THREADS) ------------------------ */

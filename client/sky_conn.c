@@ -40,13 +40,24 @@ static void drop_connection(sky_client *c)
 }
 
 /* The peer is gone: drops the connection and queues one SKY_EVENT_HANGUP
- * (not a second for a connection already dropped). */
+ * (not a second for a connection already dropped). Reconnecting by itself
+ * (sky_set_reconnect), the client says nothing until it is back: the
+ * first attempt comes at once, later ones an interval apart. */
 static void hang_up(sky_client *c)
 {
 	if (c->fd < 0 && c->hung_up)
 		return;
 	drop_connection(c);
 	c->hung_up = true;
+	c->resyncing = c->resub_sent = false;
+	if (c->reconnect_ms > 0) {
+		if (!c->lost) {
+			c->lost = true;
+			c->resync_serial = c->map_serial;
+			c->next_try_ms = sky_now_ms();
+		}
+		return;
+	}
 	struct sky_event ev = { .type = SKY_EVENT_HANGUP };
 	(void)sky_event_push(c, &ev, NULL);
 }
@@ -135,14 +146,15 @@ static int pump_input(sky_client *c)
 	}
 }
 
-/* A blocking, close-on-exec socket connected to path. 0 or -errno. */
-static int open_socket(const char *path, int *ret_fd)
+/* A close-on-exec socket connected to path, non-blocking if asked (a
+ * Unix socket connects at once or not at all). 0 or -errno. */
+static int open_socket(const char *path, bool nonblock, int *ret_fd)
 {
 	struct sockaddr_un sa = { .sun_family = AF_UNIX };
 	if (strlen(path) >= sizeof(sa.sun_path))
 		return -ENAMETOOLONG;
 	strcpy(sa.sun_path, path);
-	int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+	int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | (nonblock ? SOCK_NONBLOCK : 0), 0);
 	if (fd < 0)
 		return -errno;
 	if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0) {
@@ -209,7 +221,7 @@ static bool sync_done(const sky_client *c)
 static int do_connect(sky_client *c)
 {
 	int fd = -1;
-	int r = open_socket(c->path, &fd);
+	int r = open_socket(c->path, false, &fd);
 	if (r < 0)
 		return r;
 	c->fd = fd;
@@ -336,6 +348,8 @@ static int queue_line(sky_client *c, const char *line, size_t n, uint64_t userda
 	return sky_pending_push(c, userdata, sync, is_verb(line, "subscribe"));
 }
 
+static void reconnected(sky_client *c);
+
 /* Queues and starts writing a line; if the peer turns out to be gone before
  * any byte of it was delivered, reconnects once and queues it again. */
 static int send_line(sky_client *c, const char *line, uint64_t userdata, bool sync)
@@ -345,9 +359,22 @@ static int send_line(sky_client *c, const char *line, uint64_t userdata, bool sy
 		return n;
 	for (int attempt = 0;; attempt++) {
 		if (c->fd < 0) {
+			bool was_lost = c->lost;
+			unsigned serial = c->resync_serial;
 			int r = sky_reconnect(c);
-			if (r < 0)
+			if (r < 0) {
+				/* Reconnecting by itself goes on later. */
+				if (was_lost) {
+					c->lost = true;
+					c->resync_serial = serial;
+				}
 				return r;
+			}
+			/* Back while reconnecting by itself: still said once. */
+			if (was_lost) {
+				c->resync_serial = serial;
+				reconnected(c);
+			}
 		}
 		uint64_t before = c->bytes_sent + (c->out_len - c->out_off);
 		int r = queue_line(c, line, (size_t)n, userdata, sync);
@@ -426,8 +453,13 @@ int sky_dispatch(sky_client *c, struct sky_event *ret_event)
 		if (r < 0 && r != -ECONNRESET && !c->ev_count)
 			return r;
 	}
+	if (c->lost) {
+		int r = sky_reconnect_step(c);
+		if (r < 0 && !c->ev_count)
+			return r;
+	}
 	if (!c->ev_count)
-		return c->fd < 0 && c->hung_up ? -ENOTCONN : 0;
+		return c->fd < 0 && c->hung_up && !c->lost ? -ENOTCONN : 0;
 	struct sky_queued q = c->evq[c->ev_head];
 	c->ev_head = (c->ev_head + 1) % c->ev_cap;
 	c->ev_count--;
@@ -485,6 +517,7 @@ int sky_reconnect(sky_client *c)
 	drop_connection(c);
 	sky_events_clear(c);
 	c->hung_up = true;
+	c->lost = c->resyncing = c->resub_sent = false;
 	int r = do_connect(c);
 	if (r < 0)
 		return r;
@@ -499,3 +532,103 @@ int sky_reconnect(sky_client *c)
 	return 0;
 }
 
+int sky_set_reconnect(sky_client *c, int interval_ms)
+{
+	if (!c || interval_ms < 0)
+		return -EINVAL;
+	c->reconnect_ms = interval_ms;
+	if (!interval_ms) {
+		c->lost = c->resyncing = c->resub_sent = false;
+		if (c->fd < 0)
+			c->hung_up = true;
+		return 0;
+	}
+	/* Already disconnected (its hang-up seen): from the next call on. */
+	if (c->fd < 0 && !c->lost) {
+		c->lost = true;
+		c->resync_serial = c->map_serial;
+		c->next_try_ms = sky_now_ms();
+	}
+	return 0;
+}
+
+/* Queues the subscription the client had, marked as libsky's own. */
+static int resubscribe(sky_client *c)
+{
+	char line[256];
+	int n = subscribe_line(c->sub_tables, c->sub_flags, line, sizeof(line));
+	int r = queue_line(c, line, (size_t)n, 0, false);
+	if (r < 0)
+		return r;
+	c->pend[(c->pend_head + c->pend_count - 1) % SKY_MAX_PENDING].internal = true;
+	c->map_error = 0;
+	c->resub_sent = true;
+	return flush_out(c);
+}
+
+/* Tells the application, once, that the connection is back. */
+static void reconnected(sky_client *c)
+{
+	struct sky_event ev = {
+		.type = SKY_EVENT_RECONNECTED,
+		.userdata = c->map_serial != c->resync_serial,
+		.tables = c->subscribed ? c->sub_tables : 0,
+		.generation = c->map ? __atomic_load_n(&c->map->generation, __ATOMIC_ACQUIRE) : 0,
+	};
+	c->lost = c->resyncing = c->resub_sent = false;
+	(void)sky_event_push(c, &ev, NULL);
+}
+
+int sky_reconnect_step(sky_client *c)
+{
+	if (c->reconnect_ms <= 0)
+		return 0;
+	/* A client that only waits on the futex hears of a hang-up here. */
+	if (!c->lost && c->fd >= 0) {
+		int r = pump_input(c);
+		if (r < 0 && r != -ECONNRESET)
+			return r;
+	}
+	if (!c->lost)
+		return 0;
+	if (c->fd < 0) {
+		int64_t now = sky_now_ms();
+		int fd;
+		if (now < c->next_try_ms)
+			return 0;
+		c->next_try_ms = now + c->reconnect_ms;
+		if (open_socket(c->path, true, &fd) < 0)
+			return 0;
+		c->fd = fd;
+		c->hung_up = false;
+		c->greeted = false;
+		c->bytes_sent = 0;
+		c->resyncing = true;
+		c->resub_sent = false;
+	}
+	int r = pump_input(c);
+	if (r < 0)
+		return r == -ECONNRESET ? 0 : r;
+	if (!c->greeted || c->resub_sent)
+		return 0;
+	if (!c->subscribed) {
+		reconnected(c);
+		return 0;
+	}
+	if (resubscribe(c) < 0)
+		hang_up(c);
+	return 0;
+}
+
+int sky_resynced(sky_client *c, sky_reply *r)
+{
+	int ack = r->ack;
+
+	sky_reply_free(r);
+	c->resub_sent = false;
+	/* Refused, or the memory failed its checks: try again later. */
+	if (ack != 0 || c->map_error < 0)
+		return -ECONNRESET;
+	reconnected(c);
+	return 0;
+}

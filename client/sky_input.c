@@ -17,6 +17,7 @@ int sky_pending_push(sky_client *c, uint64_t userdata, bool sync, bool subscribe
 	p->userdata = userdata;
 	p->sync = sync;
 	p->subscribe = subscribe;
+	p->internal = false;
 	c->pend_count++;
 	return 0;
 }
@@ -118,6 +119,8 @@ static int complete_reply(sky_client *c)
 		int fd = take_fd(c);
 		c->map_error = fd < 0 ? -EPROTO : sky_map_memfd(c, fd);
 	}
+	if (p.internal)
+		return sky_resynced(c, r);
 	if (p.sync) {
 		c->sync_reply = r;
 		c->sync_done = true;

@@ -34,6 +34,7 @@ struct sky_pending {
 	uint64_t userdata;
 	bool sync;			/* sky_request() is waiting for it */
 	bool subscribe;			/* its reply carries the memfd */
+	bool internal;			/* libsky's own re-subscription: no reply event */
 };
 
 struct sky_queued {
@@ -77,6 +78,17 @@ struct sky_client {
 	const struct sky_shm_header *map;
 	size_t map_bytes;
 	const struct sky_shm_header *old_map;	/* sky_wait: the superseded region */
+	uint64_t map_dev, map_ino;	/* the mapped memfd, to know it again */
+	unsigned map_serial;		/* +1 for every new mapping */
+
+	/* sky_set_reconnect: after a hang-up, reconnect from sky_dispatch()
+	 * and sky_wait() without blocking, at most once per reconnect_ms. */
+	int reconnect_ms;		/* 0: off */
+	int64_t next_try_ms;		/* CLOCK_MONOTONIC of the next attempt */
+	bool lost;			/* hung up; SKY_EVENT_RECONNECTED due when back */
+	bool resyncing;			/* connected again; greeting or subscription due */
+	bool resub_sent;		/* the re-subscription is on its way */
+	unsigned resync_serial;		/* map_serial when the connection was lost */
 
 	/* sky_gpu_tables(): what each table held when last seen, in the
 	 * mapping gpu_map (another mapping starts afresh). */
@@ -146,11 +158,24 @@ sky_client *sky_client_alloc(void);
 int sky_pump_until(sky_client *c, bool (*cond)(const sky_client *), int timeout_ms,
 		   bool drop_on_timeout);
 
+/* Reconnecting by itself (sky_set_reconnect): one non-blocking step that
+ * reads what the socket holds (to hear of a hang-up) and, disconnected,
+ * makes at most one connection attempt per interval. Returns 0 or -errno
+ * of a garbled stream (the connection is then dropped and tried again). */
+int sky_reconnect_step(sky_client *c);
+
+/* The re-subscription's reply r (taken) arrived: 0 and a
+ * SKY_EVENT_RECONNECTED queued, or -ECONNRESET when it failed (the
+ * connection is dropped and tried again later). */
+int sky_resynced(sky_client *c, sky_reply *r);
+
 /* ---- sky_shm.c: the mapping ------------------------------------------- */
 
 /* Maps memfd read-only in place of the current mapping after checking its
- * seals and header. Takes ownership of fd. Returns 0, -EPROTO or -errno;
- * on failure the old mapping stays. */
+ * seals and header; the memfd already mapped (same inode and size: a
+ * restarted skyd that adopted the region) keeps its mapping. Takes
+ * ownership of fd. Returns 0, -EPROTO or -errno; on failure the old
+ * mapping stays. */
 int sky_map_memfd(sky_client *c, int fd);
 
 /* Unmaps the region, if any. */

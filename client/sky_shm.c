@@ -39,6 +39,12 @@ int sky_map_memfd(sky_client *c, int fd)
 		r = -EPROTO;
 		goto out;
 	}
+	/* The same memory: views into it stay valid, nothing to tell. */
+	if (c->map && (uint64_t)st.st_dev == c->map_dev && (uint64_t)st.st_ino == c->map_ino &&
+	    (size_t)st.st_size == c->map_bytes) {
+		r = 0;
+		goto out;
+	}
 	void *m = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_SHARED, fd, 0);
 	if (m == MAP_FAILED) {
 		r = -errno;
@@ -52,6 +58,9 @@ int sky_map_memfd(sky_client *c, int fd)
 	sky_unmap(c);
 	c->map = m;
 	c->map_bytes = (size_t)st.st_size;
+	c->map_dev = (uint64_t)st.st_dev;
+	c->map_ino = (uint64_t)st.st_ino;
+	c->map_serial++;
 	r = 0;
 out:
 	close(fd);
@@ -278,7 +287,8 @@ int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generat
 		return -ENOTCONN;
 	int64_t deadline = timeout_ms < 0 ? -1 : sky_now_ms() + timeout_ms;
 	for (;;) {
-		if (__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE)) {
+		/* Reconnecting, the new region comes with the subscription. */
+		if (__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE) && !c->lost) {
 			int r = follow_layout(c, deadline);
 			if (r < 0)
 				return r;
@@ -295,6 +305,18 @@ int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generat
 		int left = sky_left_ms(deadline);
 		if (left == 0)
 			return -ETIMEDOUT;
+		/* Reconnecting by itself: a hang-up and a new region come on
+		 * the socket, which no futex wake announces. */
+		if (c->reconnect_ms > 0) {
+			const struct sky_shm_header *before = c->map;
+			int e = sky_reconnect_step(c);
+			if (e < 0)
+				return e;
+			if (c->map != before || __atomic_load_n(&c->map->generation, __ATOMIC_ACQUIRE) != g)
+				continue;
+			if (left < 0 || left > c->reconnect_ms)
+				left = c->reconnect_ms;
+		}
 		/* A slot ahead of its apply time wakes nobody when the time
 		 * comes: the wait is bounded by that time. */
 		int r = futex_sleep(word, g, left, wake_ns);

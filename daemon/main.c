@@ -16,6 +16,7 @@
 #include "ctl.h"
 #include "drive.h"
 #include "eng.h"
+#include "fdstore.h"
 #include "log.h"
 #include "loop.h"
 #include "once.h"
@@ -391,6 +392,8 @@ struct hooks {
 	struct svc_notify *notify;
 	struct svc_reload *reload;
 	struct loop *loop;
+	struct srv *srv;
+	struct fdstore *fdstore;
 };
 
 static void on_published(void *ctx, uint64_t generation, uint32_t tables, int new_region)
@@ -400,6 +403,8 @@ static void on_published(void *ctx, uint64_t generation, uint32_t tables, int ne
 	ctl_published(h->ctl, generation, tables, new_region);
 	sense_published(h->sense, generation);
 	svc_notify_published(h->notify);
+	if (new_region)
+		fdstore_replaced(h->fdstore, srv_pub(h->srv));
 }
 
 static void on_failed(void *ctx, uint64_t generation, const char *message)
@@ -444,6 +449,9 @@ static int run_daemon(const struct options *o, struct svc_reload *reload,
 	struct drive *drive = NULL;
 	struct sense *sense = NULL;
 	struct repl *repl = NULL;
+	struct fdstore *fds = NULL;
+	struct pub *region = NULL;
+	uint64_t generation = 0;
 	struct svc_notify *notify = NULL;
 	struct hooks hooks = { .reload = reload };
 	struct sky_state lit = *initial;
@@ -452,6 +460,11 @@ static int run_daemon(const struct options *o, struct svc_reload *reload,
 
 	signal(SIGPIPE, SIG_IGN);
 	raise_fd_limit();
+	r = fdstore_new(&fds);
+	if (r < 0) {
+		log_error("fd store: %s", strerror(-r));
+		goto out;
+	}
 	r = loop_new(&loop);
 	if (r < 0) {
 		log_error("event loop: %s", strerror(-r));
@@ -483,7 +496,13 @@ static int run_daemon(const struct options *o, struct svc_reload *reload,
 		log_error("initial state: %s", err);
 		goto out;
 	}
-	r = srv_new(loop, eng, &lit, &srv);
+	/* A restart under systemd: the stored region and socket come back. */
+	r = fdstore_region(fds, &lit, &region, &generation);
+	if (r < 0) {
+		log_error("publisher: %s", strerror(-r));
+		goto out;
+	}
+	r = srv_new_from(loop, eng, &lit, region, generation, &srv);
 	if (r < 0) {
 		log_error("publisher: %s", strerror(-r));
 		goto out;
@@ -494,16 +513,19 @@ static int run_daemon(const struct options *o, struct svc_reload *reload,
 		goto out;
 	}
 	hooks.notify = notify;
+	int activated = 0;
 	if (o->socket_path) {
 		snprintf(path, sizeof(path), "%s", o->socket_path);
-	} else if (sd_listen_fds(1) == 1) {
-		listen_fd = SD_LISTEN_FDS_START;
+	} else if ((listen_fd = fdstore_activated(fds)) >= 0) {
+		activated = 1;
 		snprintf(path, sizeof(path), "(socket activation)");
 	} else if (ctl_default_path(path, sizeof(path)) < 0) {
 		log_error("$XDG_RUNTIME_DIR is too long for a socket path; pass --socket");
 		r = -ENAMETOOLONG;
 		goto out;
 	}
+	if (!activated)
+		listen_fd = fdstore_control(fds, path);
 	err[0] = 0;
 	r = ctl_new(loop, srv, path, listen_fd, err, sizeof(err), &ctl);
 	if (r < 0) {
@@ -514,6 +536,10 @@ static int run_daemon(const struct options *o, struct svc_reload *reload,
 	roles->ctl = ctl;
 	hooks.ctl = ctl;
 	svc_notify_set_ctl(notify, ctl);
+	hooks.srv = srv;
+	hooks.fdstore = fds;
+	if (fdstore_enabled(fds))
+		fdstore_hand_over(fds, srv_pub(srv), activated ? -1 : ctl_keep_socket(ctl));
 	srv_set_listener(srv, &(struct srv_listener){ on_published, on_failed }, &hooks);
 	r = drive_new(loop, srv, &drive);
 	if (r < 0) {
@@ -560,6 +586,7 @@ out:
 	srv_free(srv);
 	eng_free(eng);
 	loop_free(loop);
+	fdstore_free(fds);
 	return r < 0 ? 1 : 0;
 }
 

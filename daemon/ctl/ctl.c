@@ -381,6 +381,12 @@ void ctl_set_sense(struct ctl *ctl, struct sense *s)
 	ctl->sense = s;
 }
 
+int ctl_keep_socket(struct ctl *ctl)
+{
+	ctl->created_socket = 0;
+	return ctl->listen_fd;
+}
+
 void ctl_free(struct ctl *ctl)
 {
 	if (!ctl)

@@ -43,6 +43,9 @@ int ctl_new(struct loop *l, struct srv *s, const char *path, int listen_fd, char
 	    size_t err_size, struct ctl **ret);
 /* Closes every connection and removes the socket it created. */
 void ctl_free(struct ctl *c);
+/* The listening socket, which outlives this skyd (in systemd's fd store):
+ * ctl_free leaves its path in place. The fd stays ctl's. */
+int ctl_keep_socket(struct ctl *c);
 
 /* Who controls and the bounds (role.h), all at once: a copy is kept.
  * Connections open now get their role again from the new list (the

@@ -19,6 +19,8 @@
 
 #define ALIGN_UP(x, a) (((x) + (a) - 1) / (a) * (a))
 #define SEALS (F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_FUTURE_WRITE | F_SEAL_SEAL)
+/* A region the next skyd may write (pub_new_adoptable): no FUTURE_WRITE. */
+#define ADOPT_SEALS (F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL)
 
 struct pub {
 	int fd;
@@ -30,6 +32,7 @@ struct pub {
 	struct state_table_quality shape[STATE_N_TABLES];
 	enum state_storage storage;
 	uint32_t max_views;
+	int seals;
 };
 
 _Static_assert(STATE_MAX_VIEWS == SKY_SHM_MAX_VIEWS, "one bound on views");
@@ -58,7 +61,9 @@ int pub_same_layout(const struct pub *p, const struct sky_state *s)
 	return p->storage == s->quality.storage && p->max_views >= s->n_views;
 }
 
-static void fill_header(struct sky_shm_header *h, const struct sky_state *s)
+/* The geometry of a region for the tables of s with room for max_views
+ * views; no generation, no slot. */
+static void fill_header(struct sky_shm_header *h, const struct sky_state *s, uint32_t max_views)
 {
 	uint64_t off = ALIGN_UP(sizeof(struct sky_shm_slot), 64);
 
@@ -81,7 +86,7 @@ static void fill_header(struct sky_shm_header *h, const struct sky_state *s)
 		d->bytes = state_table_bytes(s, (enum state_table)t);
 		off = ALIGN_UP(off + d->bytes, 64);
 	}
-	h->max_views = views_capacity(s);
+	h->max_views = max_views;
 	h->view_offset = off;
 	h->view_stride = ALIGN_UP(h->tables[STATE_AERIAL].bytes, 64);
 	off += h->view_stride * h->max_views;
@@ -90,13 +95,26 @@ static void fill_header(struct sky_shm_header *h, const struct sky_state *s)
 	h->total_bytes = h->header_bytes + h->slot_bytes * h->n_slots;
 }
 
-int pub_new(const struct sky_state *s, uint64_t generation, struct pub **ret)
+/* Opens the read-only file clients get. Read-only modes also make a
+ * root-less reopen of /proc/PID/fd/N read-write fail; without /proc, the
+ * fd alone is handed out and the seals alone hold. */
+static void open_readonly(struct pub *p)
+{
+	char self[64];
+
+	snprintf(self, sizeof(self), "/proc/self/fd/%d", p->fd);
+	p->ro_fd = open(self, O_RDONLY | O_CLOEXEC);
+}
+
+/* pub_new with the given seals: SEALS, or ADOPT_SEALS for a region that
+ * outlives this skyd in systemd's fd store. */
+static int create(const struct sky_state *s, uint64_t generation, int seals, struct pub **ret)
 {
 	struct sky_shm_header h = { 0 };
 	struct pub *p;
 	int r;
 
-	fill_header(&h, s);
+	fill_header(&h, s, views_capacity(s));
 	if (h.total_bytes > (uint64_t)SIZE_MAX / 2)
 		return -EFBIG;
 	p = calloc(1, sizeof(*p));
@@ -113,16 +131,14 @@ int pub_new(const struct sky_state *s, uint64_t generation, struct pub **ret)
 	p->map = mmap(NULL, p->bytes, PROT_READ | PROT_WRITE, MAP_SHARED, p->fd, 0);
 	if (p->map == MAP_FAILED)
 		goto fail_errno;
-	/* FUTURE_WRITE spares the mapping made above and no other. Read-only
-	 * modes also make a root-less reopen of /proc/PID/fd/N read-write fail. */
-	if (fcntl(p->fd, F_ADD_SEALS, SEALS) < 0)
+	/* FUTURE_WRITE spares the mapping made above and no other. */
+	if (fcntl(p->fd, F_ADD_SEALS, seals) < 0)
 		goto fail_errno;
+	p->seals = seals;
 	(void)fchmod(p->fd, 0444);
 	/* Clients get a read-only file: write() and ftruncate() fail on it
-	 * before the seals are even asked. Without /proc, the seals alone hold. */
-	char self[64];
-	snprintf(self, sizeof(self), "/proc/self/fd/%d", p->fd);
-	p->ro_fd = open(self, O_RDONLY | O_CLOEXEC);
+	 * before the seals are even asked. */
+	open_readonly(p);
 	p->header = (struct sky_shm_header *)p->map;
 	*p->header = h;
 	p->header->generation = (uint32_t)generation;
@@ -143,6 +159,27 @@ fail_errno:
 	r = -errno;
 	pub_free(p);
 	return r;
+}
+
+int pub_new(const struct sky_state *s, uint64_t generation, struct pub **ret)
+{
+	return create(s, generation, SEALS, ret);
+}
+
+int pub_new_adoptable(const struct sky_state *s, uint64_t generation, struct pub **ret)
+{
+	return create(s, generation, ADOPT_SEALS, ret);
+}
+
+int pub_new_like(const struct pub *like, const struct sky_state *s, uint64_t generation,
+		 struct pub **ret)
+{
+	return create(s, generation, like->seals, ret);
+}
+
+int pub_store_fd(const struct pub *p)
+{
+	return p->seals == ADOPT_SEALS ? p->fd : -EPERM;
 }
 
 void pub_free(struct pub *p)
@@ -354,23 +391,134 @@ void pub_supersede(struct pub *p)
 	futex_wake_all(&h->generation);
 }
 
-int pub_adopt_check(int fd, uint64_t *ret_generation)
+
+/* Rewrites slot i as an empty, stable slot under its seqlock: no
+ * generation, no apply time, no table, a valid checksum. A slot left odd
+ * by a writer that died stays torn no longer; a spare slot ahead is not
+ * handed out any more. */
+static void empty_slot(struct pub *p, uint32_t i)
 {
-	struct sky_shm_header h;
+	struct sky_shm_slot *slot = (struct sky_shm_slot *)slot_base(p, i);
+	_Atomic uint32_t *seq = (_Atomic uint32_t *)&slot->seq;
+	/* From odd (a writer died there) to the next odd, from even to odd. */
+	uint32_t s0 = atomic_load_explicit(seq, memory_order_relaxed) | 1u;
+
+	atomic_store_explicit(seq, s0, memory_order_relaxed);
+	atomic_thread_fence(memory_order_release);
+	slot->generation = 0;
+	slot->apply_time_ns = 0;
+	slot->valid_tables = 0;
+	slot->n_views = 0;
+	slot->valid_views = 0;
+	slot->checksum = pub_checksum(p->header, slot, (const uint8_t *)slot);
+	atomic_store_explicit(seq, s0 + 1, memory_order_release);
+}
+
+/* Makes the adopted region consistent for this writer: torn slots and the
+ * spare slot emptied, the next slot after the current one. Returns the
+ * newest generation the region ever showed (a slot's, or the header's
+ * word when nothing was published), which the next publication exceeds. */
+static uint64_t take_over(struct pub *p)
+{
+	struct sky_shm_header *h = p->header;
+	uint32_t spare = h->n_slots - 1;
+	uint32_t cur = atomic_load_explicit((_Atomic uint32_t *)&h->current_slot,
+					    memory_order_acquire);
+	uint64_t newest = 0;
+
+	for (uint32_t i = 0; i < h->n_slots; i++) {
+		struct sky_shm_slot *slot = (struct sky_shm_slot *)slot_base(p, i);
+		uint32_t seq = atomic_load_explicit((_Atomic uint32_t *)&slot->seq,
+						    memory_order_acquire);
+		/* A generation ahead may have been handed out already: count it. */
+		if (!(seq & 1u) && slot->generation > newest)
+			newest = slot->generation;
+		if ((seq & 1u) || i == spare)
+			empty_slot(p, i);
+	}
+	if (cur >= spare) {
+		/* Never current in a region this module wrote; slot 0 is. */
+		cur = 0;
+		atomic_store_explicit((_Atomic uint32_t *)&h->current_slot, 0, memory_order_release);
+	}
+	p->next_slot = (cur + 1) % spare;
+	return newest ? newest : h->generation;
+}
+
+/* Marks a region of another layout superseded through a mapping of our
+ * own, so that readers of it look for the new one; returns its header's
+ * generation word. */
+static uint32_t retire(int fd, uint64_t bytes)
+{
+	struct pub p = { .fd = -1, .ro_fd = -1 };
+	uint32_t g;
+
+	p.map = mmap(NULL, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+	if (p.map == MAP_FAILED)
+		return 0;
+	p.header = (struct sky_shm_header *)p.map;
+	g = p.header->generation;
+	pub_supersede(&p);
+	munmap(p.map, bytes);
+	return g;
+}
+
+int pub_adopt(int fd, const struct sky_state *s, struct pub **ret, uint64_t *ret_generation)
+{
+	struct sky_shm_header h, want, seen;
 	struct stat st;
+	struct pub *p;
 	int seals = fcntl(fd, F_GET_SEALS);
 
 	if (seals < 0)
 		return -errno;
-	if ((seals & SEALS) != SEALS)
+	/* FUTURE_WRITE forbids the writable mapping; without SHRINK readers
+	 * could be made to fault. Nothing else was ever handed over. */
+	if (seals != ADOPT_SEALS)
 		return -EPERM;
 	if (fstat(fd, &st) < 0)
 		return -errno;
-	if (pread(fd, &h, sizeof(h), 0) != (ssize_t)sizeof(h))
-		return -EIO;
-	if (h.magic != SKY_SHM_MAGIC || h.layout_version != SKY_SHM_LAYOUT_VERSION ||
-	    h.n_slots < SKY_SHM_MIN_SLOTS || h.total_bytes != (uint64_t)st.st_size)
+	if (st.st_size < (off_t)sizeof(h) || pread(fd, &h, sizeof(h), 0) != (ssize_t)sizeof(h))
 		return -EPROTO;
-	*ret_generation = h.generation;
+	if (h.magic != SKY_SHM_MAGIC || h.layout_version != SKY_SHM_LAYOUT_VERSION ||
+	    h.uv_mapping_version != SKYMAP_VERSION || h.n_slots != PUB_SLOTS ||
+	    h.total_bytes != (uint64_t)st.st_size)
+		return -EPROTO;
+	/* The same geometry as a region made for s now, with the adopted
+	 * region's room for views (enough for the views of s). */
+	memset(&want, 0, sizeof(want));
+	fill_header(&want, s, h.max_views);
+	seen = h;
+	seen.generation = seen.current_slot = seen.superseded = 0;
+	if (h.superseded || memcmp(&seen, &want, sizeof(want)) != 0 ||
+	    views_capacity(s) > h.max_views) {
+		if (!h.superseded)
+			*ret_generation = retire(fd, h.total_bytes);
+		else
+			*ret_generation = h.generation;
+		return -ESTALE;
+	}
+	p = calloc(1, sizeof(*p));
+	if (!p)
+		return -ENOMEM;
+	p->ro_fd = -1;
+	p->fd = -1;
+	p->map = mmap(NULL, h.total_bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+	if (p->map == MAP_FAILED) {
+		int r = -errno;
+		pub_free(p);
+		return r;
+	}
+	p->fd = fd;
+	p->bytes = h.total_bytes;
+	p->header = (struct sky_shm_header *)p->map;
+	p->seals = seals;
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		p->shape[t] = s->quality.t[t];
+	p->storage = s->quality.storage;
+	p->max_views = h.max_views;
+	open_readonly(p);
+	*ret_generation = take_over(p);
+	*ret = p;
 	return 0;
 }

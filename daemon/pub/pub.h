@@ -8,11 +8,13 @@
  * waits for a reader. The slots rotate over n_slots - 1; the last slot is
  * kept for changes computed ahead of their apply time (pub_publish_ahead).
  *
- * Adoption (restart without losing clients): a sealed region cannot be
- * mapped writable again, so pub_adopt() reads an existing region (from the
- * fd store), checks it and returns its newest generation; the daemon then
- * publishes the next generation in a new region and supersedes the old one
- * only if it still holds a writable mapping.
+ * Adoption (restart without losing clients, docs/restart.md): a region made
+ * by pub_new_adoptable() is sealed SHRINK | GROW | SEAL only, so that the
+ * read-write fd kept in systemd's fd store (pub_store_fd) lets the next
+ * skyd map it writable again (pub_adopt) and go on publishing in the very
+ * memory the clients have mapped. Clients still get the read-only file of
+ * mode 0444: they can neither map it writable nor write or resize it, nor
+ * reopen it read-write unless they run as skyd's user or as root.
  */
 #ifndef SKYD_PUB_H
 #define SKYD_PUB_H
@@ -29,6 +31,12 @@ struct pub;
 /* Creates a region for the layout of s (sizes, storage), no slot valid,
  * header generation set to generation (so that it continues a count). */
 int pub_new(const struct sky_state *s, uint64_t generation, struct pub **ret);
+/* pub_new for a region that outlives this skyd in systemd's fd store
+ * (pub_store_fd): not sealed against future writes (see above). */
+int pub_new_adoptable(const struct sky_state *s, uint64_t generation, struct pub **ret);
+/* pub_new sealed as like is (a new layout replacing like). */
+int pub_new_like(const struct pub *like, const struct sky_state *s, uint64_t generation,
+		 struct pub **ret);
 void pub_free(struct pub *p);
 
 /* The sealed memfd as clients get it, opened read-only; owned by pub, dup
@@ -82,8 +90,23 @@ uint64_t pub_checksum(const struct sky_shm_header *h, const struct sky_shm_slot 
 /* Converts the daemon's state into the published form. */
 void pub_shm_state(const struct sky_state *s, struct sky_shm_state *ret);
 
-/* Checks an existing sealed region (magic, versions, sizes, seals) and
- * returns its newest generation. Does not take fd. */
-int pub_adopt_check(int fd, uint64_t *ret_generation);
+/* The read-write fd of an adoptable region, for systemd's fd store (owned
+ * by pub: dup it to keep it); -EPERM for a region sealed against writes. */
+int pub_store_fd(const struct pub *p);
+
+/* Takes over a region a previous skyd published (fd from the fd store, a
+ * pub_store_fd), when its seals, size and header (magic, layout and uv
+ * mapping versions, n_slots, every table's shape and offset, the slots'
+ * size and room for the views of s) are those a region made for s now
+ * would have: the new pub publishes into the same memory, so a reader keeps
+ * its mapping and sees at most a pause. Slots left torn by a writer that
+ * died, and the spare slot, are emptied; the current slot stays readable.
+ * Returns 0 (fd taken) with *ret_generation the newest generation the
+ * region showed: publish above it. Errors (fd not taken): -EPERM (sealed
+ * against writes, or not sealed enough), -EPROTO (not a region of this
+ * version), -ESTALE (another layout, or superseded: the region was marked
+ * superseded so that its readers look for a new one, and *ret_generation
+ * is still set, to continue the count), -errno. */
+int pub_adopt(int fd, const struct sky_state *s, struct pub **ret, uint64_t *ret_generation);
 
 #endif

@@ -167,7 +167,7 @@ static void publish(struct srv *s, uint32_t computed, int64_t apply_ns)
 
 	if (!pub_same_layout(s->pub, &s->computing_state)) {
 		struct pub *p;
-		int r = pub_new(&s->computing_state, s->generation, &p);
+		int r = pub_new_like(s->pub, &s->computing_state, s->generation, &p);
 		if (r < 0) {
 			char msg[128];
 			snprintf(msg, sizeof(msg), "new shared memory region: %s", strerror(-r));
@@ -467,18 +467,29 @@ void srv_set_listener(struct srv *s, const struct srv_listener *listener, void *
 
 int srv_new(struct loop *l, struct eng *e, const struct sky_state *initial, struct srv **ret)
 {
+	return srv_new_from(l, e, initial, NULL, 0, ret);
+}
+
+int srv_new_from(struct loop *l, struct eng *e, const struct sky_state *initial,
+		 struct pub *region, uint64_t generation, struct srv **ret)
+{
 	struct srv *s = calloc(1, sizeof(*s));
 	int r;
 
-	if (!s)
+	if (!s) {
+		pub_free(region);
 		return -ENOMEM;
+	}
 	s->loop = l;
 	s->eng = e;
 	s->state = *initial;
 	s->published_keys = *initial;
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		s->st.table_ms[t] = -1;
-	r = pub_new(initial, 0, &s->pub);
+	/* An adopted region goes on counting where its last skyd stopped. */
+	s->generation = generation;
+	s->pub = region;
+	r = region ? 0 : pub_new(initial, 0, &s->pub);
 	if (r < 0)
 		goto fail;
 	/* Edge-triggered: right whether or not eng_complete drains the eventfd. */

@@ -50,6 +50,11 @@ struct srv_status {
 /* Takes neither loop nor engine; both must outlive the srv. The first
  * computation (every needed table of initial) starts at once. */
 int srv_new(struct loop *l, struct eng *e, const struct sky_state *initial, struct srv **ret);
+/* srv_new publishing into region (taken, also on failure; pub_same_layout
+ * as initial) whose newest generation is generation: the next publication
+ * is generation + 1. Region NULL: srv_new. */
+int srv_new_from(struct loop *l, struct eng *e, const struct sky_state *initial,
+		 struct pub *region, uint64_t generation, struct srv **ret);
 /* Who hears of publications and failures (the control server). */
 void srv_set_listener(struct srv *s, const struct srv_listener *listener, void *ctx);
 void srv_free(struct srv *s);

@@ -1,0 +1,138 @@
+/* test_restart_adopt.c - the publisher's side of a restart (pub_adopt):
+ * a region made for the fd store is adopted by a second publisher, which
+ * writes into the same memory and numbers on; a slot left torn by a writer
+ * that died and a slot published ahead are emptied, the current slot stays
+ * readable; a region sealed against writes is refused, one of another
+ * layout is superseded and its count handed on. No GPU: tables are bytes. */
+#include <fcntl.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include "pub.h"
+#include "skysample.h"
+#include "test.h"
+
+static void set(struct sky_state *s, const char *pair)
+{
+	char err[256];
+	if (state_set_pair(s, pair, NULL, err, sizeof(err)) < 0)
+		FAIL("%s", err);
+}
+
+static void small_state(struct sky_state *s, const char *skyview_width)
+{
+	static const char *const small[] = { "transmittance_width=8", "transmittance_height=4",
+		"multiscatter_width=8", "multiscatter_height=4", "skyview_height=4",
+		"aerial_width=8", "aerial_height=4", "aerial_depth=2" };
+	state_default(s);
+	for (size_t i = 0; i < sizeof(small) / sizeof(small[0]); i++)
+		set(s, small[i]);
+	set(s, skyview_width);
+}
+
+/* Tables of the layout of s, every byte fill. */
+static void tables_of(const struct sky_state *s, int fill, const void *ret[STATE_N_TABLES])
+{
+	for (int t = 0; t < STATE_N_TABLES; t++) {
+		size_t n = state_table_bytes(s, (enum state_table)t) * (t == STATE_AERIAL ? 2 : 1);
+		void *b = malloc(n);
+		memset(b, fill, n);
+		ret[t] = b;
+	}
+}
+
+static void tables_free(const void *t[STATE_N_TABLES])
+{
+	for (int i = 0; i < STATE_N_TABLES; i++)
+		free((void *)t[i]);
+}
+
+static const struct sky_shm_slot *slot_at(const struct sky_shm_header *h, uint32_t i)
+{
+	return (const struct sky_shm_slot *)((const uint8_t *)h + h->header_bytes +
+					     (uint64_t)i * h->slot_bytes);
+}
+
+int main(void)
+{
+	struct sky_state s, other;
+	struct pub *a = NULL, *b = NULL, *strict = NULL;
+	const void *t1[STATE_N_TABLES], *t2[STATE_N_TABLES];
+	uint64_t gen = 0;
+
+	small_state(&s, "skyview_width=8");
+	small_state(&other, "skyview_width=16");
+	tables_of(&s, 0x11, t1);
+	tables_of(&s, 0x22, t2);
+
+	/* The first skyd: generations 1..5, the last ahead of its time. */
+	CHECK(pub_new_adoptable(&s, 0, &a) == 0);
+	if (!a)
+		return test_report("test_restart_adopt");
+	for (uint64_t g = 1; g <= 4; g++)
+		pub_publish(a, &s, STATE_ALL_TABLES, t1, NULL, g);
+	pub_publish_ahead(a, &s, STATE_ALL_TABLES, t1, NULL, 5, 1);
+	int fd = fcntl(pub_store_fd(a), F_DUPFD_CLOEXEC, 3);
+	CHECK(fd >= 0 && fcntl(fd, F_GET_SEALS) == (F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL));
+	/* A reader's own mapping, and a client's view of it. */
+	size_t bytes = (size_t)pub_bytes(a);
+	const struct sky_shm_header *r = mmap(NULL, bytes, PROT_READ, MAP_SHARED, pub_fd(a), 0);
+	CHECK(r != MAP_FAILED);
+	uint32_t cur = r->current_slot;
+	/* It dies while writing the slot after the current one. */
+	struct sky_shm_header *w = (struct sky_shm_header *)pub_header(a);
+	uint32_t torn = (cur + 1) % (PUB_SLOTS - 1);
+	((struct sky_shm_slot *)slot_at(w, torn))->seq |= 1u;
+	pub_free(a);
+
+	/* The next skyd adopts it: torn and spare slots emptied, the current
+	 * slot untouched, the count going on above 5. */
+	CHECK(pub_adopt(fd, &s, &b, &gen) == 0);
+	CHECK(gen == 5);
+	if (!b)
+		return test_report("test_restart_adopt");
+	CHECK(pub_header(b) != NULL && pub_bytes(b) == bytes);
+	CHECK(r->current_slot == cur && slot_at(r, cur)->generation == 4 &&
+	      (slot_at(r, cur)->seq & 1u) == 0 && slot_at(r, cur)->valid_tables == STATE_ALL_TABLES);
+	CHECK(skysample_slot_checksum(r, slot_at(r, cur)) == slot_at(r, cur)->checksum);
+	CHECK((slot_at(r, torn)->seq & 1u) == 0 && slot_at(r, torn)->valid_tables == 0);
+	CHECK(skysample_slot_checksum(r, slot_at(r, torn)) == slot_at(r, torn)->checksum);
+	CHECK(slot_at(r, PUB_SLOTS - 1)->apply_time_ns == 0 &&
+	      slot_at(r, PUB_SLOTS - 1)->generation == 0);
+	/* It writes into the memory the reader has mapped. */
+	pub_publish(b, &s, STATE_ALL_TABLES, t2, NULL, gen + 1);
+	CHECK(r->generation == 6 && r->current_slot != cur);
+	const struct sky_shm_slot *n = slot_at(r, r->current_slot);
+	CHECK(n->generation == 6 && (n->seq & 1u) == 0);
+	CHECK(((const uint8_t *)n)[r->tables[STATE_SKYVIEW].offset] == 0x22);
+	CHECK(skysample_slot_checksum(r, n) == n->checksum);
+	CHECK(!r->superseded);
+
+	/* Another layout: refused, superseded, the count handed on. */
+	int fd2 = fcntl(pub_store_fd(b), F_DUPFD_CLOEXEC, 3);
+	struct pub *c = NULL;
+	uint64_t gen2 = 0;
+	CHECK(pub_adopt(fd2, &other, &c, &gen2) == -ESTALE && c == NULL);
+	CHECK(gen2 == 6 && r->superseded == 1 && r->generation == 7);
+	close(fd2);
+
+	/* A region sealed against writes, or no memfd: never adopted. */
+	CHECK(pub_new(&s, 0, &strict) == 0);
+	int fd3 = fcntl(pub_fd(strict), F_DUPFD_CLOEXEC, 3);
+	CHECK(pub_store_fd(strict) == -EPERM);
+	CHECK(pub_adopt(fd3, &s, &c, &gen2) == -EPERM && c == NULL);
+	close(fd3);
+	int p[2];
+	CHECK(pipe(p) == 0 && pub_adopt(p[0], &s, &c, &gen2) < 0 && c == NULL);
+	close(p[0]);
+	close(p[1]);
+
+	munmap((void *)r, bytes);
+	pub_free(b);
+	pub_free(strict);
+	tables_free(t1);
+	tables_free(t2);
+	return test_report("test_restart_adopt");
+}
