@@ -195,7 +195,8 @@ SKY_EXPORT int sky_default_path(char *buf, size_t size);
  * the greeting "OK skyd <version>". On success *ret_client is a new client
  * the caller frees with sky_disconnect(). Errors: -ENOENT / -ECONNREFUSED
  * (no daemon), -EACCES, -ETIMEDOUT (no greeting within the timeout, 5 s),
- * -EPROTO (not skyd), -EPROTONOSUPPORT (another protocol major version).
+ * -EPROTO (not skyd), -EPROTONOSUPPORT (another protocol major version),
+ * -EAGAIN (skyd is at its max_connections: try again later).
  * Since 0.1. */
 SKY_EXPORT int sky_connect(const char *path, sky_client **ret_client);
 

@@ -135,12 +135,16 @@ static int complete_reply(sky_client *c)
 }
 
 /* The greeting "OK skyd <version>": libsky speaks to a daemon of its own
- * major version (what precedes the first '.'). */
+ * major version (what precedes the first '.'). A skyd at its connection
+ * bound greets with one ACK [52] line and closes: -EAGAIN, try later. */
 static int handle_greeting(sky_client *c, char *line)
 {
 	struct proto_reply rep;
-	if (proto_parse_reply(line, &rep) < 0 || rep.kind != PROTO_OK ||
-	    strncmp(rep.value, "skyd ", 5) != 0)
+	if (proto_parse_reply(line, &rep) < 0)
+		return -EPROTO;
+	if (rep.kind == PROTO_ACK && rep.ack_code == SKY_ACK_LIMIT)
+		return -EAGAIN;
+	if (rep.kind != PROTO_OK || strncmp(rep.value, "skyd ", 5) != 0)
 		return -EPROTO;
 	const char *v = rep.value + 5;
 	size_t len = strlen(v);

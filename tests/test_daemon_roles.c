@@ -19,6 +19,7 @@
 #include <sys/wait.h>
 
 #include "daemon_harness.h"
+#include "sky.h"
 #include "test.h"
 
 #define NOBODY 65534
@@ -273,6 +274,9 @@ static void scenario_connections(void)
 	expect_ok(&c[0], "subscribe events=1");
 	for (int i = 0; i < 5; i++)
 		expect_refused(d.sock);
+	/* libsky says what the refusal means: try again later. */
+	sky_client *sc = NULL;
+	CHECK(sky_connect(d.sock, &sc) == -EAGAIN && !sc);
 	for (int i = 0; i < 3; i++)
 		expect_ok(&c[i], "ping");
 	expect_ok(&c[1], "set sun_elevation_deg=17");
