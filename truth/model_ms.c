@@ -90,6 +90,9 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 	v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
 	/* s2: L2's second moments zz, xz and, from the sub-samples, xx - yy. */
 	v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 }, sm = { 0 }, s2 = { 0 };
+	/* Each direction's scattering transfer and its zz and xz moments, per
+	 * channel: the higher orders' shape for Rayleigh's band 2. */
+	v3 sf = { 0 }, sfzz = { 0 }, sfxz = { 0 };
 	double r0 = c->rb + h;
 	/* The first scattering of L2 with each constituent's own phase,
 	 * the cells' means normalised to sum to exactly 1 over the
@@ -117,7 +120,7 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		if (ground)
 			t_end = tg;
 		double dt = t_end / steps;
-		v3 tau = { 0 }, l2 = { 0 }, absorbed = { 0 };
+		v3 tau = { 0 }, l2 = { 0 }, absorbed = { 0 }, transfer = { 0 };
 		for (uint32_t s = 0; s < steps; s++) {
 			double t = (s + 0.5) * dt, rr;
 			double hs = altitude_along(c, h, dir.z, t, &rr);
@@ -138,6 +141,7 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 			}
 			l2 = add(l2, mul(mul(w, phased), t_sun));
 			absorbed = add(absorbed, mul(w, m.absorption));
+			transfer = add(transfer, mul(w, m.scattering));
 			tau = add(tau, scale(m.extinction, dt));
 		}
 		/* The cell's solid angle over the mean cell's: every
@@ -145,6 +149,10 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		double wk = ms_cell_weight(k, dirs);
 		l2 = scale(l2, wk);
 		absorbed = scale(absorbed, wk);
+		transfer = scale(transfer, wk);
+		sf = add(sf, transfer);
+		sfzz = add(sfzz, scale(transfer, dir.z * dir.z));
+		sfxz = add(sfxz, scale(transfer, dir.x * dir.z));
 		v3 t_ray = scale(vexp_neg(tau), wk), returned = { 0 };
 		if (ground) {
 			v3 n = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb, (r0 + dir.z * t_end) / c->rb);
@@ -194,6 +202,18 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		double g = c->lobe_g[0];
 		ret_shape[2] = k * (c->delta >= 0 ? 3.75 * (s2.z / l - a * g * g * sun.x * sun.x) : 15.0 * s2.y / l);
 		ret_shape[3] = k * a;
+		if (c->lobe_g[0] == 0.0) {
+			/* Rayleigh's band 2 from the whole field: L2 plus psi times
+			 * each direction's transfer, where the sun is up
+			 * (multiscatter.comp's store_shape). */
+			double field = fmax(lum_l2 + dot(mul(psi, sf), SHARE_LUM), 1e-30);
+			double lit = model_light_visible(c, h, mu_s, c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
+			double kf = lit * field / dirs / fmax(dot(psi, SHARE_LUM), 1e-30);
+			ret_shape[1] = kf * (7.5 * (s2.x + dot(mul(psi, sfzz), SHARE_LUM)) / field - 2.5);
+			ret_shape[2] = kf * 15.0 * (s2.y + dot(mul(psi, sfxz), SHARE_LUM)) / field;
+			ret_shape[0] = kf * 3.0 * sm.z / l;
+			ret_shape[3] = kf * a;
+		}
 	}
 }
 
