@@ -6,7 +6,7 @@
  *            [--dirs elevation:azimuth,...] [--mode sky|single|ground]
  *            [--min-samples N] [--max-samples N] [--batch N] [--reference]
  *            [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]
- *            [--tables] [--model FACTOR]
+ *            [--tables] [--model FACTOR] [--sos]
  *
  * --tables adds the engine's sky radiance per direction (the sky-view table
  * computed by the default Vulkan device for the same state, read as libsky
@@ -14,6 +14,10 @@
  * the state's table sizes with every step count times FACTOR. Both come
  * after the truth's columns, to separate the technique (the model) from its
  * discretisation on the GPU (the tables) at the horizon and in colour.
+ * --sos adds truth/sos.c's plane-parallel answer, scalar then polarized, for
+ * the state's Rayleigh constituents alone (their vertical optical depth per
+ * channel; the others, the curvature and the ground's albedo are left out)
+ * seen from the ground, for views above the horizon with the sun up.
  *
  * --isotropic and --delta-m trace the sky tables' assumptions (pt_approx):
  * light scattered once already scatters isotropically; the constituent's
@@ -38,6 +42,7 @@
 #include "proto.h"
 #include "pt.h"
 #include "skysample.h"
+#include "sos.h"
 #include "state.h"
 
 #define MAX_DIRS 4096
@@ -51,7 +56,7 @@ static void usage(FILE *f)
 		"                [--dirs EL:AZ,...] [--mode sky|single|ground]\n"
 		"                [--min-samples N] [--max-samples N] [--batch N] [--reference]\n"
 		"                [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]\n"
-		"                [--tables] [--model FACTOR]\n"
+		"                [--tables] [--model FACTOR] [--sos]\n"
 		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...).\n"
 		"default --dirs %s\n", default_dirs);
 }
@@ -112,6 +117,7 @@ struct args {
 	double delta_f;		/* --delta-f, < 0 for the phase's own */
 	int tables;		/* --tables */
 	uint64_t model_factor;	/* --model, 0 none */
+	int sos;		/* --sos */
 };
 
 /* Sets option a from its value v. Returns 0, -EINVAL for a bad value, or
@@ -195,6 +201,8 @@ static int parse_args(int argc, char **argv, struct args *g, struct pt_dir *dirs
 			g->ap.isotropic = 1;
 		} else if (strcmp(a, "--tables") == 0) {
 			g->tables = 1;
+		} else if (strcmp(a, "--sos") == 0) {
+			g->sos = 1;
 		} else if (strcmp(a, "--delta-excess") == 0) {
 			g->ap.delta_excess = 1;
 		} else if (strncmp(a, "--", 2) == 0) {
@@ -294,10 +302,51 @@ static int model_sky(const struct sky_state *s, uint64_t factor, const struct pt
 	return 0;
 }
 
+/* --sos: truth/sos.c for the state's Rayleigh column, scalar (ret[i][0..2])
+ * and polarized (ret[i][3..5]), the sun's illuminance per channel. Views
+ * at or below the horizon, or the sun not above it, give NAN. Returns 0 or
+ * 1 (said on stderr). */
+static int sos_sky(const struct sky_state *s, const struct pt_dir *dirs, size_t n,
+		   double (*ret)[6])
+{
+	struct atmo a = s->atmo;
+	for (int i = 0; i < a.n_constituents; i++)
+		if (a.c[i].phase != ATMO_PHASE_RAYLEIGH)
+			for (int ch = 0; ch < 3; ch++)
+				a.c[i].scattering_per_km[ch] = a.c[i].absorption_per_km[ch] = 0.0;
+	double tau[3], out[MAX_DIRS];
+	struct sos_view v[MAX_DIRS];
+	size_t m = 0;
+	atmo_vertical_optical_depth(&a, 100000, tau);
+	for (size_t i = 0; i < n; i++) {
+		for (int k = 0; k < 6; k++)
+			ret[i][k] = NAN;
+		if (dirs[i].elevation_deg > 0.0)
+			v[m++] = (struct sos_view){ dirs[i].elevation_deg,
+						    dirs[i].azimuth_deg - s->sun.azimuth_deg };
+	}
+	if (!m || !(s->sun.elevation_deg > 0.0))
+		return 0;
+	for (int pol = 0; pol < 2; pol++)
+		for (int ch = 0; ch < 3; ch++) {
+			struct sos_layer l = { .tau = tau[ch], .sun_elevation_deg = s->sun.elevation_deg,
+					       .irradiance = s->sun.illuminance_lx * s->sun.color[ch],
+					       .polarized = pol };
+			if (!(tau[ch] > 0.0) || sos_rayleigh(&l, v, m, out, NULL) < 0) {
+				fprintf(stderr, "skytruth: --sos: no Rayleigh column to solve\n");
+				return 1;
+			}
+			for (size_t i = 0, j = 0; i < n; i++)
+				if (dirs[i].elevation_deg > 0.0)
+					ret[i][3 * pol + ch] = out[j++];
+		}
+	return 0;
+}
+
 /* Traces g's directions and prints one line each, between a header and
  * the time taken. Returns the exit status. */
 static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_result *res,
-		 double (*tab)[3], double (*mod)[3])
+		 double (*tab)[3], double (*mod)[3], double (*sos)[6])
 {
 	const struct sky_state *s = &g->s;
 	const struct pt_approx *ap = &g->ap;
@@ -328,9 +377,10 @@ static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_resu
 	}
 
 	uint64_t total = 0;
-	printf("# elevation_deg azimuth_deg L_r L_g L_b se_r se_g se_b samples%s%s%s\n",
+	printf("# elevation_deg azimuth_deg L_r L_g L_b se_r se_g se_b samples%s%s%s%s\n",
 	       g->reference ? " ref_r ref_g ref_b" : "", g->tables ? " tab_r tab_g tab_b" : "",
-	       g->model_factor ? " model_r model_g model_b" : "");
+	       g->model_factor ? " model_r model_g model_b" : "",
+	       g->sos ? " sos_r sos_g sos_b pol_r pol_g pol_b" : "");
 	for (size_t i = 0; i < g->n; i++) {
 		printf("%.6g %.6g %.9g %.9g %.9g %.3g %.3g %.3g %llu", dirs[i].elevation_deg,
 		       dirs[i].azimuth_deg, res[i].radiance[0], res[i].radiance[1],
@@ -345,6 +395,8 @@ static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_resu
 			printf(" %.9g %.9g %.9g", tab[i][0], tab[i][1], tab[i][2]);
 		if (g->model_factor)
 			printf(" %.9g %.9g %.9g", mod[i][0], mod[i][1], mod[i][2]);
+		for (int k = 0; g->sos && k < 6; k++)
+			printf(" %.9g", sos[i][k]);
 		printf("\n");
 		total += res[i].samples;
 	}
@@ -357,7 +409,7 @@ int main(int argc, char **argv)
 {
 	static struct pt_dir dirs[MAX_DIRS];
 	static struct pt_result res[MAX_DIRS];
-	static double tab[MAX_DIRS][3], mod[MAX_DIRS][3];
+	static double tab[MAX_DIRS][3], mod[MAX_DIRS][3], sos[MAX_DIRS][6];
 	struct args g = { .delta_f = -1.0 };
 
 	int status = parse_args(argc, argv, &g, dirs);
@@ -367,5 +419,7 @@ int main(int argc, char **argv)
 		return status;
 	if (g.model_factor && (status = model_sky(&g.s, g.model_factor, dirs, g.n, mod)) != 0)
 		return status;
-	return trace(&g, dirs, res, tab, mod);
+	if (g.sos && (status = sos_sky(&g.s, dirs, g.n, sos)) != 0)
+		return status;
+	return trace(&g, dirs, res, tab, mod, sos);
 }
