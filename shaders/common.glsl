@@ -479,8 +479,9 @@ vec3 ground_scattering(Scatter sc, vec4 ex)
 
 // The scattering of the constituent that sees the lobe (ms_source). A
 // Rayleigh lobe (g1 = 0) is the field's band 2 alone, which every phase
-// sees by its own g2: sum sigma_i g2_i over the lobe's g2 (Earth's Mie, g2
-// 0.6, sees it as much as its air, 0.1).
+// sees by its own g2: sum sigma_i g2_i over the lobe's g2 (at Earth's ground
+// the Mie layer, g2 0.71, sees it as much as the air, 0.1, in blue and five
+// times as much in red).
 vec3 forward_scattering(Scatter sc)
 {
 	if (MOMENT_CONST < 0)
