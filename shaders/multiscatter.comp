@@ -242,6 +242,29 @@ void store_shape(int i, int j, vec3 psi, vec3 sun_j, float escape_lum, float lit
 	MOB.d[i] = share * vec4(3.0 * m.y, 7.5 * t.x - 2.5, z, a);
 }
 
+// Under a Rayleigh lobe, where the sun is up: the higher orders' transfer
+// beyond Hillaire's isotropic f_ms. Light scattered from a field brighter
+// toward the horizon (<P2> < 0) leaves again more along the long
+// horizontal paths, where more of it scatters: f_eff = f + 5 g2 <P2>
+// <f P2>, with g2 the medium's at the point (sum sigma_i g2_i / sigma_s)
+// and <P2> the field's of store_shape (from the first psi). Returns
+// f_eff - f per channel (docs/findings.md, "The horizon reads blue low").
+vec3 band2_transfer(int j, float h, vec3 psi, vec3 sun_j)
+{
+	float l = max(dot(sum_l2[j], MS_SHARE_LUM), 1e-30);
+	float field = l + dot(psi * sum_transfer[0], MS_SHARE_LUM);
+	float p2 = 1.5 * (sum_second[j].x + dot(psi * sum_transfer[1], MS_SHARE_LUM)) / field - 0.5;
+	vec3 fp2 = (1.5 * sum_transfer[1] - 0.5 * sum_transfer[0]) * MS_NORM;
+	Scatter sc;
+	medium_parts(h, sc);
+	vec3 s0 = vec3(0.0), s2 = vec3(0.0);
+	for (int i = 0; i < N_CONST; i++) {
+		s0 += sc.s[i];
+		s2 += sc.s[i] * P.c[i].layer1c.y;
+	}
+	return 5.0 * s2 / max(s0, vec3(1e-30)) * p2 * fp2 * light_visible(t_alt(h), sun_j.z, P.sun_dir.w);
+}
+
 void main()
 {
 	load_params();
@@ -294,6 +317,9 @@ void main()
 		// 1 - f_ms is a sum of non-negative terms; the floor only keeps
 		// 0 / 0 away (where the escape is 0, L2 is 0 too).
 		vec3 psi = (sum_l2[j] + sum_ground[j] * ground_kept) * MS_NORM / max(escape, vec3(1e-6));
+		if (MOMENT_CONST >= 0 && P.c[max(MOMENT_CONST, 0)].absorption.w == 0.0)
+			psi = (sum_l2[j] + sum_ground[j] * ground_kept) * MS_NORM /
+			      max(escape - band2_transfer(j, h, psi, sun[j]), vec3(1e-6));
 		// A: the ground's first bounce G (its mean over the sphere) as a
 		// share of psi, which sky-view and aerial perspective scatter
 		// through each constituent's phase (ground_excess()); its higher
