@@ -471,10 +471,21 @@ vec3 ground_scattering(Scatter sc, vec4 ex)
 	return r;
 }
 
-// The scattering of the constituent that sees the lobe (ms_source).
+// The scattering of the constituent that sees the lobe (ms_source). A
+// Rayleigh lobe (g1 = 0) is the field's band 2 alone, which every phase
+// sees by its own g2: sum sigma_i g2_i over the lobe's g2 (at Earth's ground
+// the Mie layer, g2 0.71, sees it as much as the air, 0.1, in blue and five
+// times as much in red).
 vec3 forward_scattering(Scatter sc)
 {
-	return MOMENT_CONST >= 0 ? sc.s[max(MOMENT_CONST, 0)] : vec3(0.0);
+	if (MOMENT_CONST < 0)
+		return vec3(0.0);
+	if (P.c[max(MOMENT_CONST, 0)].absorption.w != 0.0)
+		return sc.s[max(MOMENT_CONST, 0)];
+	vec3 f = vec3(0.0);
+	for (int i = 0; i < N_CONST; i++)
+		f += sc.s[i] * P.c[i].layer1c.y;
+	return f / P.c[max(MOMENT_CONST, 0)].layer1c.y;
 }
 
 // multiscatter_at and the shape of the same texels (MomentTex).

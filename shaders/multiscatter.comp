@@ -73,6 +73,11 @@ vec3 sum_l2[MS_SUN_GROUP], sum_ground[MS_SUN_GROUP];
 vec2 sum_moment[MS_SUN_GROUP];
 vec3 sum_second[MS_SUN_GROUP];
 vec3 sum_escape, sum_returned;
+// Rayleigh's band 2 (a lobe constituent of g1 = 0): the scattering transfer
+// int sigma_s T dt of each cell (the field an isotropic source psi sends to
+// the point from there, the higher orders' direction) with its zz and xz
+// moments, per channel: (transfer, zz, xz).
+mat3 sum_transfer;
 
 // L2's first scattering (at y, from the sun toward x) takes each
 // constituent's own phase, not the isotropic one: a forward lobe toward a
@@ -128,7 +133,7 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 	if (ground)
 		t_end = tg;
 	float dt = t_end / float(STEPS);
-	vec3 tr = vec3(1.0), absorbed = vec3(0.0);
+	vec3 tr = vec3(1.0), absorbed = vec3(0.0), transfer = vec3(0.0);
 	// Per sun, the phase-weighted scattering per unit density of each
 	// constituent: a matrix times the step's densities (arrays of
 	// constituents indexed in loops leave the registers on lavapipe).
@@ -156,6 +161,7 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 		for (int j = 0; j < MS_SUN_GROUP; j++)
 			l2[j] += w * (phased_of[j] * dens) * sunlight(a, dot(up, sun[j]), P.sun_dir.w, ext_scaled);
 		absorbed += w * absorption;
+		transfer += w * scattering;
 		tr *= step_t;
 	}
 	// The cell's solid angle over the mean cell's: every term below is
@@ -166,6 +172,10 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 		sum_l2[j] += wk * l2[j];
 	// The moments take the cell's weight as L2 does, so that they
 	// integrate over the sphere with psi's quadrature.
+	if (MOMENT_CONST >= 0) {
+		transfer *= wk;
+		sum_transfer += mat3(transfer, transfer * (dir.z * dir.z), transfer * (dir.x * dir.z));
+	}
 	if (MOMENT_CONST >= 0)
 		for (int j = 0; j < MS_SUN_GROUP; j++) {
 			float l = wk * dot(l2[j], MS_SHARE_LUM);
@@ -205,9 +215,15 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 //   sub-samples (cell_xy2) less the aureole's own part a k^2 sin^2(theta_s);
 //   without delta-M the sub-samples cannot resolve the phase's narrow peak
 //   and z is 15 T_xz. One texel keeps a lookup to one fetch.
-// L2's shape stands for the higher orders' too. docs/physics.md derives the
-// bands; docs/findings.md has the variants measured on Mars.
-void store_shape(int i, int j, vec3 psi, vec3 sun_j, float escape_lum)
+// With a forward lobe L2's shape stands for the higher orders' too.
+// Rayleigh's (g1 = 0: bands 0 and 2 only) takes the whole field, L2 plus the
+// higher orders psi times each direction's transfer (sum_transfer): they
+// arrive far more from the horizon than L2. Only where the sun is up (lit):
+// in the earth's shadow psi along a path is not the point's, and the shape
+// read twilight skies high (docs/findings.md, "The horizon reads blue low").
+// docs/physics.md derives the bands; docs/findings.md has the variants
+// measured on Mars.
+void store_shape(int i, int j, vec3 psi, vec3 sun_j, float escape_lum, float lit)
 {
 	float l = max(dot(sum_l2[j], MS_SHARE_LUM), 1e-30);
 	float share = l * MS_NORM / escape_lum / max(dot(psi, MS_SHARE_LUM), 1e-30);
@@ -215,9 +231,38 @@ void store_shape(int i, int j, vec3 psi, vec3 sun_j, float escape_lum)
 	vec3 t = sum_second[j] / l;
 	float k = DELTA_CONST >= 0 ? P.c[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
 				   : P.c[max(MOMENT_CONST, 0)].absorption.w;
+	if (k == 0.0) {
+		float field = l + dot(psi * sum_transfer[0], MS_SHARE_LUM);
+		t.xy = (sum_second[j].xy + vec2(dot(psi * sum_transfer[1], MS_SHARE_LUM),
+						dot(psi * sum_transfer[2], MS_SHARE_LUM))) / field;
+		share = field * MS_NORM / max(dot(psi, MS_SHARE_LUM), 1e-30) * lit;
+	}
 	float a = clamp(-m.x / max(k * sun_j.x, 1e-3), 0.0, 1.0);
 	float z = DELTA_CONST >= 0 ? 3.75 * (t.z - a * k * k * sun_j.x * sun_j.x) : 15.0 * t.y;
 	MOB.d[i] = share * vec4(3.0 * m.y, 7.5 * t.x - 2.5, z, a);
+}
+
+// Under a Rayleigh lobe, where the sun is up: the higher orders' transfer
+// beyond Hillaire's isotropic f_ms. Light scattered from a field brighter
+// toward the horizon (<P2> < 0) leaves again more along the long
+// horizontal paths, where more of it scatters: f_eff = f + 5 g2 <P2>
+// <f P2>, with g2 the medium's at the point (sum sigma_i g2_i / sigma_s)
+// and <P2> the field's of store_shape (from the first psi). Returns
+// f_eff - f per channel (docs/findings.md, "The horizon reads blue low").
+vec3 band2_transfer(int j, float h, vec3 psi, vec3 sun_j)
+{
+	float l = max(dot(sum_l2[j], MS_SHARE_LUM), 1e-30);
+	float field = l + dot(psi * sum_transfer[0], MS_SHARE_LUM);
+	float p2 = 1.5 * (sum_second[j].x + dot(psi * sum_transfer[1], MS_SHARE_LUM)) / field - 0.5;
+	vec3 fp2 = (1.5 * sum_transfer[1] - 0.5 * sum_transfer[0]) * MS_NORM;
+	Scatter sc;
+	medium_parts(h, sc);
+	vec3 s0 = vec3(0.0), s2 = vec3(0.0);
+	for (int i = 0; i < N_CONST; i++) {
+		s0 += sc.s[i];
+		s2 += sc.s[i] * P.c[i].layer1c.y;
+	}
+	return 5.0 * s2 / max(s0, vec3(1e-30)) * p2 * fp2 * light_visible(t_alt(h), sun_j.z, P.sun_dir.w);
 }
 
 void main()
@@ -256,6 +301,7 @@ void main()
 	}
 	sum_escape = vec3(0.0);
 	sum_returned = vec3(0.0);
+	sum_transfer = mat3(0.0);
 	for (int k = 0; k < MS_MARCHED; k++)
 		march_cell(k, h, r0, sun, ext_scaled, scattering_of, absorption_of);
 	vec3 escape = sum_escape * MS_NORM;
@@ -271,6 +317,9 @@ void main()
 		// 1 - f_ms is a sum of non-negative terms; the floor only keeps
 		// 0 / 0 away (where the escape is 0, L2 is 0 too).
 		vec3 psi = (sum_l2[j] + sum_ground[j] * ground_kept) * MS_NORM / max(escape, vec3(1e-6));
+		if (MOMENT_CONST >= 0 && P.c[max(MOMENT_CONST, 0)].absorption.w == 0.0)
+			psi = (sum_l2[j] + sum_ground[j] * ground_kept) * MS_NORM /
+			      max(escape - band2_transfer(j, h, psi, sun[j]), vec3(1e-6));
 		// A: the ground's first bounce G (its mean over the sphere) as a
 		// share of psi, which sky-view and aerial perspective scatter
 		// through each constituent's phase (ground_excess()); its higher
@@ -280,7 +329,8 @@ void main()
 		STORE_TEXEL(MB, py * OUT_W + x0 + j, vec4(psi, clamp(share, 0.0, 1.0)));
 		note_range(psi);
 		if (MOMENT_CONST >= 0)
-			store_shape(py * OUT_W + x0 + j, j, psi, sun[j], escape_lum);
+			store_shape(py * OUT_W + x0 + j, j, psi, sun[j], escape_lum,
+				    light_visible(t_alt(h), sun[j].z, P.sun_dir.w));
 	}
 	flush_range(BINDING_MULTISCATTER - BINDING_TRANSMITTANCE);
 }

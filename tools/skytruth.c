@@ -6,6 +6,18 @@
  *            [--dirs elevation:azimuth,...] [--mode sky|single|ground]
  *            [--min-samples N] [--max-samples N] [--batch N] [--reference]
  *            [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]
+ *            [--tables] [--model FACTOR] [--sos]
+ *
+ * --tables adds the engine's sky radiance per direction (the sky-view table
+ * computed by the default Vulkan device for the same state, read as libsky
+ * reads it); --model FACTOR the double-precision model's (truth/model.c) at
+ * the state's table sizes with every step count times FACTOR. Both come
+ * after the truth's columns, to separate the technique (the model) from its
+ * discretisation on the GPU (the tables) at the horizon and in colour.
+ * --sos adds truth/sos.c's plane-parallel answer, scalar then polarized, for
+ * the state's Rayleigh constituents alone (their vertical optical depth per
+ * channel; the others, the curvature and the ground's albedo are left out)
+ * seen from the ground, for views above the horizon with the sun up.
  *
  * A direction of --dirs is elevation:azimuth, or tTANGENT_KM:azimuth for
  * the view down that grazes the air at that altitude (the limb, as seen
@@ -30,9 +42,12 @@
 #include <string.h>
 #include <time.h>
 
+#include "eng.h"
 #include "model.h"
 #include "proto.h"
 #include "pt.h"
+#include "skysample.h"
+#include "sos.h"
 #include "state.h"
 
 #define MAX_DIRS 4096
@@ -50,6 +65,7 @@ static void usage(FILE *f)
 		"                [--dirs EL:AZ,...] [--mode sky|single|ground]\n"
 		"                [--min-samples N] [--max-samples N] [--batch N] [--reference]\n"
 		"                [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]\n"
+		"                [--tables] [--model FACTOR] [--sos]\n"
 		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...).\n"
 		"--dirs EL:AZ in degrees, or tKM:AZ: the view down that grazes the air at\n"
 		"KM of altitude (the limb; KM below altitude_km).\n"
@@ -114,6 +130,9 @@ struct args {
 	struct pt_approx ap;
 	uint64_t delta_m;	/* 1 + --delta-m's constituent, 0 none */
 	double delta_f;		/* --delta-f, < 0 for the phase's own */
+	int tables;		/* --tables */
+	uint64_t model_factor;	/* --model, 0 none */
+	int sos;		/* --sos */
 };
 
 /* Sets option a from its value v. Returns 0, -EINVAL for a bad value, or
@@ -140,6 +159,8 @@ static int set_option(struct args *g, struct pt_dir *dirs, const char *a, const 
 		bad = parse_u64(v, &u) < 0 || u >= ATMO_MAX_CONSTITUENTS || (g->delta_m = u + 1, 0);
 	else if (strcmp(a, "--delta-f") == 0)
 		bad = proto_parse_number(v, &d) < 0 || !(d >= 0.0 && d < 1.0) || (g->delta_f = d, 0);
+	else if (strcmp(a, "--model") == 0)
+		bad = parse_u64(v, &u) < 0 || !u || u > 64 || (g->model_factor = u, 0);
 	else if (strcmp(a, "--dirs") == 0)
 		bad = parse_dirs(v, dirs, &g->n) < 0;
 	else if (strcmp(a, "--mode") == 0) {
@@ -193,6 +214,10 @@ static int parse_args(int argc, char **argv, struct args *g, struct pt_dir *dirs
 			g->reference = 1;
 		} else if (strcmp(a, "--isotropic") == 0) {
 			g->ap.isotropic = 1;
+		} else if (strcmp(a, "--tables") == 0) {
+			g->tables = 1;
+		} else if (strcmp(a, "--sos") == 0) {
+			g->sos = 1;
 		} else if (strcmp(a, "--delta-excess") == 0) {
 			g->ap.delta_excess = 1;
 		} else if (strncmp(a, "--", 2) == 0) {
@@ -223,9 +248,120 @@ static int parse_args(int argc, char **argv, struct args *g, struct pt_dir *dirs
 	return set_delta_m(g) ? 2 : -1;
 }
 
+/* The sky radiance of a sky-view table of s's size in texels (RGBA float32),
+ * read as libsky reads it, in n directions. */
+static void sample_sky(const struct sky_state *s, const void *texels, int32_t scale_log2,
+		       uint32_t format, const struct pt_dir *dirs, size_t n, double (*ret)[3])
+{
+	struct skysample_table t = { .texels = texels, .format = format,
+		.width = s->quality.t[STATE_SKYVIEW].width,
+		.height = s->quality.t[STATE_SKYVIEW].height, .depth = 1,
+		.rgb_scale_log2 = scale_log2 };
+	struct sky_shm_state st = { .altitude_km = s->altitude_km,
+		.bottom_radius_km = s->atmo.bottom_radius_km,
+		.top_radius_km = s->atmo.top_radius_km };
+	for (size_t i = 0; i < n; i++)
+		skysample_sky(&t, &st, dirs[i].elevation_deg * M_PI / 180.0,
+			      dirs[i].azimuth_deg * M_PI / 180.0, ret[i]);
+}
+
+/* --tables: the engine's sky-view table for s in n directions. Returns 0,
+ * or 77 without a Vulkan device, 1 on a device error (said on stderr). */
+static int engine_sky(const struct sky_state *s, const struct pt_dir *dirs, size_t n,
+		      double (*ret)[3])
+{
+	char err[512];
+	struct eng *e;
+	struct eng_timing t;
+	if (eng_new(NULL, err, sizeof(err), &e) < 0) {
+		fprintf(stderr, "skytruth: %s\n", err);
+		return 77;
+	}
+	const uint32_t mask = STATE_BIT(STATE_TRANSMITTANCE) | STATE_BIT(STATE_MULTISCATTER) |
+			      STATE_BIT(STATE_SKYVIEW);
+	if (eng_compute(e, s, mask, &t, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skytruth: %s\n", err);
+		eng_free(e);
+		return 1;
+	}
+	sample_sky(s, eng_table(e, STATE_SKYVIEW, NULL), eng_table_scale_log2(e, STATE_SKYVIEW),
+		   s->quality.storage == STATE_F16 ? SKY_FORMAT_RGBA16F : SKY_FORMAT_RGBA32F,
+		   dirs, n, ret);
+	eng_free(e);
+	return 0;
+}
+
+/* --model: the double-precision model's sky-view table for s with every
+ * step count times factor, in n directions. Returns 0 or 1 (said). */
+static int model_sky(const struct sky_state *s, uint64_t factor, const struct pt_dir *dirs,
+		     size_t n, double (*ret)[3])
+{
+	struct sky_state r;
+	struct model_tables m;
+	model_refine(s, (uint32_t)factor, &r);
+	if (model_compute(&r, STATE_BIT(STATE_SKYVIEW), &m) < 0) {
+		fprintf(stderr, "skytruth: the model: out of memory\n");
+		return 1;
+	}
+	size_t texels = (size_t)m.w[STATE_SKYVIEW] * m.h[STATE_SKYVIEW];
+	float *f = malloc(4 * texels * sizeof(*f));
+	if (!f) {
+		model_tables_finish(&m);
+		return 1;
+	}
+	for (size_t i = 0; i < 4 * texels; i++)
+		f[i] = (float)m.t[STATE_SKYVIEW][i];
+	sample_sky(&r, f, 0, SKY_FORMAT_RGBA32F, dirs, n, ret);
+	free(f);
+	model_tables_finish(&m);
+	return 0;
+}
+
+/* --sos: truth/sos.c for the state's Rayleigh column, scalar (ret[i][0..2])
+ * and polarized (ret[i][3..5]), the sun's illuminance per channel. Views
+ * at or below the horizon, or the sun not above it, give NAN. Returns 0 or
+ * 1 (said on stderr). */
+static int sos_sky(const struct sky_state *s, const struct pt_dir *dirs, size_t n,
+		   double (*ret)[6])
+{
+	struct atmo a = s->atmo;
+	for (int i = 0; i < a.n_constituents; i++)
+		if (a.c[i].phase != ATMO_PHASE_RAYLEIGH)
+			for (int ch = 0; ch < 3; ch++)
+				a.c[i].scattering_per_km[ch] = a.c[i].absorption_per_km[ch] = 0.0;
+	double tau[3], out[MAX_DIRS];
+	struct sos_view v[MAX_DIRS];
+	size_t m = 0;
+	atmo_vertical_optical_depth(&a, 100000, tau);
+	for (size_t i = 0; i < n; i++) {
+		for (int k = 0; k < 6; k++)
+			ret[i][k] = NAN;
+		if (dirs[i].elevation_deg > 0.0)
+			v[m++] = (struct sos_view){ dirs[i].elevation_deg,
+						    dirs[i].azimuth_deg - s->sun.azimuth_deg };
+	}
+	if (!m || !(s->sun.elevation_deg > 0.0))
+		return 0;
+	for (int pol = 0; pol < 2; pol++)
+		for (int ch = 0; ch < 3; ch++) {
+			struct sos_layer l = { .tau = tau[ch], .sun_elevation_deg = s->sun.elevation_deg,
+					       .irradiance = s->sun.illuminance_lx * s->sun.color[ch],
+					       .polarized = pol };
+			if (!(tau[ch] > 0.0) || sos_rayleigh(&l, v, m, out, NULL) < 0) {
+				fprintf(stderr, "skytruth: --sos: no Rayleigh column to solve\n");
+				return 1;
+			}
+			for (size_t i = 0, j = 0; i < n; i++)
+				if (dirs[i].elevation_deg > 0.0)
+					ret[i][3 * pol + ch] = out[j++];
+		}
+	return 0;
+}
+
 /* Traces g's directions and prints one line each, between a header and
  * the time taken. Returns the exit status. */
-static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_result *res)
+static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_result *res,
+		 double (*tab)[3], double (*mod)[3], double (*sos)[6])
 {
 	const struct sky_state *s = &g->s;
 	const struct pt_approx *ap = &g->ap;
@@ -256,8 +392,10 @@ static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_resu
 	}
 
 	uint64_t total = 0;
-	printf("# elevation_deg azimuth_deg L_r L_g L_b se_r se_g se_b samples%s\n",
-	       g->reference ? " ref_r ref_g ref_b" : "");
+	printf("# elevation_deg azimuth_deg L_r L_g L_b se_r se_g se_b samples%s%s%s%s\n",
+	       g->reference ? " ref_r ref_g ref_b" : "", g->tables ? " tab_r tab_g tab_b" : "",
+	       g->model_factor ? " model_r model_g model_b" : "",
+	       g->sos ? " sos_r sos_g sos_b pol_r pol_g pol_b" : "");
 	for (size_t i = 0; i < g->n; i++) {
 		printf("%.6g %.6g %.9g %.9g %.9g %.3g %.3g %.3g %llu", dirs[i].elevation_deg,
 		       dirs[i].azimuth_deg, res[i].radiance[0], res[i].radiance[1],
@@ -268,6 +406,12 @@ static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_resu
 			pt_single_scatter_reference(&s->atmo, s->altitude_km, &sun, &dirs[i], ref);
 			printf(" %.9g %.9g %.9g", ref[0], ref[1], ref[2]);
 		}
+		if (g->tables)
+			printf(" %.9g %.9g %.9g", tab[i][0], tab[i][1], tab[i][2]);
+		if (g->model_factor)
+			printf(" %.9g %.9g %.9g", mod[i][0], mod[i][1], mod[i][2]);
+		for (int k = 0; g->sos && k < 6; k++)
+			printf(" %.9g", sos[i][k]);
 		printf("\n");
 		total += res[i].samples;
 	}
@@ -299,6 +443,7 @@ int main(int argc, char **argv)
 {
 	static struct pt_dir dirs[MAX_DIRS];
 	static struct pt_result res[MAX_DIRS];
+	static double tab[MAX_DIRS][3], mod[MAX_DIRS][3], sos[MAX_DIRS][6];
 	struct args g = { .delta_f = -1.0 };
 
 	int status = parse_args(argc, argv, &g, dirs);
@@ -306,5 +451,11 @@ int main(int argc, char **argv)
 		return status;
 	if (resolve_tangents(&g, dirs))
 		return 2;
-	return trace(&g, dirs, res);
+	if (g.tables && (status = engine_sky(&g.s, dirs, g.n, tab)) != 0)
+		return status;
+	if (g.model_factor && (status = model_sky(&g.s, g.model_factor, dirs, g.n, mod)) != 0)
+		return status;
+	if (g.sos && (status = sos_sky(&g.s, dirs, g.n, sos)) != 0)
+		return status;
+	return trace(&g, dirs, res, tab, mod, sos);
 }

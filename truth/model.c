@@ -317,6 +317,12 @@ int model_compute(const struct sky_state *s, uint32_t mask, struct model_tables 
 			c.lobe_g[0] = c.delta_g;
 			c.lobe_g[1] = c.delta_g * c.delta_g;
 		}
+		for (int n = 0; n < s->atmo.n_constituents; n++) {
+			const struct atmo_constituent *k = &s->atmo.c[n];
+			c.lobe_weight[n] = c.lobe_g[0] != 0.0 ? n == c.lobe
+					   : k->phase == ATMO_PHASE_NONE ? 0.0
+					   : phase_legendre(k->phase, k->g, 2) / c.lobe_g[1];
+		}
 		c.moment = calloc(4 * (size_t)m.w[1] * m.h[1], sizeof(double));
 		if (!c.moment) {
 			free(c.delta_col);

@@ -51,6 +51,10 @@ struct ctx {
 	int lobe;
 	double *moment;
 	double lobe_g[2];
+	/* Each constituent's scattering's weight in the lobe's (the lobe
+	 * alone, or under a Rayleigh lobe every phase's g2 over the lobe's:
+	 * forward_scattering in common.glsl). */
+	double lobe_weight[ATMO_MAX_CONSTITUENTS];
 	/* Delta-M (phase_delta_constituent, delta_source in common.glsl):
 	 * the constituent (-1 none), its f and g', the scaled atmosphere
 	 * (its scattering (1 - f) sigma_D through Henyey-Greenstein g'),

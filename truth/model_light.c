@@ -212,10 +212,14 @@ v3 model_light_source(const struct ctx *c, double h, v3 up, v3 dir, v3 light, do
 {
 	v3 s = mul(model_phased_scattering(c, h, dot(dir, light)), model_step_light(c, h, dot(up, light), radius_deg, visible));
 	v3 fwd = v(0, 0, 0);
-	if (c->lobe >= 0) {
-		const struct atmo_constituent *k = &c->a->c[c->lobe];
-		fwd = scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
-			    atmo_density(&k->density, h));
+	/* A Rayleigh lobe (g1 = 0): every constituent's band 2, sum sigma_i
+	 * g2_i over the lobe's g2 (forward_scattering in common.glsl). */
+	for (int n = 0; n < c->a->n_constituents && c->lobe >= 0; n++) {
+		const struct atmo_constituent *k = &c->a->c[n];
+		if (c->lobe_weight[n] != 0.0)
+			fwd = add(fwd, scale(v(k->scattering_per_km[0], k->scattering_per_km[1],
+					       k->scattering_per_km[2]),
+					     c->lobe_weight[n] * atmo_density(&k->density, h)));
 	}
 	s = add(s, model_higher_orders(c, h, up, dir, light, sigma_s, ground, fwd));
 	return mul(s, illum);

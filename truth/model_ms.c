@@ -81,6 +81,37 @@ static v3 ms_direction(uint32_t k, uint32_t n)
 	return v(st * cos(ph), st * sin(ph), ct);
 }
 
+/* psi again with the higher orders' transfer f_eff = f + 5 g2 <P2> <f P2>
+ * (multiscatter.comp's main): under a Rayleigh lobe, where the sun is up,
+ * light scattered from a field brighter toward the horizon goes on more
+ * along the long horizontal paths. l2_lum and s2_zz: L2's luminance and zz
+ * moment sums; sf, sfzz: the transfer's sums. */
+static v3 band2_psi(const struct ctx *c, double h, double mu_s, uint32_t dirs, v3 sl, v3 se, v3 psi,
+		    double l2_lum, double s2_zz, v3 sf, v3 sfzz)
+{
+	double field = fmax(l2_lum + dot(mul(psi, sf), SHARE_LUM), 1e-30);
+	double p2 = 1.5 * (s2_zz + dot(mul(psi, sfzz), SHARE_LUM)) / field - 0.5;
+	double lit = model_light_visible(c, h, mu_s, c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
+	v3 s0 = { 0 }, s2 = { 0 };
+	for (int n = 0; n < c->a->n_constituents; n++) {
+		const struct atmo_constituent *k = &c->a->c[n];
+		v3 sig = scale(v(k->scattering_per_km[0], k->scattering_per_km[1], k->scattering_per_km[2]),
+			       atmo_density(&k->density, h));
+		s0 = add(s0, sig);
+		s2 = add(s2, scale(sig, c->lobe_weight[n] * c->lobe_g[1]));
+	}
+	double e[3], out[3];
+	const double f0[3] = { sf.x, sf.y, sf.z }, fzz[3] = { sfzz.x, sfzz.y, sfzz.z };
+	const double g0[3] = { s0.x, s0.y, s0.z }, g2[3] = { s2.x, s2.y, s2.z };
+	const double l[3] = { sl.x, sl.y, sl.z }, esc[3] = { se.x, se.y, se.z };
+	for (int ch = 0; ch < 3; ch++) {
+		double fp2 = (1.5 * fzz[ch] - 0.5 * f0[ch]) / dirs;
+		e[ch] = esc[ch] - 5.0 * g2[ch] / fmax(g0[ch], 1e-30) * p2 * fp2 * lit;
+		out[ch] = l[ch] / fmax(e[ch], 1e-6);
+	}
+	return v(out[0], out[1], out[2]);
+}
+
 /* One texel of the multi-scattering table at altitude h and sun cosine
  * mu_s: psi, the ground's share of it (A) and the escape 1 - f_ms. */
 static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double h, double mu_s,
@@ -90,6 +121,9 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 	v3 sun = v(skymap_safe_sqrt(1.0 - mu_s * mu_s), 0, mu_s);
 	/* s2: L2's second moments zz, xz and, from the sub-samples, xx - yy. */
 	v3 sl = { 0 }, sg = { 0 }, sr = { 0 }, se = { 0 }, sm = { 0 }, s2 = { 0 };
+	/* Each direction's scattering transfer and its zz and xz moments, per
+	 * channel: the higher orders' shape for Rayleigh's band 2. */
+	v3 sf = { 0 }, sfzz = { 0 }, sfxz = { 0 };
 	double r0 = c->rb + h;
 	/* The first scattering of L2 with each constituent's own phase,
 	 * the cells' means normalised to sum to exactly 1 over the
@@ -117,7 +151,7 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		if (ground)
 			t_end = tg;
 		double dt = t_end / steps;
-		v3 tau = { 0 }, l2 = { 0 }, absorbed = { 0 };
+		v3 tau = { 0 }, l2 = { 0 }, absorbed = { 0 }, transfer = { 0 };
 		for (uint32_t s = 0; s < steps; s++) {
 			double t = (s + 0.5) * dt, rr;
 			double hs = altitude_along(c, h, dir.z, t, &rr);
@@ -138,6 +172,7 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 			}
 			l2 = add(l2, mul(mul(w, phased), t_sun));
 			absorbed = add(absorbed, mul(w, m.absorption));
+			transfer = add(transfer, mul(w, m.scattering));
 			tau = add(tau, scale(m.extinction, dt));
 		}
 		/* The cell's solid angle over the mean cell's: every
@@ -145,6 +180,10 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		double wk = ms_cell_weight(k, dirs);
 		l2 = scale(l2, wk);
 		absorbed = scale(absorbed, wk);
+		transfer = scale(transfer, wk);
+		sf = add(sf, transfer);
+		sfzz = add(sfzz, scale(transfer, dir.z * dir.z));
+		sfxz = add(sfxz, scale(transfer, dir.x * dir.z));
 		v3 t_ray = scale(vexp_neg(tau), wk), returned = { 0 };
 		if (ground) {
 			v3 n = v(dir.x * t_end / c->rb, dir.y * t_end / c->rb, (r0 + dir.z * t_end) / c->rb);
@@ -177,6 +216,8 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 	 * multiscatter.comp). */
 	sl = add(sl, mul(sg, v(1.0 - sr.x, 1.0 - sr.y, 1.0 - sr.z)));
 	v3 psi = v(sl.x / fmax(se.x, 1e-6), sl.y / fmax(se.y, 1e-6), sl.z / fmax(se.z, 1e-6));
+	if (c->lobe >= 0 && c->lobe_g[0] == 0.0)
+		psi = band2_psi(c, h, mu_s, dirs, sl, se, psi, lum_l2, s2.x, sf, sfzz);
 	double share = dot(sg, SHARE_LUM) / fmax(dot(psi, SHARE_LUM), 1e-30);
 	*ret_psi = psi;
 	*ret_share = skymap_clamp(share, 0.0, 1.0);
@@ -194,6 +235,18 @@ static void ms_texel(const struct ctx *c, uint32_t steps, uint32_t dirs, double 
 		double g = c->lobe_g[0];
 		ret_shape[2] = k * (c->delta >= 0 ? 3.75 * (s2.z / l - a * g * g * sun.x * sun.x) : 15.0 * s2.y / l);
 		ret_shape[3] = k * a;
+		if (c->lobe_g[0] == 0.0) {
+			/* Rayleigh's band 2 from the whole field: L2 plus psi times
+			 * each direction's transfer, where the sun is up
+			 * (multiscatter.comp's store_shape). */
+			double field = fmax(lum_l2 + dot(mul(psi, sf), SHARE_LUM), 1e-30);
+			double lit = model_light_visible(c, h, mu_s, c->s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
+			double kf = lit * field / dirs / fmax(dot(psi, SHARE_LUM), 1e-30);
+			ret_shape[1] = kf * (7.5 * (s2.x + dot(mul(psi, sfzz), SHARE_LUM)) / field - 2.5);
+			ret_shape[2] = kf * 15.0 * (s2.y + dot(mul(psi, sfxz), SHARE_LUM)) / field;
+			ret_shape[0] = kf * 3.0 * sm.z / l;
+			ret_shape[3] = kf * a;
+		}
 	}
 }
 

@@ -101,12 +101,29 @@ int phase_delta_constituent(const struct sky_state *s, const double *g1_of)
 	return n;
 }
 
+/* The Rayleigh constituent that scatters most (green, at the ground), or
+ * -1: where no forward lobe steers the light, the field's band 2 (its
+ * brightness toward the horizon) still matters to every phase's g2, and a
+ * lobe of g1 = 0 carries it (ms_source, forward_scattering). */
+static int rayleigh_constituent(const struct atmo *a)
+{
+	int best = -1;
+	for (int n = 0; n < a->n_constituents; n++)
+		if (a->c[n].phase == ATMO_PHASE_RAYLEIGH && a->c[n].scattering_per_km[1] > 0.0 &&
+		    (best < 0 || a->c[n].scattering_per_km[1] > a->c[best].scattering_per_km[1]))
+			best = n;
+	return best;
+}
+
 int phase_lobe_constituent(const struct sky_state *s, const double *g1_of)
 {
 	int delta = phase_delta_constituent(s, g1_of);
 	if (delta >= 0 && s->quality.multiscatter_moment == STATE_MOMENT_OFF)
 		return -1;
 	int lobe = phase_moment_constituent(s, g1_of);
+	if (lobe < 0 && s->quality.multiscatter_moment == STATE_MOMENT_AUTO &&
+	    s->quality.multiscatter_dirs >= 64)
+		lobe = rayleigh_constituent(&s->atmo);
 	return delta >= 0 && lobe != delta ? -1 : lobe;
 }
 

@@ -71,7 +71,10 @@ int phase_delta_constituent(const struct sky_state *s, const double *g1_of);
 /* The constituent whose phase scatters the shape of the multiply scattered
  * light, as the engine applies the knobs: phase_moment_constituent; where
  * delta-M is on, the scaled medium's shape through the truncated phase, of
- * the same constituent only (-1 otherwise or under multiscatter_moment=off). */
+ * the same constituent only (-1 otherwise or under multiscatter_moment=off).
+ * Where multiscatter_moment=auto finds no forward lobe (Earth), the Rayleigh
+ * constituent: a lobe of g1 = 0 that carries the field's band 2 alone, to
+ * every constituent's phase (ms_source in shaders/common.glsl). */
 int phase_lobe_constituent(const struct sky_state *s, const double *g1_of);
 
 /* The delta-M truncation of a phase: the forward fraction f (the phase's
