@@ -235,19 +235,25 @@ static int read_to_eof(int fd, char *buf, size_t size)
 
 /* A connection past the bound: exactly one ACK [52] {connect} line, then
  * EOF. */
-static void expect_refused(const char *sock)
+static void expect_refused_n(const char *sock, unsigned max)
 {
-	char buf[1024];
+	char buf[1024], want[96];
 	int fd = conn_raw(sock);
 
 	CHECK(fd >= 0);
 	int n = fd >= 0 ? read_to_eof(fd, buf, sizeof(buf)) : -1;
-	if (n < 0 || strncmp(buf, "ACK [52] {connect} too many connections (max_connections = 3)", 61) ||
-	    strchr(buf, '\n') != buf + n - 1)
+	snprintf(want, sizeof(want), "ACK [52] {connect} too many connections (max_connections = %u)",
+		 max);
+	if (n < 0 || strncmp(buf, want, strlen(want)) || strchr(buf, '\n') != buf + n - 1)
 		FAIL("refused connection: %d '%s', expected one ACK [52] {connect} line and EOF", n,
 		     n < 0 ? "" : buf);
 	if (fd >= 0)
 		close(fd);
+}
+
+static void expect_refused(const char *sock)
+{
+	expect_refused_n(sock, 3);
 }
 
 /* Waits until skyd counts n clients (it notices a close when it reads). */
@@ -290,6 +296,66 @@ static void scenario_connections(void)
 	conn_close(&e);
 	for (int i = 0; i < 2; i++)
 		conn_close(&c[i]);
+	daemon_cleanup(&d);
+}
+
+/* reserve ----------------------------------------------------------------- */
+
+#define RESERVE_MAX 32		/* max_connections; the last 32 / 16 = 2 for controllers */
+
+/* The refusal as a reader meets it in the controllers' reserve. */
+static void expect_reserved(const char *sock)
+{
+	char buf[1024];
+	int fd = conn_raw(sock);
+	int n = fd >= 0 ? read_to_eof(fd, buf, sizeof(buf)) : -1;
+
+	if (n < 0 || !strstr(buf, "ACK [52] {connect} too many connections (max_connections = 32, "
+				   "the last places kept for controllers)"))
+		FAIL("reader in the reserve: %d '%s'", n, n < 0 ? "" : buf);
+	if (fd >= 0)
+		close(fd);
+}
+
+static void scenario_reserve(void)
+{
+	struct daemon d;
+	struct conn mine, readers[RESERVE_MAX], extra[2];
+	int ready[2], done[2], status;
+	char byte = 0;
+
+	need_root();
+	CHECK(daemon_start(&d, (const char *const[]){ "--max-connections", "32", HARNESS_SMALL,
+						      NULL }) == 0);
+	open_to_all(&d);
+	CHECK(conn_open(&mine, d.sock) == 0);
+	CHECK(pipe(ready) == 0 && pipe(done) == 0);
+	fflush(stdout);
+	pid_t pid = fork();
+	if (pid == 0) {
+		/* nobody fills what readers may take: 32 - 2 - the root one. */
+		if (setgroups(0, NULL) < 0 || setgid(NOBODY) < 0 || setuid(NOBODY) < 0)
+			_exit(100);
+		for (int i = 0; i < RESERVE_MAX - 2 - 1; i++)
+			CHECK(conn_open(&readers[i], d.sock) == 0);
+		expect_reserved(d.sock);
+		expect_reserved(d.sock);
+		(void)!write(ready[1], &byte, 1);
+		(void)!read(done[0], &byte, 1);
+		_exit(test_failures ? 1 : 0);
+	}
+	CHECK(pid > 0 && read(ready[0], &byte, 1) == 1);
+	/* The controllers' two places, then nobody's. */
+	for (int i = 0; i < 2; i++) {
+		CHECK(conn_open(&extra[i], d.sock) == 0);
+		expect_ok(&extra[i], "set sun_elevation_deg=9");
+	}
+	expect_refused_n(d.sock, RESERVE_MAX);
+	(void)!write(done[1], &byte, 1);
+	CHECK(waitpid(pid, &status, 0) == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0);
+	for (int i = 0; i < 2; i++)
+		conn_close(&extra[i]);
+	conn_close(&mine);
 	daemon_cleanup(&d);
 }
 
@@ -500,7 +566,7 @@ int main(int argc, char **argv)
 		{ "roles", scenario_roles }, { "groups", scenario_groups },
 		{ "connections", scenario_connections }, { "throttle", scenario_throttle },
 		{ "bounds", scenario_bounds }, { "config", scenario_config },
-		{ "socketdir", scenario_socketdir },
+		{ "socketdir", scenario_socketdir }, { "reserve", scenario_reserve },
 	};
 
 	for (size_t i = 0; argc == 2 && i < sizeof(scenarios) / sizeof(scenarios[0]); i++) {

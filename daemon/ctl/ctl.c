@@ -132,21 +132,27 @@ static void refusal_log(struct ctl *ctl, const struct ucred *cred)
 	rf->unlisted = 0;
 }
 
-/* Past max_connections: one ACK line, then the connection closes. Those
- * already connected do not notice. */
-static void refuse_connection(struct ctl *ctl, int fd)
+/* Places at the end of max_connections that only controllers may take,
+ * so that a flood of readers cannot lock the controllers out. */
+static int controller_reserve(const struct ctl *ctl)
 {
-	struct ucred cred = { .pid = 0, .uid = (uid_t)-1, .gid = (gid_t)-1 };
-	socklen_t len = sizeof(cred);
-	char line[160];
+	return (int)(ctl->roles.max_connections / 16);
+}
+
+/* Past max_connections (or into the controllers' reserve, for a reader):
+ * one ACK line, then the connection closes. Those already connected do
+ * not notice. */
+static void refuse_connection(struct ctl *ctl, int fd, const struct ucred *cred, int reserved)
+{
+	char line[200];
 	int n = snprintf(line, sizeof(line),
-			 "ACK [%d] {connect} too many connections (max_connections = %u); try again later\n",
-			 SKY_ACK_LIMIT, ctl->roles.max_connections);
+			 "ACK [%d] {connect} too many connections (max_connections = %u%s); try again later\n",
+			 SKY_ACK_LIMIT, ctl->roles.max_connections,
+			 reserved ? ", the last places kept for controllers" : "");
 
 	(void)!send(fd, line, (size_t)n, MSG_NOSIGNAL | MSG_DONTWAIT);
-	getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &cred, &len);
 	/* Logged before the close, so the peer's EOF comes after the line. */
-	refusal_log(ctl, &cred);
+	refusal_log(ctl, cred);
 	close(fd);
 }
 
@@ -176,9 +182,15 @@ static void accept_ready(void *ctx, uint32_t events)
 			ctl->accept_warned = 0;
 		}
 		/* max_connections is at most CTL_MAX_CLIENTS (role.c). */
-		if (ctl->n_clients >= (int)ctl->roles.max_connections) {
-			refuse_connection(ctl, fd);
-			continue;
+		int room = (int)ctl->roles.max_connections - ctl->n_clients;
+		if (room <= controller_reserve(ctl)) {
+			struct ucred cred = { .pid = 0, .uid = (uid_t)-1, .gid = (gid_t)-1 };
+			socklen_t len = sizeof(cred);
+			getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &cred, &len);
+			if (room <= 0 || role_of_peer(&ctl->roles, fd, &cred) != ROLE_CONTROLLER) {
+				refuse_connection(ctl, fd, &cred, room > 0);
+				continue;
+			}
 		}
 		ctl_client_add(ctl, fd);
 	}
