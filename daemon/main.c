@@ -565,7 +565,7 @@ static int run_daemon(const struct options *o, struct svc_reload *reload,
 		}
 		log_info("sync: %s, %s", o->sync.url, sync_role_name(o->sync.cfg.role));
 	}
-	svc_reload_attach(reload, srv, drive, sense, notify);
+	svc_reload_attach(reload, srv, drive, sense, notify, ctl);
 	log_info("listening on %s, protocol %s", path, SKY_PROTO_VERSION);
 	svc_notify_ready(notify);
 	r = loop_run(loop);
@@ -573,7 +573,7 @@ static int run_daemon(const struct options *o, struct svc_reload *reload,
 		log_error("event loop: %s", strerror(-r));
 	svc_notify_stopping(notify);
 out:
-	svc_reload_attach(reload, NULL, NULL, NULL, NULL);
+	svc_reload_attach(reload, NULL, NULL, NULL, NULL, NULL);
 	roles->ctl = NULL;
 	repl_free(repl);
 	hooks.sense = NULL;

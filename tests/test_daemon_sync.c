@@ -8,6 +8,7 @@
  * Usage: test_daemon_sync switch|restart|garbage */
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -384,6 +385,45 @@ static void scenario_restart(void)
 	check_same_generation();
 }
 
+/* 1 when skyd i's log holds text. */
+static int log_has(int i, const char *text)
+{
+	static char buf[1 << 20];
+	FILE *f = fopen(rig.skyd[i]->log, "r");
+	size_t n = f ? fread(buf, 1, sizeof(buf) - 1, f) : 0;
+
+	if (f)
+		fclose(f);
+	buf[n] = 0;
+	return strstr(buf, text) != NULL;
+}
+
+/* A follower reloading a file with sky keys keeps the controller's sky:
+ * the file's sync and daemon settings apply, its sky does not. */
+static void reload_follower(void)
+{
+	static const char *const done = "the sky's keys are not applied: this skyd follows controller";
+	char conf[256];
+	double z = sun_z(1);
+	uint64_t g = status_u64(1, "generation");
+
+	snprintf(conf, sizeof(conf), "%s/skyd.conf", rig.skyd[1]->dir);
+	FILE *f = fopen(conf, "a");
+	CHECK(f && fputs("sun_elevation_deg = 44\nmax_connections = 99\n", f) >= 0 && fclose(f) == 0);
+	kill(rig.skyd[1]->pid, SIGHUP);
+	/* The reload logs its outcome; each turn waits on a publication or
+	 * 50 ms, as wait_until does. */
+	for (int k = 0; k < 400 && !log_has(1, done); k++) {
+		uint32_t gen;
+		sky_wait(client[1], atomic_load((_Atomic uint32_t *)&sky_header(client[1])->generation),
+			 50, &gen);
+	}
+	CHECK(log_has(1, done));
+	CHECK(status_u64(1, "max_connections") == 99);
+	CHECK(status_u64(1, "generation") == g);
+	CHECK(sun_z(1) == z);
+}
+
 /* ---- hostile input ---- */
 
 static void scenario_garbage(void)
@@ -424,6 +464,7 @@ static void scenario_garbage(void)
 	switch_to(15.0, NULL, &sw);
 	printf("spread after the garbage %.3f ms\n", (double)sw.spread_ns / 1e6);
 	check_same_sky();
+	reload_follower();
 }
 
 int main(int argc, char **argv)

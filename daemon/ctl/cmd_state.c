@@ -63,11 +63,16 @@ int ctl_commit(struct client *c, const struct sky_state *next, uint32_t dirty, s
 	return 0;
 }
 
+int ctl_sky_follows(struct ctl *ctl, char *who, size_t who_size)
+{
+	return ctl->sync.may_change && !ctl->sync.may_change(ctl->sync.ctx, who, who_size);
+}
+
 int ctl_sync_refuse(struct ctl *ctl, char *msg, size_t msg_size)
 {
 	char who[128];
 
-	if (!ctl->sync.may_change || ctl->sync.may_change(ctl->sync.ctx, who, sizeof(who)))
+	if (!ctl_sky_follows(ctl, who, sizeof(who)))
 		return 0;
 	return CTL_ACK(SKY_ACK_PERMISSION, "this skyd follows controller %s: change the sky there",
 		       who);

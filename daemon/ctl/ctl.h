@@ -76,6 +76,9 @@ struct ctl_sync {
 };
 /* NULL: no replication ("sync: off" in status). */
 void ctl_set_sync(struct ctl *ctl, const struct ctl_sync *sync);
+/* 1 when the sky follows a controller elsewhere (who names it), so that
+ * no local source may change it; 0 otherwise. */
+int ctl_sky_follows(struct ctl *ctl, char *who, size_t who_size);
 
 /* The connections open now (systemd's STATUS line). */
 int ctl_clients(const struct ctl *ctl);

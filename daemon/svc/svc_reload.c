@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ctl.h"
 #include "drive.h"
 #include "log.h"
 #include "sense.h"
@@ -19,6 +20,7 @@ struct svc_reload {
 	char *const *args;
 	int n_args;
 	struct srv *srv;
+	struct ctl *ctl;
 	struct drive *clock;
 	struct sense *sense;
 	struct svc_notify *notify;
@@ -40,8 +42,9 @@ int svc_reload_new(const char *path, char *const *args, int n_args, struct svc_r
 }
 
 void svc_reload_attach(struct svc_reload *r, struct srv *srv, struct drive *clock,
-		       struct sense *sense, struct svc_notify *notify)
+		       struct sense *sense, struct svc_notify *notify, struct ctl *ctl)
 {
+	r->ctl = ctl;
 	r->srv = srv;
 	r->clock = clock;
 	r->sense = sense;
@@ -150,7 +153,13 @@ int svc_reload_run(struct svc_reload *r, char *err, size_t err_size)
 		svc_notify_reloading(r->notify);
 	next = *srv_state(r->srv);
 	e = prepare(r, &next, err, err_size);
-	if (e == 0) {
+	char who[128] = "";
+	if (e == 0 && r->ctl && ctl_sky_follows(r->ctl, who, sizeof(who))) {
+		/* A follower's sky is the controller's: the file's keys would
+		 * part it from the others until the next replicated change. */
+		log_info("reload: the sky's keys are not applied: this skyd follows controller %s",
+			 who);
+	} else if (e == 0) {
 		/* The sky last: srv_apply is the one step that can still refuse
 		 * (device limits, lights astro cannot place), and it changes
 		 * nothing when it does; only the tables the changed keys
