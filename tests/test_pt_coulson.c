@@ -1,7 +1,7 @@
 /* test_pt_coulson.c - the path tracer against a second, independent truth:
  * truth/sos.c's successive orders of scattering, itself checked against
- * Coulson, Dave & Sekera's polarized Rayleigh tables (tests/data), at the
- * thinnest optical depth of those tables and at a thicker one. */
+ * Coulson, Dave & Sekera's polarized Rayleigh tables (tests/data) at three
+ * optical depths, the thinnest of those tables among them. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -153,6 +153,7 @@ int main(void)
 	/* tau 0.5 on the default grid, whose error (the layer's square)
 	 * dominates; docs/truth.md gives the figures. */
 	test_sos_coulson("coulson_tau0.5.csv", 0.5, 0, 0, 0.0, 5e-5);
+	test_sos_coulson("coulson_tau0.25.csv", 0.25, 0, 0, 0.0, 1e-5);
 	/* tau 0.02, the thinnest table, to the tables' own precision (one
 	 * unit of their eighth decimal): the default grid is too coarse. */
 	test_sos_coulson("coulson_tau0.02.csv", 0.02, 1600, 64, 1e-8, 0.0);
