@@ -1,8 +1,9 @@
 /* test_pt_coulson.c - the path tracer against a second, independent truth:
  * truth/sos.c's successive orders of scattering, itself checked against
- * Coulson, Dave & Sekera's polarized Rayleigh tables (tests/data), at the
- * thinnest optical depth of those tables and at a thicker one. */
+ * Coulson, Dave & Sekera's polarized Rayleigh tables (tests/data) at three
+ * optical depths, the thinnest of those tables among them. */
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -30,12 +31,15 @@ static void slab(struct atmo *a, double tau)
 	a->c[0].density.layers[1].constant = 1.0;
 }
 
-/* The polarized solver against the six values of tests/data: Coulson's
- * tau 0.5, mu0 0.2, incident flux pi. Their precision is 1e-8; the
- * solver's grid (400 layers, 48 cosines) reads within 2e-5 of them. */
-static void test_sos_coulson(void)
+/* The polarized solver against the six values of one table of tests/data
+ * (Coulson's mu0 0.2, incident flux pi, black ground) at optical depth tau
+ * on a grid of layers x streams (0: the solver's default): each value
+ * within max_abs of the table or max_rel of it. */
+static void test_sos_coulson(const char *file, double tau, uint32_t layers, uint32_t streams,
+			     double max_abs, double max_rel)
 {
-	const char *path = SKYD_TEST_DATA "/coulson_tau0.5.csv";
+	char path[512];
+	snprintf(path, sizeof(path), "%s/%s", SKYD_TEST_DATA, file);
 	FILE *f = fopen(path, "r");
 	CHECK(f != NULL);
 	if (!f)
@@ -51,15 +55,17 @@ static void test_sos_coulson(void)
 	}
 	fclose(f);
 	CHECK(n == 6);
-	struct sos_layer l = { .tau = 0.5, .sun_elevation_deg = asin(0.2) * DEG, .irradiance = PI,
-			       .polarized = 1 };
+	struct sos_layer l = { .tau = tau, .sun_elevation_deg = asin(0.2) * DEG, .irradiance = PI,
+			       .polarized = 1, .layers = layers, .streams = streams };
 	int orders;
 	CHECK(sos_rayleigh(&l, v, n, got, &orders) == 0);
 	for (int i = 0; i < n; i++) {
-		double rel = got[i] / ref[i] - 1.0;
-		printf("coulson tau 0.5 mu %.2f phi %.0f: sos %.8f table %.8f (%+.1e, %d orders)\n",
-		       sin(-v[i].elevation_deg / DEG), v[i].azimuth_deg, got[i], ref[i], rel, orders);
-		CHECK(fabs(rel) < 5e-5);
+		double d = got[i] - ref[i];
+		int ok = fabs(d) <= max_abs || fabs(d) <= max_rel * ref[i];
+		printf("coulson tau %.2f mu %.2f phi %.0f: sos %.8f table %.8f (%+.1e, %+.1e rel, %d orders)%s\n",
+		       tau, sin(-v[i].elevation_deg / DEG), v[i].azimuth_deg, got[i], ref[i], d, d / ref[i],
+		       orders, ok ? "" : "  <-- FAIL");
+		CHECK(ok);
 	}
 }
 
@@ -144,7 +150,13 @@ static void test_pt_against_sos(double tau, double rel_error)
 
 int main(void)
 {
-	test_sos_coulson();
+	/* tau 0.5 on the default grid, whose error (the layer's square)
+	 * dominates; docs/truth.md gives the figures. */
+	test_sos_coulson("coulson_tau0.5.csv", 0.5, 0, 0, 0.0, 5e-5);
+	test_sos_coulson("coulson_tau0.25.csv", 0.25, 0, 0, 0.0, 1e-5);
+	/* tau 0.02, the thinnest table, to the tables' own precision (one
+	 * unit of their eighth decimal): the default grid is too coarse. */
+	test_sos_coulson("coulson_tau0.02.csv", 0.02, 1600, 64, 1e-8, 0.0);
 	test_polarization_size();
 	test_pt_against_sos(0.02, 0.002);
 	test_pt_against_sos(0.25, 0.002);
