@@ -12,6 +12,7 @@
 #include <time.h>
 
 #include "daemon_harness.h"
+#include "loopback.h"
 #include "sky.h"
 
 #define SYNC_MOSQUITTO_BIN "/usr/sbin/mosquitto"
@@ -43,33 +44,6 @@ static inline int sync_have_mosquitto(void)
 	return access(SYNC_MOSQUITTO_BIN, X_OK) == 0 && access(SYNC_MOSQUITTO_PUB, X_OK) == 0;
 }
 
-/* A loopback TCP port free now (-1 none). */
-static inline int sync_free_port(void)
-{
-	struct sockaddr_in a = { .sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK) };
-	socklen_t len = sizeof(a);
-	int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0), p = -1;
-
-	if (fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof(a)) == 0 &&
-	    getsockname(fd, (struct sockaddr *)&a, &len) == 0)
-		p = ntohs(a.sin_port);
-	if (fd >= 0)
-		close(fd);
-	return p;
-}
-
-static inline int sync_tcp_accepts(int port)
-{
-	struct sockaddr_in a = { .sin_family = AF_INET, .sin_port = htons((uint16_t)port),
-				 .sin_addr.s_addr = htonl(INADDR_LOOPBACK) };
-	int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-	int ok = fd >= 0 && connect(fd, (struct sockaddr *)&a, sizeof(a)) == 0;
-
-	if (fd >= 0)
-		close(fd);
-	return ok;
-}
-
 /* Starts mosquitto (no persistence) with the rig's configuration and waits
  * on its output pipe until it accepts a connection or dies. 0 or -1. */
 static inline int sync_broker_start(struct sync_rig *r)
@@ -89,7 +63,7 @@ static inline int sync_broker_start(struct sync_rig *r)
 	for (int i = 0; i < 1000; i++) {
 		struct pollfd pfd = { .fd = p[0], .events = POLLIN };
 		char buf[256];
-		if (sync_tcp_accepts(r->port)) {
+		if (loopback_accepts(r->port)) {
 			close(p[0]);
 			return 0;
 		}
@@ -118,7 +92,7 @@ static inline int sync_broker_setup(struct sync_rig *r)
 	r->broker_pid = -1;
 	if (harness_mkdtemp(r->dir, sizeof(r->dir)) < 0)
 		return -1;
-	r->port = sync_free_port();
+	r->port = loopback_free_port();
 	snprintf(r->broker_conf, sizeof(r->broker_conf), "%s/mosquitto.conf", r->dir);
 	FILE *f = fopen(r->broker_conf, "w");
 	if (!f)

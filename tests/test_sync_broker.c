@@ -41,6 +41,7 @@
 #include <mosquitto.h>
 
 #include "log.h"
+#include "loopback.h"
 #include "loop.h"
 #include "state.h"
 #include "sync.h"
@@ -63,32 +64,6 @@ struct broker {
 };
 
 static struct broker broker = { .pid = -1, .out_fd = -1 };
-
-static int free_port(void)
-{
-	struct sockaddr_in a = { .sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK) };
-	socklen_t len = sizeof(a);
-	int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0), port = -1;
-
-	if (fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof(a)) == 0 &&
-	    getsockname(fd, (struct sockaddr *)&a, &len) == 0)
-		port = ntohs(a.sin_port);
-	if (fd >= 0)
-		close(fd);
-	return port;
-}
-
-static int tcp_accepts(int port)
-{
-	struct sockaddr_in a = { .sin_family = AF_INET, .sin_port = htons((uint16_t)port),
-				 .sin_addr.s_addr = htonl(INADDR_LOOPBACK) };
-	int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-	int ok = fd >= 0 && connect(fd, (struct sockaddr *)&a, sizeof(a)) == 0;
-
-	if (fd >= 0)
-		close(fd);
-	return ok;
-}
 
 /* Writes the broker's configuration: a loopback listener, no
  * persistence (a restarted broker has lost every retained message), its
@@ -136,7 +111,7 @@ static int broker_start(void)
 	broker.out_fd = p[0];
 	uint64_t deadline = loop_now_ns() + 10 * S_NS;
 	while (loop_now_ns() < deadline) {
-		if (tcp_accepts(broker.port))
+		if (loopback_accepts(broker.port))
 			return 0;
 		struct pollfd pfd = { .fd = broker.out_fd, .events = POLLIN };
 		char buf[512];
@@ -992,7 +967,7 @@ int main(int argc, char **argv)
 	signal(SIGPIPE, SIG_IGN);
 	log_init(LOG_LEVEL_INFO, 0);	/* $SKYD_LOG=debug shows more */
 	snprintf(broker.dir, sizeof(broker.dir), "/tmp/test_sync_XXXXXX");
-	if (!mkdtemp(broker.dir) || (broker.port = free_port()) < 0 || broker_configure(NULL) < 0 ||
+	if (!mkdtemp(broker.dir) || (broker.port = loopback_free_port()) < 0 || broker_configure(NULL) < 0 ||
 	    broker_start() < 0) {
 		fprintf(stderr, "cannot start mosquitto\n");
 		return 1;
