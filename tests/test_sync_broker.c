@@ -45,6 +45,7 @@
 #include "loop.h"
 #include "state.h"
 #include "sync.h"
+#include "state_compare.h"
 #include "test.h"
 
 #define MOSQUITTO_BIN "/usr/sbin/mosquitto"
@@ -284,44 +285,6 @@ static void set(struct sky_state *s, const char *pair)
 		FAIL("%s: %s", pair, err);
 }
 
-#define SAME(f)                                                    \
-	do {                                                       \
-		if (memcmp(&a->f, &b->f, sizeof(a->f)) != 0)        \
-			return #f;                                 \
-	} while (0)
-
-/* The first field that differs, bit for bit, NULL when none (clock
- * anchors, the lights' time and views are each machine's own). */
-static const char *differs(const struct sky_state *a, const struct sky_state *b)
-{
-	if (strcmp(a->preset, b->preset))
-		return "preset";
-	SAME(atmo.bottom_radius_km);
-	SAME(atmo.top_radius_km);
-	SAME(atmo.ground_albedo);
-	SAME(atmo.n_constituents);
-	for (int i = 0; i < a->atmo.n_constituents; i++) {
-		SAME(atmo.c[i].scattering_per_km);
-		SAME(atmo.c[i].absorption_per_km);
-		SAME(atmo.c[i].phase);
-		SAME(atmo.c[i].g);
-		SAME(atmo.c[i].density);
-	}
-	SAME(altitude_km);
-	SAME(sun);
-	SAME(moon);
-	SAME(camera);
-	SAME(quality.t);
-	SAME(quality.storage);
-	SAME(clock.rate);
-	SAME(clock.lat_deg);
-	SAME(clock.lon_deg);
-	SAME(clock.sun_mode);
-	SAME(clock.moon_mode);
-	SAME(night);
-	return NULL;
-}
-
 static struct sky_state scene(double sun_elevation_deg)
 {
 	struct sky_state s;
@@ -372,7 +335,7 @@ static void publish(struct node *n, const struct sky_state *s, uint64_t gen)
 
 static void check_same(const struct node *n, const struct sky_state *s)
 {
-	const char *f = differs(&n->state, s);
+	const char *f = state_compare(&n->state, s);
 	if (f)
 		FAIL("%s: %s differs from the controller's", n->name, f);
 }

@@ -14,6 +14,7 @@
 #include "simclock.h"
 #include "state.h"
 #include "sync.h"
+#include "state_compare.h"
 #include "test.h"
 
 #define ID "skyhost/4242/0123456789abcdef"
@@ -32,70 +33,6 @@ static void set(struct sky_state *s, const char *pair)
 	char err[256];
 	if (state_set_pair(s, pair, NULL, err, sizeof(err)) < 0)
 		FAIL("%s: %s", pair, err);
-}
-
-/* ---- comparing states field by field, bit for bit ---- */
-
-#define SAME(f)                                                    \
-	do {                                                       \
-		if (memcmp(&a->f, &b->f, sizeof(a->f)) != 0)        \
-			return #f;                                 \
-	} while (0)
-
-static const char *diff_atmo(const struct atmo *a, const struct atmo *b)
-{
-	SAME(bottom_radius_km);
-	SAME(top_radius_km);
-	SAME(ground_albedo);
-	SAME(n_constituents);
-	for (int i = 0; i < a->n_constituents; i++) {
-		SAME(c[i].name);
-		SAME(c[i].scattering_per_km);
-		SAME(c[i].absorption_per_km);
-		SAME(c[i].phase);
-		SAME(c[i].g);
-		SAME(c[i].density);
-	}
-	return NULL;
-}
-
-/* The first field in which a and b differ, NULL when none does. The
- * clock's anchors and the lights' time are left out (they are instants on
- * each machine's own clocks), and the views (they stay local). */
-static const char *state_diff_field(const struct sky_state *a, const struct sky_state *b)
-{
-	const char *d = diff_atmo(&a->atmo, &b->atmo);
-	if (d)
-		return d;
-	if (strcmp(a->preset, b->preset))
-		return "preset";
-	SAME(altitude_km);
-	SAME(sun);
-	SAME(moon);
-	SAME(camera);
-	SAME(quality.t);
-	SAME(quality.multiscatter_dirs);
-	SAME(quality.skyview_min_steps);
-	SAME(quality.aerial_range_km);
-	SAME(quality.aerial_spacing);
-	SAME(quality.storage);
-	SAME(quality.multiscatter_iterations);
-	SAME(quality.multiscatter_moment);
-	SAME(quality.multiscatter_delta);
-	SAME(clock.rate);
-	SAME(clock.lat_deg);
-	SAME(clock.lon_deg);
-	SAME(clock.site_elevation_m);
-	SAME(clock.pressure_mbar);
-	SAME(clock.temperature_c);
-	SAME(clock.delta_t_s);
-	SAME(clock.horizon_refraction_deg);
-	SAME(clock.threshold_deg);
-	SAME(clock.cadence_s);
-	SAME(clock.sun_mode);
-	SAME(clock.moon_mode);
-	SAME(night);
-	return NULL;
 }
 
 static size_t encode(const struct sky_state *s, uint64_t gen, int64_t apply_ns)
@@ -145,6 +82,18 @@ static void scene_custom(struct sky_state *s)
 	set(s, "sun_color=1.1,1,0.9");
 }
 
+/* Weather in words and the sensor's settings travel too. */
+static void scene_weather(struct sky_state *s)
+{
+	set(s, "visibility_km=8.5");
+	set(s, "relative_humidity=0.73");
+	set(s, "aerosol=urban");
+	set(s, "ozone_du=287");
+	set(s, "cloud_oktas=3");
+	set(s, "sensor_mode=cloud");
+	set(s, "sensor_time_constant_s=45");
+}
+
 static void test_round_trip(const char *name, void (*scene)(struct sky_state *))
 {
 	struct sky_state a, b, c;
@@ -164,7 +113,7 @@ static void test_round_trip(const char *name, void (*scene)(struct sky_state *))
 	}
 	CHECK(h.version == SYNC_FORMAT_VERSION && h.generation == 7 && h.apply_time_ns == apply);
 	CHECK(strcmp(h.controller, ID) == 0);
-	const char *f = state_diff_field(&a, &b);
+	const char *f = state_compare(&a, &b);
 	if (f)
 		FAIL("%s: %s differs after the round trip", name, f);
 	CHECK(b.n_views == 0);
@@ -179,7 +128,7 @@ static void test_round_trip(const char *name, void (*scene)(struct sky_state *))
 	memcpy(first, msg, len + 1);
 	size_t len2 = encode(&b, 7, apply);
 	d = sync_msg_decode(msg, len2, &h, &c, why, sizeof(why));
-	CHECK(d == SYNC_DROP_NONE && state_diff_field(&b, &c) == NULL);
+	CHECK(d == SYNC_DROP_NONE && state_compare(&b, &c) == NULL);
 	if (isnan(ua))
 		CHECK(len2 == len && memcmp(first, msg, len) == 0);
 }
@@ -441,6 +390,7 @@ int main(void)
 	test_round_trip("clock", scene_clock);
 	test_round_trip("mars", scene_mars);
 	test_round_trip("custom", scene_custom);
+	test_round_trip("weather", scene_weather);
 	test_utc_at_apply_time();
 	test_refusals();
 	test_presence();
