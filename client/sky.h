@@ -628,6 +628,12 @@ struct sky_gpu_state {
 	float camera_forward[4];	/* the aerial volume's camera: xyz, w 0 */
 	float camera_right[4];		/* xyz, w 0 */
 	float camera_up[4];		/* xyz, w the camera's altitude_km */
+	/* A view of form panorama (struct sky_shm_panorama): azimuth0_rad,
+	 * azimuth_step_rad, row0, row_step; 0 for a volume. Since 0.3. */
+	float panorama[4];
+	/* horizon_rad, width, height, and the aerial texture's form: 0 a
+	 * volume, 1 a panorama of an arc, 2 of the full circle. Since 0.3. */
+	float panorama_grid[4];
 };
 
 /* Fills ret_state from the view's slot for the GLSL library. view_name NULL:

@@ -23,7 +23,7 @@
  * mean f_ms), which the sky-view and aerial passes scatter through each
  * constituent's phase rather than isotropically (shaders/common.glsl,
  * ground_excess). */
-#define SKYMAP_VERSION 3
+#define SKYMAP_VERSION 4
 
 #ifndef SKYMAP_PI
 #define SKYMAP_PI 3.14159265358979323846
@@ -188,6 +188,37 @@ static inline double skymap_aerial_slice(double depth_km, unsigned n, double ran
 {
 	double x = skymap_clamp(depth_km / range_km, 0.0, 1.0);
 	return (squared ? sqrt(x) : x) * n - 1.0;
+}
+
+/* A panorama of an eye point (struct sky_shm_panorama): the texture
+ * coordinates of the direction (azimuth east of north, elevation), texel i
+ * of n centred at (i + 0.5) / n. Columns are azimuth0 + i * step; with
+ * full_circle the last repeats the first (azimuths wrap, so that a clamping
+ * sampler interpolates across north), else the columns of an arc, where a
+ * direction outside it takes the nearer end. Rows are spaced in x =
+ * sign(e) sqrt(|e|), e the elevation above horizon_rad: fine toward the
+ * horizon, where the ground cuts the rays short. */
+static inline void skymap_panorama_uv(double azimuth0_rad, double azimuth_step_rad, double row0,
+				      double row_step, double horizon_rad, unsigned width,
+				      unsigned height, int full_circle, double azimuth_rad,
+				      double elevation_rad, double *ret_u, double *ret_v)
+{
+	const double two_pi = 2.0 * SKYMAP_PI;
+	double du = azimuth_rad - azimuth0_rad, f;
+	du -= two_pi * floor(du / two_pi);
+	if (full_circle) {
+		f = skymap_clamp(du / azimuth_step_rad, 0.0, width - 1.0);
+	} else {
+		double span = azimuth_step_rad * (width - 1.0);
+		if (du > span)		/* outside the arc: the nearer end */
+			du = du - span < two_pi - du ? span : 0.0;
+		f = skymap_clamp(du / azimuth_step_rad, 0.0, width - 1.0);
+	}
+	double e = elevation_rad - horizon_rad;
+	double x = e < 0.0 ? -sqrt(-e) : sqrt(e);
+	double g = skymap_clamp((x - row0) / row_step, 0.0, height - 1.0);
+	*ret_u = (f + 0.5) / width;
+	*ret_v = (g + 0.5) / height;
 }
 
 /* Ray-sphere: the distances at which a ray from altitude h with cos-zenith mu

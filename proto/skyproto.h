@@ -52,10 +52,11 @@ enum sky_ack {
  * control socket with a "layout:" line (PROTOCOL.md).
  */
 #define SKY_SHM_MAGIC 0x31594b53u	/* "SKY1" little-endian */
-#define SKY_SHM_LAYOUT_VERSION 5u
+#define SKY_SHM_LAYOUT_VERSION 6u
 #define SKY_SHM_MAX_TABLES 4u
 #define SKY_SHM_MIN_SLOTS 3u
-/* Views (`view add`): at most this many, each with its own aerial volume. */
+/* Views (`view add`): at most this many, each with its aerial perspective
+ * (a volume or its eye point's panorama: enum sky_view_form). */
 #define SKY_SHM_MAX_VIEWS 8u
 #define SKY_SHM_VIEW_NAME_MAX 32u
 
@@ -115,14 +116,49 @@ struct sky_shm_state {
 	double reserved[13];
 };
 
-/* One view: a camera with its own aerial-perspective volume, of the aerial
- * table's format and size, at header view_offset + index * view_stride in
- * the slot. Directions as in sky_shm_state. */
+/* How a view's aerial perspective is published (`view add form=`). */
+enum sky_view_form {
+	/* A volume of the aerial table's format and size, in the view's
+	 * camera, at header view_offset + index * view_stride in the slot. */
+	SKY_VIEW_VOLUME = 0,
+	/* The panorama of the view's eye point (struct sky_shm_panorama),
+	 * which every view of that form on the same eye point shares: skyd
+	 * marches an eye point once, whatever the number of its views. */
+	SKY_VIEW_PANORAMA = 1,
+};
+
+/* The panorama of an eye point: aerial perspective toward a grid of
+ * directions in the eye's local east-north-up frame, and along each at
+ * the aerial table's slices (skymap_aerial_depth_km, the slot state's
+ * aerial_range_km and aerial_squared). Always RGBA32F, never scaled: RGB
+ * is the natural logarithm of the radiance (the aerial table's units),
+ * A the mean transmittance, so that filtering interpolates the radiance
+ * geometrically (below the horizon it goes as 1 / sin of the
+ * depression). Texel (i, j, k) at offset + ((k * height + j) * width + i)
+ * * 16. Columns and rows: skymap_panorama_uv() with the fields below. */
+struct sky_shm_panorama {
+	uint64_t offset;		/* of texel 0, from the start of the slot */
+	uint64_t bytes;			/* width * height * depth * 16 */
+	uint32_t width, height, depth;	/* columns, rows, slices */
+	uint32_t full_circle;		/* 1: column width - 1 repeats column 0 */
+	double azimuth0_rad;		/* column 0's azimuth, east of north */
+	double azimuth_step_rad;	/* between columns */
+	double row0, row_step;		/* row j at x = row0 + j * row_step, x =
+					 * sign(e) sqrt(|e|), e the elevation above
+					 * horizon_rad in radians */
+	double horizon_rad;		/* the eye's geometric horizon (<= 0) */
+};
+
+/* One view: a camera and its aerial perspective. Directions as in
+ * sky_shm_state, in the view's local frame (PROTOCOL.md, views). */
 struct sky_shm_view {
 	char name[SKY_SHM_VIEW_NAME_MAX];	/* NUL-terminated */
 	double altitude_km;		/* the view's eye above the ground */
 	double camera_forward[3], camera_right[3], camera_up[3];
 	double camera_vfov_rad, camera_aspect;
+	uint32_t form;			/* enum sky_view_form */
+	uint32_t reserved0;
+	struct sky_shm_panorama panorama;	/* form SKY_VIEW_PANORAMA; else 0 */
 };
 
 struct sky_shm_slot {
@@ -134,7 +170,7 @@ struct sky_shm_slot {
 	uint64_t checksum;		/* of the state and the valid tables, sky_shm_checksum_words */
 	struct sky_shm_state state;
 	uint32_t n_views;		/* views[0 .. n_views) describe this slot's views */
-	uint32_t valid_views;		/* bit i: view i's volume is valid */
+	uint32_t valid_views;		/* bit i: view i's volume or panorama is valid */
 	struct sky_shm_view views[SKY_SHM_MAX_VIEWS];
 };
 
@@ -152,8 +188,9 @@ struct sky_shm_header {
 	uint32_t superseded;		/* 1: never written again; a new region comes on the socket */
 	uint32_t reserved0;
 	struct sky_shm_table tables[SKY_SHM_MAX_TABLES];
-	/* View volumes: max_views of them (0 until a view is first added, then
-	 * SKY_SHM_MAX_VIEWS: a new region), view_stride bytes apart. */
+	/* View regions: max_views of them (0 until a view is first added,
+	 * then SKY_SHM_MAX_VIEWS: a new region), view_stride bytes apart, each
+	 * room for a volume or a panorama. */
 	uint32_t max_views;
 	uint32_t reserved1;
 	uint64_t view_offset;		/* from the start of a slot */
@@ -163,7 +200,9 @@ struct sky_shm_header {
 /* The slot checksum (PROTOCOL.md, "Checksum"): FNV-1a 64 over 64-bit
  * native-endian words, first the slot's state, then every valid table in id
  * order, then, when n_views > 0, views[0 .. n_views) and each valid view's
- * volume in index order. words counts 8-byte words; start a checksum with SKY_SHM_CHECKSUM_SEED. */
+ * volume (form volume) or panorama (form panorama: its panorama.bytes at
+ * panorama.offset, once per view even where views share it) in index
+ * order. words counts 8-byte words; start a checksum with SKY_SHM_CHECKSUM_SEED. */
 #define SKY_SHM_CHECKSUM_SEED 0xcbf29ce484222325ull
 static inline uint64_t sky_shm_checksum_words(uint64_t h, const void *data, uint64_t words)
 {

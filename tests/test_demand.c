@@ -255,7 +255,7 @@ static void test_views(struct conn *ctl, struct daemon *d)
 	check_slot(map, T | M | S | A, "a view moved");
 	check_views(map, 8, "a view moved");
 	CHECK(conn_request(&wall, "view list", reply, sizeof(reply)) == 0);
-	CHECK(strstr(reply, "view: name=far index=7 altitude_km=observer yaw_deg=90 pitch_deg=0 roll_deg=0 vfov_deg=60 aspect=1.77777778 east_km=1000 north_km=-20 mine=1") != NULL);
+	CHECK(strstr(reply, "view: name=far index=7 altitude_km=observer yaw_deg=90 pitch_deg=0 roll_deg=0 vfov_deg=60 aspect=1.77777778 east_km=1000 north_km=-20 form=volume mine=1") != NULL);
 
 	/* A time-of-day change recomputes every view, in one dispatch. */
 	change(ctl, "sun_elevation_deg=8");

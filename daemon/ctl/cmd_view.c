@@ -2,6 +2,7 @@
  * volume, owned by the connection that added them. */
 #include "ctl_internal.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -43,6 +44,19 @@ void ctl_views_drop_owner(struct ctl *ctl, uint64_t owner)
 		log_error("dropping the views of client %llu: %s", (unsigned long long)owner, err);
 }
 
+static const char *const view_form_names[] = {
+	[SKY_VIEW_VOLUME] = "volume",
+	[SKY_VIEW_PANORAMA] = "panorama",
+};
+
+static int view_form(const char *name)
+{
+	for (size_t i = 0; i < sizeof(view_form_names) / sizeof(view_form_names[0]); i++)
+		if (strcmp(view_form_names[i], name) == 0)
+			return (int)i;
+	return -EINVAL;
+}
+
 static const struct {
 	const char *key;
 	size_t offset;			/* in struct state_view */
@@ -67,7 +81,7 @@ static int view_add(struct client *c, const struct proto_request *req, struct re
 
 	state_default_camera(&v.camera);
 	if (!name)
-		return CTL_ACK(SKY_ACK_SYNTAX, "usage: view add name=NAME [altitude_km=H] [east_km=] [north_km=] [yaw_deg=] [pitch_deg=] [roll_deg=] [vfov_deg=] [aspect=]");
+		return CTL_ACK(SKY_ACK_SYNTAX, "usage: view add name=NAME [form=volume|panorama] [altitude_km=H] [east_km=] [north_km=] [yaw_deg=] [pitch_deg=] [roll_deg=] [vfov_deg=] [aspect=]");
 	size_t n = strlen(name);
 	if (n == 0 || n >= STATE_VIEW_NAME_MAX || strspn(name, "abcdefghijklmnopqrstuvwxyz"
 		"ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-.") != n)
@@ -82,11 +96,18 @@ static int view_add(struct client *c, const struct proto_request *req, struct re
 			return CTL_ACK(SKY_ACK_SYNTAX, "'%s': key=value expected", a->key);
 		if (strcmp(a->key, "name") == 0)
 			continue;
+		if (strcmp(a->key, "form") == 0) {
+			int f = view_form(a->value);
+			if (f < 0)
+				return CTL_ACK(SKY_ACK_ARG, "form: '%s' is not volume or panorama", a->value);
+			v.form = (uint32_t)f;
+			continue;
+		}
 		for (k = 0; k < sizeof(view_keys) / sizeof(view_keys[0]); k++)
 			if (strcmp(view_keys[k].key, a->key) == 0)
 				break;
 		if (k == sizeof(view_keys) / sizeof(view_keys[0]))
-			return CTL_ACK(SKY_ACK_NO_EXIST, "%s: unknown key (name, altitude_km, east_km, north_km, yaw_deg, pitch_deg, roll_deg, vfov_deg, aspect)", a->key);
+			return CTL_ACK(SKY_ACK_NO_EXIST, "%s: unknown key (name, form, altitude_km, east_km, north_km, yaw_deg, pitch_deg, roll_deg, vfov_deg, aspect)", a->key);
 		if (proto_parse_number(a->value, &d) < 0)
 			return CTL_ACK(SKY_ACK_ARG, "%s: '%s' is not a finite number", a->key, a->value);
 		if (d < view_keys[k].min || d > view_keys[k].max)
@@ -144,10 +165,10 @@ int ctl_cmd_view(struct client *c, const struct proto_request *req, struct reply
 				snprintf(alt, sizeof(alt), "observer");
 			else
 				snprintf(alt, sizeof(alt), "%.9g", v->altitude_km);
-			ctl_reply_add(r, "view: name=%s index=%u altitude_km=%s yaw_deg=%.9g pitch_deg=%.9g roll_deg=%.9g vfov_deg=%.9g aspect=%.9g east_km=%.9g north_km=%.9g mine=%d\n",
+			ctl_reply_add(r, "view: name=%s index=%u altitude_km=%s yaw_deg=%.9g pitch_deg=%.9g roll_deg=%.9g vfov_deg=%.9g aspect=%.9g east_km=%.9g north_km=%.9g form=%s mine=%d\n",
 				  v->name, i, alt, v->camera.yaw_deg, v->camera.pitch_deg,
 				  v->camera.roll_deg, v->camera.vfov_deg, v->camera.aspect, v->east_km, v->north_km,
-				  v->owner == c->id);
+				  view_form_names[v->form], v->owner == c->id);
 		}
 		return 0;
 	}

@@ -61,6 +61,10 @@ struct state_view {
 	 * north) its bearing). The camera's angles are in the local frame
 	 * there: its vertical, and true north for a site at clock.lat_deg. */
 	double east_km, north_km;
+	/* How its aerial perspective is published (enum sky_view_form): its
+	 * own volume, or the panorama of its eye point, which every view of
+	 * that form there shares. */
+	uint32_t form;
 	struct state_camera camera;
 	uint64_t owner;			/* the connection that added it */
 };

@@ -66,6 +66,10 @@ struct SkyState {
 	vec4 camera_forward;	// xyz: the aerial volume's camera (the state's or a view's)
 	vec4 camera_right;
 	vec4 camera_up;		// w: that camera's altitude_km
+	vec4 panorama;		// a view of form panorama (struct sky_shm_panorama): x: azimuth0_rad,
+				// y: azimuth_step_rad, z: row0, w: row_step; 0 for a volume
+	vec4 panorama_grid;	// x: horizon_rad, y: width, z: height, w: the aerial texture's form:
+				// 0 a volume, 1 a panorama of an arc, 2 a panorama of the full circle
 };
 
 // enum sky_shm_table_id.
@@ -274,6 +278,36 @@ vec4 sky_aerial(SkyState s, sampler3D aerial, vec2 screen_uv, float distance_km)
 vec3 sky_apply_aerial(SkyState s, sampler3D aerial, vec2 screen_uv, float distance_km, vec3 surface)
 {
 	vec4 a = sky_aerial(s, aerial, screen_uv, distance_km);
+	return surface * a.a + a.rgb;
+}
+
+// Aerial perspective toward dir (unit, in the east-north-up frame of the
+// aerial camera's eye: the observer's, or a view's own) at distance_km,
+// whatever the form of the aerial texture: a volume through its camera's
+// screen position, a panorama (a view of form panorama: RGB stored as the
+// logarithm of the radiance) through its column and row. In a panorama,
+// the logarithm is filtered in all three axes (one trilinear fetch), then
+// the radiance before slice 0 is linear toward the eye as in a volume.
+// skysample_panorama.
+vec4 sky_aerial_dir(SkyState s, sampler3D aerial, vec3 dir, float distance_km)
+{
+	if (s.panorama_grid.w < 0.5)
+		return sky_aerial(s, aerial, sky_aerial_screen_uv(s, dir), distance_km);
+	int d = textureSize(aerial, 0).z;
+	float w = skymap_aerial_slice(distance_km, d, s.aerial.x, s.aerial.y > 0.5);
+	vec2 uv = skymap_panorama_uv(s.panorama.x, s.panorama.y, s.panorama.z, s.panorama.w,
+				     s.panorama_grid.x, int(s.panorama_grid.y), int(s.panorama_grid.z),
+				     s.panorama_grid.w > 1.5, atan(dir.x, dir.y),
+				     asin(clamp(dir.z, -1.0, 1.0)));
+	vec4 p = sky_read_aerial(aerial, uv, max(w, 0.0), 1.0);
+	p.rgb = exp(p.rgb);
+	return w < 0.0 ? mix(vec4(0.0, 0.0, 0.0, 1.0), p, max(w + 1.0, 0.0)) : p;
+}
+
+// A surface's radiance seen through the air toward dir at distance_km.
+vec3 sky_apply_aerial_dir(SkyState s, sampler3D aerial, vec3 dir, float distance_km, vec3 surface)
+{
+	vec4 a = sky_aerial_dir(s, aerial, dir, distance_km);
 	return surface * a.a + a.rgb;
 }
 

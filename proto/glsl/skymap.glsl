@@ -14,7 +14,7 @@
 
 // skymap.h's SKYMAP_VERSION, for a client that checks the header's
 // uv_mapping_version against the shaders it was built with.
-#define SKYMAP_GLSL_VERSION 3
+#define SKYMAP_GLSL_VERSION 4
 
 const float SKYMAP_PI = 3.14159265358979;
 
@@ -188,6 +188,30 @@ float skymap_aerial_slice(float depth_km, int n, float range_km, bool squared)
 {
 	float x = clamp(depth_km / range_km, 0.0, 1.0);
 	return (squared ? sqrt(x) : x) * float(n) - 1.0;
+}
+
+// A panorama of an eye point (struct sky_shm_panorama): the texture
+// coordinates of the direction (azimuth east of north, elevation). Columns
+// azimuth0 + i * step, the last repeating the first with full_circle, else
+// an arc whose nearer end serves directions outside it; rows in x =
+// sign(e) sqrt(|e|), e the elevation above horizon_rad.
+vec2 skymap_panorama_uv(float azimuth0_rad, float azimuth_step_rad, float row0, float row_step,
+			float horizon_rad, int width, int height, bool full_circle, float azimuth_rad,
+			float elevation_rad)
+{
+	const float two_pi = 2.0 * SKYMAP_PI;
+	float du = azimuth_rad - azimuth0_rad;
+	du -= two_pi * floor(du / two_pi);
+	if (!full_circle) {
+		float span = azimuth_step_rad * float(width - 1);
+		if (du > span)
+			du = du - span < two_pi - du ? span : 0.0;
+	}
+	float f = clamp(du / azimuth_step_rad, 0.0, float(width - 1));
+	float e = elevation_rad - horizon_rad;
+	float x = e < 0.0 ? -sqrt(-e) : sqrt(e);
+	float g = clamp((x - row0) / row_step, 0.0, float(height - 1));
+	return vec2((f + 0.5) / float(width), (g + 0.5) / float(height));
 }
 
 #endif
