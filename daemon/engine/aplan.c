@@ -301,3 +301,20 @@ void aplan_make(const struct sky_state *s, bool share, struct aplan *ret)
 		if ((group[i] & (group[i] - 1)) && ret->panorama[i] < 0)
 			add_panorama(s, ret, i, group[i], -1, share);
 }
+
+void aplan_describe(const struct aplan *p, int32_t k, uint64_t offset, struct sky_shm_panorama *ret)
+{
+	const struct aplan_panorama *o = &p->pano[k];
+	memset(ret, 0, sizeof(*ret));
+	ret->offset = offset;
+	ret->bytes = aplan_panorama_texels(p) * 16;
+	ret->width = p->width;
+	ret->height = p->height;
+	ret->depth = p->depth;
+	ret->full_circle = o->m1[3] > 0.5f;
+	ret->azimuth0_rad = o->m0[0];
+	ret->azimuth_step_rad = o->m0[1];
+	ret->row0 = o->m0[2];
+	ret->row_step = o->m0[3];
+	ret->horizon_rad = o->m1[0];
+}

@@ -10,6 +10,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "skyproto.h"
 #include "state.h"
 
 /* The state's camera and STATE_MAX_VIEWS views. */
@@ -65,5 +66,9 @@ static inline uint64_t aplan_panorama_texels(const struct aplan *p)
 {
 	return (uint64_t)p->width * p->height * p->depth;
 }
+
+/* Panorama k of p as the slot describes it, its texels at offset (from
+ * the start of the slot): the mapping's floats, exactly. */
+void aplan_describe(const struct aplan *p, int32_t k, uint64_t offset, struct sky_shm_panorama *ret);
 
 #endif

@@ -293,24 +293,6 @@ static void futex_wake_all(uint32_t *word)
 	syscall(SYS_futex, word, FUTEX_WAKE, INT_MAX, NULL, NULL, 0);
 }
 
-/* Describes panorama k of plan ap, held in view region `holder`. */
-static void describe_panorama(const struct sky_shm_header *h, const struct aplan *ap, int32_t k,
-			      struct sky_shm_panorama *ret)
-{
-	const struct aplan_panorama *o = &ap->pano[k];
-	ret->offset = h->view_offset + (uint64_t)o->view * h->view_stride;
-	ret->bytes = aplan_panorama_texels(ap) * 16;
-	ret->width = ap->width;
-	ret->height = ap->height;
-	ret->depth = ap->depth;
-	ret->full_circle = o->m1[3] > 0.5f;
-	ret->azimuth0_rad = o->m0[0];
-	ret->azimuth_step_rad = o->m0[1];
-	ret->row0 = o->m0[2];
-	ret->row_step = o->m0[3];
-	ret->horizon_rad = o->m1[0];
-}
-
 /* The slot's view directory and, with aerial perspective valid, each view's
  * volume or panorama: the engine's aerial table holds the volumes of the
  * plan of s (the state's camera's first), panoramas its published
@@ -354,7 +336,8 @@ static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *s
 			}
 			continue;
 		}
-		describe_panorama(h, &ap, k, &o->panorama);
+		aplan_describe(&ap, k, h->view_offset + (uint64_t)ap.pano[k].view * h->view_stride,
+			       &o->panorama);
 		if (!computed || !panoramas)
 			continue;
 		if ((uint32_t)ap.pano[k].view == i)
