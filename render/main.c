@@ -345,7 +345,7 @@ static void try_reconnect(struct link *l, struct rvk *r, const struct opts *o)
 /* Uploads the newest generation if it is not the one shown: the tables
  * that changed, the uniforms, the aerial volumes or panorama of our views. 0 (nothing to
  * do, or started), -EAGAIN (torn or busy: next frame), -errno. */
-static int refresh(struct link *l, struct rvk *r)
+static int refresh(struct link *l, struct rvk *r, const struct opts *o)
 {
 	struct sky_view v;
 	struct sky_gpu_table t[SKY_SHM_MAX_TABLES], volume[RVK_MAX_AERIAL];
@@ -388,7 +388,7 @@ static int refresh(struct link *l, struct rvk *r)
 		return -EAGAIN;
 	}
 	l->shown = v.generation;
-	for (uint32_t k = 0; k < l->n_views; k++)
+	for (uint32_t k = 0; o->rvk.terrain && k < l->n_views; k++)
 		say_source(l, k, src[k], u.aerial[k]);
 	return 0;
 }
@@ -472,7 +472,7 @@ static int run(struct link *l, struct rvk *r, struct win *w, const struct opts *
 		if (!l->connected)
 			try_reconnect(l, r, o);
 		if (l->connected) {
-			int rc = refresh(l, r);
+			int rc = refresh(l, r, o);
 			if (rc < 0 && rc != -EAGAIN && rc != -ENOTCONN)
 				fprintf(stderr, "skyrender: %s\n", sky_strerror(rc));
 		}
