@@ -133,7 +133,10 @@
  *
  * libsky follows semantic versioning (SONAME libsky.so.0). Every function
  * says the version it appeared in. SKY_VERSION is the version of the
- * header; sky_version() that of the library actually loaded.
+ * header; sky_version() that of the library actually loaded. 0.3 reads
+ * shared-memory layout 6, whose views may be of form panorama
+ * (sky_sample_view_aerial_dir(), the panorama fields of struct
+ * sky_gpu_state).
  */
 #ifndef SKY_H
 #define SKY_H
@@ -155,7 +158,7 @@ extern "C" {
 #endif
 
 #define SKY_VERSION_MAJOR 0
-#define SKY_VERSION_MINOR 1
+#define SKY_VERSION_MINOR 3
 #define SKY_VERSION_PATCH 0
 #define SKY_MAKE_VERSION(a, b, c) (((a) << 16) | ((b) << 8) | (c))
 #define SKY_VERSION SKY_MAKE_VERSION(SKY_VERSION_MAJOR, SKY_VERSION_MINOR, SKY_VERSION_PATCH)
@@ -450,20 +453,45 @@ SKY_EXPORT int sky_sample_aerial(const struct sky_view *v, double screen_u, doub
 				 double distance_km, double ret_rgb[3], double *ret_transmittance);
 
 /* Aerial perspective of the camera view called name (registered with the
- * protocol's `view add`; each has its own volume in the slot), sampled as
- * sky_sample_aerial() samples the state's camera. -ENOENT if the slot has
- * no view of that name, -ENODATA if its volume is not valid in this slot
- * (nobody subscribed to aerial). Since 0.2. */
+ * protocol's `view add`), at screen position (screen_u, screen_v) of the
+ * view's camera, sampled as sky_sample_aerial() samples the state's
+ * camera. A view of form volume has its own volume in the slot; one of
+ * form panorama (since 0.3) reads its eye point's panorama toward the
+ * direction through that screen position (sky_sample_view_aerial_dir()).
+ * -ENOENT if the slot has no view of that name, -ENODATA if its aerial
+ * perspective is not valid in this slot (nobody subscribed to aerial),
+ * -EPROTO if the slot's entry for it is malformed. Since 0.2. */
 SKY_EXPORT int sky_sample_view_aerial(const struct sky_view *v, const char *name, double screen_u,
 				      double screen_v, double distance_km, double ret_rgb[3],
 				      double *ret_transmittance);
 
-/* The aerial volume of the camera view called name, for upload to a GPU
- * texture: *ret_texels points into the slot (valid as long as the view of
- * the slot is: until sky_view_end() or while the snapshot buffer lives),
- * laid out as the aerial table (same format, sizes and RGB scale:
- * sky_table_scale()); *ret_bytes (may be NULL) its size. The view's camera
- * is in the slot's views[] entry of the same name (proto/skyproto.h).
+/* Aerial perspective of the view called name toward the direction dir (in
+ * the view's eye frame: east-north-up at its eye, the observer's for a
+ * view at east_km = north_km = 0; normalised here, so any non-zero
+ * length), distance_km along it: in-scattered radiance (RGB, cd/m2) and
+ * the transmittance (NULL to skip). Either form: a volume through the
+ * screen position of dir in the view's camera (off screen: the border
+ * froxels), a panorama through its column and row (skysample_panorama():
+ * trilinear in the logarithm of the radiance). The same numbers as the
+ * GLSL library's sky_aerial_dir() (proto/glsl/sky.glsl) to float rounding.
+ * name NULL: the state's camera and the aerial table. -EINVAL for a zero
+ * or non-finite dir or a negative distance; else errors as
+ * sky_sample_view_aerial(). Thread-safe on a view. Since 0.3. */
+SKY_EXPORT int sky_sample_view_aerial_dir(const struct sky_view *v, const char *name,
+					  const double dir[3], double distance_km, double ret_rgb[3],
+					  double *ret_transmittance);
+
+/* The aerial perspective texels of the camera view called name, for upload
+ * to a GPU texture: *ret_texels points into the slot (valid as long as the
+ * view of the slot is: until sky_view_end() or while the snapshot buffer
+ * lives); *ret_bytes (may be NULL) their size. A view of form volume: laid
+ * out as the aerial table (same format, sizes and RGB scale:
+ * sky_table_scale()). A view of form panorama (since 0.3): its eye point's
+ * panorama, RGBA32F, RGB the natural logarithm of the radiance, never
+ * scaled, with the sizes and mapping of the slot's views[] entry
+ * (struct sky_shm_panorama; sky_gpu_view_table() and sky_gpu_state() give
+ * them); views on one eye point get the same texels. The view's camera is
+ * in the slot's views[] entry of the same name (proto/skyproto.h).
  * Errors as sky_sample_view_aerial().
  * Since 0.2. */
 SKY_EXPORT int sky_view_aerial_table(const struct sky_view *v, const char *name,
@@ -538,6 +566,14 @@ SKY_EXPORT int sky_sample_ambient(const struct sky_view *v, double ret_lx[3]);
  * complete, and sky_view_end() be called after its fence, before the
  * result is trusted (a torn copy is dropped like a torn CPU copy). Images
  * never alias the mapping.
+ *
+ * Views' aerial perspective (`view add`): upload sky_gpu_view_table()'s
+ * texels in place of the aerial table and fill the uniforms with
+ * sky_gpu_state(v, name, ...). A view of form panorama (a display wall's
+ * channels share their eye point's) is a 3-D image of its own size and
+ * format RGBA32F whatever the tables' storage; sample it by direction with
+ * sky_aerial_dir() / sky_apply_aerial_dir(), which read a volume as well,
+ * never with the screen-position functions.
  */
 
 /* Texel formats of sky_gpu_table.vk_format: the VkFormat enumerants (stable
@@ -597,14 +633,21 @@ struct sky_gpu_table {
 SKY_EXPORT int sky_gpu_tables(sky_client *c, const struct sky_view *v,
 			      struct sky_gpu_table ret_tables[SKY_SHM_MAX_TABLES]);
 
-/* The aerial-perspective volume of the view called name (`view add`; see
- * sky_view_aerial_table()) described as sky_gpu_tables() describes a table
- * (id SKY_TABLE_AERIAL, the aerial table's format, sizes and scale), with
- * its own changed_generation: a view's volume changes when its camera or
- * the sky does. Returns 1 if it changed in the view's generation, 0 if
- * not, -ENOENT if the slot has no such view, -ENODATA if its volume is not
- * valid there, -EAGAIN if a zero-copy view was torn, -EINVAL. Keeps what
- * it has seen per name, for up to SKY_SHM_MAX_VIEWS names. Not thread-safe
+/* The aerial perspective of the view called name (`view add`; see
+ * sky_view_aerial_table()) described as sky_gpu_tables() describes a table,
+ * id SKY_TABLE_AERIAL, with its own changed_generation: a view's volume
+ * changes when its camera or the sky does. A view of form volume: the
+ * aerial table's format, sizes and scale, a 3-D image like the aerial
+ * table's. A view of form panorama (since 0.3): its panorama, format
+ * SKY_FORMAT_RGBA32F (vk_format SKY_VK_FORMAT_R32G32B32A32_SFLOAT),
+ * texel_bytes 16, rgb_scale_log2 0, width, height and depth the
+ * panorama's (columns, rows, slices): a 3-D image sampled by the GLSL
+ * library's sky_aerial_dir() with sky_gpu_state()'s panorama fields, with
+ * the same linear CLAMP_TO_EDGE sampler as a volume. Returns 1 if it
+ * changed in the view's generation, 0 if not, -ENOENT if the slot has no
+ * such view, -ENODATA if it is not valid there, -EPROTO if its entry is
+ * malformed, -EAGAIN if a zero-copy view was torn, -EINVAL. Keeps what it
+ * has seen per name, for up to SKY_SHM_MAX_VIEWS names. Not thread-safe
  * on one client. Since 0.2. */
 SKY_EXPORT int sky_gpu_view_table(sky_client *c, const struct sky_view *v, const char *name,
 				  struct sky_gpu_table *ret_table);
@@ -639,7 +682,11 @@ struct sky_gpu_state {
 /* Fills ret_state from the view's slot for the GLSL library. view_name NULL:
  * the aerial volume is the state's camera's (the aerial table); else the
  * camera of the view of that name (`view add`, sky_view_aerial_table()),
- * -ENOENT if the slot has none. Thread-safe on a view. Since 0.2. */
+ * -ENOENT if the slot has none. The camera_* fields are always the
+ * camera's; panorama and panorama_grid (since 0.3) describe a view of
+ * form panorama (panorama_grid[3] 1 for an arc of azimuths, 2 for the full
+ * circle) and are 0 for a volume, so that sky_aerial_dir() reads either.
+ * Thread-safe on a view. Since 0.2. */
 SKY_EXPORT int sky_gpu_state(const struct sky_view *v, const char *view_name,
 			     struct sky_gpu_state *ret_state);
 

@@ -179,8 +179,8 @@ int sky_gpu_state(const struct sky_view *v, const char *view_name, struct sky_gp
 	const struct sky_shm_state *st = &v->slot->state;
 	double alt = st->altitude_km, vfov = st->camera_vfov_rad, aspect = st->camera_aspect;
 	const double *fwd = st->camera_forward, *right = st->camera_right, *up = st->camera_up;
+	const struct sky_shm_view *vw = NULL;
 	if (view_name) {
-		const struct sky_shm_view *vw = NULL;
 		for (uint32_t i = 0; i < v->slot->n_views && i < SKY_SHM_MAX_VIEWS; i++)
 			if (strncmp(v->slot->views[i].name, view_name, SKY_SHM_VIEW_NAME_MAX) == 0)
 				vw = &v->slot->views[i];
@@ -215,6 +215,13 @@ int sky_gpu_state(const struct sky_view *v, const char *view_name, struct sky_gp
 	put4(g.camera_forward, fwd, 0.0);
 	put4(g.camera_right, right, 0.0);
 	put4(g.camera_up, up, alt);
+	if (vw && vw->form == SKY_VIEW_PANORAMA) {
+		const struct sky_shm_panorama *p = &vw->panorama;
+		double pan[3] = { p->azimuth0_rad, p->azimuth_step_rad, p->row0 };
+		double grid[3] = { p->horizon_rad, p->width, p->height };
+		put4(g.panorama, pan, p->row_step);
+		put4(g.panorama_grid, grid, p->full_circle ? 2.0 : 1.0);
+	}
 	*ret_state = g;
 	return 0;
 }

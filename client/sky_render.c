@@ -77,30 +77,73 @@ int sky_sample_sky(const struct sky_view *v, double elevation_deg, double azimut
 	return 0;
 }
 
-/* An aerial perspective sample from the state's camera's table (name NULL)
- * or a registered view's. */
-static int aerial_at(const struct sky_view *v, const char *name, double screen_u, double screen_v,
-		     double distance_km, double ret_rgb[3], double *ret_transmittance)
-{
+/* The aerial perspective of the state's camera (name NULL: the aerial
+ * table) or of a registered view, with the camera it belongs to and, for a
+ * view of form panorama, the panorama (NULL for a volume). */
+struct aerial_src {
 	struct skysample_table t;
-	if (!ret_rgb || !isfinite(screen_u) || !isfinite(screen_v) || !isfinite(distance_km) ||
-	    distance_km < 0.0)
-		return -EINVAL;
+	const struct sky_shm_panorama *panorama;
+	const double *fwd, *right, *up;
+	double tan_half, aspect;
+};
+
+static int aerial_source(const struct sky_view *v, const char *name, struct aerial_src *ret)
+{
+	const struct sky_shm_view *vw = NULL;
 	int r;
 	if (!name)
-		r = view_table(v, SKY_TABLE_AERIAL, &t);
+		r = view_table(v, SKY_TABLE_AERIAL, &ret->t);
 	else if (!v || !v->header || !v->slot_base)
 		r = -EINVAL;
 	else
-		r = skysample_view_from_slot(v->header, v->slot_base, name, &t, NULL);
+		r = skysample_view_from_slot(v->header, v->slot_base, name, &ret->t, &vw);
 	if (r < 0)
 		return r;
+	const struct sky_shm_state *st = &v->slot->state;
+	ret->panorama = vw && vw->form == SKY_VIEW_PANORAMA ? &vw->panorama : NULL;
+	ret->fwd = vw ? vw->camera_forward : st->camera_forward;
+	ret->right = vw ? vw->camera_right : st->camera_right;
+	ret->up = vw ? vw->camera_up : st->camera_up;
+	ret->tan_half = tan(0.5 * (vw ? vw->camera_vfov_rad : st->camera_vfov_rad));
+	ret->aspect = vw ? vw->camera_aspect : st->camera_aspect;
+	return 0;
+}
+
+/* Samples src toward the unit direction dir (panorama) or at the screen
+ * position (su, sv) (volume); dir may be NULL for a volume. */
+static void aerial_sample(const struct sky_view *v, const struct aerial_src *src, const double dir[3],
+			  double su, double sv, double distance_km, double ret_rgb[3],
+			  double *ret_transmittance)
+{
 	double rgb[3], tr;
-	skysample_aerial(&t, &v->slot->state, screen_u, screen_v, distance_km, rgb, &tr);
+	if (src->panorama)
+		skysample_panorama(&src->t, src->panorama, &v->slot->state, dir, distance_km, rgb, &tr);
+	else
+		skysample_aerial(&src->t, &v->slot->state, su, sv, distance_km, rgb, &tr);
 	for (int c = 0; c < 3; c++)
 		ret_rgb[c] = rgb[c];
 	if (ret_transmittance)
 		*ret_transmittance = tr;
+}
+
+/* An aerial perspective sample at a screen position of the state's camera
+ * (name NULL) or a registered view's: for a panorama, toward the direction
+ * through that position. */
+static int aerial_at(const struct sky_view *v, const char *name, double screen_u, double screen_v,
+		     double distance_km, double ret_rgb[3], double *ret_transmittance)
+{
+	struct aerial_src src;
+	if (!ret_rgb || !isfinite(screen_u) || !isfinite(screen_v) || !isfinite(distance_km) ||
+	    distance_km < 0.0)
+		return -EINVAL;
+	int r = aerial_source(v, name, &src);
+	if (r < 0)
+		return r;
+	double dir[3] = { 0.0, 0.0, 1.0 };
+	if (src.panorama)
+		skysample_screen_dir(src.fwd, src.right, src.up, src.tan_half, src.aspect, screen_u,
+				     screen_v, dir);
+	aerial_sample(v, &src, dir, screen_u, screen_v, distance_km, ret_rgb, ret_transmittance);
 	return 0;
 }
 
@@ -108,6 +151,25 @@ int sky_sample_aerial(const struct sky_view *v, double screen_u, double screen_v
 		      double distance_km, double ret_rgb[3], double *ret_transmittance)
 {
 	return aerial_at(v, NULL, screen_u, screen_v, distance_km, ret_rgb, ret_transmittance);
+}
+
+int sky_sample_view_aerial_dir(const struct sky_view *v, const char *name, const double dir[3],
+			       double distance_km, double ret_rgb[3], double *ret_transmittance)
+{
+	struct aerial_src src;
+	if (!ret_rgb || !dir || !isfinite(distance_km) || distance_km < 0.0)
+		return -EINVAL;
+	double n = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+	if (!isfinite(n) || !(n > 0.0))
+		return -EINVAL;
+	double d[3] = { dir[0] / n, dir[1] / n, dir[2] / n }, su = 0.0, sv = 0.0;
+	int r = aerial_source(v, name, &src);
+	if (r < 0)
+		return r;
+	if (!src.panorama)
+		skysample_screen_uv(src.fwd, src.right, src.up, src.tan_half, src.aspect, d, &su, &sv);
+	aerial_sample(v, &src, d, su, sv, distance_km, ret_rgb, ret_transmittance);
+	return 0;
 }
 
 int sky_view_aerial_table(const struct sky_view *v, const char *name, const void **ret_texels,

@@ -13,7 +13,10 @@
  * (i + 0.5) / n; the sky-view longitude wraps, every other axis clamps.
  * The aerial perspective volume is indexed by screen position (u right,
  * v up, in [0, 1]; froxel (i, j) centred at ((i + 0.5) / W, (j + 0.5) / H))
- * and by the distance along the view ray through skymap_aerial_slice().
+ * and by the distance along the view ray through skymap_aerial_slice();
+ * a view's panorama (struct sky_shm_panorama) by the direction's azimuth
+ * and elevation through skymap_panorama_uv() and the same slices, its RGB
+ * the logarithm of the radiance (skysample_panorama).
  */
 #ifndef SKYD_SKYSAMPLE_H
 #define SKYD_SKYSAMPLE_H
@@ -188,10 +191,34 @@ static inline int skysample_check_layout(const struct sky_shm_header *hdr, uint6
 	return 0;
 }
 
+/* 0 when view v's panorama (form SKY_VIEW_PANORAMA) lies inside a slot of
+ * the header's slot_bytes, after the slot's own struct, 8-byte aligned,
+ * with bytes = width * height * depth * 16 and every size in [1, 65536];
+ * else -EPROTO. The entry comes from a peer: nothing indexes with it
+ * before this holds. */
+static inline int skysample_check_panorama(const struct sky_shm_header *hdr,
+					   const struct sky_shm_view *v)
+{
+	const struct sky_shm_panorama *p = &v->panorama;
+	if (!p->width || !p->height || !p->depth || p->width > 65536 || p->height > 65536 ||
+	    p->depth > 65536)
+		return -EPROTO;
+	uint64_t bytes = (uint64_t)p->width * p->height * p->depth * 16u;
+	if (p->bytes != bytes || p->offset % 8 || p->offset < sizeof(struct sky_shm_slot) ||
+	    p->offset > hdr->slot_bytes || bytes > hdr->slot_bytes - p->offset)
+		return -EPROTO;
+	return 0;
+}
+
 /* Finds the view called name in a slot at slot_base (layout checked) and
- * points ret at its aerial volume; ret_view (may be NULL) gets its entry.
- * -ENOENT if the slot has no such view, -ENODATA if its volume is not
- * valid in this slot. */
+ * points ret at its aerial perspective; ret_view (may be NULL) gets its
+ * entry, whose form says which: a volume (SKY_VIEW_VOLUME, the aerial
+ * table's format, sizes and scale at view_offset + i * view_stride;
+ * skysample_aerial) or its eye point's panorama (SKY_VIEW_PANORAMA,
+ * RGBA32F at panorama.offset with the panorama's sizes and scale 0;
+ * skysample_panorama with the entry's panorama). -ENOENT if the slot has
+ * no such view, -ENODATA if it is not valid in this slot, -EPROTO if the
+ * entry's form is unknown or its panorama fails skysample_check_panorama. */
 static inline int skysample_view_from_slot(const struct sky_shm_header *hdr,
 					   const void *slot_base, const char *name,
 					   struct skysample_table *ret,
@@ -200,17 +227,30 @@ static inline int skysample_view_from_slot(const struct sky_shm_header *hdr,
 	const struct sky_shm_slot *slot = (const struct sky_shm_slot *)slot_base;
 	struct skysample_table aerial;
 
-	if (skysample_table_from_slot(hdr, slot_base, SKY_TABLE_AERIAL, &aerial) < 0)
-		return -ENOENT;
 	for (uint32_t i = 0; i < slot->n_views && i < hdr->max_views; i++) {
 		const struct sky_shm_view *v = &slot->views[i];
 		if (__builtin_strncmp(v->name, name, SKY_SHM_VIEW_NAME_MAX) != 0)
 			continue;
 		if (!(slot->valid_views & (1u << i)))
 			return -ENODATA;
-		*ret = aerial;
-		ret->texels = (const unsigned char *)slot_base + hdr->view_offset +
-			      i * hdr->view_stride;
+		if (v->form == SKY_VIEW_PANORAMA) {
+			if (skysample_check_panorama(hdr, v) < 0)
+				return -EPROTO;
+			ret->texels = (const unsigned char *)slot_base + v->panorama.offset;
+			ret->format = SKY_FORMAT_RGBA32F;
+			ret->width = v->panorama.width;
+			ret->height = v->panorama.height;
+			ret->depth = v->panorama.depth;
+			ret->rgb_scale_log2 = 0;
+		} else if (v->form == SKY_VIEW_VOLUME) {
+			if (skysample_table_from_slot(hdr, slot_base, SKY_TABLE_AERIAL, &aerial) < 0)
+				return -ENOENT;
+			*ret = aerial;
+			ret->texels = (const unsigned char *)slot_base + hdr->view_offset +
+				      i * hdr->view_stride;
+		} else {
+			return -EPROTO;
+		}
 		if (ret_view)
 			*ret_view = v;
 		return 0;
@@ -219,11 +259,15 @@ static inline int skysample_view_from_slot(const struct sky_shm_header *hdr,
 }
 
 /* The slot checksum of skyproto.h over a slot (or a copy of one) at
- * slot_base: the state, then each valid table in id order. */
+ * slot_base: the state, then each valid table in id order, then the views'
+ * entries and each valid view's volume or panorama in index order (a
+ * panorama once per view, also where views share it). A panorama that
+ * fails skysample_check_panorama adds nothing, so the sum cannot match. */
 static inline uint64_t skysample_slot_checksum(const struct sky_shm_header *hdr,
 					       const void *slot_base)
 {
 	const struct sky_shm_slot *slot = (const struct sky_shm_slot *)slot_base;
+	const unsigned char *base = (const unsigned char *)slot_base;
 	uint64_t c = sky_shm_checksum_words(SKY_SHM_CHECKSUM_SEED, &slot->state,
 					    sizeof(slot->state) / 8);
 	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
@@ -231,21 +275,27 @@ static inline uint64_t skysample_slot_checksum(const struct sky_shm_header *hdr,
 			continue;
 		for (uint32_t n = 0; n < hdr->n_tables && n < SKY_SHM_MAX_TABLES; n++)
 			if (hdr->tables[n].id == id)
-				c = sky_shm_checksum_words(c, (const unsigned char *)slot_base +
-							      hdr->tables[n].offset,
+				c = sky_shm_checksum_words(c, base + hdr->tables[n].offset,
 							   hdr->tables[n].bytes / 8);
 	}
 	if (!slot->n_views || slot->n_views > SKY_SHM_MAX_VIEWS)
 		return c;
 	c = sky_shm_checksum_words(c, slot->views, slot->n_views * sizeof(slot->views[0]) / 8);
 	for (uint32_t i = 0; i < slot->n_views && i < hdr->max_views; i++) {
+		const struct sky_shm_view *v = &slot->views[i];
 		struct skysample_table t;
-		if ((slot->valid_views & (1u << i)) &&
-		    skysample_table_from_slot(hdr, slot_base, SKY_TABLE_AERIAL, &t) == 0)
-			c = sky_shm_checksum_words(c, (const unsigned char *)slot_base +
-						      hdr->view_offset + i * hdr->view_stride,
+		if (!(slot->valid_views & (1u << i)))
+			continue;
+		if (v->form == SKY_VIEW_PANORAMA) {
+			if (skysample_check_panorama(hdr, v) == 0)
+				c = sky_shm_checksum_words(c, base + v->panorama.offset,
+							   v->panorama.bytes / 8);
+		} else if (v->form == SKY_VIEW_VOLUME &&
+			   skysample_table_from_slot(hdr, slot_base, SKY_TABLE_AERIAL, &t) == 0) {
+			c = sky_shm_checksum_words(c, base + hdr->view_offset + i * hdr->view_stride,
 						   (uint64_t)t.width * t.height * t.depth *
 						   (t.format == SKY_FORMAT_RGBA16F ? 8 : 16) / 8);
+		}
 	}
 	return c;
 }
@@ -312,6 +362,75 @@ static inline void skysample_aerial(const struct skysample_table *t,
 	for (int c = 0; c < 3; c++)
 		ret_rgb[c] = b[c] + f * (a[c] - b[c]);
 	*ret_transmittance = b[3] + f * (a[3] - b[3]);
+}
+
+/* The screen position (u right, v up, [0, 1] inside the frustum) of the
+ * unit direction dir in a camera (forward, right, up; tan of half the
+ * vertical field of view; aspect): sky.glsl's sky_aerial_screen_uv, a
+ * direction behind the camera far off screen. */
+static inline void skysample_screen_uv(const double fwd[3], const double right[3],
+				       const double up[3], double tan_half_vfov, double aspect,
+				       const double dir[3], double *ret_u, double *ret_v)
+{
+	double z = dir[0] * fwd[0] + dir[1] * fwd[1] + dir[2] * fwd[2];
+	double x = dir[0] * right[0] + dir[1] * right[1] + dir[2] * right[2];
+	double y = dir[0] * up[0] + dir[1] * up[1] + dir[2] * up[2];
+	if (!(z > 1e-6))
+		z = 1e-6;
+	*ret_u = 0.5 + 0.5 * x / (tan_half_vfov * aspect) / z;
+	*ret_v = 0.5 + 0.5 * y / tan_half_vfov / z;
+}
+
+/* The inverse: the unit direction through screen position (u, v) of the
+ * camera, as the aerial pass makes a froxel's ray. */
+static inline void skysample_screen_dir(const double fwd[3], const double right[3],
+					const double up[3], double tan_half_vfov, double aspect,
+					double u, double v, double ret_dir[3])
+{
+	double x = (2.0 * u - 1.0) * tan_half_vfov * aspect, y = (2.0 * v - 1.0) * tan_half_vfov;
+	double d[3], n = 0.0;
+	for (int k = 0; k < 3; k++) {
+		d[k] = fwd[k] + x * right[k] + y * up[k];
+		n += d[k] * d[k];
+	}
+	n = sqrt(n);
+	for (int k = 0; k < 3; k++)
+		ret_dir[k] = d[k] / n;
+}
+
+/* Aerial perspective from a panorama (struct sky_shm_panorama p, its
+ * texels t: RGBA32F, RGB the natural log of the radiance) toward the unit
+ * direction dir in the panorama's eye frame (east-north-up), distance_km
+ * along it: in-scattered RGB radiance and the mean transmittance. As
+ * sky.glsl's sky_aerial_dir reads a panorama: one trilinear lookup of
+ * log-RGB and A at skymap_panorama_uv of the direction's azimuth and
+ * elevation and at the slice coordinate w (skymap_aerial_slice) clamped to
+ * [0, depth - 1], then exp of RGB; for w < 0 (between the eye and slice 0)
+ * linear from (0, 0, 0, 1) at the eye (w = -1) to that value. */
+static inline void skysample_panorama(const struct skysample_table *t,
+				      const struct sky_shm_panorama *p,
+				      const struct sky_shm_state *st, const double dir[3],
+				      double distance_km, double ret_rgb[3],
+				      double *ret_transmittance)
+{
+	double w = skymap_aerial_slice(distance_km, t->depth, st->aerial_range_km,
+				       st->aerial_squared != 0);
+	if (!(w == w))
+		w = -1.0;
+	double u, v, a[4], b[4];
+	skymap_panorama_uv(p->azimuth0_rad, p->azimuth_step_rad, p->row0, p->row_step,
+			   p->horizon_rad, t->width, t->height, p->full_circle != 0,
+			   atan2(dir[0], dir[1]), asin(skymap_clamp(dir[2], -1.0, 1.0)), &u, &v);
+	double wc = skymap_clamp(w, 0.0, t->depth - 1.0);
+	uint32_t k = (uint32_t)floor(wc);
+	uint32_t k1 = k + 1 < t->depth ? k + 1 : k;
+	double f = wc - k;
+	skysample_bilinear(t, u, v, k, 0, a);
+	skysample_bilinear(t, u, v, k1, 0, b);
+	double m = w < 0.0 ? (w + 1.0 > 0.0 ? w + 1.0 : 0.0) : 1.0;
+	for (int c = 0; c < 3; c++)
+		ret_rgb[c] = m * exp(a[c] + f * (b[c] - a[c]));
+	*ret_transmittance = 1.0 + m * (a[3] + f * (b[3] - a[3]) - 1.0);
 }
 
 /* 1 when a ray from the observer along cos-zenith mu meets the ground. */

@@ -32,7 +32,7 @@ expected=$tmp/expected
 	echo "$BINDIR/skyrender"
 	echo "$LIBDIR/libsky.so"
 	echo "$LIBDIR/libsky.so.0"
-	echo "$LIBDIR/libsky.so.0.1.0"
+	echo "$LIBDIR/libsky.so.0.3.0"
 	for h in sky.h skyproto.h skymap.h skysample.h; do echo "$INCLUDEDIR/$h"; done
 	for g in sky.glsl skymap.glsl; do echo "$INCLUDEDIR/sky/glsl/$g"; done
 	echo "$LIBDIR/pkgconfig/libsky.pc"
@@ -64,13 +64,13 @@ check "one skyTargets-<config>.cmake" \
 [ -f "$build/man/skyd.8" ] || echo "note: scdoc is missing, the man pages were not built"
 
 check "skyd and skyctl are executable" "[ -x '$dest$BINDIR/skyd' ] && [ -x '$dest$BINDIR/skyctl' ]"
-check "libsky.so -> libsky.so.0 -> libsky.so.0.1.0" \
+check "libsky.so -> libsky.so.0 -> libsky.so.0.3.0" \
 	"[ \"\$(readlink '$dest$LIBDIR/libsky.so')\" = libsky.so.0 ] &&
-	 [ \"\$(readlink '$dest$LIBDIR/libsky.so.0')\" = libsky.so.0.1.0 ]"
+	 [ \"\$(readlink '$dest$LIBDIR/libsky.so.0')\" = libsky.so.0.3.0 ]"
 check "SONAME libsky.so.0" \
-	"readelf -d '$dest$LIBDIR/libsky.so.0.1.0' | grep -q 'SONAME.*\[libsky.so.0\]'"
+	"readelf -d '$dest$LIBDIR/libsky.so.0.3.0' | grep -q 'SONAME.*\[libsky.so.0\]'"
 check "libsky exports only sky_ functions" \
-	"! readelf --dyn-syms -W '$dest$LIBDIR/libsky.so.0.1.0' |
+	"! readelf --dyn-syms -W '$dest$LIBDIR/libsky.so.0.3.0' |
 	   awk '\$5 == \"GLOBAL\" && \$7 != \"UND\" { print \$8 }' | grep -v '^sky_'"
 check "the units name the installed skyd" \
 	"grep -q '^ExecStart=$BINDIR/skyd --config $SYSCONFDIR/skyd/skyd.conf\$' '$dest$UNITDIR/skyd.service'"
