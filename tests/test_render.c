@@ -9,7 +9,8 @@
  *   panorama the tiles of a wall drawing at once read one panorama (views
  *            of form panorama at the same texels of the slot), the dome
  *            master one panorama of the full circle, and --aerial volume
- *            still draws from volumes, close to the panorama's frame;
+ *            still draws from volumes, close to the panorama's frame; a
+ *            ninth skyrender, refused a view, draws with the state's camera;
  *   window   --window on an Xvfb shows the bytes the PNG holds (skipped
  *            without Xvfb or libxcb).
  * Frames are compared as the 8-bit sRGB PNGs both programs write with
@@ -628,11 +629,36 @@ static void volume_option(const char *dir)
 	      !strstr(log, "panorama"));
 }
 
+/* With skyd's eight views taken, a ninth skyrender is refused its view
+ * and draws with the state's camera's volume. */
+static void view_refused(const char *dir)
+{
+	struct stream st[SKY_SHM_MAX_VIEWS];
+	char out[SKY_SHM_MAX_VIEWS][256], path[256], log[8192];
+	for (uint32_t k = 0; k < SKY_SHM_MAX_VIEWS; k++) {
+		snprintf(out[k], sizeof(out[k]), "%s/live-%u.png", dir, k);
+		const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
+				       "--size", "32x18", "--frames", "0", "--interval", "50", "--out",
+				       out[k], NULL };
+		CHECK(stream_start_argv(&st[k], argv) == 0);
+	}
+	for (uint32_t k = 0; k < SKY_SHM_MAX_VIEWS; k++)
+		CHECK(stream_frame(&st[k]) > 0);
+	snprintf(path, sizeof(path), "%s/ninth.png", dir);
+	long g = skyrender_log(path, (const char *const[]){ "--size", "64x36", NULL }, log,
+			       sizeof(log));
+	CHECK(g > 0 && strstr(log, "view add: ") != NULL &&
+	      strstr(log, "aerial perspective 0: the state's camera's volume") != NULL);
+	for (uint32_t k = 0; k < SKY_SHM_MAX_VIEWS; k++)
+		stream_stop(&st[k]);
+}
+
 static int case_panorama(const char *dir)
 {
 	panorama_wall(dir);
 	panorama_dome(dir);
 	volume_option(dir);
+	view_refused(dir);
 	return 0;
 }
 
