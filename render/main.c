@@ -2,7 +2,9 @@
  * the tables, uploads them to Vulkan images when a generation changes,
  * and draws frames of the sky, the sun and moon disks and a height field
  * under aerial perspective with the GLSL library; headless, as PNG files.
- * Options make it one tile of a wall or a dome master. */
+ * Options make it one tile of a wall or a dome master. Its aerial
+ * perspective comes from its eye point's panorama (a view of form
+ * panorama, which every tile of a wall shares) or a volume of its own. */
 #include <errno.h>
 #include <limits.h>
 #include <locale.h>
@@ -26,12 +28,19 @@ enum { EXIT_OK = 0, EXIT_FAILED = 1, EXIT_USAGE = 2 };
 #define FIRST_TABLES_TIMEOUT_MS 60000	/* the first generation with the tables */
 #define NEEDED_TABLES (SKY_TABLE_BIT(SKY_TABLE_TRANSMITTANCE) | SKY_TABLE_BIT(SKY_TABLE_SKYVIEW))
 
+/* How skyrender asks skyd for its aerial perspective (`view add form=`). */
+enum aerial_form {
+	AERIAL_PANORAMA = 0,		/* its eye point's panorama: one march for a wall */
+	AERIAL_VOLUME = 1,		/* a volume per camera, a dome's four quarters */
+};
+
 struct opts {
 	const char *socket;
 	const char *out;
 	struct rvk_options rvk;
 	double exposure;		/* <= 0: automatic, as skyctl render */
 	long frames;			/* 0: until SIGINT or SIGTERM (or the window closes) */
+	enum aerial_form aerial;
 	bool window;			/* show the frames in an X11 window */
 	bool out_given;			/* --out: with --window, write PNGs too */
 	bool frames_given;
@@ -42,8 +51,9 @@ struct opts {
 struct link {
 	sky_client *c;
 	bool connected;
-	uint32_t n_views;		/* our camera views: 1, or RVK_MAX_AERIAL for a dome */
+	uint32_t n_views;		/* our views: 1, or RVK_MAX_AERIAL for a dome of volumes */
 	bool view_added[RVK_MAX_AERIAL];	/* registered on this connection */
+	int aerial_said[RVK_MAX_AERIAL];	/* enum aerial_source last logged, -1: none */
 	uint32_t shown;			/* the generation last uploaded */
 	char view_name[RVK_MAX_AERIAL][SKY_SHM_VIEW_NAME_MAX];
 };
@@ -72,6 +82,9 @@ static void usage(FILE *f)
 		"  --no-terrain         the sky only\n"
 		"  --no-disks           no sun or moon disk\n"
 		"  --albedo A           the ground's reflectance (default 0.15)\n"
+		"  --aerial FORM        panorama: aerial perspective from skyd's panorama of the\n"
+		"                       eye point, which all tiles of a wall share (default);\n"
+		"                       volume: a volume of this camera (a dome: four)\n"
 		"  --exposure E         linear scale before the tone curve (default: automatic)\n"
 		"  --frames N           frames to draw, 0 until SIGINT/SIGTERM (default 1)\n"
 		"  --interval MS        between frames (default 100 when --frames 0, else 0)\n"
@@ -143,6 +156,9 @@ static int parse_args(int argc, char **argv, struct opts *o)
 			bad = parse_number(v, -90.0, 90.0, &cam->pitch_deg) < 0;
 		} else if (!strcmp(k, "--fov")) {
 			bad = parse_number(v, 0.01, 179.0, &cam->vfov_deg) < 0;
+		} else if (!strcmp(k, "--aerial")) {
+			bad = !v || (strcmp(v, "panorama") && strcmp(v, "volume"));
+			o->aerial = v && !strcmp(v, "volume") ? AERIAL_VOLUME : AERIAL_PANORAMA;
 		} else if (!strcmp(k, "--albedo")) {
 			bad = parse_number(v, 0.0, 1.0, &o->rvk.terrain_albedo) < 0;
 		} else if (!strcmp(k, "--exposure")) {
@@ -215,23 +231,49 @@ static int write_png(const char *path, const float *rgba, uint32_t w, uint32_t h
 	return r;
 }
 
-/* Registers the cameras whose aerial-perspective volumes the terrain
- * reads: the wall's camera, or for a dome master four quarters of the
- * horizon (the first facing the front; 110 degrees wide so that
- * neighbours overlap where the shader blends them, 60 high). Without one
- * (refused: a reader, or 8 views taken) the state's camera serves. */
-static void add_views(struct link *l, const struct opts *o)
+/* The dome master's one panorama view: the zenith inside its frustum, so
+ * that skyd's panorama covers the full circle of azimuths (skyd widens a
+ * panorama to the full circle when a pole is inside a view), and the
+ * frustum's border (89.5 degrees off its axis) 9.5 degrees under the
+ * horizon, so that the hills at the dome's rim and the filtering across
+ * the horizon have rows of their own. */
+#define DOME_PITCH_DEG 80.0
+#define DOME_VFOV_DEG 179.0
+
+/* The `view add` line of our view k: the wall's camera (its whole field:
+ * every tile of the wall asks for the same, so that skyd's panorama of
+ * the eye point serves them all), or for a dome master the panorama's
+ * wide camera, or with --aerial volume four quarters of the horizon (the
+ * first facing the front; 110 degrees wide so that neighbours overlap
+ * where the shader blends them, 60 high). */
+static void view_line(const struct link *l, const struct opts *o, uint32_t k, char *line,
+		      size_t size)
 {
 	const struct rvk_camera *c = &o->rvk.camera;
-	bool fish = c->projection == RVK_FISHEYE;
-	double aspect = fish ? tan(55.0 * M_PI / 180.0) / tan(30.0 * M_PI / 180.0) :
-			       (double)c->cols * c->width / ((double)c->rows * c->height);
+	bool pano = o->aerial == AERIAL_PANORAMA;
+	double yaw = c->yaw_deg, pitch = c->pitch_deg, vfov = c->vfov_deg;
+	double aspect = (double)c->cols * c->width / ((double)c->rows * c->height);
+	if (c->projection == RVK_FISHEYE && pano) {
+		pitch = DOME_PITCH_DEG;
+		vfov = DOME_VFOV_DEG;
+		aspect = 1.0;
+	} else if (c->projection == RVK_FISHEYE) {
+		yaw = fmod(c->yaw_deg + 90.0 * k, 360.0);
+		pitch = 0.0;
+		vfov = 60.0;
+		aspect = tan(55.0 * M_PI / 180.0) / tan(30.0 * M_PI / 180.0);
+	}
+	snprintf(line, size, "view add name=%s form=%s yaw_deg=%.9g pitch_deg=%.9g vfov_deg=%.9g aspect=%.9g",
+		 l->view_name[k], pano ? "panorama" : "volume", yaw, pitch, vfov, aspect);
+}
+
+/* Registers our views (view_line()). Without one (refused: a reader, or
+ * 8 views taken) the state's camera's volume serves. */
+static void add_views(struct link *l, const struct opts *o)
+{
 	for (uint32_t k = 0; k < l->n_views; k++) {
 		char line[256];
-		snprintf(line, sizeof(line),
-			 "view add name=%s yaw_deg=%.9g pitch_deg=%.9g vfov_deg=%.9g aspect=%.9g",
-			 l->view_name[k], fmod(c->yaw_deg + 90.0 * k, 360.0), fish ? 0.0 : c->pitch_deg,
-			 fish ? 60.0 : c->vfov_deg, aspect);
+		view_line(l, o, k, line, sizeof(line));
 		sky_reply *rep = NULL;
 		int r = sky_request(l->c, line, &rep);
 		l->view_added[k] = r == 0;
@@ -240,6 +282,32 @@ static void add_views(struct link *l, const struct opts *o)
 				sky_strerror(r), rep ? ": " : "", rep ? sky_reply_message(rep) : "");
 		sky_reply_free(rep);
 	}
+}
+
+/* What aerial texture a frame reads for one of our views. */
+enum aerial_source {
+	SOURCE_STATE = 0,		/* the state's camera's volume (the aerial table) */
+	SOURCE_VOLUME = 1,		/* the view's own volume */
+	SOURCE_ARC = 2,			/* the eye point's panorama, an arc of azimuths */
+	SOURCE_CIRCLE = 3,		/* the eye point's panorama, the full circle */
+};
+
+/* Says on stderr where view k's aerial perspective comes from, when that
+ * changed: the one line a user (and tests/test_render.c) reads to know
+ * that a wall's tiles read a panorama. */
+static void say_source(struct link *l, uint32_t k, enum aerial_source src,
+		       const struct sky_gpu_table *t)
+{
+	static const char *const what[] = { "the state's camera's volume", "a volume",
+					    "a panorama of an arc", "a panorama of the full circle" };
+	if (l->aerial_said[k] == (int)src)
+		return;
+	l->aerial_said[k] = (int)src;
+	if (src == SOURCE_STATE)
+		fprintf(stderr, "skyrender: aerial perspective %u: %s\n", k, what[src]);
+	else
+		fprintf(stderr, "skyrender: aerial perspective %u: view %s, %s of %ux%ux%u\n", k,
+			l->view_name[k], what[src], t->width, t->height, t->depth);
 }
 
 /* Handles what arrived on the socket; notes a hang-up. */
@@ -266,6 +334,8 @@ static void try_reconnect(struct link *l, struct rvk *r, const struct opts *o)
 		return;
 	l->connected = true;
 	l->shown = 0;
+	for (uint32_t k = 0; k < RVK_MAX_AERIAL; k++)
+		l->aerial_said[k] = -1;
 	rvk_forget_tables(r);
 	fprintf(stderr, "skyrender: reconnected to skyd\n");
 	if (o->rvk.terrain)
@@ -273,13 +343,14 @@ static void try_reconnect(struct link *l, struct rvk *r, const struct opts *o)
 }
 
 /* Uploads the newest generation if it is not the one shown: the tables
- * that changed, the uniforms, the aerial volume of our view. 0 (nothing to
+ * that changed, the uniforms, the aerial volumes or panorama of our views. 0 (nothing to
  * do, or started), -EAGAIN (torn or busy: next frame), -errno. */
-static int refresh(struct link *l, struct rvk *r)
+static int refresh(struct link *l, struct rvk *r, const struct opts *o)
 {
 	struct sky_view v;
 	struct sky_gpu_table t[SKY_SHM_MAX_TABLES], volume[RVK_MAX_AERIAL];
 	struct sky_gpu_state st[RVK_MAX_AERIAL];
+	enum aerial_source src[RVK_MAX_AERIAL];
 	struct rvk_upload u = { .tables = t, .n_aerial = l->n_views };
 	char err[512];
 	int rc = sky_view_begin(l->c, &v);
@@ -293,12 +364,17 @@ static int refresh(struct link *l, struct rvk *r)
 		u.state[k] = &st[k];
 		if (l->view_added[k] && sky_gpu_view_table(l->c, &v, l->view_name[k], &volume[k]) >= 0 &&
 		    sky_gpu_state(&v, l->view_name[k], &st[k]) == 0) {
+			/* A volume or a panorama: sky_gpu_state() says which
+			 * (panorama_grid[3]) and the shaders read either. */
 			u.aerial[k] = &volume[k];
 			u.aerial_is_view[k] = true;
+			long form = lrintf(st[k].panorama_grid[3]);
+			src[k] = form >= 2 ? SOURCE_CIRCLE : form == 1 ? SOURCE_ARC : SOURCE_VOLUME;
 		} else {
 			/* This view's volume is not in the slot (yet): the state's camera's. */
 			sky_gpu_state(&v, NULL, &st[k]);
 			u.aerial[k] = &t[SKY_TABLE_AERIAL];
+			src[k] = SOURCE_STATE;
 		}
 	}
 	u.generation = v.generation;
@@ -312,6 +388,8 @@ static int refresh(struct link *l, struct rvk *r)
 		return -EAGAIN;
 	}
 	l->shown = v.generation;
+	for (uint32_t k = 0; o->rvk.terrain && k < l->n_views; k++)
+		say_source(l, k, src[k], u.aerial[k]);
 	return 0;
 }
 
@@ -327,13 +405,16 @@ static int link_open(struct link *l, const struct opts *o)
 		return -1;
 	}
 	l->connected = true;
-	l->n_views = o->rvk.camera.projection == RVK_FISHEYE ? RVK_MAX_AERIAL : 1;
+	l->n_views = o->rvk.camera.projection == RVK_FISHEYE && o->aerial == AERIAL_VOLUME ?
+		     RVK_MAX_AERIAL : 1;
+	for (uint32_t k = 0; k < RVK_MAX_AERIAL; k++)
+		l->aerial_said[k] = -1;
 	for (uint32_t k = 0; k < l->n_views; k++)
 		snprintf(l->view_name[k], sizeof(l->view_name[k]), "skyrender-%d-%u", (int)getpid(), k % 10);
 	if (o->rvk.terrain)
 		add_views(l, o);
 	/* The first frame shows the sky as it is: wait for the tables, and for
-	 * our view's aerial volume once skyd took the view. */
+	 * our views' aerial volumes or panoramas once skyd took the views. */
 	for (uint32_t seen = 0;;) {
 		struct sky_view v;
 		const void *texels;
@@ -391,7 +472,7 @@ static int run(struct link *l, struct rvk *r, struct win *w, const struct opts *
 		if (!l->connected)
 			try_reconnect(l, r, o);
 		if (l->connected) {
-			int rc = refresh(l, r);
+			int rc = refresh(l, r, o);
 			if (rc < 0 && rc != -EAGAIN && rc != -ENOTCONN)
 				fprintf(stderr, "skyrender: %s\n", sky_strerror(rc));
 		}

@@ -53,21 +53,25 @@ void rvk_free(struct rvk *r);
 /* The device's name, valid until rvk_free(). */
 const char *rvk_device_name(const struct rvk *r);
 
-/* Aerial-perspective volumes a frame reads: one camera view for a
- * perspective tile; four for a dome master, each a quarter of the horizon
- * (volume k faces yaw + 90 k degrees, 90 degrees wide). */
+/* Aerial-perspective textures a frame reads: one for a perspective tile
+ * or a dome master (a volume, or a panorama of the eye point: the GLSL
+ * library's sky_aerial_dir reads either); four volumes for a dome master
+ * of volumes, each a quarter of the horizon (volume k faces yaw + 90 k
+ * degrees, 90 degrees wide). */
 #define RVK_MAX_AERIAL 4
 
 /* What one upload takes from a stable view (sky_view_begin() or
  * sky_snapshot()): the tables as sky_gpu_tables() describes them, the
- * aerial volumes to draw with (camera views', sky_gpu_view_table(), or
- * the state's aerial table) and for each the library's uniforms of the
- * same slot with that volume's camera (sky_gpu_state()). */
+ * aerial textures to draw with (views' volumes or panoramas,
+ * sky_gpu_view_table(), or the state's aerial table: each its own format
+ * and size) and for each the library's uniforms of the same slot with
+ * that texture's camera and form (sky_gpu_state()). */
 struct rvk_upload {
 	const struct sky_gpu_table *tables;	/* [SKY_SHM_MAX_TABLES] */
 	uint32_t n_aerial;			/* 1 or RVK_MAX_AERIAL */
 	const struct sky_gpu_table *aerial[RVK_MAX_AERIAL];	/* NULL or not present: none */
-	bool aerial_is_view[RVK_MAX_AERIAL];	/* a view's volume: its own change generations */
+	bool aerial_is_view[RVK_MAX_AERIAL];	/* a view's volume or panorama: its own
+						 * change generations */
 	const struct sky_gpu_state *state[RVK_MAX_AERIAL];
 	uint32_t generation;			/* the view's */
 	double ambient_lx[3];			/* sky_sample_ambient() of the view */

@@ -54,12 +54,12 @@ struct rvk_frame_ubo {
 	float cam_r[4];			/* right; w: aspect of the wall */
 	float cam_u[4];			/* up; w: near plane (km) */
 	float ambient_lx[4];		/* horizontal sky irradiance (rgb); w: disk flags */
-	float terrain[4];		/* albedo (rgb); w: number of aerial volumes */
+	float terrain[4];		/* albedo (rgb); w: number of aerial textures */
 };
 
 /* The tables a frame samples, in binding order after the uniform block;
- * the aerial volumes (one binding, an array) are the client's camera
- * views' when it has them. */
+ * the aerial textures (one binding, an array) are the client's views'
+ * volumes or panorama when it has them. */
 enum rvk_table { RVK_TRANSMITTANCE, RVK_SKYVIEW, RVK_AERIAL,
 		 RVK_TABLES = RVK_AERIAL + RVK_MAX_AERIAL };
 
@@ -70,8 +70,9 @@ struct rvk_table_layout {
 	uint64_t bytes;
 	uint64_t staging_offset;
 	uint32_t uploaded_generation;	/* sky_gpu_table.changed_generation the image holds; 0: none */
-	bool from_view;			/* the aerial image holds a view's volume (whose
-					 * generations count apart from the table's) */
+	bool from_view;			/* the aerial image holds a view's volume or
+					 * panorama (whose generations count apart
+					 * from the table's) */
 	bool copy;			/* upload this table in the running upload */
 };
 

@@ -1,7 +1,8 @@
 /* test_glsl_map.c - proto/glsl/skymap.glsl against proto/skymap.h: every
  * mapping run on the Vulkan device (lavapipe) at many points, including the
  * edges (horizon, zenith, nadir, the top of the shell, outside the range),
- * compared with the double-precision C functions, and the file's
+ * compared with the double-precision C functions (the panorama's across
+ * north, outside an arc and beyond its rows among them), and the file's
  * SKYMAP_GLSL_VERSION with SKYMAP_VERSION. The two files are the one
  * definition of the mappings in two languages; this keeps them one.
  *
@@ -26,7 +27,7 @@
 #include "glsl_map.spv.h"
 
 #define N_RECORDS 20000
-#define OUT_PER_RECORD 6
+#define OUT_PER_RECORD 7
 #define TOL_TEXEL (1.0 / 512.0)
 
 struct record {
@@ -36,6 +37,9 @@ struct record {
 	int32_t n[4];		/* width, height (slices), slice k, squared */
 	float hor[4];		/* the horizon's cos, sin, zenith angle (double, rounded) */
 	float dir[4];		/* a view direction, ENU */
+	float pan[4];		/* a panorama: azimuth0_rad, azimuth_step_rad, row0, row_step */
+	float pq[4];		/* its horizon_rad; a direction's azimuth and elevation (rad) */
+	int32_t pn[4];		/* its width, height, full_circle */
 };
 
 static uint64_t rng_state = 0x5eed5eedull;
@@ -51,6 +55,48 @@ static double rnd(void)		/* splitmix64, [0, 1) */
 static float pick(const float *v, int n)
 {
 	return v[(int)(rnd() * n) % n];
+}
+
+/* Record i's panorama (an arc or the full circle, rows packed toward a
+ * horizon at or below 0, whose top row may stop short of the zenith) and
+ * a direction: anywhere, across north, outside the arc or at its ends, at
+ * the horizon, or above the top row or below the bottom one. */
+static void make_panorama(int i, struct record *r)
+{
+	static const float widths[] = { 3, 17, 48, 97 }, heights[] = { 4, 16, 24 };
+	int w = (int)pick(widths, 4), h = (int)pick(heights, 3), full = rnd() < 0.5;
+	double az0 = (4.0 * rnd() - 1.0) * SKYMAP_PI;
+	double step = full ? 2.0 * SKYMAP_PI / (w - 1) : (0.1 + 5.9 * rnd()) / (w - 1);
+	double horizon = -0.1 * rnd(), row0 = -sqrt(0.05 + 0.3 * rnd());
+	double top = sqrt(0.5 * SKYMAP_PI - horizon) * (0.6 + 0.5 * rnd());
+	double row_step = (top - row0) / (h - 1), span = step * (w - 1);
+	double az = (6.0 * rnd() - 2.0) * SKYMAP_PI, el = asin(2.0 * rnd() - 1.0);
+	switch (i % 5) {
+	case 1:		/* across north, one turn either way */
+		az = 0.2 * (rnd() - 0.5) + 2.0 * SKYMAP_PI * (int)(3.0 * rnd() - 1.0);
+		break;
+	case 2:		/* outside the arc, or near an end of it */
+		az = az0 + (rnd() < 0.5 ? span + rnd() * (2.0 * SKYMAP_PI - span)
+					 : (rnd() < 0.5 ? span : 0.0) + 0.01 * (rnd() - 0.5));
+		break;
+	case 3:		/* at the horizon, where the rows' root has its kink */
+		el = horizon + 1e-3 * (rnd() - 0.5);
+		break;
+	case 4:		/* above the top row or below the bottom one */
+		el = rnd() < 0.5 ? fmin(horizon + top * top + rnd(), 0.5 * SKYMAP_PI)
+				 : fmax(horizon - row0 * row0 - rnd(), -0.5 * SKYMAP_PI);
+		break;
+	}
+	r->pan[0] = (float)az0;
+	r->pan[1] = (float)step;
+	r->pan[2] = (float)row0;
+	r->pan[3] = (float)row_step;
+	r->pq[0] = (float)horizon;
+	r->pq[1] = (float)az;
+	r->pq[2] = (float)el;
+	r->pn[0] = w;
+	r->pn[1] = h;
+	r->pn[2] = full;
 }
 
 /* Record i: a planet, an altitude and a cosine, one in four at an edge. */
@@ -107,6 +153,7 @@ static void make_record(int i, struct record *r)
 	r->tex[0] = (float)skymap_unit_to_tex(rnd(), (unsigned)r->n[0]);
 	r->tex[1] = (float)skymap_unit_to_tex(rnd(), (unsigned)r->n[1]);
 	r->tex[2] = (float)rnd();
+	make_panorama(i, r);
 }
 
 struct worst {
@@ -153,6 +200,59 @@ static double wrap_diff(double a, double b)
 	double d = fabs(a - b);
 	d -= floor(d);
 	return d > 0.5 ? 1.0 - d : d;
+}
+
+/* skymap_panorama_uv against its definition (PROTOCOL.md, "Panoramas"),
+ * written out here, where a direction lies inside the panorama: column
+ * (azimuth - azimuth0 mod 2 pi) / step, row (x - row0) / row_step with
+ * x = sign(e) sqrt(|e|); outside an arc the nearer end, beyond the rows
+ * the first or last. A mapping that moves in skymap.h fails here even if
+ * skymap.glsl moves with it. */
+static void check_panorama_definition(const struct record *r, double u, double v, int i,
+				      struct worst *w)
+{
+	double az0 = r->pan[0], step = r->pan[1], row0 = r->pan[2], row_step = r->pan[3];
+	unsigned W = (unsigned)r->pn[0], H = (unsigned)r->pn[1];
+	double du = fmod(r->pq[1] - az0, 2.0 * SKYMAP_PI), span = step * (W - 1);
+	if (du < 0.0)
+		du += 2.0 * SKYMAP_PI;
+	double f = du / step;
+	if (!r->pn[2] && du > span) {
+		double past = du - span, before = 2.0 * SKYMAP_PI - du;
+		if (fabs(past - before) < 1e-6)
+			return;
+		f = past < before ? W - 1.0 : 0.0;
+	}
+	double e = (double)r->pq[2] - r->pq[0], x = e < 0.0 ? -sqrt(-e) : sqrt(e);
+	double g = fmin(fmax((x - row0) / row_step, 0.0), H - 1.0);
+	f = fmin(fmax(f, 0.0), W - 1.0);
+	note(w, fabs(u - (f + 0.5) / W), 1e-12, i);
+	note(w, fabs(v - (g + 0.5) / H), 1e-12, i);
+}
+
+/* The GLSL panorama mapping against skymap.h: TOL_TEXEL, plus the root's
+ * float error at the horizon (as kink_tol); a full circle's first and last
+ * columns are the same azimuth, and an arc's two ends are a float rounding
+ * apart half way round outside it, so those read as one. */
+static void check_panorama(const struct record *r, const float *o, int i, struct worst *w)
+{
+	unsigned W = (unsigned)r->pn[0], H = (unsigned)r->pn[1];
+	double u, v;
+	skymap_panorama_uv(r->pan[0], r->pan[1], r->pan[2], r->pan[3], r->pq[0], W, H, r->pn[2] != 0,
+			   r->pq[1], r->pq[2], &u, &v);
+	check_panorama_definition(r, u, v, i, &w[11]);
+	double eu = fabs(o[0] - u);
+	if (r->pn[2])
+		eu = fmin(eu, fabs(eu - (W - 1.0) / W));
+	double du = fmod((double)r->pq[1] - r->pan[0], 2.0 * SKYMAP_PI), span = (double)r->pan[1] * (W - 1);
+	if (du < 0.0)
+		du += 2.0 * SKYMAP_PI;
+	if (!r->pn[2] && du > span && fabs((du - span) - (2.0 * SKYMAP_PI - du)) < 1e-4)
+		eu = fmin(eu, fabs(eu - (W - 1.0) / W));
+	note(&w[10], eu, TOL_TEXEL / W, i);
+	double e = fabs((double)r->pq[2] - r->pq[0]);
+	note(&w[10], fabs(o[1] - v),
+	     TOL_TEXEL / H + (sqrt(e + DS_FLOAT) - sqrt(e)) / ((double)r->pan[3] * H), i);
 }
 
 static void check(const struct record *rec, const float *out, int n, struct worst *w)
@@ -223,6 +323,7 @@ static void check(const struct record *rec, const float *out, int n, struct wors
 		note(&w[8], fabs(o[16] - skymap_rho2(rb, alt)), 4e-7 * fabs(skymap_rho2(rb, alt)) + 1e-12, i);
 		note(&w[8], fabs(o[17] - skymap_unit_to_tex(r->tex[2], W)), 1e-7, i);
 		note(&w[8], fabs(o[18] - skymap_tex_to_unit(r->tex[0], W)), 2e-7, i);
+		check_panorama(r, o + 24, i, w);
 	}
 }
 
@@ -252,7 +353,8 @@ int main(void)
 			     { "aerial_depth_km, aerial_slice", 0, -1, 0 },
 			     { "horizon_cos, distance_to_top", 0, -1, 0 },
 			     { "rho2, unit_to_tex, tex_to_unit", 0, -1, 0 },
-			     { "skyview_uv_dir", 0, -1, 0 } };
+			     { "skyview_uv_dir", 0, -1, 0 }, { "panorama_uv", 0, -1, 0 },
+			     { "panorama_uv (skymap.h) by definition", 0, -1, 0 } };
 	check(rec, out->map, N_RECORDS, w);
 	for (size_t i = 0; i < sizeof(w) / sizeof(w[0]); i++)
 		printf("%-32s worst error / tolerance %.3f (record %d)\n", w[i].what, w[i].err, w[i].record);

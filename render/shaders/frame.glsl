@@ -5,8 +5,9 @@
 // it, and a point -> the tile's clip position for the terrain.
 #include "sky.glsl"
 
-// The aerial volumes: one for a perspective tile, four quarters of the
-// horizon for a dome master (volume k faces yaw + 90 k degrees).
+// The aerial textures: one for a perspective tile or a dome master (a
+// volume, or the eye point's panorama), or four volumes, quarters of the
+// horizon, for a dome master of volumes (volume k faces yaw + 90 k degrees).
 const int MAX_AERIAL = 4;
 
 layout(std140, set = 0, binding = 0) uniform FrameBlock {
@@ -28,17 +29,19 @@ const float HALF_PI = 0.5 * SKYMAP_PI;
 
 bool is_fisheye() { return F.tile.z > 0.5; }
 
-// The aerial perspective of volume k (a constant index for the sampler
-// array in each branch: k differs from fragment to fragment).
+// The aerial perspective of texture k toward view (ENU, the eye's frame),
+// a volume or a panorama: sky_aerial_dir reads either by its SkyState's
+// panorama_grid.w (a constant index for the sampler array in each branch:
+// k differs from fragment to fragment).
 vec4 aerial_of(int k, vec3 view, float distance_km)
 {
 	if (k == 1)
-		return sky_aerial(F.sky[1], aerial_tex[1], sky_aerial_screen_uv(F.sky[1], view), distance_km);
+		return sky_aerial_dir(F.sky[1], aerial_tex[1], view, distance_km);
 	if (k == 2)
-		return sky_aerial(F.sky[2], aerial_tex[2], sky_aerial_screen_uv(F.sky[2], view), distance_km);
+		return sky_aerial_dir(F.sky[2], aerial_tex[2], view, distance_km);
 	if (k == 3)
-		return sky_aerial(F.sky[3], aerial_tex[3], sky_aerial_screen_uv(F.sky[3], view), distance_km);
-	return sky_aerial(F.sky[0], aerial_tex[0], sky_aerial_screen_uv(F.sky[0], view), distance_km);
+		return sky_aerial_dir(F.sky[3], aerial_tex[3], view, distance_km);
+	return sky_aerial_dir(F.sky[0], aerial_tex[0], view, distance_km);
 }
 
 // A dome's quarters blend over this many quarters either side of their
@@ -47,18 +50,27 @@ vec4 aerial_of(int k, vec3 view, float distance_km)
 const float QUARTER_BLEND = 8.0 / 90.0;
 
 // The aerial perspective toward the unit ENU direction view at distance_km
-// (RGB in-scattered, A transmittance): the one volume of a perspective
-// tile, or the dome's quarter (or two) that faces that way.
-vec4 aerial_toward(vec3 view, float distance_km)
+// (RGB in-scattered, A transmittance) of a dome master of four volumes: the
+// quarter (or two) that faces that way.
+vec4 aerial_quarters(vec3 view, float distance_km)
 {
-	if (int(F.terrain.w) != MAX_AERIAL)
-		return aerial_of(0, view, distance_km);
 	float q = (atan(view.x, view.y) - F.cam_f.w) / HALF_PI;
 	float kf = floor(q + 0.5), f = q - kf;	// f in [-0.5, 0.5] inside quarter kf
 	int k = int(mod(kf, 4.0)), k2 = int(mod(kf + sign(f), 4.0));
 	float w = 0.5 * smoothstep(0.5 - QUARTER_BLEND, 0.5, abs(f));
 	vec4 a = aerial_of(k, view, distance_km);
 	return w > 0.0 ? mix(a, aerial_of(k2, view, distance_km), w) : a;
+}
+
+// A surface's radiance seen toward view at distance_km: through the one
+// aerial texture (a volume or a panorama: the library's
+// sky_apply_aerial_dir), or a dome's quarters.
+vec3 apply_aerial(vec3 view, float distance_km, vec3 surface)
+{
+	if (int(F.terrain.w) != MAX_AERIAL)
+		return sky_apply_aerial_dir(F.sky[0], aerial_tex[0], view, distance_km, surface);
+	vec4 a = aerial_quarters(view, distance_km);
+	return surface * a.a + a.rgb;
 }
 
 // The unit ENU direction through wall position p (pixels, y down): false

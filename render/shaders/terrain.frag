@@ -33,6 +33,5 @@ void main()
 		 max(dot(n, F.sky[0].moon.xyz), 0.0) +
 		 F.ambient_lx.rgb * (0.5 + 0.5 * n.z);
 	vec3 surface = F.terrain.rgb / SKYMAP_PI * e;
-	vec4 a = aerial_toward(view, dist);
-	out_colour = vec4(surface * a.a + a.rgb, 1.0);
+	out_colour = vec4(apply_aerial(view, dist, surface), 1.0);
 }

@@ -10,17 +10,20 @@ layout(local_size_x = 64) in;
 // geo: rb, rt, altitude_km, mu; ang: horizon_cos, view zenith, azimuth,
 // depth_km; tex: u, v, unit x, aerial range_km; n: width, height (also the
 // slice count), slice k, aerial_squared; hor: the horizon's cos, sin and
-// angle in double, rounded; dir: a view direction.
+// angle in double, rounded; dir: a view direction; pan: a panorama's
+// azimuth0_rad, azimuth_step_rad, row0, row_step; pq: its horizon_rad and
+// a direction's azimuth and elevation; pn: its width, height, full_circle.
 struct Record {
 	vec4 geo, ang, tex;
 	ivec4 n;
-	vec4 hor, dir;
+	vec4 hor, dir, pan, pq;
+	ivec4 pn;
 };
 
 layout(std430, binding = 0) readonly buffer In { Record r[]; } I;
 layout(std430, binding = 1) writeonly buffer Out { vec4 v[]; } O;
 
-const int OUT_PER_RECORD = 6;
+const int OUT_PER_RECORD = 7;
 
 void main()
 {
@@ -45,4 +48,6 @@ void main()
 			  skymap_tex_to_unit(r.tex.x, w), 0.0);
 	O.v[o + 5] = vec4(skymap_skyview_uv_dir(r.hor.x, r.hor.y, r.hor.z, r.dir.xyz, h),
 			  float(SKYMAP_GLSL_VERSION), 0.0);
+	O.v[o + 6] = vec4(skymap_panorama_uv(r.pan.x, r.pan.y, r.pan.z, r.pan.w, r.pq.x, r.pn.x,
+					     r.pn.y, r.pn.z != 0, r.pq.y, r.pq.z), 0.0, 0.0);
 }
