@@ -111,13 +111,18 @@ static int create_instance(struct vkfn *vk, VkInstance *ret, char *err, size_t e
 				}
 		free(props);
 	}
-	VK_TRY(vk->vkCreateInstance(&ci, NULL, ret));
-	return load_instance_fns(vk, *ret, err, err_size);
-fail:
-	if (rc == -EIO)
+	/* No driver at all is the machine's lack, like a missing loader
+	 * (-ENODEV: tests skip); any other failure is the driver's. */
+	VkResult r = vk->vkCreateInstance(&ci, NULL, ret);
+	if (r == VK_ERROR_INCOMPATIBLE_DRIVER) {
 		eng_set_err(err, err_size,
 			"cannot create a Vulkan instance: no driver; install mesa-vulkan-drivers "
 			"(lavapipe) or your GPU's Vulkan driver");
+		return -ENODEV;
+	}
+	VK_TRY(r);
+	return load_instance_fns(vk, *ret, err, err_size);
+fail:
 	return rc;
 }
 
