@@ -3,8 +3,8 @@
 // from the eye to the slice's far edge (see proto/skymap.h).
 // gl_GlobalInvocationID.z is the job (sky_params.h, AERIAL_JOB_VEC4): a
 // camera's volume (the state's camera, a view), or the panorama of an eye
-// point that several cameras share, which aerial_resample.comp resamples
-// into each of their volumes.
+// point that several cameras share, which views of form panorama read and
+// aerial_resample.comp resamples into the volumes of the others.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
@@ -15,7 +15,8 @@ layout(local_size_x = 8, local_size_y = 8) in;
 // right (w = aspect), up (w = the eye's altitude in km). A panorama:
 // (first azimuth, azimuth step, first row's x, row step) with x =
 // sign(e) sqrt(|e|), e the elevation above the eye's horizon in radians,
-// (the horizon's elevation, columns, rows, 1 for a full circle), (w = the
+// (the horizon's elevation, columns, rows, 1 for a full circle: the last
+// column repeats the first; aplan.c), (w = the
 // eye's altitude). Both: the sun and the moon in the eye's local frame,
 // with the output's texel offset and the kind in w.
 layout(std430, binding = BINDING_VIEWS) readonly buffer ViewBuf { vec4 v[]; } VB;
@@ -119,11 +120,12 @@ void main()
 		// Night-sky floor: airlight (1 - T) of a sky of the floor's mean level L_z (1 + c / 3).
 		vec3 night = P.night.rgb * (1.0 + P.night.w / 3.0) * (1.0 - tr);
 		vec4 texel = vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0);
-		// A panorama is scratch: the range is noted where it is resampled.
-		// Its radiance is kept as a logarithm, which the resampling
-		// interpolates: below the horizon the airlight goes as the
-		// distance to the ground, about 1 / sin of the depression, which
-		// is far closer to linear in log than in radiance.
+		// A panorama is published in float32 (views of form panorama) or
+		// resampled into volumes, whose range is noted there. Its
+		// radiance is kept as a logarithm, which readers interpolate:
+		// below the horizon the airlight goes as the distance to the
+		// ground, about 1 / sin of the depression, which is far closer to
+		// linear in log than in radiance.
 		if (panorama)
 			AT.d[out_base + k * int(j1.y * j1.z) + col] =
 				floatBitsToUint(vec4(log(max(texel.rgb, vec3(1e-30))), texel.a));

@@ -19,34 +19,6 @@ layout(std430, binding = BINDING_AERIAL) writeonly buffer AerialTexels { uvec4 d
 // lavapipe where a storage-buffer load with a varying index is a loop.
 layout(binding = BINDING_AERIAL_TEX) uniform samplerBuffer AerialTex;
 
-const float TWO_PI = 6.28318530717958648;
-
-// A coordinate along the panorama's azimuths: column i0 and weight w of
-// column i1 for azimuth az. m0 = (first azimuth, step, ...), m1.y columns,
-// m1.w 1 for a full circle (columns wrap), else an arc ending on its
-// first and last columns.
-void azimuth_taps(float az, vec4 m0, vec4 m1, out int i0, out int i1, out float w)
-{
-	int n = int(m1.y);
-	float du = az - m0.x;
-	du -= TWO_PI * floor(du / TWO_PI);
-	if (m1.w > 0.5) {
-		float f = du / m0.y;
-		i0 = int(floor(f));
-		w = f - float(i0);
-		i0 = i0 % n;
-		i1 = (i0 + 1) % n;
-		return;
-	}
-	float span = m0.y * float(n - 1);
-	if (du > span)		// outside by rounding: the nearer end
-		du = du - span < TWO_PI - du ? span : 0.0;
-	float f = clamp(du / m0.y, 0.0, float(n - 1));
-	i0 = min(int(f), n - 2);
-	w = f - float(i0);
-	i1 = i0 + 1;
-}
-
 void main()
 {
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -62,14 +34,14 @@ void main()
 	vec2 ndc = (vec2(px) + 0.5) / vec2(OUT_W, OUT_H) * 2.0 - 1.0;
 	vec3 dir = normalize(fwd.xyz + ndc.x * fwd.w * right.w * right.xyz + ndc.y * fwd.w * cup.xyz);
 
-	int i0, i1;
-	float wu;
-	azimuth_taps(atan(dir.x, dir.y), m0, m1, i0, i1, wu);
+	// The column and row around it: skymap_panorama_uv, the mapping that
+	// clients reading a published panorama use.
 	int pw = int(m1.y), ph = int(m1.z);
-	float e = asin(clamp(dir.z, -1.0, 1.0)) - m1.x;
-	float fv = clamp((sign(e) * sqrt(abs(e)) - m0.z) / m0.w, 0.0, float(ph - 1));
-	int j0 = min(int(fv), ph - 2);
-	float wv = fv - float(j0);
+	vec2 uv = skymap_panorama_uv(m0.x, m0.y, m0.z, m0.w, m1.x, pw, ph, m1.w > 0.5,
+				     atan(dir.x, dir.y), asin(clamp(dir.z, -1.0, 1.0)));
+	float fu = uv.x * float(pw) - 0.5, fv = uv.y * float(ph) - 0.5;
+	int i0 = clamp(int(fu), 0, pw - 2), j0 = clamp(int(fv), 0, ph - 2), i1 = i0 + 1;
+	float wu = fu - float(i0), wv = fv - float(j0);
 	int a = pano + j0 * pw, b = a + pw;
 	for (int k = 0; k < OUT_D; k++) {
 		int s = k * pw * ph;

@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 
 #include "daemon_harness.h"
+#include "aplan.h"
 #include "eng.h"
 #include "skyproto.h"
 #include "skysample.h"
@@ -142,8 +143,12 @@ static void check_views(const uint8_t *map, uint32_t n, const char *what)
 	const uint8_t *base = map + h->header_bytes + (uint64_t)cur * h->slot_bytes;
 	const struct sky_shm_slot *slot = (const void *)base;
 	uint64_t bytes = h->tables[STATE_AERIAL].bytes;
-	size_t all;
+	size_t all, pano_all;
 	const uint8_t *ref = eng_table(ref_eng, STATE_AERIAL, &all);	/* check_slot computed it */
+	const uint8_t *panos = eng_panoramas(ref_eng, &pano_all);
+	struct aplan ap;
+	aplan_make(&mirror, true, &ap);
+	uint64_t one = aplan_panorama_texels(&ap) * 16;
 
 	struct skysample_table none;
 	CHECK(skysample_check_layout(h, h->total_bytes) == 0);
@@ -152,15 +157,28 @@ static void check_views(const uint8_t *map, uint32_t n, const char *what)
 		FAIL("%s: %u views, valid 0x%x; expected %u", what, slot->n_views, slot->valid_views, n);
 		return;
 	}
-	CHECK(all == bytes * (1 + n));
-	for (uint32_t i = 0; i < n && all == bytes * (1 + n); i++) {
+	CHECK(all == bytes * ap.n_volumes && pano_all == one * ap.n_panoramas);
+	for (uint32_t i = 0; i < n && all == bytes * ap.n_volumes; i++) {
 		CHECK(strcmp(slot->views[i].name, mirror.views[i].name) == 0);
+		CHECK(slot->views[i].form == mirror.views[i].form);
+		if (mirror.views[i].form == SKY_VIEW_PANORAMA) {
+			/* Its eye point's panorama, in the region of the first
+			 * view that reads it, as the reference marched it. */
+			const struct sky_shm_panorama *p = &slot->views[i].panorama;
+			int32_t k = ap.panorama[i + 1];
+			CHECK(k >= 0 && p->bytes == one && p->width == ap.width && p->height == ap.height &&
+			      p->offset == h->view_offset + (uint64_t)ap.pano[k].view * h->view_stride);
+			if (k < 0 || !panos || memcmp(base + p->offset, panos + k * one, one))
+				FAIL("%s: view %s's panorama differs from a full recompute", what,
+				     slot->views[i].name);
+			continue;
+		}
 		/* What libsky's sky_view_aerial_table() finds by name. */
 		struct skysample_table t;
 		const struct sky_shm_view *sv = NULL;
 		CHECK(skysample_view_from_slot(h, base, mirror.views[i].name, &t, &sv) == 0 &&
 		      t.texels == base + h->view_offset + i * h->view_stride && sv == &slot->views[i]);
-		if (memcmp(base + h->view_offset + i * h->view_stride, ref + (i + 1) * bytes, bytes))
+		if (memcmp(base + h->view_offset + i * h->view_stride, ref + ap.volume[i + 1] * bytes, bytes))
 			FAIL("%s: view %s differs from a full recompute", what, slot->views[i].name);
 	}
 }
@@ -262,6 +280,33 @@ static void test_views(struct conn *ctl, struct daemon *d)
 	EXPECT(ctl, "last_computed", "aerial");
 	check_slot(map, T | M | A, "views, time of day");
 	check_views(map, 8, "views, time of day");
+
+	/* Views of form panorama read their eye point's march: three on the
+	 * observer's eye share one panorama, the far view's eye has its own,
+	 * and the volumes of the others (and the state's camera) are
+	 * resampled from the first. */
+	for (int i = 4; i < STATE_MAX_VIEWS; i++) {
+		struct state_view *v = &mirror.views[i];
+		snprintf(req, sizeof(req), "view add name=%s form=panorama yaw_deg=%.17g pitch_deg=%.17g east_km=%.17g north_km=%.17g",
+			 v->name, v->camera.yaw_deg, v->camera.pitch_deg, v->east_km, v->north_km);
+		CHECK(conn_request(&wall, req, reply, sizeof(reply)) == 0);
+		g = reply_u64(reply, "generation");
+		v->form = SKY_VIEW_PANORAMA;
+	}
+	settle(ctl, g);
+	CHECK(conn_request(&wall, "view add name=bad form=sphere", reply, sizeof(reply)) == SKY_ACK_ARG);
+	CHECK(conn_request(&wall, "view list", reply, sizeof(reply)) == 0);
+	CHECK(strstr(reply, "name=wall5 index=5") && strstr(strstr(reply, "name=wall5 index=5"), "form=panorama mine=1"));
+	check_slot(map, T | M | A, "panorama views");
+	check_views(map, 8, "panorama views");
+	{
+		const struct sky_shm_header *h = (const void *)map;
+		const struct sky_shm_slot *slot =
+			(const void *)(map + h->header_bytes + (uint64_t)h->current_slot * h->slot_bytes);
+		CHECK(slot->views[5].panorama.offset == slot->views[4].panorama.offset &&
+		      slot->views[6].panorama.offset == slot->views[4].panorama.offset &&
+		      slot->views[7].panorama.offset != slot->views[4].panorama.offset);
+	}
 
 	/* The wall's connection closes: its views are dropped. */
 	hang_up(&wall);

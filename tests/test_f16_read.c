@@ -73,7 +73,7 @@ static void test_published(void)
 	const void *tables[STATE_N_TABLES];
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		tables[t] = halves(t == STATE_AERIAL ? W * H * D : W * H);
-	pub_publish(p, &s, STATE_ALL_TABLES, tables, scales, 1);
+	pub_publish(p, &s, STATE_ALL_TABLES, tables, NULL, scales, 1);
 
 	const uint8_t *base;
 	const struct sky_shm_header *h = pub_header(p);
@@ -112,7 +112,7 @@ static void test_published(void)
 	CHECK(skysample_slot_checksum(h, copy) != slot->checksum);
 	free(copy);
 	/* NULL scales: 0 for every table */
-	pub_publish(p, &s, STATE_ALL_TABLES, tables, NULL, 2);
+	pub_publish(p, &s, STATE_ALL_TABLES, tables, NULL, NULL, 2);
 	slot = pub_current(p, &base);
 	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++)
 		CHECK(slot->state.rgb_scale_log2[id] == 0);

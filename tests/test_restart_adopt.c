@@ -72,8 +72,8 @@ int main(void)
 	if (!a)
 		return test_report("test_restart_adopt");
 	for (uint64_t g = 1; g <= 4; g++)
-		pub_publish(a, &s, STATE_ALL_TABLES, t1, NULL, g);
-	pub_publish_ahead(a, &s, STATE_ALL_TABLES, t1, NULL, 5, 1);
+		pub_publish(a, &s, STATE_ALL_TABLES, t1, NULL, NULL, g);
+	pub_publish_ahead(a, &s, STATE_ALL_TABLES, t1, NULL, NULL, 5, 1);
 	int fd = fcntl(pub_store_fd(a), F_DUPFD_CLOEXEC, 3);
 	CHECK(fd >= 0 && fcntl(fd, F_GET_SEALS) == (F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL));
 	/* A reader's own mapping, and a client's view of it. */
@@ -102,7 +102,7 @@ int main(void)
 	CHECK(slot_at(r, PUB_SLOTS - 1)->apply_time_ns == 0 &&
 	      slot_at(r, PUB_SLOTS - 1)->generation == 0);
 	/* It writes into the memory the reader has mapped. */
-	pub_publish(b, &s, STATE_ALL_TABLES, t2, NULL, gen + 1);
+	pub_publish(b, &s, STATE_ALL_TABLES, t2, NULL, NULL, gen + 1);
 	CHECK(r->generation == 6 && r->current_slot != cur);
 	const struct sky_shm_slot *n = slot_at(r, r->current_slot);
 	CHECK(n->generation == 6 && (n->seq & 1u) == 0);

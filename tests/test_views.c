@@ -1,12 +1,14 @@
-/* test_views.c - the views' aerial volumes: those that share an eye
- * point's panorama against each volume marched on its own (the
- * reference, eng_set_view_sharing), and a view moved along the ground
- * against the state of the place it was moved to. */
+/* test_views.c - the views' aerial perspective: the volumes that share an
+ * eye point's panorama, and the panoramas that views of form panorama
+ * read, against each volume marched on its own (the reference,
+ * eng_set_view_sharing), and a view moved along the ground against the
+ * state of the place it was moved to. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "aplan.h"
 #include "eng.h"
 #include "skymap.h"
 #include "skysample.h"
@@ -130,6 +132,66 @@ static void shared_against_marched(const char *scene, const struct sky_state *s)
 	free(marched);
 }
 
+/* The views of s turned to form panorama, sampled as a client samples
+ * its eye point's panorama (skysample_panorama) at the directions and
+ * slices of the texels of each view's volume, against the volumes marched
+ * one by one: the error a wall of panorama views has against a wall whose
+ * every view is marched. */
+static void panorama_against_marched(const char *scene, const struct sky_state *s)
+{
+	const struct state_table_quality *q = &s->quality.t[STATE_AERIAL];
+	size_t per = (size_t)q->width * q->height * q->depth;
+	struct sky_state p = *s;
+	struct eng_timing t;
+	struct aplan ap;
+	char err[512];
+
+	float *marched = aerial(s, 0), *got = calloc((1 + s->n_views) * per * 4, sizeof(float));
+	for (uint32_t i = 0; i < p.n_views; i++)
+		p.views[i].form = SKY_VIEW_PANORAMA;
+	eng_set_view_sharing(eng, 1);
+	if (!marched || !got || eng_compute(eng, &p, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
+		FAIL("%s: %s", scene, err);
+		goto out;
+	}
+	aplan_make(&p, true, &ap);
+	const uint8_t *panoramas = eng_panoramas(eng, NULL);
+	struct sky_shm_state st = { .aerial_range_km = s->quality.aerial_range_km,
+		.aerial_squared = s->quality.aerial_spacing == STATE_SQUARED };
+	for (uint32_t c = 1; panoramas && c < ap.n_cameras; c++) {
+		const struct aplan_camera *v = &ap.cam[c];
+		struct sky_shm_panorama d;
+		aplan_describe(&ap, ap.panorama[c], 0, &d);
+		struct skysample_table pt = { .texels = panoramas + ap.panorama[c] * d.bytes,
+			.format = SKY_FORMAT_RGBA32F, .width = d.width, .height = d.height, .depth = d.depth };
+		for (uint32_t i = 0; i < q->width * q->height; i++) {
+			double nx = (i % q->width + 0.5) / q->width * 2.0 - 1.0;
+			double ny = (i / q->width + 0.5) / q->height * 2.0 - 1.0, dir[3], n = 0;
+			for (int k = 0; k < 3; k++) {
+				dir[k] = v->fwd[k] + nx * v->tan_half * v->aspect * v->right[k] +
+					 ny * v->tan_half * v->up[k];
+				n += dir[k] * dir[k];
+			}
+			for (int k = 0; k < 3; k++)
+				dir[k] /= sqrt(n);
+			for (uint32_t k = 0; k < q->depth; k++) {
+				double depth = skymap_aerial_depth_km(k, q->depth, st.aerial_range_km,
+								      st.aerial_squared != 0);
+				double rgb[3], tr;
+				float *o = got + 4 * (c * per + k * q->width * q->height + i);
+				skysample_panorama(&pt, &d, &st, dir, depth, rgb, &tr);
+				for (int ch = 0; ch < 3; ch++)
+					o[ch] = (float)rgb[ch];
+				o[3] = (float)tr;
+			}
+		}
+	}
+	compare(scene, s, got, marched, 1);
+out:
+	free(marched);
+	free(got);
+}
+
 static void accuracy(void)
 {
 	struct sky_state s;
@@ -137,32 +199,40 @@ static void accuracy(void)
 	state_default(&s);
 	add_wall(&s, 8, 0, 45);
 	shared_against_marched("wall of 8, sun 30 deg", &s);
+	panorama_against_marched("wall of 8, sun 30 deg, panorama views", &s);
 	set(&s, "sun_elevation_deg=3");
 	shared_against_marched("wall of 8, sun 3 deg", &s);
+	panorama_against_marched("wall of 8, sun 3 deg, panorama views", &s);
 	set(&s, "sun_elevation_deg=60");
 	set(&s, "altitude_km=2");
 	shared_against_marched("wall of 8 at 2 km, sun 60 deg", &s);
+	panorama_against_marched("wall of 8 at 2 km, sun 60 deg, panorama views", &s);
 	state_default(&s);
 	add_wall(&s, 3, -10, 40);
 	set(&s, "camera_yaw_deg=120");
 	shared_against_marched("3 views looking down, sun 30 deg", &s);
+	panorama_against_marched("3 views looking down, sun 30 deg, panorama views", &s);
 	state_default(&s);
 	add_wall(&s, 8, 0, 45);
 	set(&s, "preset=mars");
 	set(&s, "sun_elevation_deg=15");
 	shared_against_marched("wall of 8 on Mars, sun 15 deg", &s);
+	panorama_against_marched("wall of 8 on Mars, sun 15 deg, panorama views", &s);
 
 	state_default(&s);
 	add_wall(&s, 4, 60, 90);	/* the zenith inside every view */
 	shared_against_marched("4 views looking up, sun 30 deg", &s);
+	panorama_against_marched("4 views looking up, sun 30 deg, panorama views", &s);
 	state_default(&s);
 	add_wall(&s, 5, 0, 45);
 	set(&s, "quality=high");
 	shared_against_marched("wall of 5, quality=high", &s);
+	panorama_against_marched("wall of 5, quality=high, panorama views", &s);
 	state_default(&s);
 	add_wall(&s, 5, 0, 45);
 	set(&s, "quality=low");	/* float16 storage too */
 	shared_against_marched("wall of 5, quality=low", &s);
+	panorama_against_marched("wall of 5, quality=low, panorama views", &s);
 
 	/* Without views nothing is shared: the camera's volume is marched,
 	 * bit for bit the reference's. */

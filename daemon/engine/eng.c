@@ -81,6 +81,17 @@ const void *eng_table(const struct eng *e, enum state_table t, size_t *ret_bytes
 	return e->direct[t] ? (const uint8_t *)e->table[t].map + e->published_offset[t] : e->readback[t].map;
 }
 
+const void *eng_panoramas(const struct eng *e, size_t *ret_bytes)
+{
+	const struct gpu_buffer *t = &e->table[STATE_AERIAL];
+	if (ret_bytes)
+		*ret_bytes = e->panorama_bytes;
+	if (!e->panorama_bytes)
+		return NULL;
+	return e->direct[STATE_AERIAL] ? (const uint8_t *)t->map + e->panorama_offset
+				       : (const uint8_t *)e->readback[STATE_AERIAL].map + e->table_bytes[STATE_AERIAL];
+}
+
 int32_t eng_table_scale_log2(const struct eng *e, enum state_table t)
 {
 	return e->rgb_scale_log2[t];

@@ -10,6 +10,7 @@
 #include <stdint.h>
 #include <time.h>
 
+#include "aplan.h"
 #include "eng.h"
 #include "phase.h"
 #include "vkfn.h"
@@ -25,8 +26,7 @@
 #define SV_AZ_GROUP 12
 /* The aerial jobs (sky_params.h): a count, then at most one march and one
  * resample job per volume (the state's camera and STATE_MAX_VIEWS views). */
-#define AERIAL_VOLUMES (1 + STATE_MAX_VIEWS)
-#define VIEW_BUFFER_BYTES ((1 + 2 * AERIAL_VOLUMES * AERIAL_JOB_VEC4) * 4 * sizeof(float))
+#define VIEW_BUFFER_BYTES ((1 + 3 * APLAN_CAMERAS * AERIAL_JOB_VEC4) * 4 * sizeof(float))
 
 /* The tables later passes look up: transmittance and multi-scattering. */
 #define N_LOOKUPS 2
@@ -122,6 +122,11 @@ struct eng {
 	 * into each volume (aerial_resample.comp); off: each volume is
 	 * marched (eng_set_view_sharing, the reference). */
 	bool share_views;
+	struct aplan aplan;				/* of the last computation submitted */
+	/* The aerial buffer's panoramas: where they start on the device (after
+	 * the volumes and their binary16 copy) and their bytes, in the
+	 * readback buffer after the published volumes. */
+	size_t panorama_offset, panorama_bytes;
 	VkBufferView aerial_view;			/* BINDING_AERIAL_TEX */
 	/* Device memory: every table in float32 RGBA, as the passes compute
 	 * it whatever the storage; with storage=f16 its binary16 copy follows
@@ -214,19 +219,13 @@ VkDescriptorType eng_binding_type(int binding);
  * keeps the phases' fits in e while a constituent's phase stays. */
 void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p,
 		     struct spec *base);
-/* The aerial jobs of s (sky_params.h, VIEW_BUFFER_BYTES): the volumes
- * (the state's camera, then the views) grouped by eye point; a group of
- * two or more, with share, is marched once as a panorama after the
- * volumes and resampled into each. ret_march and ret_resample get the
- * jobs' counts (the dispatches' z). */
-void eng_fill_views(const struct sky_state *s, bool share, float *out, uint32_t *ret_march,
-		    uint32_t *ret_resample);
-/* The texels of the panoramas s can need after its volumes: room for one
- * per two volumes. */
-uint64_t eng_panorama_texels(const struct sky_state *s);
-/* The rows of aerial_width invocations the march dispatch needs: the
- * volume's, or a panorama's columns where they are more. */
-uint32_t eng_aerial_march_rows(const struct sky_state *s);
+/* The aerial jobs of s (sky_params.h, VIEW_BUFFER_BYTES) as planned by
+ * p: the volumes marched on their own, then the panoramas (at texel
+ * pano_base of the aerial buffer, one after the other), each with the
+ * volumes resampled from it. ret_march and ret_resample get the jobs'
+ * counts (the dispatches' z). */
+void eng_fill_views(const struct sky_state *s, const struct aplan *p, uint64_t pano_base,
+		    float *out, uint32_t *ret_march, uint32_t *ret_resample);
 struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t);
 struct spec eng_column_spec(const struct spec *base, const struct sky_state *s);
 void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,

@@ -92,39 +92,43 @@ static void bind_buffers(struct eng *e)
 	e->vk.vkUpdateDescriptorSets(e->dev, N_BINDINGS, w, 0, NULL);
 }
 
-/* Texels of table t in s, every aerial volume counted. */
-static uint64_t table_texels(const struct sky_state *s, int t)
+/* Texels of table t in s, every aerial volume of the plan counted. */
+static uint64_t table_texels(const struct eng *e, const struct sky_state *s, int t)
 {
 	const struct state_table_quality *q = &s->quality.t[t];
 	uint64_t n = (uint64_t)q->width * q->height * (t == STATE_AERIAL ? q->depth : 1);
-	return t == STATE_AERIAL ? n * (1 + s->n_views) : n;
+	return t == STATE_AERIAL ? n * e->aplan.n_volumes : n;
 }
 
 /* Bytes of table t's float32 texels on the device. */
-static VkDeviceSize float_bytes(const struct sky_state *s, int t)
+static VkDeviceSize float_bytes(const struct eng *e, const struct sky_state *s, int t)
 {
-	return table_texels(s, t) * 4 * sizeof(float);
+	return table_texels(e, s, t) * 4 * sizeof(float);
 }
 
-/* Bytes of table t on the device: its float32 texels, then with
- * storage=f16 its binary16 copy, which pack.comp writes two texels at a
- * time (an odd table gets one texel more). */
-static VkDeviceSize device_bytes(const struct sky_state *s, int t)
+/* Bytes of table t on the device before the panoramas: its float32
+ * texels, then with storage=f16 its binary16 copy, which pack.comp writes
+ * two texels at a time (an odd table gets one texel more). */
+static VkDeviceSize table_device_bytes(const struct eng *e, const struct sky_state *s, int t)
 {
-	VkDeviceSize pairs = (table_texels(s, t) + 1) / 2;
-	VkDeviceSize after = s->quality.storage == STATE_F16 ? 16 * pairs : 0;
-	/* The aerial buffer holds the eye points' panoramas there too, which
-	 * are read before the binary16 copy overwrites them. */
-	VkDeviceSize panoramas = t == STATE_AERIAL ? 16 * eng_panorama_texels(s) : 0;
-	return float_bytes(s, t) + (after > panoramas ? after : panoramas);
+	VkDeviceSize pairs = (table_texels(e, s, t) + 1) / 2;
+	return float_bytes(e, s, t) + (s->quality.storage == STATE_F16 ? 16 * pairs : 0);
+}
+
+/* Bytes of table t on the device: the aerial buffer holds the plan's
+ * panoramas after the volumes (float32, published as they are). */
+static VkDeviceSize device_bytes(const struct eng *e, const struct sky_state *s, int t)
+{
+	VkDeviceSize panoramas = 16 * e->aplan.n_panoramas * aplan_panorama_texels(&e->aplan);
+	return table_device_bytes(e, s, t) + (t == STATE_AERIAL ? panoramas : 0);
 }
 
 /* (Re)allocates table t: its device buffer (float32, then the published
  * copy for storage=f16), its host copy and, for a lookup, its texel view. */
 static int table_new(struct eng *e, const struct sky_state *s, int t, char *err, size_t err_size)
 {
-	size_t bytes = table_texels(s, t) * state_texel_bytes(s->quality.storage);
-	VkDeviceSize device = device_bytes(s, t);
+	size_t bytes = table_texels(e, s, t) * state_texel_bytes(s->quality.storage);
+	VkDeviceSize device = device_bytes(e, s, t);
 	int rc = 0;
 
 	if (t < N_LOOKUPS && e->lookup_view[t]) {
@@ -149,9 +153,10 @@ static int table_new(struct eng *e, const struct sky_state *s, int t, char *err,
 	/* Mapped only where host-visible and cached (eng_buffer_new got what
 	 * it preferred): reading it costs what reading host memory does. */
 	e->direct[t] = e->table[t].map != NULL;
-	e->published_offset[t] = s->quality.storage == STATE_F16 ? float_bytes(s, t) : 0;
+	e->published_offset[t] = s->quality.storage == STATE_F16 ? float_bytes(e, s, t) : 0;
+	size_t panoramas = t == STATE_AERIAL ? (size_t)(device - table_device_bytes(e, s, t)) : 0;
 	if (!e->direct[t])
-		rc = eng_buffer_new(e, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+		rc = eng_buffer_new(e, bytes + panoramas, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
 				    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT,
 				    VK_MEMORY_PROPERTY_HOST_CACHED_BIT, &e->readback[t], err, err_size);
 	if (rc < 0)
@@ -159,7 +164,7 @@ static int table_new(struct eng *e, const struct sky_state *s, int t, char *err,
 	if (t < N_LOOKUPS) {
 		VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,
 			.buffer = e->table[t].buf, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
-			.range = float_bytes(s, t) };
+			.range = float_bytes(e, s, t) };
 		VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->lookup_view[t]));
 	}
 	if (t == STATE_AERIAL) {
@@ -172,6 +177,10 @@ static int table_new(struct eng *e, const struct sky_state *s, int t, char *err,
 	       0, bytes);
 	e->table_bytes[t] = bytes;
 	e->device_bytes[t] = device;
+	if (t == STATE_AERIAL) {
+		e->panorama_offset = (size_t)table_device_bytes(e, s, t);
+		e->panorama_bytes = panoramas;
+	}
 	e->rgb_scale_log2[t] = 0;
 fail:
 	return rc;
@@ -187,8 +196,8 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 	int rc = 0;
 
 	for (int t = 0; t < STATE_N_TABLES; t++) {
-		size_t bytes = table_texels(s, t) * state_texel_bytes(s->quality.storage);
-		if (e->table[t].buf && e->table_bytes[t] == bytes && e->device_bytes[t] == device_bytes(s, t))
+		size_t bytes = table_texels(e, s, t) * state_texel_bytes(s->quality.storage);
+		if (e->table[t].buf && e->table_bytes[t] == bytes && e->device_bytes[t] == device_bytes(e, s, t))
 			continue;
 		rc = table_new(e, s, t, err, err_size);
 		if (rc < 0)
@@ -207,7 +216,7 @@ static int ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret
 		rebind = true;
 	}
 	const struct state_table_quality *mq = &s->quality.t[STATE_MULTISCATTER];
-	VkDeviceSize iterate_bytes = 2 * float_bytes(s, STATE_MULTISCATTER);
+	VkDeviceSize iterate_bytes = 2 * float_bytes(e, s, STATE_MULTISCATTER);
 	if (!e->ms_iterate.buf || e->ms_iterate.bytes != iterate_bytes) {
 		eng_buffer_free(e, &e->ms_iterate);
 		rc = eng_buffer_new(e, iterate_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
@@ -319,7 +328,7 @@ static void record_iteration(struct eng *e, const struct sky_state *s, const VkP
 		e->vk.vkCmdDispatch(e->cmd, gx, gy, 1);
 		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
 					   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &to_copy, 0, NULL, 0, NULL);
-		VkBufferCopy c = { 0, 0, float_bytes(s, STATE_MULTISCATTER) };
+		VkBufferCopy c = { 0, 0, float_bytes(e, s, STATE_MULTISCATTER) };
 		e->vk.vkCmdCopyBuffer(e->cmd, e->ms_iterate.buf, e->table[STATE_MULTISCATTER].buf, 1, &c);
 		e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
 					   VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &to_read, 0, NULL, 0,
@@ -355,7 +364,7 @@ static int check_limits(const struct eng *e, const struct sky_state *s, char *er
 			return -EINVAL;
 		}
 		/* The device holds float32 texels, and the binary16 copy too. */
-		uint64_t device = device_bytes(s, t);
+		uint64_t device = device_bytes(e, s, t);
 		if (t == STATE_AERIAL && device / 16 > e->limits.maxTexelBufferElements) {
 			eng_set_err(err, err_size, "aerial_width: %ux%ux%u for %u volumes exceeds the device's %u texels for a lookup",
 				q->width, q->height, q->depth, 1 + s->n_views, e->limits.maxTexelBufferElements);
@@ -401,8 +410,8 @@ static int plan_pack(struct eng *e, const struct sky_state *s, struct plan *pl, 
 	if (!k.v[SPEC_PACK_MASK])
 		return 0;
 	for (int t = 0; t < STATE_N_TABLES; t++)
-		if (k.v[SPEC_PACK_MASK] & STATE_BIT(t) && table_texels(s, t) > most)
-			most = table_texels(s, t);
+		if (k.v[SPEC_PACK_MASK] & STATE_BIT(t) && table_texels(e, s, t) > most)
+			most = table_texels(e, s, t);
 	uint64_t groups = (most + 64 * 16 - 1) / (64 * 16);
 	pl->pack_groups = groups > e->limits.maxComputeWorkGroupCount[0]
 				  ? e->limits.maxComputeWorkGroupCount[0] : (uint32_t)groups;
@@ -419,7 +428,8 @@ static int make_plan(struct eng *e, const struct sky_state *s, uint32_t mask, st
 	memset(ret, 0, sizeof(*ret));
 	ret->mask = mask;
 	eng_fill_params(e, s, params, &base);
-	eng_fill_views(s, e->share_views, e->views.map, &ret->aerial_march, &ret->aerial_resample);
+	eng_fill_views(s, &e->aplan, e->panorama_offset / 16, e->views.map, &ret->aerial_march,
+		       &ret->aerial_resample);
 	if ((mask & STATE_BIT(STATE_AERIAL)) && ret->aerial_resample) {
 		struct spec k = eng_pass_spec(&base, s, STATE_AERIAL);
 		rc = get_pipeline(e, PASS_RESAMPLE, &k, &ret->resample_pipe, err, err_size);
@@ -455,6 +465,15 @@ static int make_plan(struct eng *e, const struct sky_state *s, uint32_t mask, st
 	return s->quality.storage == STATE_F16 && mask ? plan_pack(e, s, ret, err, err_size) : 0;
 }
 
+/* The rows of aerial_width invocations the march dispatch needs: the
+ * volume's, or a panorama's columns where they are more. */
+static uint32_t aerial_march_rows(const struct eng *e, const struct sky_state *s)
+{
+	const struct state_table_quality *q = &s->quality.t[STATE_AERIAL];
+	uint32_t rows = (e->aplan.width * e->aplan.height + q->width - 1) / q->width;
+	return e->aplan.n_panoramas && rows > q->height ? rows : q->height;
+}
+
 /* Records the plan's passes into e->cmd, then the copies of its tables to
  * host memory. */
 static int record_plan(struct eng *e, const struct sky_state *s, const struct plan *pl, char *err,
@@ -482,7 +501,7 @@ static int record_plan(struct eng *e, const struct sky_state *s, const struct pl
 		bool last = !(pl->mask >> (t + 1)), iterate = t == STATE_MULTISCATTER && pl->iterations > 0;
 		bool aerial = t == STATE_AERIAL;
 		uint32_t pack = last ? pl->pack_groups : 0;
-		uint32_t march_gy = aerial ? (eng_aerial_march_rows(s) + 7) / 8 : gy;
+		uint32_t march_gy = aerial ? (aerial_march_rows(e, s) + 7) / 8 : gy;
 		record_pass(e, t, pl->pipes[t], gx, march_gy, aerial ? pl->aerial_march : 1, gy,
 			    pl->resample_pipe, aerial ? pl->aerial_resample : 0, pl->pack_pipe,
 			    iterate ? 0 : pack);
@@ -497,9 +516,11 @@ static int record_plan(struct eng *e, const struct sky_state *s, const struct pl
 	 * them; none where the host reads the device's memory. */
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if ((pl->mask & STATE_BIT(t)) && !e->direct[t]) {
-			VkBufferCopy c = { s->quality.storage == STATE_F16 ? float_bytes(s, t) : 0, 0,
-					   e->table_bytes[t] };
-			e->vk.vkCmdCopyBuffer(e->cmd, e->table[t].buf, e->readback[t].buf, 1, &c);
+			VkBufferCopy c[2] = { { s->quality.storage == STATE_F16 ? float_bytes(e, s, t) : 0, 0,
+						e->table_bytes[t] },
+					      { e->panorama_offset, e->table_bytes[t], e->panorama_bytes } };
+			bool panoramas = t == STATE_AERIAL && e->panorama_bytes;
+			e->vk.vkCmdCopyBuffer(e->cmd, e->table[t].buf, e->readback[t].buf, panoramas ? 2 : 1, c);
 		}
 	/* The host reads the copies and the pack pass's scales. */
 	VkMemoryBarrier to_host = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
@@ -526,6 +547,8 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 		eng_set_err(err, err_size, "a computation is in flight");
 		return -EBUSY;
 	}
+	/* The plan of this computation: the buffers' sizes and the jobs. */
+	aplan_make(s, e->share_views, &e->aplan);
 	rc = check_limits(e, s, err, err_size);
 	if (rc == 0)
 		rc = ensure_tables(e, s, &lost, err, err_size);
@@ -543,7 +566,7 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 		struct gpu_pack pack;
 		memset(&pack, 0, sizeof(pack));
 		for (int t = STATE_MULTISCATTER; t < STATE_N_TABLES; t++)
-			pack.texels[t] = (mask & STATE_BIT(t)) ? (uint32_t)table_texels(s, t) : 0;
+			pack.texels[t] = (mask & STATE_BIT(t)) ? (uint32_t)table_texels(e, s, t) : 0;
 		memcpy(e->pack.map, &pack, sizeof(pack));
 	}
 	rc = record_plan(e, s, &pl, err, err_size);

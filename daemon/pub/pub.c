@@ -15,6 +15,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include "aplan.h"
 #include "skymap.h"
 
 #define ALIGN_UP(x, a) (((x) + (a) - 1) / (a) * (a))
@@ -88,7 +89,12 @@ static void fill_header(struct sky_shm_header *h, const struct sky_state *s, uin
 	}
 	h->max_views = max_views;
 	h->view_offset = off;
-	h->view_stride = ALIGN_UP(h->tables[STATE_AERIAL].bytes, 64);
+	/* Room for a volume or a panorama (always float32 RGBA). */
+	uint32_t pw, ph;
+	aplan_panorama_shape(s, &pw, &ph);
+	uint64_t panorama = (uint64_t)pw * ph * s->quality.t[STATE_AERIAL].depth * 16;
+	uint64_t volume = h->tables[STATE_AERIAL].bytes;
+	h->view_stride = ALIGN_UP(volume > panorama ? volume : panorama, 64);
 	off += h->view_stride * h->max_views;
 	/* Page-sized slots let a client map one slot alone. */
 	h->slot_bytes = ALIGN_UP(off, 4096);
@@ -268,10 +274,16 @@ uint64_t pub_checksum(const struct sky_shm_header *h, const struct sky_shm_slot 
 	if (!slot->n_views || slot->n_views > SKY_SHM_MAX_VIEWS)
 		return c;
 	c = sky_shm_checksum_words(c, slot->views, slot->n_views * sizeof(slot->views[0]) / 8);
-	for (uint32_t i = 0; i < slot->n_views && i < h->max_views; i++)
-		if (slot->valid_views & (1u << i))
+	for (uint32_t i = 0; i < slot->n_views && i < h->max_views; i++) {
+		const struct sky_shm_view *v = &slot->views[i];
+		if (!(slot->valid_views & (1u << i)))
+			continue;
+		if (v->form == SKY_VIEW_PANORAMA)
+			c = sky_shm_checksum_words(c, base + v->panorama.offset, v->panorama.bytes / 8);
+		else
 			c = sky_shm_checksum_words(c, base + h->view_offset + i * h->view_stride,
 						   h->tables[STATE_AERIAL].bytes / 8);
+	}
 	return c;
 }
 
@@ -282,20 +294,30 @@ static void futex_wake_all(uint32_t *word)
 }
 
 /* The slot's view directory and, with aerial perspective valid, each view's
- * volume: they follow the state's own volume in the engine's aerial table. */
+ * volume or panorama: the engine's aerial table holds the volumes of the
+ * plan of s (the state's camera's first), panoramas its published
+ * panoramas; a panorama goes into the region of the first view that reads
+ * it, and every view reading it points there. */
 static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *slot,
 			  uint8_t *base, const struct sky_state *s, uint32_t valid,
-			  const void *aerial)
+			  const void *aerial, const void *panoramas)
 {
 	const double deg = SKYMAP_PI / 180.0;
 	uint32_t n = s->n_views < h->max_views ? s->n_views : h->max_views;
+	uint64_t bytes = h->tables[STATE_AERIAL].bytes;
+	bool computed = (valid & STATE_BIT(STATE_AERIAL)) && aerial;
+	struct aplan ap;
 
 	memset(slot->views, 0, sizeof(slot->views));
 	slot->n_views = n;
 	slot->valid_views = 0;
+	if (!n)
+		return;
+	aplan_make(s, true, &ap);
 	for (uint32_t i = 0; i < n; i++) {
 		const struct state_view *v = &s->views[i];
 		struct sky_shm_view *o = &slot->views[i];
+		uint8_t *region = base + h->view_offset + i * h->view_stride;
 		double f[3], r[3], u[3];
 		snprintf(o->name, sizeof(o->name), "%s", v->name);
 		o->altitude_km = isnan(v->altitude_km) ? s->altitude_km : v->altitude_km;
@@ -305,19 +327,29 @@ static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *s
 		memcpy(o->camera_up, u, sizeof(u));
 		o->camera_vfov_rad = v->camera.vfov_deg * deg;
 		o->camera_aspect = v->camera.aspect;
-		if ((valid & STATE_BIT(STATE_AERIAL)) && aerial) {
-			uint64_t bytes = h->tables[STATE_AERIAL].bytes;
-			memcpy(base + h->view_offset + i * h->view_stride,
-			       (const uint8_t *)aerial + (i + 1) * bytes, bytes);
-			slot->valid_views |= 1u << i;
+		o->form = v->form;
+		int32_t vol = ap.volume[i + 1], k = ap.panorama[i + 1];
+		if (vol >= 0) {
+			if (computed) {
+				memcpy(region, (const uint8_t *)aerial + vol * bytes, bytes);
+				slot->valid_views |= 1u << i;
+			}
+			continue;
 		}
+		aplan_describe(&ap, k, h->view_offset + (uint64_t)ap.pano[k].view * h->view_stride,
+			       &o->panorama);
+		if (!computed || !panoramas)
+			continue;
+		if ((uint32_t)ap.pano[k].view == i)
+			memcpy(region, (const uint8_t *)panoramas + k * o->panorama.bytes, o->panorama.bytes);
+		slot->valid_views |= 1u << i;
 	}
 }
 
 /* Writes one slot under its seqlock: s and the valid tables, as generation,
  * to become current at apply_time_ns (0: now). Touches no header word. */
 static void write_slot(struct pub *p, uint32_t i, const struct sky_state *s, uint32_t valid,
-		       const void *const tables[STATE_N_TABLES],
+		       const void *const tables[STATE_N_TABLES], const void *panoramas,
 		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		       int64_t apply_time_ns)
 {
@@ -340,27 +372,27 @@ static void write_slot(struct pub *p, uint32_t i, const struct sky_state *s, uin
 			slot->valid_tables |= STATE_BIT(t);
 			slot->state.rgb_scale_log2[t] = rgb_scale_log2 ? rgb_scale_log2[t] : 0;
 		}
-	publish_views(h, slot, base, s, valid, tables[STATE_AERIAL]);
+	publish_views(h, slot, base, s, valid, tables[STATE_AERIAL], panoramas);
 	slot->checksum = pub_checksum(h, slot, base);
 	atomic_store_explicit(seq, s0 + 2, memory_order_release);
 }
 
 void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
-		 const void *const tables[STATE_N_TABLES],
+		 const void *const tables[STATE_N_TABLES], const void *panoramas,
 		 const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation)
 {
-	pub_publish_at(p, s, valid, tables, rgb_scale_log2, generation, 0);
+	pub_publish_at(p, s, valid, tables, panoramas, rgb_scale_log2, generation, 0);
 }
 
 void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
-		    const void *const tables[STATE_N_TABLES],
+		    const void *const tables[STATE_N_TABLES], const void *panoramas,
 		    const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		    int64_t apply_time_ns)
 {
 	struct sky_shm_header *h = p->header;
 	uint32_t i = p->next_slot;
 
-	write_slot(p, i, s, valid, tables, rgb_scale_log2, generation, apply_time_ns);
+	write_slot(p, i, s, valid, tables, panoramas, rgb_scale_log2, generation, apply_time_ns);
 	atomic_store_explicit((_Atomic uint32_t *)&h->current_slot, i, memory_order_release);
 	atomic_store_explicit((_Atomic uint32_t *)&h->generation, (uint32_t)generation,
 			      memory_order_release);
@@ -370,13 +402,13 @@ void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
 }
 
 void pub_publish_ahead(struct pub *p, const struct sky_state *s, uint32_t valid,
-		       const void *const tables[STATE_N_TABLES],
+		       const void *const tables[STATE_N_TABLES], const void *panoramas,
 		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		       int64_t apply_time_ns)
 {
 	struct sky_shm_header *h = p->header;
 
-	write_slot(p, h->n_slots - 1, s, valid, tables, rgb_scale_log2, generation, apply_time_ns);
+	write_slot(p, h->n_slots - 1, s, valid, tables, panoramas, rgb_scale_log2, generation, apply_time_ns);
 	/* The word keeps its value: waiters wake, find the slot ahead and
 	 * sleep again until its apply time. */
 	futex_wake_all(&h->generation);

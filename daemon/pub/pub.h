@@ -47,18 +47,20 @@ uint64_t pub_bytes(const struct pub *p);
 int pub_same_layout(const struct pub *p, const struct sky_state *s);
 
 /* Writes s and the tables in valid (pointers per enum state_table, each of
- * the layout's size) into the next slot and makes it current as generation,
+ * the layout's size; the aerial table followed by the views' volumes, and
+ * panoramas the published panoramas, as eng_table and eng_panoramas give
+ * them, NULL without) into the next slot and makes it current as generation,
  * with each valid table's RGB scale, log2 (eng_table_scale_log2: 0 for
  * float32; NULL: all 0) in the slot's state. Wakes futex waiters. Never
  * blocks; costs one copy of the valid tables. */
 void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
-		 const void *const tables[STATE_N_TABLES],
+		 const void *const tables[STATE_N_TABLES], const void *panoramas,
 		 const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation);
 
 /* pub_publish for a generation that became current at apply_time_ns
  * (CLOCK_REALTIME, passed or now; 0: now): the slot keeps the instant. */
 void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
-		    const void *const tables[STATE_N_TABLES],
+		    const void *const tables[STATE_N_TABLES], const void *panoramas,
 		    const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		    int64_t apply_time_ns);
 
@@ -70,7 +72,7 @@ void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
  * (the word unchanged) so that they sleep until the apply time instead.
  * Overwrites an earlier slot ahead. */
 void pub_publish_ahead(struct pub *p, const struct sky_state *s, uint32_t valid,
-		       const void *const tables[STATE_N_TABLES],
+		       const void *const tables[STATE_N_TABLES], const void *panoramas,
 		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		       int64_t apply_time_ns);
 

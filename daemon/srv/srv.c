@@ -182,7 +182,8 @@ static void publish(struct srv *s, uint32_t computed, int64_t apply_ns)
 		new_region = 1;
 	}
 	engine_tables(s, tables, scales);
-	pub_publish_at(s->pub, &s->computing_state, s->eng_valid, tables, scales, generation,
+	pub_publish_at(s->pub, &s->computing_state, s->eng_valid, tables,
+		       eng_panoramas(s->eng, NULL), scales, generation,
 		       apply_ns);
 	s->published_keys = s->computing_keys;
 	s->generation = generation;
@@ -204,7 +205,8 @@ static void publish_ahead(struct srv *s)
 	if (!pub_same_layout(s->pub, &s->computing_state))
 		return;
 	engine_tables(s, tables, scales);
-	pub_publish_ahead(s->pub, &s->computing_state, s->eng_valid, tables, scales,
+	pub_publish_ahead(s->pub, &s->computing_state, s->eng_valid, tables,
+			  eng_panoramas(s->eng, NULL), scales,
 			  s->in_flight_generation, s->in_flight_apply_ns);
 }
 
