@@ -1,8 +1,9 @@
 // glsl_sample.comp - a render client's use of proto/glsl/sky.glsl: per query,
 // the sky toward a direction, the disks, the transmittance toward it and at
 // an (altitude, mu), aerial perspective at a screen position and distance,
-// the multi-scattering table, the sun's and the moon's illuminance, and
-// where the direction falls in the aerial volume's camera; for
+// the multi-scattering table, the sun's and the moon's illuminance, where
+// the direction falls in the aerial volume's camera, and aerial perspective
+// toward the direction (a volume or a view's panorama); for
 // test_glsl_sample to check against libsky's CPU sampling. Built twice: with
 // the texture units' filtering and with SKY_GLSL_EXACT_FILTER.
 #version 450
@@ -25,7 +26,7 @@ struct Query {
 layout(std430, binding = 5) readonly buffer Queries { Query q[]; } Q;
 layout(std430, binding = 6) writeonly buffer Results { vec4 r[]; } R;
 
-const int RESULTS_PER_QUERY = 8;
+const int RESULTS_PER_QUERY = 9;
 
 void main()
 {
@@ -45,4 +46,5 @@ void main()
 	R.r[o + 6] = vec4((i & 1) == 0 ? sky_sun_illuminance(sky, transmittance_tex)
 				       : sky_moon_illuminance(sky, transmittance_tex), 0.0);
 	R.r[o + 7] = vec4(sky_aerial_screen_uv(sky, dir), 0.0, 0.0);
+	R.r[o + 8] = sky_aerial_dir(sky, aerial_tex, dir, Q.q[i].dir.w);
 }
