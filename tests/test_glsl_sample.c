@@ -22,7 +22,8 @@
  *
  * Tolerance, per lookup and channel, from the texels the lookup blends
  * (their spread S: the largest minus the smallest value over the cell's
- * texels and their neighbours, as the GPU's cell may be the next one):
+ * texels and their neighbours, as the GPU's cell may be the next one, in
+ * both slices a 3-D lookup blends, as the slice weight is rounded too):
  *   texture units: 3 S / 256 (2-D: 2 S / 256), because they weigh the
  *     texels with 8 bits of sub-texel position (an error up to 1/512 of a
  *     step per axis) and the float mapping may put the position up to
@@ -30,8 +31,9 @@
  *   SKY_GLSL_EXACT_FILTER: S / 256 (the mapping's part alone);
  * plus 4e-6 of the value, float32 arithmetic on the GPU against double
  * (a few ulps through the scale, the mix and the mapping). float16 tables
- * add nothing: both sides read the same halves and scale them exactly by
- * the same power of two. The disks: the transmittance toward the light as
+ * read the same halves on both sides, scaled exactly by the same power of
+ * two, but the texture units may return the filtered value as a binary16
+ * (an NVIDIA H100 does): one ulp of the value, 2^-10 of it, more. The disks: the transmittance toward the light as
  * above, times the disk's radiance, plus 1e-4 of it for the limb law in
  * float (a square root near the limb).
  *
@@ -172,24 +174,31 @@ static void make_queries(const struct sky_shm_state *st, const struct camera *ca
 
 /* The spread of channel c over the texels around where skysample_bilinear
  * reads (u, v) in slice k: the cell and one texel beyond each side. */
-static double spread(const struct skysample_table *t, double u, double v, uint32_t k, int wrap_u, int c)
+static double spread_slices(const struct skysample_table *t, double u, double v, uint32_t k0,
+			    uint32_t k1, int wrap_u, int c)
 {
 	uint32_t i0, i1, j0, j1;
 	double fu, fv, lo = INFINITY, hi = -INFINITY, px[4];
 	skysample_axis(u, t->width, wrap_u, &i0, &i1, &fu);
 	skysample_axis(v, t->height, 0, &j0, &j1, &fv);
-	for (int di = -1; di <= 2; di++)
-		for (int dj = -1; dj <= 2; dj++) {
-			long i = (long)i0 + di, j = (long)j0 + dj;
-			if (wrap_u)
-				i = (i + t->width) % t->width;
-			if (i < 0 || j < 0 || i >= t->width || j >= t->height)
-				continue;
-			skysample_texel(t, (uint32_t)i, (uint32_t)j, k, px);
-			lo = fmin(lo, px[c]);
-			hi = fmax(hi, px[c]);
-		}
+	for (uint32_t k = k0; k <= k1; k++)
+		for (int di = -1; di <= 2; di++)
+			for (int dj = -1; dj <= 2; dj++) {
+				long i = (long)i0 + di, j = (long)j0 + dj;
+				if (wrap_u)
+					i = (i + t->width) % t->width;
+				if (i < 0 || j < 0 || i >= t->width || j >= t->height)
+					continue;
+				skysample_texel(t, (uint32_t)i, (uint32_t)j, k, px);
+				lo = fmin(lo, px[c]);
+				hi = fmax(hi, px[c]);
+			}
 	return hi - lo;
+}
+
+static double spread(const struct skysample_table *t, double u, double v, uint32_t k, int wrap_u, int c)
+{
+	return spread_slices(t, u, v, k, k, wrap_u, c);
 }
 
 struct tally {
@@ -221,10 +230,19 @@ struct tables {
 	struct skysample_table t[SKY_SHM_MAX_TABLES];
 };
 
-/* The tolerance of a 2-D lookup whose texels spread by s, of value x. */
-static double tol2(double s, double x, int exact)
+/* What the texture units' result of a float16 table may lose: its
+ * rounding to binary16 (one ulp, 2^-10 of the value at most), which a
+ * GPU may do after filtering (an NVIDIA H100 does); 0 for float32 and the
+ * exact filter. */
+static double half_result(const struct skysample_table *t, double x, int exact)
 {
-	return (exact ? 1.0 : 2.0) * s / 256.0 + REL_TOL * fabs(x) + 1e-30;
+	return !exact && t->format == SKY_FORMAT_RGBA16F ? ldexp(fabs(x), -10) : 0.0;
+}
+
+/* The tolerance of a 2-D lookup in t whose texels spread by s, of value x. */
+static double tol2(const struct skysample_table *t, double s, double x, int exact)
+{
+	return (exact ? 1.0 : 2.0) * s / 256.0 + REL_TOL * fabs(x) + half_result(t, x, exact) + 1e-30;
 }
 
 /* How far, in texels along u and v, the float direction of the GPU may
@@ -281,7 +299,7 @@ static void compare_dir(const struct sky_view *v, const struct skysample_table *
 			double f = (exact ? 1.0 : 3.0) / 256.0 + slack[0] + slack[1];
 			for (int c = 0; c < 4; c++) {
 				double x = c < 3 ? rgb[c] : t;
-				double s = fmax(spread(ae, u, w, k0, 0, c), spread(ae, u, w, k1, 0, c));
+				double s = spread_slices(ae, u, w, k0, k1, 0, c);
 				double tol = c < 3 ? fabs(x) * expm1(f * s + 2e-6) : f * s + REL_TOL;
 				expect(&tl[7], mode, i, c, o[c], x, tol + 1e-30);
 			}
@@ -290,14 +308,15 @@ static void compare_dir(const struct sky_view *v, const struct skysample_table *
 		skysample_screen_uv(cam.fwd, cam.right, cam.up, cam.tan_half, cam.aspect, d, &u, &w);
 		for (int c = 0; c < 4; c++) {
 			double x = c < 3 ? rgb[c] : t;
-			double s = fmax(spread(ae, u, w, k0, 0, c), spread(ae, u, w, k1, 0, c));
+			double s = spread_slices(ae, u, w, k0, k1, 0, c);
 			if (sl <= 0.0) {	/* toward (0, 0, 0, 1) at the camera */
 				double px[4];
 				skysample_bilinear(ae, u, w, 0, 0, px);
 				s = fmax(s, fabs(px[c] - (c < 3 ? 0.0 : 1.0)));
 			}
 			expect(&tl[7], mode, i, c, o[c], x,
-			       (exact ? 1.0 : 3.0) * s / 256.0 + REL_TOL * fabs(x) + 1e-30);
+			       (exact ? 1.0 : 3.0) * s / 256.0 + REL_TOL * fabs(x) +
+				       half_result(ae, x, exact) + 1e-30);
 		}
 	}
 }
@@ -322,7 +341,7 @@ static void compare(const struct sky_view *v, const struct tables *tb, const cha
 		CHECK(sky_sample_sky(v, el / (SKYMAP_PI / 180), az / (SKYMAP_PI / 180), 0, rgb) == 0);
 		skymap_skyview_uv(hc, 0.5 * SKYMAP_PI - el, az, sv->height, &u, &w);
 		for (int c = 0; c < 3; c++)
-			expect(&tl[0], mode, i, c, o[c], rgb[c], tol2(spread(sv, u, w, 0, 1, c), rgb[c], exact));
+			expect(&tl[0], mode, i, c, o[c], rgb[c], tol2(sv, spread(sv, u, w, 0, 1, c), rgb[c], exact));
 		CHECK(sky_sample_sky(v, el / (SKYMAP_PI / 180), az / (SKYMAP_PI / 180),
 				     SKY_SAMPLE_SUN_DISK | SKY_SAMPLE_MOON_DISK | SKY_SAMPLE_LIMB_DARKENING,
 				     with) == 0);
@@ -334,7 +353,7 @@ static void compare(const struct sky_view *v, const struct tables *tb, const cha
 			skysample_light_transmittance(tr, st, light, t_light);
 			double per_t = t_light[c] > 0.0 ? disk / t_light[c] : 0.0;
 			expect(&tl[1], mode, i, c, o[4 + c], disk,
-			       per_t * tol2(spread(tr, u, w, 0, 0, c), t_light[c], exact) + 1e-4 * disk + 1e-30);
+			       per_t * tol2(tr, spread(tr, u, w, 0, 0, c), t_light[c], exact) + 1e-4 * disk + 1e-30);
 		}
 
 		/* Transmittance toward the direction (0 below the horizon),
@@ -345,13 +364,13 @@ static void compare(const struct sky_view *v, const struct tables *tb, const cha
 		for (int c = 0; c < 3; c++)
 			if (fabs(d[2] - hc) > 1e-6)	/* the horizon's step itself */
 				expect(&tl[2], mode, i, c, o[8 + c], rgb[c],
-				       tol2(spread(tr, u, w, 0, 0, c), rgb[c], exact));
+				       tol2(tr, spread(tr, u, w, 0, 0, c), rgb[c], exact));
 		CHECK(sky_sample_transmittance(v, q[i].p[2], q[i].p[3], rgb) == 0);
 		skymap_transmittance_uv(st->bottom_radius_km, st->top_radius_km, q[i].p[2], q[i].p[3],
 					tr->width, tr->height, &u, &w);
 		for (int c = 0; c < 3; c++)
 			expect(&tl[2], mode, i, c, o[12 + c], rgb[c],
-			       tol2(spread(tr, u, w, 0, 0, c), rgb[c], exact));
+			       tol2(tr, spread(tr, u, w, 0, 0, c), rgb[c], exact));
 
 		/* Aerial perspective: two slices (and the camera's (0, 1)); a
 		 * panorama is read by direction only (compare_dir). */
@@ -369,15 +388,15 @@ static void compare(const struct sky_view *v, const struct tables *tb, const cha
 		uint32_t k1 = k0 + 1 < ae->depth ? k0 + 1 : k0;
 		for (int c = 0; c < 4 && !(vw && vw->form == SKY_VIEW_PANORAMA); c++) {
 			double x = c < 3 ? rgb[c] : t_ae;
-			double s = fmax(spread(ae, q[i].p[0], q[i].p[1], k0, 0, c),
-					spread(ae, q[i].p[0], q[i].p[1], k1, 0, c));
+			double s = spread_slices(ae, q[i].p[0], q[i].p[1], k0, k1, 0, c);
 			if (sl <= 0.0) {	/* toward (0, 0, 0, 1) at the camera */
 				double px[4];
 				skysample_bilinear(ae, q[i].p[0], q[i].p[1], 0, 0, px);
 				s = fmax(s, fabs(px[c] - (c < 3 ? 0.0 : 1.0)));
 			}
 			expect(&tl[3], mode, i, c, o[16 + c], x,
-			       (exact ? 1.0 : 3.0) * s / 256.0 + REL_TOL * fabs(x) + 1e-30);
+			       (exact ? 1.0 : 3.0) * s / 256.0 + REL_TOL * fabs(x) +
+				       half_result(ae, x, exact) + 1e-30);
 		}
 
 		/* The multi-scattering table, as skysample.h reads a table. */
@@ -386,7 +405,7 @@ static void compare(const struct sky_view *v, const struct tables *tb, const cha
 				       ms->width, ms->height, &u, &w);
 		skysample_bilinear(ms, u, w, 0, 0, px);
 		for (int c = 0; c < 4; c++)
-			expect(&tl[4], mode, i, c, o[20 + c], px[c], tol2(spread(ms, u, w, 0, 0, c), px[c], exact));
+			expect(&tl[4], mode, i, c, o[20 + c], px[c], tol2(ms, spread(ms, u, w, 0, 0, c), px[c], exact));
 
 		/* The lights' illuminance: sky_sample_sun, and the moon's alike. */
 		const double *dir = i % 2 == 0 ? st->sun_direction : st->moon_direction;
@@ -400,7 +419,7 @@ static void compare(const struct sky_view *v, const struct tables *tb, const cha
 		for (int c = 0; c < 3; c++) {
 			double x = i % 2 == 0 ? rgb[c] : lx[c] * t_l[c];
 			expect(&tl[5], mode, i, c, o[24 + c], x,
-			       lx[c] * tol2(spread(tr, u, w, 0, 0, c), t_l[c], exact) + 1e-30);
+			       lx[c] * tol2(tr, spread(tr, u, w, 0, 0, c), t_l[c], exact) + 1e-30);
 		}
 
 		/* The screen position of a direction made from one: float
