@@ -37,8 +37,9 @@
 // Filtering: by default the texture units filter (texture()). They weigh
 // texels with 8 bits of sub-texel position on many GPUs, so a result may
 // differ from libsky's double bilinear by about 1/256 of the difference
-// between neighbouring texels (test_glsl_sample bounds it; lavapipe weighs
-// float formats in float).
+// between neighbouring texels, and some (an NVIDIA H100) return a float16
+// table's filtered value as a binary16, 2^-11 of it more (test_glsl_sample
+// bounds both; lavapipe weighs float formats in float).
 // Define SKY_GLSL_EXACT_FILTER before including to filter in the shader
 // instead (texelFetch and mix in float, 4 fetches a 2-D lookup, 8 for the
 // aerial volume): then the results agree with libsky to float rounding.
