@@ -643,7 +643,9 @@ SKY_EXPORT int sky_gpu_tables(sky_client *c, const struct sky_view *v,
  * texel_bytes 16, rgb_scale_log2 0, width, height and depth the
  * panorama's (columns, rows, slices): a 3-D image sampled by the GLSL
  * library's sky_aerial_dir() with sky_gpu_state()'s panorama fields, with
- * the same linear CLAMP_TO_EDGE sampler as a volume. Returns 1 if it
+ * the same linear CLAMP_TO_EDGE sampler as a volume; views that share a
+ * panorama share its hash too (one pass over its bytes per generation,
+ * whatever the number of views). Returns 1 if it
  * changed in the view's generation, 0 if not, -ENOENT if the slot has no
  * such view, -ENODATA if it is not valid there, -EPROTO if its entry is
  * malformed, -EAGAIN if a zero-copy view was torn, -EINVAL. Keeps what it

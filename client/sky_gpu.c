@@ -124,16 +124,44 @@ static struct sky_gpu_seen_view *seen_view(sky_client *c, const struct sky_view 
 	return free_one;
 }
 
+/* A hash of the panorama of view vw already taken in v's generation for
+ * another view on the same eye point (same offset and size): views of form
+ * panorama share their eye point's texels, and a wall of eight would
+ * otherwise hash the same bytes eight times. */
+static bool shared_hash(const sky_client *c, const struct sky_view *v, const struct sky_shm_view *vw,
+			uint64_t *ret_hash)
+{
+	if (vw->form != SKY_VIEW_PANORAMA)
+		return false;
+	for (uint32_t i = 0; i < SKY_SHM_MAX_VIEWS; i++) {
+		const struct sky_gpu_seen_view *e = &c->gpu_views[i];
+		if (!e->name[0] || !e->seen.known || e->seen.generation != v->generation)
+			continue;
+		for (uint32_t k = 0; k < v->slot->n_views && k < SKY_SHM_MAX_VIEWS; k++) {
+			const struct sky_shm_view *o = &v->slot->views[k];
+			if (o != vw && strncmp(o->name, e->name, SKY_SHM_VIEW_NAME_MAX) == 0 &&
+			    o->form == SKY_VIEW_PANORAMA && (v->slot->valid_views & (1u << k)) &&
+			    o->panorama.offset == vw->panorama.offset &&
+			    o->panorama.bytes == vw->panorama.bytes) {
+				*ret_hash = e->seen.hash;
+				return true;
+			}
+		}
+	}
+	return false;
+}
+
 int sky_gpu_view_table(sky_client *c, const struct sky_view *v, const char *name,
 		       struct sky_gpu_table *ret_table)
 {
+	const struct sky_shm_view *vw;
 	struct skysample_table t;
 	struct sky_gpu_table out;
 
 	if (!c || !v || !v->header || !v->slot || !v->slot_base || !name || !ret_table ||
 	    strlen(name) >= SKY_SHM_VIEW_NAME_MAX)
 		return -EINVAL;
-	int r = skysample_view_from_slot(v->header, v->slot_base, name, &t, NULL);
+	int r = skysample_view_from_slot(v->header, v->slot_base, name, &t, &vw);
 	if (r < 0)
 		return r;
 	if (c->gpu_map != v->header) {
@@ -147,7 +175,9 @@ int sky_gpu_view_table(sky_client *c, const struct sky_view *v, const char *name
 	struct sky_gpu_seen_view *e = seen_view(c, v, name);
 	struct sky_gpu_seen seen = e ? e->seen : (struct sky_gpu_seen){ 0 };
 	if (!seen.known || seen.generation != v->generation) {
-		uint64_t h = table_hash(&t, out.bytes);
+		uint64_t h;
+		if (!shared_hash(c, v, vw, &h))
+			h = table_hash(&t, out.bytes);
 		if (!seen.known || h != seen.hash)
 			seen.changed = v->generation;
 		seen.known = true;

@@ -683,9 +683,31 @@ static void panorama_steps(struct gvk *g, sky_client *c, const uint32_t before[S
 		gen = set_and_generation(c, all_round[k]);
 	gen = set_and_generation(c, "view add name=pano4 form=panorama altitude_km=1.5 yaw_deg=270 pitch_deg=75 vfov_deg=50 aspect=3");
 	step(g, c, gen, SKY_FORMAT_RGBA16F, 0, again, seen, "pano3", 1);
+	/* Described for each view alike: the same texels, all changed in this
+	 * generation (pano3's recorded by step, the others new or widened). */
+	struct sky_view v;
+	void *buf = snapshot_at(c, gen, SKY_FORMAT_RGBA16F, &v);
+	CHECK(buf != NULL);
+	const char *const walls[] = { "pano", "pano2", "pano3", "pano4" };
+	struct sky_gpu_table vt[4];
+	for (int k = 0; buf && k < 4; k++) {
+		CHECK(sky_gpu_view_table(c, &v, walls[k], &vt[k]) == 1);
+		CHECK(vt[k].texels == vt[0].texels && vt[k].bytes == vt[0].bytes &&
+		      vt[k].changed_generation == v.generation);
+	}
+	free(buf);
+	/* A view on another eye point: a new generation in which this eye
+	 * point's panorama holds the same bytes, which no view reports as
+	 * changed (views that share a panorama share its hash). */
+	uint32_t was = v.generation;
+	gen = set_and_generation(c, "view add name=far altitude_km=3 yaw_deg=10");
+	buf = snapshot_at(c, gen, SKY_FORMAT_RGBA16F, &v);
+	CHECK(buf != NULL && v.generation > was);
+	for (int k = 0; buf && k < 4; k++)
+		CHECK(sky_gpu_view_table(c, &v, walls[k], &vt[k]) == 0 && vt[k].changed_generation == was);
+	free(buf);
 	/* One eye point, one panorama: every view of that form reads the same
 	 * texels, and with the zenith in a view they go all round. */
-	struct sky_view v;
 	if (sky_view_begin(c, &v) == 0) {
 		const void *t1 = NULL, *tk = NULL;
 		const char *names[] = { "pano2", "pano3", "pano4" };
