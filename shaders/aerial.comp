@@ -32,9 +32,12 @@ void store_texel(int i, vec4 v)
 	note_range(v.rgb);
 }
 
-// The direction of a panorama's column i, row j (job vec4s m0, m1).
+// The direction of a panorama's column i, row j (job vec4s m0, m1); around
+// the full circle the last column is the first again, bit for bit.
 vec3 panorama_dir(vec4 m0, vec4 m1, int i, int j)
 {
+	if (m1.w > 0.5)
+		i %= int(m1.y) - 1;
 	float az = m0.x + float(i) * m0.y, x = m0.z + float(j) * m0.w;
 	float el = m1.x + sign(x) * x * x;
 	return vec3(cos(el) * sin(az), cos(el) * cos(az), sin(el));
