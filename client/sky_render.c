@@ -277,17 +277,10 @@ int sky_render_direction(const struct sky_render_params *p, double x, double y, 
 		skysample_direction(0.5 * SKYMAP_PI - SKYMAP_PI * y / h, 2.0 * SKYMAP_PI * x / w, ret_dir);
 		return 1;
 	case SKY_PROJECTION_PERSPECTIVE: {
-		double f[3], r[3], u[3], t = tan(0.5 * p->vfov_deg * DEG);
+		double f[3], r[3], u[3];
 		camera_basis(p, f, r, u);
-		double sx = (2.0 * x / w - 1.0) * t * (w / h), sy = (1.0 - 2.0 * y / h) * t;
-		double d[3], n = 0.0;
-		for (int i = 0; i < 3; i++) {
-			d[i] = f[i] + sx * r[i] + sy * u[i];
-			n += d[i] * d[i];
-		}
-		n = sqrt(n);
-		for (int i = 0; i < 3; i++)
-			ret_dir[i] = d[i] / n;
+		skysample_screen_dir(f, r, u, tan(0.5 * p->vfov_deg * DEG), w / h, x / w, 1.0 - y / h,
+				     ret_dir);
 		return 1;
 	}
 	case SKY_PROJECTION_FISHEYE: {

@@ -165,15 +165,10 @@ static void panorama_against_marched(const char *scene, const struct sky_state *
 		struct skysample_table pt = { .texels = panoramas + ap.panorama[c] * d.bytes,
 			.format = SKY_FORMAT_RGBA32F, .width = d.width, .height = d.height, .depth = d.depth };
 		for (uint32_t i = 0; i < q->width * q->height; i++) {
-			double nx = (i % q->width + 0.5) / q->width * 2.0 - 1.0;
-			double ny = (i / q->width + 0.5) / q->height * 2.0 - 1.0, dir[3], n = 0;
-			for (int k = 0; k < 3; k++) {
-				dir[k] = v->fwd[k] + nx * v->tan_half * v->aspect * v->right[k] +
-					 ny * v->tan_half * v->up[k];
-				n += dir[k] * dir[k];
-			}
-			for (int k = 0; k < 3; k++)
-				dir[k] /= sqrt(n);
+			double dir[3];
+			skysample_screen_dir(v->fwd, v->right, v->up, v->tan_half, v->aspect,
+					     (i % q->width + 0.5) / q->width, (i / q->width + 0.5) / q->height,
+					     dir);
 			for (uint32_t k = 0; k < q->depth; k++) {
 				double depth = skymap_aerial_depth_km(k, q->depth, st.aerial_range_km,
 								      st.aerial_squared != 0);
