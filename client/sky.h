@@ -415,8 +415,10 @@ SKY_EXPORT int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_vi
  * generation; -ETIMEDOUT; -EINTR if a signal interrupted it; -ENOTCONN
  * before sky_subscribe(). It reads the socket only when the region was
  * superseded (a layout change): then it waits there for the new region,
- * maps it (views into the old one end, as with sky_dispatch) and queues
- * what else arrives for sky_dispatch(), or, reconnecting by itself
+ * maps it (views into the old one end, as with sky_dispatch), returns its
+ * generation even if that equals seen (a view of the superseded region
+ * may hold the number, which its last wake-up took) and queues what else
+ * arrives for sky_dispatch(), or, reconnecting by itself
  * (sky_set_reconnect), to hear of a hang-up. Since 0.1. */
 SKY_EXPORT int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generation);
 

@@ -286,18 +286,23 @@ int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generat
 	if (!c->map)
 		return -ENOTCONN;
 	int64_t deadline = timeout_ms < 0 ? -1 : sky_now_ms() + timeout_ms;
+	bool replaced = false;
 	for (;;) {
 		/* Reconnecting, the new region comes with the subscription. */
 		if (__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE) && !c->lost) {
 			int r = follow_layout(c, deadline);
 			if (r < 0)
 				return r;
+			replaced = true;
 		}
 		const uint32_t *word = &c->map->generation;
 		uint32_t g = __atomic_load_n(word, __ATOMIC_ACQUIRE);
 		int64_t wake_ns;
 		uint32_t v = visible_generation(c, g, &wake_ns);
-		if (v != seen && !__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE)) {
+		/* A new region is news whatever its number: the superseded
+		 * one's last increment took the number it publishes, so a view
+		 * taken in between holds it already. */
+		if ((v != seen || replaced) && !__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE)) {
 			if (ret_generation)
 				*ret_generation = v;
 			return 0;

@@ -178,6 +178,32 @@ static void send_text(int fd, const char *s, int pass_fd)
 	(void)sendmsg(fd, &mh, MSG_NOSIGNAL);
 }
 
+/* The stand-in's layout change ("supersede"): the region is superseded
+ * at once, its word bumped as skyd bumps it, and the next region goes out
+ * on the socket only once the test writes to layout_go. */
+static int layout_go[2] = { -1, -1 };
+static uint32_t superseded_generation;
+
+static void supersede_then_layout(int fd)
+{
+	uint32_t next = atomic_fetch_add((_Atomic uint32_t *)&shm->generation, 1) + 1;
+	atomic_store((_Atomic uint32_t *)&shm->superseded, 1);
+	syscall(SYS_futex, &shm->generation, FUTEX_WAKE, 64, NULL, NULL, 0);
+	superseded_generation = next;
+	send_text(fd, "OK\n", -1);
+	char go;
+	if (read(layout_go[0], &go, 1) != 1)
+		return;
+	/* The next region publishes the generation the old word now holds. */
+	build_region();
+	shm->generation = next;
+	for (uint32_t s = 0; s < NSLOT; s++)
+		slot_of(s)->generation = next;
+	char line[96];
+	snprintf(line, sizeof(line), "layout: generation=%u bytes=%zu\n", next, shm_bytes);
+	send_text(fd, line, shm_fd);
+}
+
 /* Serves one connection at a time until "shutdown". */
 static void *server(void *arg)
 {
@@ -207,6 +233,8 @@ static void *server(void *arg)
 					send_text(fd, "sun_elevation_deg: 30\naltitude_km: 0.2\nOK\n", -1);
 				else if (strcmp(buf, "emit") == 0)
 					send_text(fd, "OK\nchanged: generation=7 tables=skyview,aerial\n", -1);
+				else if (strcmp(buf, "supersede") == 0)
+					supersede_then_layout(fd);
 				else if (strcmp(buf, "drop") == 0)
 					open = false;
 				else if (strcmp(buf, "shutdown") == 0)
@@ -262,6 +290,31 @@ static void stop_server(void)
 }
 
 /* ---- tests -------------------------------------------------------------- */
+
+/* A view taken of a superseded region, before its successor arrives: the
+ * old word was bumped to the number the new region publishes, and
+ * sky_wait() from that view must still end once the new region is mapped
+ * (the new region is news, whatever its number). */
+static void test_layout_wait(sky_client *c)
+{
+	const struct sky_shm_header *old = sky_header(c);
+	size_t size = (sky_snapshot_size(c) + 63) / 64 * 64;
+	void *buf = aligned_alloc(64, size);
+	struct sky_view v;
+	uint32_t g = 0;
+
+	CHECK(pipe2(layout_go, O_CLOEXEC) == 0);
+	CHECK(sky_request(c, "supersede", NULL) == 0);
+	CHECK(buf && sky_snapshot(c, buf, size, &v) == 0 && v.header == old && old->superseded);
+	CHECK(write(layout_go[1], "g", 1) == 1);
+	CHECK(sky_wait(c, v.generation, 10000, &g) == 0);
+	CHECK(sky_header(c) != old && g == superseded_generation && sky_header(c)->generation == g);
+	struct sky_event ev;
+	CHECK(sky_dispatch(c, &ev) == 1 && ev.type == SKY_EVENT_LAYOUT);
+	free(buf);
+	close(layout_go[0]);
+	close(layout_go[1]);
+}
 
 static void test_half(void)
 {
@@ -752,6 +805,7 @@ int main(void)
 		test_ambient_and_disk();
 		test_projections(c);
 		test_consistency(c);
+		test_layout_wait(c);
 		test_hangup_and_reconnect(c);
 		sky_disconnect(c);
 	}
