@@ -260,7 +260,6 @@ static void add_panorama(const struct sky_state *s, struct aplan *p, uint32_t i,
 			 int32_t view, bool share)
 {
 	struct aplan_panorama *o = &p->pano[p->n_panoramas];
-	o->members = members;
 	o->view = view;
 	o->leader = i;
 	panorama_mapping(s, p->cam, members, i, o->m0, o->m1);

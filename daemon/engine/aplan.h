@@ -30,11 +30,10 @@ struct aplan_camera {
  * 1 for the full circle), as aerial.comp marches it and
  * skymap_panorama_uv reads it. */
 struct aplan_panorama {
-	uint32_t members;		/* bit c: camera c stands on this eye point */
-	int32_t view;			/* the first view of form panorama among them
-					 * (its slot region holds the texels), -1:
-					 * scratch, only resampled into volumes */
-	uint32_t leader;		/* the first member, whose eye it is */
+	int32_t view;			/* the first view of form panorama on its eye
+					 * point (its slot region holds the texels),
+					 * -1: scratch, only resampled into volumes */
+	uint32_t leader;		/* the first camera on the eye point */
 	float m0[4], m1[4];
 };
 
