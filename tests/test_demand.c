@@ -157,7 +157,7 @@ static void check_views(const uint8_t *map, uint32_t n, const char *what)
 		FAIL("%s: %u views, valid 0x%x; expected %u", what, slot->n_views, slot->valid_views, n);
 		return;
 	}
-	CHECK(all == bytes * ap.n_volumes && pano_all == one * ap.n_panoramas);
+	CHECK(all == bytes * ap.n_volumes && pano_all == aplan_published_bytes(&ap));
 	for (uint32_t i = 0; i < n && all == bytes * ap.n_volumes; i++) {
 		CHECK(strcmp(slot->views[i].name, mirror.views[i].name) == 0);
 		CHECK(slot->views[i].form == mirror.views[i].form);

@@ -317,3 +317,11 @@ void aplan_describe(const struct aplan *p, int32_t k, uint64_t offset, struct sk
 	ret->row_step = o->m0[3];
 	ret->horizon_rad = o->m1[0];
 }
+
+uint64_t aplan_published_bytes(const struct aplan *p)
+{
+	uint32_t n = 0;
+	while (n < p->n_panoramas && p->pano[n].view >= 0)
+		n++;
+	return n * aplan_panorama_texels(p) * 16;
+}

@@ -66,6 +66,10 @@ static inline uint64_t aplan_panorama_texels(const struct aplan *p)
 	return (uint64_t)p->width * p->height * p->depth;
 }
 
+/* Bytes of p's published panoramas (those a view of form panorama reads,
+ * numbered first), float32 RGBA. */
+uint64_t aplan_published_bytes(const struct aplan *p);
+
 /* Panorama k of p as the slot describes it, its texels at offset (from
  * the start of the slot): the mapping's floats, exactly. */
 void aplan_describe(const struct aplan *p, int32_t k, uint64_t offset, struct sky_shm_panorama *ret);

@@ -84,9 +84,10 @@ const void *eng_table(const struct eng *e, enum state_table t, size_t *ret_bytes
 const void *eng_panoramas(const struct eng *e, size_t *ret_bytes)
 {
 	const struct gpu_buffer *t = &e->table[STATE_AERIAL];
+	size_t published = (size_t)aplan_published_bytes(&e->aplan);
 	if (ret_bytes)
-		*ret_bytes = e->panorama_bytes;
-	if (!e->panorama_bytes)
+		*ret_bytes = published;
+	if (!published)
 		return NULL;
 	return e->direct[STATE_AERIAL] ? (const uint8_t *)t->map + e->panorama_offset
 				       : (const uint8_t *)e->readback[STATE_AERIAL].map + e->table_bytes[STATE_AERIAL];

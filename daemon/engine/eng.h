@@ -128,11 +128,12 @@ int eng_compute(struct eng *e, const struct sky_state *s, uint32_t mask,
  * in the state's storage format. Valid until the next eng_submit or
  * eng_free. ret_bytes may be NULL. */
 const void *eng_table(const struct eng *e, enum state_table t, size_t *ret_bytes);
-/* The aerial panoramas of the last completed computation, one after the
- * other in aplan_make's order (the plan of its state, with the engine's
- * sharing), each aplan_panorama_texels float32 RGBA texels: RGB the
- * logarithm of the radiance, A the transmittance (struct
- * sky_shm_panorama). NULL when the plan has none. Valid as eng_table's. */
+/* The published aerial panoramas of the last completed computation (those
+ * views of form panorama read), one after the other in aplan_make's order
+ * (the plan of its state, with the engine's sharing), each
+ * aplan_panorama_texels float32 RGBA texels: RGB the logarithm of the
+ * radiance, A the transmittance (struct sky_shm_panorama). NULL when the
+ * plan publishes none. Valid as eng_table's. */
 const void *eng_panoramas(const struct eng *e, size_t *ret_bytes);
 /* k such that the table's RGB values are its stored RGB times 2^k: 0 for
  * float32 storage; for float16, the pack pass's choice, the smallest k

@@ -123,10 +123,10 @@ struct eng {
 	 * marched (eng_set_view_sharing, the reference). */
 	bool share_views;
 	struct aplan aplan;				/* of the last computation submitted */
-	/* The aerial buffer's panoramas: where they start on the device (after
-	 * the volumes and their binary16 copy) and their bytes, in the
-	 * readback buffer after the published volumes. */
-	size_t panorama_offset, panorama_bytes;
+	/* Where the aerial buffer's panoramas start on the device, after the
+	 * volumes and their binary16 copy; in the readback buffer the
+	 * published ones follow the published volumes. */
+	size_t panorama_offset;
 	VkBufferView aerial_view;			/* BINDING_AERIAL_TEX */
 	/* Device memory: every table in float32 RGBA, as the passes compute
 	 * it whatever the storage; with storage=f16 its binary16 copy follows

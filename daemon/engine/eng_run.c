@@ -177,10 +177,8 @@ static int table_new(struct eng *e, const struct sky_state *s, int t, char *err,
 	       0, bytes);
 	e->table_bytes[t] = bytes;
 	e->device_bytes[t] = device;
-	if (t == STATE_AERIAL) {
+	if (t == STATE_AERIAL)
 		e->panorama_offset = (size_t)table_device_bytes(e, s, t);
-		e->panorama_bytes = panoramas;
-	}
 	e->rgb_scale_log2[t] = 0;
 fail:
 	return rc;
@@ -516,10 +514,12 @@ static int record_plan(struct eng *e, const struct sky_state *s, const struct pl
 	 * them; none where the host reads the device's memory. */
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if ((pl->mask & STATE_BIT(t)) && !e->direct[t]) {
+			/* The panoramas that views read; scratch ones stay. */
+			VkDeviceSize published = aplan_published_bytes(&e->aplan);
 			VkBufferCopy c[2] = { { s->quality.storage == STATE_F16 ? float_bytes(e, s, t) : 0, 0,
 						e->table_bytes[t] },
-					      { e->panorama_offset, e->table_bytes[t], e->panorama_bytes } };
-			bool panoramas = t == STATE_AERIAL && e->panorama_bytes;
+					      { e->panorama_offset, e->table_bytes[t], published } };
+			bool panoramas = t == STATE_AERIAL && published;
 			e->vk.vkCmdCopyBuffer(e->cmd, e->table[t].buf, e->readback[t].buf, panoramas ? 2 : 1, c);
 		}
 	/* The host reads the copies and the pack pass's scales. */
