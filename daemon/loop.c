@@ -18,6 +18,7 @@ struct loop_io {
 	int dead;
 	loop_io_fn fn;
 	void *ctx;
+	void (*release)(void *ctx);	/* loop_io_retire: frees ctx when reaped */
 	struct loop_io *next;		/* all handles, for loop_free and reaping */
 };
 
@@ -63,6 +64,8 @@ int loop_new(struct loop **ret)
 
 static void io_destroy(struct loop_io *io)
 {
+	if (io->release)
+		io->release(io->ctx);
 	if (io->owns_fd && io->fd >= 0)
 		close(io->fd);
 	free(io);
@@ -140,6 +143,14 @@ void loop_io_del(struct loop_io *io)
 	epoll_ctl(io->loop->epoll_fd, EPOLL_CTL_DEL, io->fd, NULL);
 	io->dead = 1;
 	io->loop->n_dead++;
+}
+
+void loop_io_retire(struct loop_io *io, void (*release)(void *ctx))
+{
+	if (!io)
+		return;
+	loop_io_del(io);
+	io->release = release;
 }
 
 static void timer_ready(void *ctx, uint32_t events)

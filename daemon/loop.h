@@ -5,6 +5,8 @@
  * Handles are owned by the loop. Deleting one (loop_io_del, loop_timer_del)
  * is safe from inside any callback, its own included: the handle is marked
  * dead, never called again, and freed once the current dispatch is over.
+ * loop_io_retire does the same for an object whose callbacks may still be
+ * on the stack: the loop releases it then, never under its own caller.
  */
 #ifndef SKYD_LOOP_H
 #define SKYD_LOOP_H
@@ -31,6 +33,11 @@ int loop_io_add(struct loop *l, int fd, uint32_t events, loop_io_fn fn, void *ct
 		struct loop_io **ret);
 int loop_io_mod(struct loop_io *io, uint32_t events);
 void loop_io_del(struct loop_io *io);
+/* Deletes io like loop_io_del and calls release(ctx) once the current
+ * dispatch is over (or from loop_free): the owner marks its object dead
+ * and leaves the freeing to the loop, so that a handler that caused the
+ * drop may go on reading the object until it returns. */
+void loop_io_retire(struct loop_io *io, void (*release)(void *ctx));
 
 int loop_timer_add(struct loop *l, loop_timer_fn fn, void *ctx, struct loop_timer **ret);
 /* One shot after delay_ns on the monotonic clock; 0 disarms. */

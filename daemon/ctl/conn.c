@@ -63,6 +63,11 @@ static int client_queue_owned(struct client *c, const char *data, size_t len, in
 {
 	struct chunk *k;
 
+	if (c->dead) {
+		if (owned_fd >= 0)
+			close(owned_fd);
+		return -1;
+	}
 	if (c->out_bytes + len > CTL_OUT_MAX) {
 		if (owned_fd >= 0)
 			close(owned_fd);
@@ -97,6 +102,8 @@ int ctl_client_queue(struct client *c, const char *data, size_t len, int fd)
 {
 	int dup = -1;
 
+	if (c->dead)
+		return -1;
 	if (fd >= 0) {
 		dup = fcntl(fd, F_DUPFD_CLOEXEC, 3);
 		if (dup < 0) {
@@ -158,6 +165,8 @@ static ssize_t send_with_fd(struct client *c, struct chunk *k)
 
 int ctl_client_flush(struct client *c)
 {
+	if (c->dead)
+		return -1;
 	while (c->out_head) {
 		struct chunk *k = c->out_head;
 		ssize_t n;
@@ -188,22 +197,45 @@ int ctl_client_flush(struct client *c)
 	return 0;
 }
 
-void ctl_client_drop(struct client *c, const char *why)
+static void free_output(struct client *c)
 {
-	struct ctl *ctl = c->ctl;
-
-	if (why)
-		log_info("client %llu (pid %d uid %d) dropped: %s", (unsigned long long)c->id,
-			 (int)c->cred.pid, (int)c->cred.uid, why);
-	else
-		log_debug("client %llu closed", (unsigned long long)c->id);
-	loop_io_del(c->io);
-	close(c->fd);
 	while (c->out_head) {
 		struct chunk *k = c->out_head;
 		c->out_head = k->next;
 		chunk_free(k);
 	}
+	c->out_tail = NULL;
+	c->out_bytes = 0;
+}
+
+/* The loop's release of a dropped client, once no handler is on the stack. */
+static void client_release(void *ctx)
+{
+	struct client *c = ctx;
+
+	free_output(c);
+	free(c->batch);
+	free(c->deferred);
+	free(c);
+}
+
+void ctl_client_drop(struct client *c, const char *why)
+{
+	struct ctl *ctl = c->ctl;
+
+	if (c->dead)
+		return;
+	if (why)
+		log_info("client %llu (pid %d uid %d) dropped: %s", (unsigned long long)c->id,
+			 (int)c->cred.pid, (int)c->cred.uid, why);
+	else
+		log_debug("client %llu closed", (unsigned long long)c->id);
+	c->dead = 1;
+	close(c->fd);
+	c->fd = -1;
+	free_output(c);
+	/* c->next stays as it was: a walk of the list that stands on c goes on
+	 * from there, past entries that are dead too. */
 	if (c->prev)
 		c->prev->next = c->next;
 	else
@@ -211,13 +243,10 @@ void ctl_client_drop(struct client *c, const char *why)
 	if (c->next)
 		c->next->prev = c->prev;
 	ctl->n_clients--;
-	uint64_t id = c->id;
-	free(c->batch);
-	free(c->deferred);
-	free(c);
+	loop_io_retire(c->io, client_release);
 	if (!ctl->finishing) {
 		ctl_update_demand(ctl);
-		ctl_views_drop_owner(ctl, id);
+		ctl_views_drop_owner(ctl, c->id);
 	}
 	/* A freed fd may be what accept was waiting for. */
 	if (ctl->accept_paused) {
@@ -247,7 +276,7 @@ void ctl_resume_deferred(struct ctl *ctl, int failed)
 
 	for (c = ctl->clients; c; c = next) {
 		next = c->next;
-		if (!c->deferred)
+		if (c->dead || !c->deferred)
 			continue;
 		char *line = c->deferred;
 		c->deferred = NULL;
@@ -255,7 +284,7 @@ void ctl_resume_deferred(struct ctl *ctl, int failed)
 					  "the computation of the table failed; see status")
 			       : handle_line(c, line);
 		free(line);
-		if (r == 0 && !c->deferred)
+		if (r == 0 && !c->dead && !c->deferred)
 			process_input(c);
 	}
 }
@@ -291,6 +320,8 @@ static int handle_line(struct client *c, char *line)
 	struct reply r = { .fd = -1 };
 	int ret;
 
+	if (c->dead)
+		return -1;
 	if (c->batch) {
 		char copy[SKY_PROTO_LINE_MAX];
 		snprintf(copy, sizeof(copy), "%s", line);
@@ -349,6 +380,8 @@ static int process_input(struct client *c)
 {
 	size_t start = 0;
 
+	if (c->dead)
+		return -1;
 	while (!c->closing && !c->deferred && c->out_bytes < CTL_OUT_HIGH) {
 		char *nl = memchr(c->in + start, '\n', c->in_len - start);
 		char *line = c->in + start;
@@ -362,7 +395,7 @@ static int process_input(struct client *c)
 		} else {
 			break;
 		}
-		if (handle_line(c, line) < 0)
+		if (handle_line(c, line) < 0 || c->dead)
 			return -1;
 	}
 	memmove(c->in, c->in + start, c->in_len - start);
@@ -427,7 +460,7 @@ static void client_ready(void *ctx, uint32_t events)
 		if (c->out_bytes < CTL_OUT_HIGH && c->in_len && process_input(c) < 0)
 			return;
 	}
-	if (events & (EPOLLIN | EPOLLHUP | EPOLLERR))
+	if (!c->dead && (events & (EPOLLIN | EPOLLHUP | EPOLLERR)))
 		client_read(c, events);
 }
 

@@ -75,6 +75,7 @@ struct client {
 	int discarding;			/* inside a line that was too long */
 	int eof;			/* the peer will send nothing more */
 	int closing;			/* drop once the output is out */
+	int dead;			/* dropped: unlinked, its fd closed, freed by the loop */
 
 	struct chunk *out_head, *out_tail;
 	size_t out_bytes;
@@ -148,6 +149,11 @@ unsigned ctl_uid_views(struct ctl *ctl, uid_t uid);
 
 /* conn.c: connections. */
 int ctl_client_add(struct ctl *ctl, int fd);
+/* Closes c and takes it out of the list of clients. The memory stays
+ * valid, marked dead, until the loop is back at its top: a verb whose
+ * client vanished while it ran (a flush that failed, a bound, a role) may
+ * go on using c, and every call below on a dead client does nothing and
+ * returns -1. Walks of ctl->clients skip dead entries. */
 void ctl_client_drop(struct client *c, const char *why);
 /* Queues len bytes and a dup of fd (if >= 0); 0, or -1 if the client was
  * dropped (its queue over its bound, or no fd to pass). */
