@@ -56,51 +56,40 @@ static state_key_set_fn set_multiscatter_dirs;
 #define FROM_PRESET .flags = STATE_KEY_PRESET_DEFAULT
 
 /* The constituent family: "<constituent>_<field>" for each constituent
- * that a preset names (rayleigh, mie, ozone), one row per key. What a
- * field's keys share (kind, unit, range, doc) is written once, in its
- * C_<field> macro; pins is what the key holds against the weather. The
- * hooks find the constituent by the name's prefix: a state whose preset
- * lacks it has no such key. The kind parses any finite number; the hooks
- * check each field's range. */
-#define CONSTITUENT(key, field, pins)                                                       \
-	{ .name = key, .arg = STATE_##field, field, .dirty = FROM_T, .override = (pins),  \
-	  .set = state_set_constituent, .get = state_get_constituent }
-#define C_FIELD(kind_, unit_, range_, doc_) \
-	.kind = STATE_KIND_##kind_, .min = -INFINITY, .max = INFINITY, .unit = unit_, \
-	.range = range_, .doc = doc_
-#define C_SCATTERING C_FIELD(TRIPLE, "1/km", ">= 0", "scattering at density 1, r,g,b or one number"), \
-	.flags = STATE_KEY_PRESET_DEFAULT
-#define C_ABSORPTION C_FIELD(TRIPLE, "1/km", ">= 0", "absorption at density 1, r,g,b or one number"), \
-	.flags = STATE_KEY_PRESET_DEFAULT
-#define C_SCALE_HEIGHT C_FIELD(NUMBER, "km", "> 0", \
-	"makes the profile one exponential of this scale height (none: it is not one)"), \
-	.flags = STATE_KEY_PRESET_DEFAULT | STATE_KEY_NONE_UNSET
-#define C_G C_FIELD(NUMBER, "-", "(-1, 1)", "asymmetry of the cornette_shanks or henyey_greenstein phase"), \
-	.flags = STATE_KEY_PRESET_DEFAULT
-#define C_PHASE C_FIELD(WORD, "-", NULL, "phase function (none: absorbs only)"), \
-	.words = state_phase_names, .flags = STATE_KEY_PRESET_DEFAULT
-#define C_LAYER(unit_, doc_) C_FIELD(NUMBER, unit_, "finite", doc_), .flags = STATE_KEY_PRESET_DEFAULT
-#define C_WIDTH C_FIELD(NUMBER, "km", ">= 0", \
-	"height where the profile's lower layer ends and the upper begins"), \
-	.flags = STATE_KEY_PRESET_DEFAULT
-#define C_EXP_TERM_0 C_LAYER("-", \
+ * that a preset names (rayleigh, mie, ozone), one row per key, the layer
+ * keys with their layer (0 lower, 1 upper). What a field's keys share
+ * (kind, unit, range, doc) is written once, in its C_<field> macro; pins
+ * is what the key holds against the weather. The hooks find the
+ * constituent by the name's prefix: a state whose preset lacks it has no
+ * such key. The kind parses any finite number; the hooks check each
+ * field's range. */
+#define CONSTITUENT(key, field, pins) CONSTITUENT_ROW(key, STATE_##field, pins, field)
+#define CONSTITUENT_LAYER(key, layer, field, pins) \
+	CONSTITUENT_ROW(key, STATE_##field + (layer) * STATE_C_UPPER, pins, field##_##layer)
+#define CONSTITUENT_ROW(key, arg_, pins, ...)                                             \
+	{ .name = key, .arg = (arg_), .dirty = FROM_T, .override = (pins),                \
+	  .set = state_set_constituent, .get = state_get_constituent, __VA_ARGS__ }
+#define C_FIELD(kind_, unit_, range_, flags_, doc_)                                          \
+	.kind = STATE_KIND_##kind_, .min = -INFINITY, .max = INFINITY, .unit = unit_,        \
+	.range = range_, .flags = STATE_KEY_PRESET_DEFAULT | (flags_), .doc = doc_
+#define C_SCATTERING C_FIELD(TRIPLE, "1/km", ">= 0", 0, "scattering at density 1, r,g,b or one number")
+#define C_ABSORPTION C_FIELD(TRIPLE, "1/km", ">= 0", 0, "absorption at density 1, r,g,b or one number")
+#define C_SCALE_HEIGHT C_FIELD(NUMBER, "km", "> 0", STATE_KEY_NONE_UNSET, \
+	"makes the profile one exponential of this scale height (none: it is not one)")
+#define C_G C_FIELD(NUMBER, "-", "(-1, 1)", 0, "asymmetry of the cornette_shanks or henyey_greenstein phase")
+#define C_PHASE C_FIELD(WORD, "-", NULL, 0, "phase function (none: absorbs only)"), \
+	.words = state_phase_names
+#define C_WIDTH C_FIELD(NUMBER, "km", ">= 0", 0, \
+	"height where the profile's lower layer ends and the upper begins")
+#define C_EXP_TERM_0 C_FIELD(NUMBER, "-", "finite", 0, \
 	"lower layer: density = clamp(exp_term exp(exp_scale_per_km h) + linear_per_km h + constant, 0, 1)")
-#define C_EXP_SCALE_0 C_LAYER("1/km", "lower layer's exponent")
-#define C_LINEAR_0 C_LAYER("1/km", "lower layer's linear term")
-#define C_CONSTANT_0 C_LAYER("-", "lower layer's constant")
-#define C_EXP_TERM_1 C_LAYER("-", "upper layer's exp_term")
-#define C_EXP_SCALE_1 C_LAYER("1/km", "upper layer's exponent")
-#define C_LINEAR_1 C_LAYER("1/km", "upper layer's linear term")
-#define C_CONSTANT_1 C_LAYER("-", "upper layer's constant")
-/* The layer keys' arg: the field, plus STATE_C_UPPER for the upper layer. */
-#define STATE_C_EXP_TERM_0 STATE_C_EXP_TERM
-#define STATE_C_EXP_SCALE_0 STATE_C_EXP_SCALE
-#define STATE_C_LINEAR_0 STATE_C_LINEAR
-#define STATE_C_CONSTANT_0 STATE_C_CONSTANT
-#define STATE_C_EXP_TERM_1 (STATE_C_EXP_TERM + STATE_C_UPPER)
-#define STATE_C_EXP_SCALE_1 (STATE_C_EXP_SCALE + STATE_C_UPPER)
-#define STATE_C_LINEAR_1 (STATE_C_LINEAR + STATE_C_UPPER)
-#define STATE_C_CONSTANT_1 (STATE_C_CONSTANT + STATE_C_UPPER)
+#define C_EXP_SCALE_0 C_FIELD(NUMBER, "1/km", "finite", 0, "lower layer's exponent")
+#define C_LINEAR_0 C_FIELD(NUMBER, "1/km", "finite", 0, "lower layer's linear term")
+#define C_CONSTANT_0 C_FIELD(NUMBER, "-", "finite", 0, "lower layer's constant")
+#define C_EXP_TERM_1 C_FIELD(NUMBER, "-", "finite", 0, "upper layer's exp_term")
+#define C_EXP_SCALE_1 C_FIELD(NUMBER, "1/km", "finite", 0, "upper layer's exponent")
+#define C_LINEAR_1 C_FIELD(NUMBER, "1/km", "finite", 0, "upper layer's linear term")
+#define C_CONSTANT_1 C_FIELD(NUMBER, "-", "finite", 0, "upper layer's constant")
 #define MIE_PROFILE STATE_OVERRIDE_MIE_PROFILE
 
 /* A weather input: auto (not given) by default, listed by get when given. */
@@ -282,42 +271,42 @@ static const struct state_key keys[] = {
 	CONSTITUENT("rayleigh_g", C_G, 0),
 	CONSTITUENT("rayleigh_phase", C_PHASE, 0),
 	CONSTITUENT("rayleigh_layer0_width_km", C_WIDTH, 0),
-	CONSTITUENT("rayleigh_layer0_exp_term", C_EXP_TERM_0, 0),
-	CONSTITUENT("rayleigh_layer0_exp_scale_per_km", C_EXP_SCALE_0, 0),
-	CONSTITUENT("rayleigh_layer0_linear_per_km", C_LINEAR_0, 0),
-	CONSTITUENT("rayleigh_layer0_constant", C_CONSTANT_0, 0),
-	CONSTITUENT("rayleigh_layer1_exp_term", C_EXP_TERM_1, 0),
-	CONSTITUENT("rayleigh_layer1_exp_scale_per_km", C_EXP_SCALE_1, 0),
-	CONSTITUENT("rayleigh_layer1_linear_per_km", C_LINEAR_1, 0),
-	CONSTITUENT("rayleigh_layer1_constant", C_CONSTANT_1, 0),
+	CONSTITUENT_LAYER("rayleigh_layer0_exp_term", 0, C_EXP_TERM, 0),
+	CONSTITUENT_LAYER("rayleigh_layer0_exp_scale_per_km", 0, C_EXP_SCALE, 0),
+	CONSTITUENT_LAYER("rayleigh_layer0_linear_per_km", 0, C_LINEAR, 0),
+	CONSTITUENT_LAYER("rayleigh_layer0_constant", 0, C_CONSTANT, 0),
+	CONSTITUENT_LAYER("rayleigh_layer1_exp_term", 1, C_EXP_TERM, 0),
+	CONSTITUENT_LAYER("rayleigh_layer1_exp_scale_per_km", 1, C_EXP_SCALE, 0),
+	CONSTITUENT_LAYER("rayleigh_layer1_linear_per_km", 1, C_LINEAR, 0),
+	CONSTITUENT_LAYER("rayleigh_layer1_constant", 1, C_CONSTANT, 0),
 	CONSTITUENT("mie_scattering_per_km", C_SCATTERING, STATE_OVERRIDE_MIE_SCATTERING),
 	CONSTITUENT("mie_absorption_per_km", C_ABSORPTION, STATE_OVERRIDE_MIE_ABSORPTION),
 	CONSTITUENT("mie_scale_height_km", C_SCALE_HEIGHT, MIE_PROFILE),
 	CONSTITUENT("mie_g", C_G, STATE_OVERRIDE_MIE_G),
 	CONSTITUENT("mie_phase", C_PHASE, 0),
 	CONSTITUENT("mie_layer0_width_km", C_WIDTH, MIE_PROFILE),
-	CONSTITUENT("mie_layer0_exp_term", C_EXP_TERM_0, MIE_PROFILE),
-	CONSTITUENT("mie_layer0_exp_scale_per_km", C_EXP_SCALE_0, MIE_PROFILE),
-	CONSTITUENT("mie_layer0_linear_per_km", C_LINEAR_0, MIE_PROFILE),
-	CONSTITUENT("mie_layer0_constant", C_CONSTANT_0, MIE_PROFILE),
-	CONSTITUENT("mie_layer1_exp_term", C_EXP_TERM_1, MIE_PROFILE),
-	CONSTITUENT("mie_layer1_exp_scale_per_km", C_EXP_SCALE_1, MIE_PROFILE),
-	CONSTITUENT("mie_layer1_linear_per_km", C_LINEAR_1, MIE_PROFILE),
-	CONSTITUENT("mie_layer1_constant", C_CONSTANT_1, MIE_PROFILE),
+	CONSTITUENT_LAYER("mie_layer0_exp_term", 0, C_EXP_TERM, MIE_PROFILE),
+	CONSTITUENT_LAYER("mie_layer0_exp_scale_per_km", 0, C_EXP_SCALE, MIE_PROFILE),
+	CONSTITUENT_LAYER("mie_layer0_linear_per_km", 0, C_LINEAR, MIE_PROFILE),
+	CONSTITUENT_LAYER("mie_layer0_constant", 0, C_CONSTANT, MIE_PROFILE),
+	CONSTITUENT_LAYER("mie_layer1_exp_term", 1, C_EXP_TERM, MIE_PROFILE),
+	CONSTITUENT_LAYER("mie_layer1_exp_scale_per_km", 1, C_EXP_SCALE, MIE_PROFILE),
+	CONSTITUENT_LAYER("mie_layer1_linear_per_km", 1, C_LINEAR, MIE_PROFILE),
+	CONSTITUENT_LAYER("mie_layer1_constant", 1, C_CONSTANT, MIE_PROFILE),
 	CONSTITUENT("ozone_scattering_per_km", C_SCATTERING, 0),
 	CONSTITUENT("ozone_absorption_per_km", C_ABSORPTION, STATE_OVERRIDE_OZONE_ABSORPTION),
 	CONSTITUENT("ozone_scale_height_km", C_SCALE_HEIGHT, 0),
 	CONSTITUENT("ozone_g", C_G, 0),
 	CONSTITUENT("ozone_phase", C_PHASE, 0),
 	CONSTITUENT("ozone_layer0_width_km", C_WIDTH, 0),
-	CONSTITUENT("ozone_layer0_exp_term", C_EXP_TERM_0, 0),
-	CONSTITUENT("ozone_layer0_exp_scale_per_km", C_EXP_SCALE_0, 0),
-	CONSTITUENT("ozone_layer0_linear_per_km", C_LINEAR_0, 0),
-	CONSTITUENT("ozone_layer0_constant", C_CONSTANT_0, 0),
-	CONSTITUENT("ozone_layer1_exp_term", C_EXP_TERM_1, 0),
-	CONSTITUENT("ozone_layer1_exp_scale_per_km", C_EXP_SCALE_1, 0),
-	CONSTITUENT("ozone_layer1_linear_per_km", C_LINEAR_1, 0),
-	CONSTITUENT("ozone_layer1_constant", C_CONSTANT_1, 0),
+	CONSTITUENT_LAYER("ozone_layer0_exp_term", 0, C_EXP_TERM, 0),
+	CONSTITUENT_LAYER("ozone_layer0_exp_scale_per_km", 0, C_EXP_SCALE, 0),
+	CONSTITUENT_LAYER("ozone_layer0_linear_per_km", 0, C_LINEAR, 0),
+	CONSTITUENT_LAYER("ozone_layer0_constant", 0, C_CONSTANT, 0),
+	CONSTITUENT_LAYER("ozone_layer1_exp_term", 1, C_EXP_TERM, 0),
+	CONSTITUENT_LAYER("ozone_layer1_exp_scale_per_km", 1, C_EXP_SCALE, 0),
+	CONSTITUENT_LAYER("ozone_layer1_linear_per_km", 1, C_LINEAR, 0),
+	CONSTITUENT_LAYER("ozone_layer1_constant", 1, C_CONSTANT, 0),
 
 	/* ---- the weather (docs/weather.md; state_weather.c): an aerosol input
 	 * wins the Mie coefficients back from raw keys, ozone_du the ozone's ---- */
