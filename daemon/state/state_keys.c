@@ -585,10 +585,10 @@ int state_set(struct sky_state *s, const char *key, const char *value, uint32_t 
 	      char *err, size_t err_size)
 {
 	const struct state_key *k = state_key_find(key);
-	struct sky_state before = *s;
 
 	if (!k)
 		return ERR_UNKNOWN("%s: unknown key", key);
+	struct sky_state before = *s;
 	uint32_t dirty = k->dirty;
 	int r = key_set(s, k, value, &dirty, err, err_size);
 	if (r < 0)

@@ -99,7 +99,7 @@ int state_set_metar(struct sky_state *s, const char *report, struct metar *ret_m
 	char why[256];
 
 	if (metar_decode(report, &m, why, sizeof(why)) < 0)
-		return ERR("metar: %s", why);
+		return ERR("%s: %s", state_key_name(STATE_KEY_ID_METAR), why);
 	/* Within pressure_mbar's and temperature_c's ranges: the decoder takes
 	 * QNH 850..1100 hPa and two-digit temperatures, and site_elevation_m
 	 * is at least -1000 m. */
@@ -111,13 +111,14 @@ int state_set_metar(struct sky_state *s, const char *report, struct metar *ret_m
 	/* The report writes every aerosol input: it wins over raw Mie keys. */
 	s->weather.overridden &= ~(uint32_t)STATE_OVERRIDE_MIE;
 	s->weather.cloud_factor = weather_cloud_light_factor(s->weather.in.cloud_oktas);
+	/* The tables of what changed: the aerosol inputs', the cloud cover's. */
 	uint32_t dirty = 0;
 	struct weather a = before.in, b = s->weather.in;
 	a.cloud_oktas = b.cloud_oktas = 0.0;
 	if (!weather_equal(&a, &b) || before.overridden != s->weather.overridden)
-		dirty |= FROM_T;
+		dirty |= state_key_of(STATE_KEY_ID_VISIBILITY_KM)->dirty;
 	if (before.cloud_factor != s->weather.cloud_factor)
-		dirty |= LIGHTS;
+		dirty |= state_key_of(STATE_KEY_ID_CLOUD_OKTAS)->dirty;
 	if (ret_dirty)
 		*ret_dirty = dirty;
 	if (ret_metar)
@@ -135,7 +136,7 @@ int state_set_cloud_factor(struct sky_state *s, double factor, uint32_t *ret_dir
 	s->weather.in.cloud_oktas = n;
 	s->weather.cloud_factor = factor;
 	if (ret_dirty && memcmp(&before, &s->weather, sizeof(before)) != 0)
-		*ret_dirty |= LIGHTS;
+		*ret_dirty |= state_key_of(STATE_KEY_ID_CLOUD_OKTAS)->dirty;
 	return 0;
 }
 
