@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "metar.h"
+#include "state.h"
 #include "test.h"
 
 #define MAX_PAIRS 96
@@ -94,7 +95,12 @@ static bool check_report(const char *report, char *expect, int line)
 		weather_init(&w);
 		metar_weather(&m, &w);
 		metar_describe(&m, collect, &got);
-		weather_foreach(&w, collect, &got);
+		/* The inputs under their keys: the first lines of get weather. */
+		struct sky_state st;
+		state_default(&st);
+		st.weather.in = w;
+		if (state_describe_weather(&st, collect, &got, err, sizeof(err)) < 0)
+			FAIL("line %d: %s", line, err);
 	}
 	for (char *save, *item = strtok_r(expect, ";", &save); item;
 	     item = strtok_r(NULL, ";", &save)) {

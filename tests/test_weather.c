@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "state.h"
 #include "test.h"
 #include "weather.h"
 
@@ -240,22 +241,26 @@ static void test_magnus(void)
 	CHECK(isnan(weather_relative_humidity(NAN, 3.0)));
 }
 
+/* The weather's keys are rows of the state's key registry: each sets its
+ * input, reads back, and refuses a bad value naming the key with the
+ * inputs as they were; keys that are no weather input leave them. */
 static void test_keys(void)
 {
-	struct weather w, before;
+	struct sky_state s, before;
 	char err[256], buf[64];
-	weather_init(&w);
-	CHECK(weather_set(&w, "visibility_km", "12.5", err, sizeof(err)) == 0 &&
-	      w.visibility_km == 12.5);
-	CHECK(weather_set(&w, "aerosol", "desert", err, sizeof(err)) == 0 &&
-	      w.aerosol == WEATHER_DESERT);
-	CHECK(weather_set(&w, "cloud_fraction", "0.5", err, sizeof(err)) == 0 &&
-	      w.cloud_oktas == 4.0);
-	CHECK(weather_get(&w, "cloud_fraction", buf, sizeof(buf)) == 0 && strcmp(buf, "0.5") == 0);
-	CHECK(weather_get(&w, "aerosol", buf, sizeof(buf)) == 0 && strcmp(buf, "desert") == 0);
-	CHECK(weather_set(&w, "visibility_km", "auto", err, sizeof(err)) == 0 &&
-	      isnan(w.visibility_km));
-	CHECK(weather_get(&w, "visibility_km", buf, sizeof(buf)) == 0 && strcmp(buf, "auto") == 0);
+	uint32_t dirty = 0;
+	state_default(&s);
+	CHECK(state_set(&s, "visibility_km", "12.5", NULL, err, sizeof(err)) == 0 &&
+	      s.weather.in.visibility_km == 12.5);
+	CHECK(state_set(&s, "aerosol", "desert", NULL, err, sizeof(err)) == 0 &&
+	      s.weather.in.aerosol == WEATHER_DESERT);
+	CHECK(state_set(&s, "cloud_fraction", "0.5", NULL, err, sizeof(err)) == 0 &&
+	      s.weather.in.cloud_oktas == 4.0);
+	CHECK(state_get(&s, "cloud_fraction", buf, sizeof(buf)) == 0 && strcmp(buf, "0.5") == 0);
+	CHECK(state_get(&s, "aerosol", buf, sizeof(buf)) == 0 && strcmp(buf, "desert") == 0);
+	CHECK(state_set(&s, "visibility_km", "auto", NULL, err, sizeof(err)) == 0 &&
+	      isnan(s.weather.in.visibility_km));
+	CHECK(state_get(&s, "visibility_km", buf, sizeof(buf)) == 0 && strcmp(buf, "auto") == 0);
 	static const char *const bad[][2] = {
 		{ "visibility_km", "0.01" }, { "visibility_km", "301" }, { "relative_humidity", "1.2" },
 		{ "ozone_du", "-1" }, { "ozone_du", "601" }, { "cloud_oktas", "9" },
@@ -263,17 +268,25 @@ static void test_keys(void)
 		{ "relative_humidity", "0,5" },
 	};
 	for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
-		before = w;
-		int rc = weather_set(&w, bad[i][0], bad[i][1], err, sizeof(err));
+		before = s;
+		int rc = state_set(&s, bad[i][0], bad[i][1], NULL, err, sizeof(err));
 		if (!(rc == -EINVAL || rc == -ERANGE) || !strstr(err, bad[i][0]))
 			FAIL("%s=%s: rc %d, '%s'", bad[i][0], bad[i][1], rc, err);
-		CHECK(weather_equal(&w, &before));
+		CHECK(weather_equal(&s.weather.in, &before.weather.in));
 	}
-	CHECK(weather_set(&w, "pressure_mbar", "1000", err, sizeof(err)) == -ENOENT);
-	CHECK(weather_key_affects("ozone_du") == WEATHER_AFFECTS_ATMOSPHERE);
-	CHECK(weather_key_affects("cloud_oktas") == WEATHER_AFFECTS_LIGHTS);
-	CHECK(weather_key_affects("sun_elevation_deg") == 0);
+	before = s;
+	CHECK(state_set(&s, "pressure_mbar", "1000", NULL, err, sizeof(err)) == 0 &&
+	      weather_equal(&s.weather.in, &before.weather.in));
+	CHECK(state_set(&s, "ozone_du", "300", &dirty, err, sizeof(err)) == 0 &&
+	      dirty == STATE_ALL_TABLES);
+	dirty = 0;
+	CHECK(state_set(&s, "cloud_oktas", "2", &dirty, err, sizeof(err)) == 0 &&
+	      dirty == (STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL)));
+	before = s;
+	CHECK(state_set(&s, "sun_elevation_deg", "10", NULL, err, sizeof(err)) == 0 &&
+	      weather_equal(&s.weather.in, &before.weather.in));
 	/* A struct set by hand out of range is refused by the map. */
+	struct weather w = s.weather.in;
 	struct weather_map m;
 	struct atmo a;
 	atmo_earth(&a);
@@ -389,10 +402,14 @@ static void test_describe(void)
 	struct weather w = make(7.0, 0.6, WEATHER_URBAN);
 	struct weather_map m;
 	int n = 0;
+	struct sky_state s;
+	char err[256];
 	w.ozone_du = 320.0;
 	w.cloud_oktas = 3.0;
 	CHECK(map_earth(&w, &m, NULL) == 0);
-	weather_describe(&w, &m, test_describe_cb, &n);
+	state_default(&s);
+	s.weather.in = w;
+	CHECK(state_describe_weather(&s, test_describe_cb, &n, err, sizeof(err)) == 0);
 	CHECK(n > 20);
 }
 

@@ -74,7 +74,7 @@ int ctl_get_sun(struct client *c, const struct proto_request *req, struct reply 
 		return code;
 	if (astro_sun(&site, utc_s, &opt, &a, err, sizeof(err)) < 0)
 		return CTL_ACK(SKY_ACK_RANGE, "%s", err);
-	reply_utc(r, "utc", utc_s);
+	reply_utc(r, state_key_name(STATE_KEY_ID_UTC), utc_s);
 	ctl_reply_add(r, "sun_mode: %s\n", s->clock.sun_mode == STATE_CLOCK ? "clock" : "manual");
 	reply_direction(r, &a.geometric, &a.apparent);
 	ctl_reply_add(r, "right_ascension_deg: %.6f\ndeclination_deg: %.6f\nhour_angle_deg: %.6f\n",
@@ -100,7 +100,7 @@ int ctl_get_moon(struct client *c, const struct proto_request *req, struct reply
 		return code;
 	if (astro_moon(&site, utc_s, &opt, &m, err, sizeof(err)) < 0)
 		return CTL_ACK(SKY_ACK_RANGE, "%s", err);
-	reply_utc(r, "utc", utc_s);
+	reply_utc(r, state_key_name(STATE_KEY_ID_UTC), utc_s);
 	ctl_reply_add(r, "moon_mode: %s\n", s->clock.moon_mode == STATE_CLOCK ? "clock" : "manual");
 	reply_direction(r, &m.geometric, &m.apparent);
 	ctl_reply_add(r, "longitude_deg: %.6f\nlatitude_deg: %.6f\n", m.longitude_deg, m.latitude_deg);

@@ -35,7 +35,7 @@ static int apply_pairs(struct sky_state *s, const struct proto_request *req, uin
 		if (!a->value)
 			return CTL_ACK(SKY_ACK_SYNTAX, "'%s': key=value expected", a->key);
 		err[0] = 0;
-		int r = strcmp(a->key, "metar") == 0
+		int r = strcmp(a->key, state_key_name(STATE_KEY_ID_METAR)) == 0
 			? ctl_apply_metar(s, a->value, dirty, metar, err, sizeof(err))
 			: state_set(s, a->key, a->value, dirty, err, sizeof(err));
 		if (r < 0)

@@ -57,12 +57,13 @@ static int view_form(const char *name)
 	return -EINVAL;
 }
 
+/* A view's camera and place; its altitude is the state's key altitude_km,
+ * per view (view_altitude). */
 static const struct {
 	const char *key;
 	size_t offset;			/* in struct state_view */
 	double min, max;
 } view_keys[] = {
-	{ "altitude_km", offsetof(struct state_view, altitude_km), -1e300, 1e7 },
 	{ "east_km", offsetof(struct state_view, east_km), -1e4, 1e4 },
 	{ "north_km", offsetof(struct state_view, north_km), -1e4, 1e4 },
 	{ "yaw_deg", offsetof(struct state_view, camera.yaw_deg), -360, 720 },
@@ -71,6 +72,19 @@ static const struct {
 	{ "vfov_deg", offsetof(struct state_view, camera.vfov_deg), 0.1, 179 },
 	{ "aspect", offsetof(struct state_view, camera.aspect), 0.01, 100 },
 };
+
+/* The view's altitude, value for the row altitude_km: its parser and
+ * range. 0, or the ACK code with msg. */
+static int view_altitude(const char *value, struct state_view *v, char *msg, size_t msg_size)
+{
+	char err[256];
+	int e = state_key_parse(state_key_of(STATE_KEY_ID_ALTITUDE_KM), value, &v->altitude_km, err,
+				sizeof(err));
+
+	if (e < 0)
+		return CTL_ACK(e == -ERANGE ? SKY_ACK_RANGE : SKY_ACK_ARG, "%s", err);
+	return 0;
+}
 
 static int view_add(struct client *c, const struct proto_request *req, struct reply *r,
 		    char *msg, size_t msg_size)
@@ -101,6 +115,12 @@ static int view_add(struct client *c, const struct proto_request *req, struct re
 			if (f < 0)
 				return CTL_ACK(SKY_ACK_ARG, "form: '%s' is not volume or panorama", a->value);
 			v.form = (uint32_t)f;
+			continue;
+		}
+		if (strcmp(a->key, state_key_name(STATE_KEY_ID_ALTITUDE_KM)) == 0) {
+			int code = view_altitude(a->value, &v, msg, msg_size);
+			if (code)
+				return code;
 			continue;
 		}
 		for (k = 0; k < sizeof(view_keys) / sizeof(view_keys[0]); k++)

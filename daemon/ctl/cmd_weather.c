@@ -31,26 +31,31 @@ int ctl_apply_metar(struct sky_state *s, const char *report, uint32_t *dirty,
 {
 	struct metar *m = &note->report;
 	uint32_t d = 0;
-	char buf[4][32];
 	int r = state_set_metar(s, report, m, &d, err, err_size);
 
 	if (r < 0)
 		return r;
+	/* What the report sets, in this order; the site's pressure and
+	 * temperature only when it had them. */
+	const enum state_key_id applied[] = {
+		STATE_KEY_ID_VISIBILITY_KM, STATE_KEY_ID_RELATIVE_HUMIDITY, STATE_KEY_ID_AEROSOL,
+		STATE_KEY_ID_CLOUD_OKTAS,
+		isfinite(m->qnh_hpa) ? STATE_KEY_ID_PRESSURE_MBAR : STATE_KEY_ID_NONE,
+		isfinite(m->temperature_c) ? STATE_KEY_ID_TEMPERATURE_C : STATE_KEY_ID_NONE,
+	};
+	size_t o = 0;
+
 	*dirty |= d;
 	note->given = 1;
-	weather_get(&s->weather.in, "visibility_km", buf[0], sizeof(buf[0]));
-	weather_get(&s->weather.in, "relative_humidity", buf[1], sizeof(buf[1]));
-	weather_get(&s->weather.in, "aerosol", buf[2], sizeof(buf[2]));
-	weather_get(&s->weather.in, "cloud_oktas", buf[3], sizeof(buf[3]));
-	size_t o = (size_t)snprintf(note->applied, sizeof(note->applied),
-				    "visibility_km=%s relative_humidity=%s aerosol=%s cloud_oktas=%s",
-				    buf[0], buf[1], buf[2], buf[3]);
-	if (isfinite(m->qnh_hpa) && o < sizeof(note->applied))
-		o += (size_t)snprintf(note->applied + o, sizeof(note->applied) - o,
-				      " pressure_mbar=%.9g", s->clock.pressure_mbar);
-	if (isfinite(m->temperature_c) && o < sizeof(note->applied))
-		snprintf(note->applied + o, sizeof(note->applied) - o, " temperature_c=%.9g",
-			 s->clock.temperature_c);
+	note->applied[0] = 0;
+	for (size_t i = 0; i < sizeof(applied) / sizeof(applied[0]); i++) {
+		const char *key = applied[i] ? state_key_name(applied[i]) : NULL;
+		char value[64];
+		if (!key || o >= sizeof(note->applied) || state_get(s, key, value, sizeof(value)) < 0)
+			continue;
+		o += (size_t)snprintf(note->applied + o, sizeof(note->applied) - o, "%s%s=%s",
+				      o ? " " : "", key, value);
+	}
 	return 0;
 }
 

@@ -1,4 +1,4 @@
-/* atmo.c - atmosphere presets, density profiles and validation. */
+/* atmo.c - the planet presets, density profiles and validation. */
 #include "atmo.h"
 
 #include <errno.h>
@@ -6,94 +6,96 @@
 #include <stdio.h>
 #include <string.h>
 
-static void set3(double v[3], double r, double g, double b)
-{
-	v[0] = r;
-	v[1] = g;
-	v[2] = b;
-}
+/* One exponential of scale height h_km: the upper layer from the ground up. */
+#define EXP_PROFILE(h_km) \
+	{ .layers = { [1] = { .exp_term = 1.0, .exp_scale_per_km = -1.0 / (h_km) } } }
 
-static struct atmo_profile exp_profile(double scale_height_km)
-{
-	struct atmo_profile p = { 0 };
-	p.layers[1].exp_term = 1.0;
-	p.layers[1].exp_scale_per_km = -1.0 / scale_height_km;
-	return p;
-}
+enum atmo_planet { ATMO_EARTH, ATMO_MARS, ATMO_N_PLANETS };
+
+const char *const atmo_preset_names[ATMO_N_PLANETS + 1] = {
+	[ATMO_EARTH] = "earth", [ATMO_MARS] = "mars", [ATMO_N_PLANETS] = NULL,
+};
+
+/* Mars's dust: extinction = scattering / 0.98979. */
+#define MARS_DUST_SCATTERING 53.62e-3
+#define MARS_DUST_ABSORPTION (MARS_DUST_SCATTERING / 0.98979 - MARS_DUST_SCATTERING)
+
+static const struct atmo planets[ATMO_N_PLANETS] = {
+	/* Hillaire's EGSR 2020 Earth with the constants of docs/physics.md. */
+	[ATMO_EARTH] = {
+		.bottom_radius_km = 6360.0, .top_radius_km = 6460.0,
+		.ground_albedo = { 0.3, 0.3, 0.3 },
+		.n_constituents = 3,
+		.c = {
+			[ATMO_RAYLEIGH] = {
+				.name = "rayleigh",
+				.scattering_per_km = { 5.802e-3, 13.558e-3, 33.1e-3 },
+				.phase = ATMO_PHASE_RAYLEIGH,
+				.density = EXP_PROFILE(8.0),
+			},
+			[ATMO_MIE] = {
+				.name = "mie",
+				.scattering_per_km = { 3.996e-3, 3.996e-3, 3.996e-3 },
+				.absorption_per_km = { 0.444e-3, 0.444e-3, 0.444e-3 },
+				.phase = ATMO_PHASE_CORNETTE_SHANKS, .g = 0.8,
+				.density = EXP_PROFILE(1.2),
+			},
+			/* Ozone: a tent, 0 at 10 km, 1 at 25 km, 0 at 40 km. */
+			[ATMO_OZONE] = {
+				.name = "ozone",
+				.absorption_per_km = { 0.650e-3, 1.881e-3, 0.085e-3 },
+				.phase = ATMO_PHASE_NONE,
+				.density = { .layers = {
+					{ .width_km = 25.0, .linear_per_km = 1.0 / 15.0,
+					  .constant = -2.0 / 3.0 },
+					{ .linear_per_km = -1.0 / 15.0, .constant = 8.0 / 3.0 },
+				} },
+			},
+		},
+	},
+	/* Mars after Collienne 2013 (OpenSpace). */
+	[ATMO_MARS] = {
+		.bottom_radius_km = 3386.19, .top_radius_km = 3463.17,
+		.ground_albedo = { 0.1, 0.1, 0.1 },
+		.n_constituents = 2,
+		.c = {
+			[ATMO_RAYLEIGH] = {
+				.name = "rayleigh",
+				.scattering_per_km = { 19.918e-3, 13.57e-3, 5.75e-3 },
+				.phase = ATMO_PHASE_RAYLEIGH,
+				.density = EXP_PROFILE(10.44),
+			},
+			[ATMO_MIE] = {
+				.name = "mie",
+				.scattering_per_km = { MARS_DUST_SCATTERING, MARS_DUST_SCATTERING,
+						       MARS_DUST_SCATTERING },
+				.absorption_per_km = { MARS_DUST_ABSORPTION, MARS_DUST_ABSORPTION,
+						       MARS_DUST_ABSORPTION },
+				.phase = ATMO_PHASE_CORNETTE_SHANKS, .g = 0.85,
+				.density = EXP_PROFILE(3.095),
+			},
+		},
+	},
+};
 
 void atmo_earth(struct atmo *ret)
 {
-	struct atmo a = { 0 };
-
-	a.bottom_radius_km = 6360.0;
-	a.top_radius_km = 6460.0;
-	set3(a.ground_albedo, 0.3, 0.3, 0.3);
-	a.n_constituents = 3;
-
-	struct atmo_constituent *r = &a.c[ATMO_RAYLEIGH];
-	snprintf(r->name, sizeof(r->name), "rayleigh");
-	set3(r->scattering_per_km, 5.802e-3, 13.558e-3, 33.1e-3);
-	r->phase = ATMO_PHASE_RAYLEIGH;
-	r->density = exp_profile(8.0);
-
-	struct atmo_constituent *m = &a.c[ATMO_MIE];
-	snprintf(m->name, sizeof(m->name), "mie");
-	set3(m->scattering_per_km, 3.996e-3, 3.996e-3, 3.996e-3);
-	set3(m->absorption_per_km, 0.444e-3, 0.444e-3, 0.444e-3);
-	m->phase = ATMO_PHASE_CORNETTE_SHANKS;
-	m->g = 0.8;
-	m->density = exp_profile(1.2);
-
-	/* Ozone: a tent, 0 at 10 km, 1 at 25 km, 0 at 40 km. */
-	struct atmo_constituent *o = &a.c[ATMO_OZONE];
-	snprintf(o->name, sizeof(o->name), "ozone");
-	set3(o->absorption_per_km, 0.650e-3, 1.881e-3, 0.085e-3);
-	o->phase = ATMO_PHASE_NONE;
-	o->density.layers[0] = (struct atmo_layer){ .width_km = 25.0,
-		.linear_per_km = 1.0 / 15.0, .constant = -2.0 / 3.0 };
-	o->density.layers[1] = (struct atmo_layer){
-		.linear_per_km = -1.0 / 15.0, .constant = 8.0 / 3.0 };
-
-	*ret = a;
+	*ret = planets[ATMO_EARTH];
 }
 
 void atmo_mars(struct atmo *ret)
 {
-	struct atmo a = { 0 };
-
-	a.bottom_radius_km = 3386.19;
-	a.top_radius_km = 3463.17;
-	set3(a.ground_albedo, 0.1, 0.1, 0.1);
-	a.n_constituents = 2;
-
-	struct atmo_constituent *r = &a.c[0];
-	snprintf(r->name, sizeof(r->name), "rayleigh");
-	set3(r->scattering_per_km, 19.918e-3, 13.57e-3, 5.75e-3);
-	r->phase = ATMO_PHASE_RAYLEIGH;
-	r->density = exp_profile(10.44);
-
-	/* Dust: extinction = scattering / 0.98979. */
-	struct atmo_constituent *d = &a.c[1];
-	snprintf(d->name, sizeof(d->name), "mie");
-	double s = 53.62e-3, k = s / 0.98979 - s;
-	set3(d->scattering_per_km, s, s, s);
-	set3(d->absorption_per_km, k, k, k);
-	d->phase = ATMO_PHASE_CORNETTE_SHANKS;
-	d->g = 0.85;
-	d->density = exp_profile(3.095);
-
-	*ret = a;
+	*ret = planets[ATMO_MARS];
 }
 
 int atmo_preset(const char *name, struct atmo *ret)
 {
-	if (strcmp(name, "earth") == 0)
-		atmo_earth(ret);
-	else if (strcmp(name, "mars") == 0)
-		atmo_mars(ret);
-	else
-		return -EINVAL;
-	return 0;
+	for (int i = 0; i < ATMO_N_PLANETS; i++)
+		if (strcmp(name, atmo_preset_names[i]) == 0) {
+			*ret = planets[i];
+			return 0;
+		}
+	return -EINVAL;
 }
 
 static double layer_density(const struct atmo_layer *l, double h)

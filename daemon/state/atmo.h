@@ -59,7 +59,9 @@ enum { ATMO_RAYLEIGH = 0, ATMO_MIE = 1, ATMO_OZONE = 2 };
 void atmo_earth(struct atmo *ret);
 /* Mars after Collienne 2013 (OpenSpace). */
 void atmo_mars(struct atmo *ret);
-/* Fills ret from a preset name ("earth", "mars"); -EINVAL if unknown. */
+/* The presets' names, NULL-terminated: earth, mars. */
+extern const char *const atmo_preset_names[];
+/* Fills ret from a preset name (atmo_preset_names); -EINVAL if unknown. */
 int atmo_preset(const char *name, struct atmo *ret);
 
 /* Density of a profile at altitude_km, in [0, 1]. */

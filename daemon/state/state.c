@@ -1,5 +1,5 @@
-/* state.c - the sky state: its defaults, set and get over every key, the
- * clock keys, validation and the tables' bookkeeping. */
+/* state.c - the sky state: its defaults, the quality presets, validation
+ * and the tables' bookkeeping. Its keys are the registry's (state_keys.c). */
 #include "state_internal.h"
 
 #include <errno.h>
@@ -8,31 +8,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "proto.h"
-#include "simclock.h"
-
 const char *const state_table_names[STATE_N_TABLES] = {
 	"transmittance", "multiscatter", "skyview", "aerial",
 };
-
-/* Keys that hand a light to the clock, or take it back (manual). */
-static const char *const clock_keys[] = {
-	"utc", "lat_deg", "lon_deg", "site_elevation_m", NULL,
-};
-static const char *const sun_manual_keys[] = {
-	"sun_elevation_deg", "sun_azimuth_deg", "sun_illuminance_lx", "sun_angular_radius_deg", NULL,
-};
-static const char *const moon_manual_keys[] = {
-	"moon_elevation_deg", "moon_azimuth_deg", "moon_illuminance_lx", "moon_color",
-	"moon_angular_radius_deg", NULL,
-};
-static const char *const mode_names[] = { "manual", "clock", NULL };
-
-void state_default_camera(struct state_camera *ret)
-{
-	*ret = (struct state_camera){ .yaw_deg = 180.0, .pitch_deg = 0.0, .roll_deg = 0.0,
-				      .vfov_deg = 60.0, .aspect = 16.0 / 9.0 };
-}
 
 /* The quality presets behind the key quality=low|medium|high|ultra. medium
  * is the reference of docs/physics.md and the default; it takes at most 20
@@ -40,222 +18,94 @@ void state_default_camera(struct state_camera *ret)
  * no longer move the error (docs/findings.md). low halves it,
  * high raises steps by half, ultra doubles sizes and steps (about 8 times
  * the work of medium: more would take seconds on lavapipe). `skybench
- * accuracy` measures their cost and error. */
-struct quality_preset {
-	const char *name;
-	struct state_quality q;
+ * accuracy` measures their cost and error. Every preset leaves
+ * multiscatter_iterations, multiscatter_moment and multiscatter_delta at
+ * auto. */
+enum quality_preset { QUALITY_LOW, QUALITY_MEDIUM, QUALITY_HIGH, QUALITY_ULTRA, N_QUALITY_PRESETS };
+
+const char *const state_quality_names[N_QUALITY_PRESETS + 1] = {
+	[QUALITY_LOW] = "low", [QUALITY_MEDIUM] = "medium", [QUALITY_HIGH] = "high",
+	[QUALITY_ULTRA] = "ultra", [N_QUALITY_PRESETS] = NULL,
 };
 
-/* The last three fields: multiscatter_iterations=auto (0), multiscatter_moment=auto,
- * multiscatter_delta=auto. */
-static const struct quality_preset quality_presets[] = {
-	{ "low", { { { 128, 32, 1, 20 }, { 16, 16, 1, 10 }, { 96, 54, 1, 16 }, { 16, 16, 16, 1 } },
-		   2, 4, 128.0, STATE_SQUARED, STATE_F16, 0, STATE_MOMENT_AUTO, STATE_MOMENT_AUTO } },
-	{ "medium", { { { 256, 64, 1, 40 }, { 32, 32, 1, 20 }, { 192, 108, 1, 20 }, { 32, 32, 32, 1 } },
-		      64, 4, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO, STATE_MOMENT_AUTO } },
-	{ "high", { { { 256, 64, 1, 60 }, { 32, 32, 1, 30 }, { 256, 144, 1, 45 }, { 48, 48, 32, 2 } },
-		    64, 6, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO, STATE_MOMENT_AUTO } },
-	{ "ultra", { { { 512, 128, 1, 80 }, { 64, 64, 1, 40 }, { 384, 216, 1, 60 }, { 64, 64, 64, 2 } },
-		     64, 8, 128.0, STATE_SQUARED, STATE_F32, 0, STATE_MOMENT_AUTO, STATE_MOMENT_AUTO } },
+#define TABLE_Q(w, h, d, n) { .width = (w), .height = (h), .depth = (d), .steps = (n) }
+static const struct state_quality quality_presets[N_QUALITY_PRESETS] = {
+	[QUALITY_LOW] = {
+		.t = { [STATE_TRANSMITTANCE] = TABLE_Q(128, 32, 1, 20),
+		       [STATE_MULTISCATTER] = TABLE_Q(16, 16, 1, 10),
+		       [STATE_SKYVIEW] = TABLE_Q(96, 54, 1, 16),
+		       [STATE_AERIAL] = TABLE_Q(16, 16, 16, 1) },
+		.multiscatter_dirs = 2, .skyview_min_steps = 4, .aerial_range_km = 128.0,
+		.aerial_spacing = STATE_SQUARED, .storage = STATE_F16,
+	},
+	[QUALITY_MEDIUM] = {
+		.t = { [STATE_TRANSMITTANCE] = TABLE_Q(256, 64, 1, 40),
+		       [STATE_MULTISCATTER] = TABLE_Q(32, 32, 1, 20),
+		       [STATE_SKYVIEW] = TABLE_Q(192, 108, 1, 20),
+		       [STATE_AERIAL] = TABLE_Q(32, 32, 32, 1) },
+		.multiscatter_dirs = 64, .skyview_min_steps = 4, .aerial_range_km = 128.0,
+		.aerial_spacing = STATE_SQUARED, .storage = STATE_F32,
+	},
+	[QUALITY_HIGH] = {
+		.t = { [STATE_TRANSMITTANCE] = TABLE_Q(256, 64, 1, 60),
+		       [STATE_MULTISCATTER] = TABLE_Q(32, 32, 1, 30),
+		       [STATE_SKYVIEW] = TABLE_Q(256, 144, 1, 45),
+		       [STATE_AERIAL] = TABLE_Q(48, 48, 32, 2) },
+		.multiscatter_dirs = 64, .skyview_min_steps = 6, .aerial_range_km = 128.0,
+		.aerial_spacing = STATE_SQUARED, .storage = STATE_F32,
+	},
+	[QUALITY_ULTRA] = {
+		.t = { [STATE_TRANSMITTANCE] = TABLE_Q(512, 128, 1, 80),
+		       [STATE_MULTISCATTER] = TABLE_Q(64, 64, 1, 40),
+		       [STATE_SKYVIEW] = TABLE_Q(384, 216, 1, 60),
+		       [STATE_AERIAL] = TABLE_Q(64, 64, 64, 2) },
+		.multiscatter_dirs = 64, .skyview_min_steps = 8, .aerial_range_km = 128.0,
+		.aerial_spacing = STATE_SQUARED, .storage = STATE_F32,
+	},
 };
-#define N_QUALITY_PRESETS (sizeof(quality_presets) / sizeof(quality_presets[0]))
 
-static int set_quality(struct sky_state *s, const char *v)
+int state_set_quality(struct sky_state *s, const struct state_key *k, const char *v,
+		      uint32_t *ret_dirty, char *err, size_t err_size)
 {
-	for (size_t i = 0; i < N_QUALITY_PRESETS; i++)
-		if (strcmp(quality_presets[i].name, v) == 0) {
-			s->quality = quality_presets[i].q;
-			return 0;
-		}
-	return -EINVAL;
+	int i;
+	int r = state_key_parse(k, v, &i, err, err_size);
+
+	if (r < 0)
+		return r;
+	s->quality = quality_presets[i];
+	return 0;
 }
 
-/* The preset the quality settings equal, or "custom". */
-static const char *quality_name(const struct sky_state *s)
+int state_get_quality(const struct sky_state *s, const struct state_key *k, char *buf, size_t n)
 {
-	for (size_t i = 0; i < N_QUALITY_PRESETS; i++)
-		if (memcmp(&quality_presets[i].q, &s->quality, sizeof(s->quality)) == 0)
-			return quality_presets[i].name;
-	return "custom";
+	for (int i = 0; i < N_QUALITY_PRESETS; i++)
+		if (memcmp(&quality_presets[i], &s->quality, sizeof(s->quality)) == 0) {
+			snprintf(buf, n, "%s", state_quality_names[i]);
+			return 0;
+		}
+	snprintf(buf, n, "custom");
+	return 0;
+}
+
+void state_default_camera(struct state_camera *ret)
+{
+	struct sky_state s;
+
+	state_default(&s);
+	*ret = s.camera;
 }
 
 void state_default(struct sky_state *ret)
 {
 	struct sky_state s = { 0 };
 
-	snprintf(s.preset, sizeof(s.preset), "earth");
-	atmo_earth(&s.atmo);
-	s.altitude_km = 0.2;
-	s.sun = (struct state_light){ .elevation_deg = 30.0, .azimuth_deg = 180.0,
-		.illuminance_lx = 133800.0, .color = { 1, 1, 1 },
-		.angular_radius_deg = 0.004675 * 180.0 / M_PI };
-	s.moon = (struct state_light){ .elevation_deg = -30.0, .azimuth_deg = 0.0,
-		.illuminance_lx = 0.0, .color = { 1, 1, 1 },
-		.angular_radius_deg = 0.259 };
-	state_default_camera(&s.camera);
-	set_quality(&s, "medium");
-	s.clock = (struct state_clock){ .anchor_utc_s = NAN, .anchor_mono_s = 0.0, .rate = 1.0,
-		.lat_deg = 0.0, .lon_deg = 0.0, .site_elevation_m = 0.0,
-		.pressure_mbar = 1013.25, .temperature_c = 15.0, .delta_t_s = NAN,
-		.horizon_refraction_deg = 0.5667, .threshold_deg = 0.1, .cadence_s = 60.0,
-		.sun_mode = STATE_MANUAL, .moon_mode = STATE_MANUAL };
+	/* What no key sets: the clock's anchor on the monotonic clock (0),
+	 * the lights' time, the sensor's EV100, the weather's bookkeeping. */
 	s.lights_utc_s = NAN;
 	s.exposure_ev100 = NAN;
-	s.night = (struct state_night){ .zenith_luminance_cd_m2 = 2.0e-4, .illuminance_lx = 0.002 };
-	weather_init(&s.weather.in);
 	s.weather.cloud_factor = 1.0;
-	state_sensor_defaults(&s.sensor);
+	state_keys_default(&s);
 	*ret = s;
-}
-
-static int in_list(const char *const *list, const char *key)
-{
-	for (int i = 0; list[i]; i++)
-		if (strcmp(list[i], key) == 0)
-			return 1;
-	return 0;
-}
-
-double state_clock_utc_s(const struct sky_state *s, double mono_s)
-{
-	const struct state_clock *c = &s->clock;
-
-	if (isnan(c->anchor_utc_s))
-		return NAN;
-	return c->anchor_utc_s + c->rate * (mono_s - c->anchor_mono_s);
-}
-
-void state_clock_rebase(struct sky_state *next, const struct sky_state *cur, double mono_s)
-{
-	struct state_clock *n = &next->clock;
-	const struct state_clock *c = &cur->clock;
-
-	if (n->rate == c->rate || isnan(c->anchor_utc_s) ||
-	    memcmp(&n->anchor_utc_s, &c->anchor_utc_s, sizeof(double)) ||
-	    n->anchor_mono_s != c->anchor_mono_s)
-		return;
-	n->anchor_utc_s = state_clock_utc_s(cur, mono_s);
-	n->anchor_mono_s = mono_s;
-}
-
-/* A clock that was never set starts at the real time, so that naming only
- * a place shows that place's sky now. */
-static void clock_anchor_now(struct state_clock *c)
-{
-	double real_s, mono_s;
-
-	simclock_read_clocks(&real_s, &mono_s);
-	c->anchor_utc_s = real_s;
-	c->anchor_mono_s = mono_s;
-}
-
-/* utc, time_rate, delta_t_s, sun_mode, moon_mode. Returns 1 if key is not
- * one of them, else 0 or -EINVAL with err. */
-static int set_clock_key(struct sky_state *s, const char *key, const char *v, uint32_t *ret_dirty,
-			 char *err, size_t err_size)
-{
-	struct state_clock *c = &s->clock;
-	double d, mono_s;
-
-	if (strcmp(key, "utc") == 0) {
-		if (strcmp(v, "now") == 0) {
-			clock_anchor_now(c);
-		} else if (simclock_parse_utc(v, &d) == 0) {
-			simclock_read_clocks(NULL, &mono_s);
-			c->anchor_utc_s = d;
-			c->anchor_mono_s = mono_s;
-		} else {
-			return ERR("utc: '%s' is not now or an ISO 8601 UTC time such as 2026-06-21T18:30:00Z (a real date, a zone)", v);
-		}
-	} else if (strcmp(key, "time_rate") == 0) {
-		if (proto_parse_number(v, &d) < 0)
-			return ERR("time_rate: '%s' is not a finite number", v);
-		if (fabs(d) > SIMCLOCK_RATE_MAX)
-			return ERR_RANGE("time_rate: %g is outside [%g, %g]", d, -SIMCLOCK_RATE_MAX, SIMCLOCK_RATE_MAX);
-		/* The rate runs from the anchor; a running clock is re-anchored
-		 * by state_clock_rebase when the change is committed, so that
-		 * utc= and time_rate= in one request mean the same in any order. */
-		c->rate = d;
-	} else if (strcmp(key, "delta_t_s") == 0) {
-		if (strcmp(v, "auto") == 0)
-			d = NAN;
-		else if (proto_parse_number(v, &d) < 0)
-			return ERR("delta_t_s: '%s' is not auto or a finite number", v);
-		else if (fabs(d) > 1e6)
-			return ERR_RANGE("delta_t_s: %g is outside [-1e6, 1e6]", d);
-		c->delta_t_s = d;
-	} else if (strcmp(key, "sun_mode") == 0 || strcmp(key, "moon_mode") == 0) {
-		int m = state_enum_index(mode_names, v);
-		if (m < 0)
-			return ERR("%s: '%s' is not clock or manual", key, v);
-		*(key[0] == 's' ? &c->sun_mode : &c->moon_mode) = (enum state_light_mode)m;
-		if (m == STATE_CLOCK && isnan(c->anchor_utc_s))
-			clock_anchor_now(c);
-	} else {
-		return 1;
-	}
-	/* A rate alone moves nothing until the clock runs on it. */
-	if (ret_dirty && strcmp(key, "time_rate") != 0)
-		*ret_dirty |= LIGHTS;
-	return 0;
-}
-
-int state_set(struct sky_state *s, const char *key, const char *value,
-	      uint32_t *ret_dirty, char *err, size_t err_size)
-{
-	struct sky_state before = *s;
-	uint32_t dirty = 0;
-	int r;
-
-	r = set_clock_key(s, key, value, &dirty, err, err_size);
-	if (r > 0)
-		r = state_set_weather_key(s, key, value, &dirty, err, err_size);
-	if (r > 0)
-		r = state_set_sensor_key(s, key, value, err, err_size);
-	if (r <= 0) {
-		if (r < 0)
-			return r;
-	} else if (strcmp(key, "quality") == 0) {
-		if (set_quality(s, value) < 0)
-			return ERR("quality: '%s' is not low, medium, high or ultra", value);
-		dirty = STATE_ALL_TABLES;
-	} else if (strcmp(key, "preset") == 0) {
-		struct atmo a;
-		if (atmo_preset(value, &a) < 0)
-			return ERR("preset: '%s' is not earth or mars", value);
-		s->atmo = a;
-		snprintf(s->preset, sizeof(s->preset), "%s", value);
-		/* The raw keys the overrides kept are gone with the old atmosphere. */
-		s->weather.overridden = 0;
-		dirty = FROM_T;
-	} else {
-		const struct state_key *k = state_find_key(key);
-		if (k) {
-			r = state_set_table_key(s, k, value, err, err_size);
-			dirty = state_key_dirty(k);
-		} else {
-			r = state_set_constituent_key(s, key, value, err, err_size);
-			dirty = FROM_T;
-			if (r == 0)
-				state_weather_note_raw(s, key);
-		}
-		if (r < 0)
-			return r;
-	}
-	/* Naming a time or a place hands both lights to the clock; setting what
-	 * the clock computes for a light takes that light back. */
-	if (in_list(clock_keys, key)) {
-		s->clock.sun_mode = s->clock.moon_mode = STATE_CLOCK;
-		if (isnan(s->clock.anchor_utc_s))
-			clock_anchor_now(&s->clock);
-	} else if (in_list(sun_manual_keys, key)) {
-		s->clock.sun_mode = STATE_MANUAL;
-	} else if (in_list(moon_manual_keys, key)) {
-		s->clock.moon_mode = STATE_MANUAL;
-	}
-	if (ret_dirty && memcmp(&before, s, sizeof(before)) != 0)
-		*ret_dirty |= dirty;
-	return 0;
 }
 
 int state_set_pair(struct sky_state *s, const char *pair, uint32_t *ret_dirty,
@@ -333,53 +183,12 @@ int state_validate(const struct sky_state *s, uint64_t max_buffer_bytes,
 	return 0;
 }
 
-static const char *const clock_special[] = {
-	"utc", "time_rate", "delta_t_s", "sun_mode", "moon_mode", NULL,
-};
-
-/* Formats one of clock_special; the time is the simulated time now. */
-static void format_clock_key(const struct sky_state *s, const char *key, char *buf, size_t n)
-{
-	if (strcmp(key, "utc") == 0) {
-		double mono_s;
-		simclock_read_clocks(NULL, &mono_s);
-		double utc_s = state_clock_utc_s(s, mono_s);
-		if (isnan(utc_s))
-			snprintf(buf, n, "none");
-		else if (simclock_format_utc(utc_s, buf, n) < 0)
-			snprintf(buf, n, "%.3f", utc_s);	/* outside years 0..9999 */
-	} else if (strcmp(key, "time_rate") == 0) {
-		snprintf(buf, n, "%.9g", s->clock.rate);
-	} else if (strcmp(key, "delta_t_s") == 0) {
-		if (isnan(s->clock.delta_t_s))
-			snprintf(buf, n, "auto");
-		else
-			snprintf(buf, n, "%.9g", s->clock.delta_t_s);
-	} else {
-		snprintf(buf, n, "%s", mode_names[key[0] == 's' ? s->clock.sun_mode : s->clock.moon_mode]);
-	}
-}
-
 void state_night_floor(const struct sky_state *s, double *ret_zenith_cd_m2, double *ret_gain)
 {
 	double lz = s->night.zenith_luminance_cd_m2;
 
 	*ret_zenith_cd_m2 = lz > 0.0 ? lz : 0.0;
 	*ret_gain = lz > 0.0 ? fmax(3.0 * (s->night.illuminance_lx / (M_PI * lz) - 1.0), 0.0) : 0.0;
-}
-
-void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx)
-{
-	char buf[128];
-
-	fn(ctx, "preset", s->preset);
-	for (int i = 0; clock_special[i]; i++) {
-		format_clock_key(s, clock_special[i], buf, sizeof(buf));
-		fn(ctx, clock_special[i], buf);
-	}
-	state_foreach_key(s, fn, ctx);
-	state_foreach_weather(s, fn, ctx);
-	state_foreach_sensor(s, fn, ctx);
 }
 
 /* state_diff's walk: each key of one state whose text the other state
@@ -417,27 +226,6 @@ uint32_t state_diff(const struct sky_state *a, const struct sky_state *b)
 	dirty |= d->dirty;
 	free(d);
 	return dirty;
-}
-
-int state_get(const struct sky_state *s, const char *key, char *buf, size_t size)
-{
-	if (strcmp(key, "preset") == 0) {
-		snprintf(buf, size, "%s", s->preset);
-		return 0;
-	}
-	if (in_list(clock_special, key)) {
-		format_clock_key(s, key, buf, size);
-		return 0;
-	}
-	if (strcmp(key, "quality") == 0) {
-		snprintf(buf, size, "%s", quality_name(s));
-		return 0;
-	}
-	if (weather_get(&s->weather.in, key, buf, size) == 0)
-		return 0;
-	if (state_get_sensor_key(s, key, buf, size) == 0)
-		return 0;
-	return state_get_key(s, key, buf, size);
 }
 
 int state_parse_tables(const char *list, uint32_t *ret_mask)

@@ -13,6 +13,7 @@
 #include <stdio.h>
 
 #include "atmo.h"
+#include "state_keys.h"
 #include "weather.h"
 
 /* The four tables, in dependency order. */
@@ -195,7 +196,8 @@ void state_default_camera(struct state_camera *ret);
 /* Default: Earth, sun at 30 degrees, observer at 0.2 km, reference sizes. */
 void state_default(struct sky_state *ret);
 
-/* Parses one key=value into s. On failure returns -ENOENT (unknown key),
+/* Parses one key=value into s: the key's row in the registry
+ * (state_keys.h) and its setter. On failure returns -ENOENT (unknown key),
  * -EINVAL (a malformed value: not a number, not one of the names) or
  * -ERANGE (a value outside the key's range or rule) and writes a message
  * naming the key and the rule to err; the control protocol answers each
@@ -215,11 +217,12 @@ int state_set_pair(struct sky_state *s, const char *pair, uint32_t *ret_dirty,
 int state_validate(const struct sky_state *s, uint64_t max_buffer_bytes,
 		   char *err, size_t err_size);
 
-/* Calls fn for every key with its current value formatted. */
+/* Calls fn for every key with its current value formatted, in the
+ * registry's order and as its rows say (enum state_key_listed). */
 typedef void (*state_emit_fn)(void *ctx, const char *key, const char *value);
 void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx);
 
-/* Formats one key's value; -ENOENT if unknown. */
+/* Formats one key's value; -ENOENT if unknown (or write-only). */
 int state_get(const struct sky_state *s, const char *key, char *buf, size_t size);
 
 /* The simulated time at monotonic time mono_s (seconds); NAN if no time was
@@ -237,11 +240,7 @@ void state_clock_rebase(struct sky_state *next, const struct sky_state *cur, dou
 void state_night_floor(const struct sky_state *s, double *ret_zenith_cd_m2, double *ret_gain);
 
 
-/* The light sensor's key names in `get` order, NULL-terminated, and the
- * name of a mode ("off", "cloud", "elevation", "exposure"). `get` without
- * keys (state_foreach) lists them only while one differs from its default,
- * so that a state without a sensor reads as it always did. */
-extern const char *const state_sensor_keys[];
+/* The name of a sensor mode ("off", "cloud", "elevation", "exposure"). */
 const char *state_sensor_mode_name(enum state_sensor_mode m);
 
 /* The tables to recompute going from a to b: the masks state_set gives
@@ -290,7 +289,7 @@ uint32_t state_closure(uint32_t mask);
 int state_resolve(const struct sky_state *s, struct sky_state *ret, struct weather_map *ret_map,
 		  char *err, size_t err_size);
 
-/* `get weather`: the weather keys and what they map to (weather_describe),
+/* `get weather`: the weather keys and what they map to (weather_map),
  * then `overridden:` (the raw keys that win, or none) and `cloud_factor:`.
  * 0, or the error of weather_map with err. */
 int state_describe_weather(const struct sky_state *s, state_emit_fn fn, void *ctx, char *err,

@@ -1,7 +1,10 @@
 /* state_internal.h - what the files of the state module share: state.c (the
- * state, set and get), state_keys.c (the key table, its parsers and its
- * list), state_weather.c (the weather keys, METAR, state_resolve) and
- * state_sensor.c (the light sensor's keys). */
+ * state, its defaults and checks, the quality presets), state_keys.c (the
+ * key registry, set, get and the key list) and the rooms whose keys need
+ * code, each with the hooks its rows name: state_clock.c (the clock),
+ * state_atmo.c (the planet preset and the constituents), state_weather.c
+ * (the weather keys, METAR, state_resolve) and state_sensor.c (the light
+ * sensor). */
 #ifndef SKYD_STATE_INTERNAL_H
 #define SKYD_STATE_INTERNAL_H
 
@@ -24,50 +27,61 @@
 #define ERR_RANGE(...) (snprintf(err, err_size, __VA_ARGS__), -ERANGE)
 #define ERR_UNKNOWN(...) (snprintf(err, err_size, __VA_ARGS__), -ENOENT)
 
+/* Longest value text state_get writes (sensor_select's 127 bytes). */
+#define STATE_VALUE_MAX 160
+
 /* Index of v in a NULL-terminated list, or -1. */
 int state_enum_index(const char *const *names, const char *v);
 
-/* The keys of the table in state_keys.c (sizes, angles, lights, site) and
- * the per-constituent keys "<constituent>_<suffix>". */
-struct state_key;
-const struct state_key *state_find_key(const char *name);
-/* The tables a change of k invalidates. */
-uint32_t state_key_dirty(const struct state_key *k);
-/* Parses value into s's field of k: 0, -EINVAL or -ERANGE with err. */
-int state_set_table_key(struct sky_state *s, const struct state_key *k, const char *value,
-			char *err, size_t err_size);
-/* A constituent key of s->atmo: 0, -EINVAL, -ERANGE, or -ENOENT when key
- * names no constituent key (err says so). */
-int state_set_constituent_key(struct sky_state *s, const char *key, const char *value,
-			      char *err, size_t err_size);
-/* Formats a table or constituent key of s; -ENOENT if key is neither. */
-int state_get_key(const struct sky_state *s, const char *key, char *buf, size_t size);
-/* Calls fn for the table keys, then every constituent key, in order. */
-void state_foreach_key(const struct sky_state *s, state_emit_fn fn, void *ctx);
+/* Sets every key to its row's default (state_default): the preset and the
+ * quality first, then each key that has a default of its own. */
+void state_keys_default(struct sky_state *s);
+/* Calls fn for every weather input (STATE_LISTED_GIVEN), auto or not. */
+void state_foreach_given(const struct sky_state *s, state_emit_fn fn, void *ctx);
+/* The first constituent key that pins bit (enum state_override): the name
+ * of the coefficient the weather maps. */
+const struct state_key *state_key_pinning(uint32_t bit);
 
-/* The weather keys (weather_keys) and metar: 1 when key is none of them,
- * else as state_set, with the tables it invalidates in *ret_dirty. */
-int state_set_weather_key(struct sky_state *s, const char *key, const char *value,
-			  uint32_t *ret_dirty, char *err, size_t err_size);
-/* A raw constituent key was set: while the weather maps its coefficient,
- * the raw key now wins for it (enum state_override). */
-void state_weather_note_raw(struct sky_state *s, const char *key);
-/* Calls fn for the weather keys that are given (not auto). */
-void state_foreach_weather(const struct sky_state *s, state_emit_fn fn, void *ctx);
+/* ---- state.c: the quality presets (quality=) ---- */
+extern const char *const state_quality_names[];
+state_key_set_fn state_set_quality;
+state_key_get_fn state_get_quality;		/* the preset the settings equal, or custom */
 
-/* One row of the key list (skyd --list-keys): markdown or tab-separated. */
-void state_print_row(FILE *f, bool markdown, const char *name, const char *unit,
-		     const char *range, const char *def, uint32_t dirty, const char *doc);
+/* ---- state_clock.c ---- */
+state_key_set_fn state_set_utc;			/* now or ISO 8601: the clock's anchor */
+state_key_get_fn state_get_utc;			/* the simulated time now, or none */
+state_key_set_fn state_set_light_mode;		/* a clock mode starts a clock never set */
+/* What setting a key does to the lights' modes (enum state_key_hands). */
+void state_clock_hand_lights(struct sky_state *s, enum state_key_hands hands);
 
-/* The light sensor's keys (state_sensor_keys): their defaults; a key into s,
- * 1 when key is none of them, else 0, -EINVAL or -ERANGE with err (they
- * invalidate no table); its value, -ENOENT when none of them; all of them
- * to fn while one differs from its default; their rows of the key list. */
-void state_sensor_defaults(struct state_sensor *ret);
-int state_set_sensor_key(struct sky_state *s, const char *key, const char *value, char *err,
-			 size_t err_size);
-int state_get_sensor_key(const struct sky_state *s, const char *key, char *buf, size_t size);
-void state_foreach_sensor(const struct sky_state *s, state_emit_fn fn, void *ctx);
-void state_print_sensor_keys(FILE *f, bool markdown);
+/* ---- state_atmo.c: the planet preset and the constituent family ---- */
+/* The field of struct atmo_constituent a constituent key names (its arg). */
+enum state_constituent_field {
+	STATE_C_SCATTERING, STATE_C_ABSORPTION, STATE_C_SCALE_HEIGHT, STATE_C_G, STATE_C_PHASE,
+	STATE_C_WIDTH, STATE_C_EXP_TERM, STATE_C_EXP_SCALE, STATE_C_LINEAR, STATE_C_CONSTANT,
+};
+/* Added to a layer's field: the upper layer's (layers[1]). */
+#define STATE_C_UPPER 16
+extern const char *const state_phase_names[];
+state_key_set_fn state_set_preset;
+state_key_get_fn state_get_preset;
+/* "<constituent>_<field>": the constituent the name starts with; -ENOENT
+ * when the state's preset has none of that name. */
+state_key_set_fn state_set_constituent;
+state_key_get_fn state_get_constituent;
+
+/* ---- state_weather.c ---- */
+state_key_set_fn state_set_weather;		/* an aerosol or ozone input */
+state_key_set_fn state_set_cloud;		/* cloud_oktas: the cloud factor follows */
+state_key_set_fn state_set_cloud_fraction;	/* stored as oktas */
+state_key_get_fn state_get_cloud_fraction;
+state_key_set_fn state_set_metar_key;
+/* A raw constituent key was set: while the weather maps the coefficients
+ * in bits (enum state_override), the raw key now wins for them. */
+void state_weather_pin(struct sky_state *s, uint32_t bits);
+
+/* ---- state_sensor.c ---- */
+extern const char *const state_sensor_mode_names[];
+state_key_set_fn state_set_sensor_select;
 
 #endif

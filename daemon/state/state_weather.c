@@ -1,10 +1,12 @@
-/* state_weather.c - the weather in the sky's state: its keys, METAR reports,
- * the raw keys that override it, and the state the tables are computed
- * with (state_resolve). The model is daemon/weather's (docs/weather.md). */
+/* state_weather.c - the weather in the sky's state: the hooks of its keys,
+ * METAR reports, the raw keys that override it, `get weather`, and the
+ * state the tables are computed with (state_resolve). The model is
+ * daemon/weather's (docs/weather.md). */
 #include "state_internal.h"
 
 #include <errno.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -23,77 +25,62 @@ static bool maps_ozone(const struct weather *w)
 	return !isnan(w->ozone_du);
 }
 
-/* The raw keys that pin a coefficient the weather maps; a key ending in
- * '*' is a prefix. */
-static const struct {
-	const char *key;
-	uint32_t bit;
-	const char *report;		/* its name in get weather's overridden: */
-} raw_overrides[] = {
-	{ "mie_scattering_per_km", STATE_OVERRIDE_MIE_SCATTERING, "mie_scattering_per_km" },
-	{ "mie_absorption_per_km", STATE_OVERRIDE_MIE_ABSORPTION, "mie_absorption_per_km" },
-	{ "mie_g", STATE_OVERRIDE_MIE_G, "mie_g" },
-	{ "mie_scale_height_km", STATE_OVERRIDE_MIE_PROFILE, "mie_profile" },
-	{ "mie_layer*", STATE_OVERRIDE_MIE_PROFILE, "mie_profile" },
-	{ "ozone_absorption_per_km", STATE_OVERRIDE_OZONE_ABSORPTION, "ozone_absorption_per_km" },
-};
-#define N_RAW (sizeof(raw_overrides) / sizeof(raw_overrides[0]))
-
-static bool key_matches(const char *pattern, const char *key)
+void state_weather_pin(struct sky_state *s, uint32_t bits)
 {
-	size_t n = strlen(pattern);
-
-	if (n && pattern[n - 1] == '*')
-		return strncmp(pattern, key, n - 1) == 0;
-	return strcmp(pattern, key) == 0;
+	if (maps_mie(&s->weather.in))
+		s->weather.overridden |= bits & STATE_OVERRIDE_MIE;
+	if (maps_ozone(&s->weather.in))
+		s->weather.overridden |= bits & STATE_OVERRIDE_OZONE_ABSORPTION;
 }
 
-void state_weather_note_raw(struct sky_state *s, const char *key)
+/* An aerosol input or the ozone column: set after a raw key, it wins over
+ * it again. */
+int state_set_weather(struct sky_state *s, const struct state_key *k, const char *v,
+		      uint32_t *ret_dirty, char *err, size_t err_size)
 {
-	for (size_t i = 0; i < N_RAW; i++) {
-		uint32_t bit = raw_overrides[i].bit;
-		bool mapped = (bit & STATE_OVERRIDE_MIE) ? maps_mie(&s->weather.in)
-							 : maps_ozone(&s->weather.in);
-		if (mapped && key_matches(raw_overrides[i].key, key))
-			s->weather.overridden |= bit;
-	}
+	int r = state_key_parse(k, v, (char *)s + k->offset, err, err_size);
+
+	if (r == 0)
+		s->weather.overridden &= ~k->override;
+	return r;
 }
 
-int state_set_weather_key(struct sky_state *s, const char *key, const char *value,
-			  uint32_t *ret_dirty, char *err, size_t err_size)
+int state_set_cloud(struct sky_state *s, const struct state_key *k, const char *v,
+		    uint32_t *ret_dirty, char *err, size_t err_size)
 {
-	if (strcmp(key, "metar") == 0)
-		return state_set_metar(s, value, NULL, ret_dirty, err, err_size);
-	unsigned affects = weather_key_affects(key);
-	if (!affects)
-		return 1;
-	int r = weather_set(&s->weather.in, key, value, err, err_size);
+	int r = state_key_parse(k, v, &s->weather.in.cloud_oktas, err, err_size);
+
+	if (r == 0)
+		s->weather.cloud_factor = weather_cloud_light_factor(s->weather.in.cloud_oktas);
+	return r;
+}
+
+int state_set_cloud_fraction(struct sky_state *s, const struct state_key *k, const char *v,
+			     uint32_t *ret_dirty, char *err, size_t err_size)
+{
+	double fraction;
+	int r = state_key_parse(k, v, &fraction, err, err_size);
+
 	if (r < 0)
 		return r;
-	if (affects & WEATHER_AFFECTS_ATMOSPHERE) {
-		/* A weather key set after a raw key wins over it again. */
-		s->weather.overridden &= strcmp(key, "ozone_du") == 0
-					 ? ~(uint32_t)STATE_OVERRIDE_OZONE_ABSORPTION
-					 : ~(uint32_t)STATE_OVERRIDE_MIE;
-		*ret_dirty = FROM_T;
-	} else {
-		s->weather.cloud_factor = weather_cloud_light_factor(s->weather.in.cloud_oktas);
-		*ret_dirty = LIGHTS;
-	}
+	s->weather.in.cloud_oktas = isnan(fraction) ? NAN : fraction * WEATHER_OKTAS_MAX;
+	s->weather.cloud_factor = weather_cloud_light_factor(s->weather.in.cloud_oktas);
 	return 0;
 }
 
-void state_foreach_weather(const struct sky_state *s, state_emit_fn fn, void *ctx)
+int state_get_cloud_fraction(const struct sky_state *s, const struct state_key *k, char *buf,
+			     size_t n)
 {
-	char buf[64];
+	double fraction = s->weather.in.cloud_oktas / WEATHER_OKTAS_MAX;
 
-	for (int i = 0; weather_keys[i]; i++) {
-		if (strcmp(weather_keys[i], "cloud_fraction") == 0)
-			continue;
-		weather_get(&s->weather.in, weather_keys[i], buf, sizeof(buf));
-		if (strcmp(buf, "auto") != 0)
-			fn(ctx, weather_keys[i], buf);
-	}
+	state_key_format(k, &fraction, buf, n);
+	return 0;
+}
+
+int state_set_metar_key(struct sky_state *s, const struct state_key *k, const char *v,
+			uint32_t *ret_dirty, char *err, size_t err_size)
+{
+	return state_set_metar(s, v, NULL, ret_dirty, err, err_size);
 }
 
 /* QNH is the pressure reduced to sea level in the ICAO standard atmosphere;
@@ -112,7 +99,7 @@ int state_set_metar(struct sky_state *s, const char *report, struct metar *ret_m
 	char why[256];
 
 	if (metar_decode(report, &m, why, sizeof(why)) < 0)
-		return ERR("metar: %s", why);
+		return ERR("%s: %s", state_key_name(STATE_KEY_ID_METAR), why);
 	/* Within pressure_mbar's and temperature_c's ranges: the decoder takes
 	 * QNH 850..1100 hPa and two-digit temperatures, and site_elevation_m
 	 * is at least -1000 m. */
@@ -124,13 +111,14 @@ int state_set_metar(struct sky_state *s, const char *report, struct metar *ret_m
 	/* The report writes every aerosol input: it wins over raw Mie keys. */
 	s->weather.overridden &= ~(uint32_t)STATE_OVERRIDE_MIE;
 	s->weather.cloud_factor = weather_cloud_light_factor(s->weather.in.cloud_oktas);
+	/* The tables of what changed: the aerosol inputs', the cloud cover's. */
 	uint32_t dirty = 0;
 	struct weather a = before.in, b = s->weather.in;
 	a.cloud_oktas = b.cloud_oktas = 0.0;
 	if (!weather_equal(&a, &b) || before.overridden != s->weather.overridden)
-		dirty |= FROM_T;
+		dirty |= state_key_of(STATE_KEY_ID_VISIBILITY_KM)->dirty;
 	if (before.cloud_factor != s->weather.cloud_factor)
-		dirty |= LIGHTS;
+		dirty |= state_key_of(STATE_KEY_ID_CLOUD_OKTAS)->dirty;
 	if (ret_dirty)
 		*ret_dirty = dirty;
 	if (ret_metar)
@@ -148,7 +136,7 @@ int state_set_cloud_factor(struct sky_state *s, double factor, uint32_t *ret_dir
 	s->weather.in.cloud_oktas = n;
 	s->weather.cloud_factor = factor;
 	if (ret_dirty && memcmp(&before, &s->weather, sizeof(before)) != 0)
-		*ret_dirty |= LIGHTS;
+		*ret_dirty |= state_key_of(STATE_KEY_ID_CLOUD_OKTAS)->dirty;
 	return 0;
 }
 
@@ -204,26 +192,85 @@ int state_resolve(const struct sky_state *s, struct sky_state *ret, struct weath
 	return 0;
 }
 
-int state_describe_weather(const struct sky_state *s, state_emit_fn fn, void *ctx, char *err,
-			   size_t err_size)
+static void emit(state_emit_fn fn, void *ctx, const char *key, const char *fmt, ...)
+	__attribute__((format(printf, 4, 5)));
+static void emit(state_emit_fn fn, void *ctx, const char *key, const char *fmt, ...)
 {
-	struct weather_map map;
+	char buf[128];
+	va_list ap;
+
+	va_start(ap, fmt);
+	vsnprintf(buf, sizeof(buf), fmt, ap);
+	va_end(ap);
+	fn(ctx, key, buf);
+}
+
+/* A coefficient the map writes, under the name of the raw key that
+ * would pin it. */
+static void emit_mapped(state_emit_fn fn, void *ctx, uint32_t bit, const double *v, int n)
+{
+	const char *key = state_key_pinning(bit)->name;
+
+	if (n == 3)
+		emit(fn, ctx, key, "%.9g,%.9g,%.9g", v[0], v[1], v[2]);
+	else
+		emit(fn, ctx, key, "%.9g", v[0]);
+}
+
+/* The Mie part of the map: what the aerosol inputs made. */
+static void describe_mie(const struct weather_map *m, state_emit_fn fn, void *ctx)
+{
+	const struct weather_mie *p = &m->mie;
+
+	emit(fn, ctx, "aerosol_used", "%s", weather_aerosol_name(m->aerosol));
+	emit(fn, ctx, "relative_humidity_used", "%.9g", m->relative_humidity);
+	emit(fn, ctx, "humidity_growth", "%.9g", m->growth);
+	emit(fn, ctx, "aerosol_extinction_550_per_km", "%.9g", m->extinction_550_per_km);
+	emit(fn, ctx, "aerosol_optical_depth_550", "%.9g", m->aod_550);
+	emit(fn, ctx, "single_scattering_albedo", "%.9g", m->ssa);
+	emit(fn, ctx, "angstrom_440_550", "%.9g", m->angstrom_440_550);
+	emit(fn, ctx, "angstrom_550_680", "%.9g", m->angstrom_550_680);
+	emit_mapped(fn, ctx, STATE_OVERRIDE_MIE_SCATTERING, p->scattering_per_km, 3);
+	emit_mapped(fn, ctx, STATE_OVERRIDE_MIE_ABSORPTION, p->absorption_per_km, 3);
+	emit_mapped(fn, ctx, STATE_OVERRIDE_MIE_G, &p->g, 1);
+	emit_mapped(fn, ctx, STATE_OVERRIDE_MIE_PROFILE, &p->scale_height_km, 1);
+}
+
+/* The raw keys that win over the weather, a comma list or none; the Mie
+ * profile's keys are one: mie_profile. */
+static void describe_overridden(const struct sky_state *s, state_emit_fn fn, void *ctx)
+{
 	char list[160] = "";
 	size_t o = 0;
 
-	int r = weather_map(&s->weather.in, &s->atmo, &map, err, err_size);
+	for (uint32_t bit = 1; bit <= STATE_OVERRIDE_OZONE_ABSORPTION; bit <<= 1)
+		if (s->weather.overridden & bit)
+			o += (size_t)snprintf(list + o, o < sizeof(list) ? sizeof(list) - o : 0,
+					      "%s%s", o ? "," : "",
+					      bit == STATE_OVERRIDE_MIE_PROFILE
+					      ? "mie_profile" : state_key_pinning(bit)->name);
+	fn(ctx, "overridden", o ? list : "none");
+}
+
+int state_describe_weather(const struct sky_state *s, state_emit_fn fn, void *ctx, char *err,
+			   size_t err_size)
+{
+	struct weather_map m;
+
+	int r = weather_map(&s->weather.in, &s->atmo, &m, err, err_size);
 	if (r < 0)
 		return r;
-	weather_describe(&s->weather.in, &map, fn, ctx);
-	for (size_t i = 0; i < N_RAW; i++) {
-		if (!(s->weather.overridden & raw_overrides[i].bit) ||
-		    (i && raw_overrides[i - 1].bit == raw_overrides[i].bit))
-			continue;
-		o += (size_t)snprintf(list + o, o < sizeof(list) ? sizeof(list) - o : 0, "%s%s",
-				      o ? "," : "", raw_overrides[i].report);
-	}
-	fn(ctx, "overridden", o ? list : "none");
-	snprintf(list, sizeof(list), "%.9g", s->weather.cloud_factor);
-	fn(ctx, "cloud_factor", list);
+	state_foreach_given(s, fn, ctx);
+	emit(fn, ctx, "mie_source", "%s", m.sets_mie ? "weather" : "atmosphere");
+	if (m.sets_mie)
+		describe_mie(&m, fn, ctx);
+	emit(fn, ctx, "visibility_effective_km", "%.9g", m.visibility_km);
+	emit(fn, ctx, "ozone_source", "%s", m.sets_ozone ? "weather" : "atmosphere");
+	emit(fn, ctx, "ozone_du_effective", "%.9g", m.ozone_du);
+	if (m.sets_ozone)
+		emit_mapped(fn, ctx, STATE_OVERRIDE_OZONE_ABSORPTION, m.ozone_absorption_per_km, 3);
+	emit(fn, ctx, "cloud_light_factor", "%.9g", m.light_factor);
+	describe_overridden(s, fn, ctx);
+	emit(fn, ctx, "cloud_factor", "%.9g", s->weather.cloud_factor);
 	return 0;
 }

@@ -83,23 +83,20 @@ static void put(struct writer *w, const char *fmt, ...)
 		w->len += (size_t)n;
 }
 
-static int suffix_is(const char *key, const char *suffix)
+/* The flags of a key's row (enum state_key_flag); 0 for a name no row has. */
+static unsigned key_flags(const char *key)
 {
-	size_t n = strlen(key), m = strlen(suffix);
-	return n > m && strcmp(key + n - m, suffix) == 0;
+	const struct state_key *k = state_key_find(key);
+	return k ? k->flags : 0;
 }
 
-/* Whether state_foreach's line key=value belongs in a message. Two values
- * state_set cannot read back stay out: a clock never set (utc none; the
- * receiver's stays unset too) and the scale height of a profile that is
- * not a pure exponential (none; the layer keys carry it). */
-static int line_sent(const char *key, const char *value, double utc_s)
+/* Whether state_foreach's line key=value belongs in a message. A none
+ * that state_set cannot read back stays out: a clock never set (the
+ * receiver's stays unset too), the scale height of a profile that is not
+ * a pure exponential (the layer keys carry it). */
+static int line_sent(const char *key, const char *value)
 {
-	if (strcmp(key, "utc") == 0)
-		return !isnan(utc_s);
-	if (suffix_is(key, "_scale_height_km") && strcmp(value, "none") == 0)
-		return 0;
-	return 1;
+	return !((key_flags(key) & STATE_KEY_NONE_UNSET) && strcmp(value, "none") == 0);
 }
 
 static void emit_body(void *ctx, const char *key, const char *value)
@@ -107,12 +104,12 @@ static void emit_body(void *ctx, const char *key, const char *value)
 	struct writer *w = ctx;
 	char t[64];
 
-	if (!line_sent(key, value, w->utc_s))
+	if (!line_sent(key, value))
 		return;
 	w->lines++;
 	/* The time at the apply instant, so that it means the same on every
 	 * machine; state_foreach's is the time now. */
-	if (strcmp(key, "utc") == 0) {
+	if (key_flags(key) & STATE_KEY_NOW) {
 		if (simclock_format_utc(w->utc_s, t, sizeof(t)) < 0)
 			w->bad_utc = 1;
 		value = t;
@@ -355,7 +352,7 @@ static void keyset_expect(void *ctx, const char *key, const char *value)
 {
 	struct keyset *ks = ctx;
 
-	if (!line_sent(key, value, ks->utc_s))
+	if (!line_sent(key, value))
 		return;
 	ks->expected++;
 	if (!ks->missing && !keyset_has(ks, key))
@@ -367,12 +364,18 @@ static enum sync_drop refused(int r, const char *err, char *why, size_t why_size
 	return drop(r == -ENOENT ? SYNC_DROP_KEY : SYNC_DROP_RANGE, why, why_size, "%s", err);
 }
 
-/* One body line onto the candidate. The light modes wait in *modes until
+/* The lines set after every other (STATE_KEY_LAST: the light modes). */
+#define SYNC_LAST_MAX 4
+struct last_lines {
+	unsigned n;
+	char pair[SYNC_LAST_MAX][SYNC_LINE_MAX];
+};
+
+/* One body line onto the candidate. The light modes wait in *last until
  * every other key is set: keys such as sun_elevation_deg or lat_deg hand
  * a light to the user or the clock as a side effect. */
 static enum sync_drop body_line(struct sky_state *st, char *line, struct keyset *ks,
-				char (*modes)[SYNC_LINE_MAX], double *utc_s, char *why,
-				size_t why_size)
+				struct last_lines *last, double *utc_s, char *why, size_t why_size)
 {
 	char pair[SYNC_LINE_MAX], err[256], *v;
 
@@ -382,17 +385,22 @@ static enum sync_drop body_line(struct sky_state *st, char *line, struct keyset 
 	if (keyset_has(ks, line))
 		return drop(SYNC_DROP_MALFORMED, why, why_size, "%s twice", line);
 	snprintf(ks->names[ks->n++], sizeof(ks->names[0]), "%s", line);
-	if (strcmp(line, "sun_mode") == 0 || strcmp(line, "moon_mode") == 0) {
-		snprintf(modes[line[0] == 'm'], SYNC_LINE_MAX, "%s", pair);
+	unsigned flags = key_flags(line);
+	if (flags & STATE_KEY_LAST) {
+		if (last->n == SYNC_LAST_MAX)
+			return drop(SYNC_DROP_MALFORMED, why, why_size, "more than %d mode lines",
+				    SYNC_LAST_MAX);
+		snprintf(last->pair[last->n++], SYNC_LINE_MAX, "%s", pair);
 		return SYNC_DROP_NONE;
 	}
-	if (strcmp(line, "utc") == 0 && simclock_parse_utc(v, utc_s) < 0)
-		return drop(SYNC_DROP_RANGE, why, why_size, "utc: '%s' is not an ISO 8601 UTC time", v);
+	if ((flags & STATE_KEY_NOW) && simclock_parse_utc(v, utc_s) < 0)
+		return drop(SYNC_DROP_RANGE, why, why_size, "%s: '%s' is not an ISO 8601 UTC time",
+			    line, v);
 	/* A value the candidate already shows is not parsed again: what the
 	 * preset or a shorter key (a scale height) gave keeps every bit, where
 	 * the text has nine digits. */
 	char cur[256];
-	if (strcmp(line, "utc") != 0 && state_get(st, line, cur, sizeof(cur)) == 0 &&
+	if (!(flags & STATE_KEY_NOW) && state_get(st, line, cur, sizeof(cur)) == 0 &&
 	    strcmp(cur, v) == 0)
 		return SYNC_DROP_NONE;
 	int r = state_set_pair(st, pair, NULL, err, sizeof(err));
@@ -402,7 +410,8 @@ static enum sync_drop body_line(struct sky_state *st, char *line, struct keyset 
 static enum sync_drop read_body(struct cursor *c, uint64_t lines, struct sky_state *st,
 				struct keyset *ks, char *why, size_t why_size)
 {
-	char line[SYNC_LINE_MAX], modes[2][SYNC_LINE_MAX] = { "", "" }, err[256];
+	char line[SYNC_LINE_MAX], err[256];
+	struct last_lines last = { .n = 0 };
 	uint64_t n = 0;
 	int r;
 
@@ -411,7 +420,7 @@ static enum sync_drop read_body(struct cursor *c, uint64_t lines, struct sky_sta
 		if (++n > lines || n > SYNC_BODY_LINES_MAX)
 			return drop(SYNC_DROP_MALFORMED, why, why_size,
 				    "more lines than the header's %" PRIu64, lines);
-		enum sync_drop d = body_line(st, line, ks, modes, &ks->utc_s, why, why_size);
+		enum sync_drop d = body_line(st, line, ks, &last, &ks->utc_s, why, why_size);
 		if (d)
 			return d;
 	}
@@ -420,8 +429,8 @@ static enum sync_drop read_body(struct cursor *c, uint64_t lines, struct sky_sta
 	if (n != lines)
 		return drop(SYNC_DROP_MALFORMED, why, why_size,
 			    "%" PRIu64 " lines where the header says %" PRIu64, n, lines);
-	for (int i = 0; i < 2; i++)
-		if (modes[i][0] && (r = state_set_pair(st, modes[i], NULL, err, sizeof(err))) < 0)
+	for (unsigned i = 0; i < last.n; i++)
+		if ((r = state_set_pair(st, last.pair[i], NULL, err, sizeof(err))) < 0)
 			return refused(r, err, why, why_size);
 	return SYNC_DROP_NONE;
 }

@@ -596,6 +596,9 @@ static void emitf(weather_emit_fn fn, void *ctx, const char *key, const char *fm
 	fn(ctx, key, buf);
 }
 
+/* A number of struct metar under its field's name; missing when NAN. */
+#define EMIT_FIELD(fn, ctx, m, field) emit_number(fn, ctx, #field, (m)->field)
+
 static void emit_number(weather_emit_fn fn, void *ctx, const char *key, double v)
 {
 	if (isnan(v))
@@ -622,7 +625,7 @@ static void describe_sky(const struct metar *m, weather_emit_fn fn, void *ctx)
 	}
 	fn(ctx, "sky", skies[m->sky]);
 	fn(ctx, "clouds", list[0] ? list : "none");
-	emit_number(fn, ctx, "vertical_visibility_ft", m->vertical_visibility_ft);
+	EMIT_FIELD(fn, ctx, m, vertical_visibility_ft);
 }
 
 void metar_describe(const struct metar *m, weather_emit_fn fn, void *ctx)
@@ -639,18 +642,18 @@ void metar_describe(const struct metar *m, weather_emit_fn fn, void *ctx)
 	if (m->wind_variable)
 		fn(ctx, "wind_dir_deg", "VRB");
 	else
-		emit_number(fn, ctx, "wind_dir_deg", m->wind_dir_deg);
-	emit_number(fn, ctx, "wind_speed", m->wind_speed);
-	emit_number(fn, ctx, "wind_gust", m->wind_gust);
+		EMIT_FIELD(fn, ctx, m, wind_dir_deg);
+	EMIT_FIELD(fn, ctx, m, wind_speed);
+	EMIT_FIELD(fn, ctx, m, wind_gust);
 	fn(ctx, "wind_unit", m->wind_unit[0] ? m->wind_unit : "none");
 	if (m->wind_from_deg >= 0)
 		emitf(fn, ctx, "wind_sector_deg", "%d-%d", m->wind_from_deg, m->wind_to_deg);
 	else
 		fn(ctx, "wind_sector_deg", "none");
 	emitf(fn, ctx, "cavok", "%d", m->cavok);
-	emit_number(fn, ctx, "visibility_m", m->visibility_m);
+	EMIT_FIELD(fn, ctx, m, visibility_m);
 	fn(ctx, "visibility_qualifier", quals[m->visibility_qualifier]);
-	emit_number(fn, ctx, "min_visibility_m", m->min_visibility_m);
+	EMIT_FIELD(fn, ctx, m, min_visibility_m);
 	fn(ctx, "min_visibility_dir", m->min_visibility_dir[0] ? m->min_visibility_dir : "none");
 	emitf(fn, ctx, "rvr_groups", "%d", m->n_rvr);
 	for (int i = 0; i < m->n_weather; i++)
@@ -658,9 +661,9 @@ void metar_describe(const struct metar *m, weather_emit_fn fn, void *ctx)
 	fn(ctx, "weather", list[0] ? list : m->no_significant_weather ? "NSW" : "none");
 	emitf(fn, ctx, "recent_groups", "%d", m->n_recent);
 	describe_sky(m, fn, ctx);
-	emit_number(fn, ctx, "temperature_c", m->temperature_c);
-	emit_number(fn, ctx, "dewpoint_c", m->dewpoint_c);
-	emit_number(fn, ctx, "qnh_hpa", m->qnh_hpa);
+	EMIT_FIELD(fn, ctx, m, temperature_c);
+	EMIT_FIELD(fn, ctx, m, dewpoint_c);
+	EMIT_FIELD(fn, ctx, m, qnh_hpa);
 	emitf(fn, ctx, "wind_shear", "%d", m->wind_shear);
 	fn(ctx, "trend", m->trend[0] ? m->trend : "none");
 	emitf(fn, ctx, "remarks", "%d", m->remarks);

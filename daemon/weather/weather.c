@@ -1,5 +1,6 @@
-/* weather.c - weather inputs, their keys, and their mapping onto the Mie and
- * ozone constituents and the cloud light factor (docs/weather.md). */
+/* weather.c - weather inputs and their mapping onto the Mie and ozone
+ * constituents and the cloud light factor (docs/weather.md). Their keys
+ * are the state's (daemon/state/state_keys.c). */
 #include "weather.h"
 
 #include "proto.h"
@@ -7,7 +8,6 @@
 #include <errno.h>
 #include <locale.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -44,8 +44,10 @@ struct aerosol_type {
 	double gamma;
 };
 
-static const char *const aerosol_names[WEATHER_N_AEROSOLS + 1] = {
-	"auto", "clean", "continental", "urban", "maritime", "desert", NULL,
+const char *const weather_aerosol_names[WEATHER_N_AEROSOLS + 1] = {
+	[WEATHER_AEROSOL_AUTO] = "auto", [WEATHER_CLEAN] = "clean",
+	[WEATHER_CONTINENTAL] = "continental", [WEATHER_URBAN] = "urban",
+	[WEATHER_MARITIME] = "maritime", [WEATHER_DESERT] = "desert", [WEATHER_N_AEROSOLS] = NULL,
 };
 
 static const struct aerosol_type aerosol_types[WEATHER_N_AEROSOLS] = {
@@ -86,147 +88,32 @@ bool weather_equal(const struct weather *a, const struct weather *b)
 
 const char *weather_aerosol_name(enum weather_aerosol t)
 {
-	return t >= 0 && t < WEATHER_N_AEROSOLS ? aerosol_names[t] : "invalid";
+	return t >= 0 && t < WEATHER_N_AEROSOLS ? weather_aerosol_names[t] : "invalid";
 }
 
-int weather_aerosol_parse(const char *name, enum weather_aerosol *ret)
-{
-	for (int i = 0; aerosol_names[i]; i++)
-		if (strcmp(name, aerosol_names[i]) == 0) {
-			*ret = (enum weather_aerosol)i;
-			return 0;
-		}
-	return -EINVAL;
-}
-
-/* ---- keys ---- */
-
-struct wkey {
-	const char *name;
-	size_t offset;		/* of the double; (size_t)-1 for aerosol */
-	double min, max, scale;	/* value stored = parsed * scale */
-	unsigned affects;
-};
-
-#define WOFF(f) offsetof(struct weather, f)
-#define ATM WEATHER_AFFECTS_ATMOSPHERE
-static const struct wkey wkeys[] = {
-	{ "visibility_km", WOFF(visibility_km), WEATHER_VISIBILITY_MIN_KM,
-	  WEATHER_VISIBILITY_MAX_KM, 1.0, ATM },
-	{ "relative_humidity", WOFF(relative_humidity), 0.0, 1.0, 1.0, ATM },
-	{ "aerosol", (size_t)-1, 0, 0, 0, ATM },
-	{ "angstrom_beta", WOFF(angstrom_beta), 0.0, WEATHER_ANGSTROM_BETA_MAX, 1.0, ATM },
-	{ "ozone_du", WOFF(ozone_du), 0.0, WEATHER_OZONE_DU_MAX, 1.0, ATM },
-	{ "cloud_oktas", WOFF(cloud_oktas), 0.0, WEATHER_OKTAS_MAX, 1.0, WEATHER_AFFECTS_LIGHTS },
-	{ "cloud_fraction", WOFF(cloud_oktas), 0.0, 1.0, 8.0, WEATHER_AFFECTS_LIGHTS },
-};
-#define N_WKEYS (sizeof(wkeys) / sizeof(wkeys[0]))
-
-const char *const weather_keys[] = {
-	"visibility_km", "relative_humidity", "aerosol", "angstrom_beta", "ozone_du",
-	"cloud_oktas", "cloud_fraction", NULL,
-};
-
-static const struct wkey *find_key(const char *key)
-{
-	for (size_t i = 0; i < N_WKEYS; i++)
-		if (strcmp(wkeys[i].name, key) == 0)
-			return &wkeys[i];
-	return NULL;
-}
-
-unsigned weather_key_affects(const char *key)
-{
-	const struct wkey *k = find_key(key);
-	return k ? k->affects : 0;
-}
-
-int weather_set(struct weather *w, const char *key, const char *value, char *err,
-		size_t err_size)
-{
-	const struct wkey *k = find_key(key);
-	double d;
-
-	if (!k) {
-		snprintf(err, err_size, "%s: not a weather key", key);
-		return -ENOENT;
-	}
-	if (k->offset == (size_t)-1) {
-		if (weather_aerosol_parse(value, &w->aerosol) < 0) {
-			snprintf(err, err_size,
-				 "%s: '%s' is not auto, clean, continental, urban, maritime or desert",
-				 key, value);
-			return -EINVAL;
-		}
-		return 0;
-	}
-	double *field = (double *)((char *)w + k->offset);
-	if (strcmp(value, "auto") == 0) {
-		*field = NAN;
-		return 0;
-	}
-	if (proto_parse_number(value, &d) < 0) {
-		snprintf(err, err_size, "%s: '%s' is not auto or a finite number", key, value);
-		return -EINVAL;
-	}
-	if (d < k->min || d > k->max) {
-		snprintf(err, err_size, "%s: %g is outside [%g, %g]", key, d, k->min, k->max);
-		return -ERANGE;
-	}
-	*field = d * k->scale;
-	return 0;
-}
-
-int weather_get(const struct weather *w, const char *key, char *buf, size_t size)
-{
-	const struct wkey *k = find_key(key);
-
-	if (!k)
-		return -ENOENT;
-	if (k->offset == (size_t)-1) {
-		snprintf(buf, size, "%s", weather_aerosol_name(w->aerosol));
-		return 0;
-	}
-	double d = *(const double *)((const char *)w + k->offset);
-	if (isnan(d))
-		snprintf(buf, size, "auto");
-	else
-		snprintf(buf, size, "%.9g", d / k->scale);
-	return 0;
-}
-
-void weather_foreach(const struct weather *w, weather_emit_fn fn, void *ctx)
-{
-	char buf[64];
-
-	for (size_t i = 0; i < N_WKEYS; i++) {
-		if (strcmp(wkeys[i].name, "cloud_fraction") == 0)
-			continue;
-		weather_get(w, wkeys[i].name, buf, sizeof(buf));
-		fn(ctx, wkeys[i].name, buf);
-	}
-}
+/* An input out of its range: the message names its field of struct
+ * weather, the key that sets it. */
+#define OUTSIDE(w, field, lo, hi) (!isnan((w)->field) && !((w)->field >= (lo) && (w)->field <= (hi)))
+#define REFUSE_OUTSIDE(w, field, lo, hi)                                                    \
+	do {                                                                                \
+		if (OUTSIDE(w, field, lo, hi)) {                                            \
+			snprintf(err, err_size, #field ": %g is outside [%g, %g]", (w)->field, \
+				 (double)(lo), (double)(hi));                                \
+			return -ERANGE;                                                     \
+		}                                                                           \
+	} while (0)
 
 int weather_validate(const struct weather *w, char *err, size_t err_size)
 {
-	for (size_t i = 0; i < N_WKEYS; i++) {
-		const struct wkey *k = &wkeys[i];
-		if (k->offset == (size_t)-1) {
-			if (w->aerosol < 0 || w->aerosol >= WEATHER_N_AEROSOLS) {
-				snprintf(err, err_size, "aerosol: unknown type %d", (int)w->aerosol);
-				return -ERANGE;
-			}
-			continue;
-		}
-		double d = *(const double *)((const char *)w + k->offset) / k->scale;
-		if (isnan(d))
-			continue;
-		if (!(d >= k->min && d <= k->max)) {
-			snprintf(err, err_size, "%s: %g is outside [%g, %g]", k->name, d, k->min,
-				 k->max);
-			return -ERANGE;
-		}
+	REFUSE_OUTSIDE(w, visibility_km, WEATHER_VISIBILITY_MIN_KM, WEATHER_VISIBILITY_MAX_KM);
+	REFUSE_OUTSIDE(w, relative_humidity, 0.0, 1.0);
+	if (w->aerosol < 0 || w->aerosol >= WEATHER_N_AEROSOLS) {
+		snprintf(err, err_size, "aerosol: unknown type %d", (int)w->aerosol);
+		return -ERANGE;
 	}
+	REFUSE_OUTSIDE(w, angstrom_beta, 0.0, WEATHER_ANGSTROM_BETA_MAX);
+	REFUSE_OUTSIDE(w, ozone_du, 0.0, WEATHER_OZONE_DU_MAX);
+	REFUSE_OUTSIDE(w, cloud_oktas, 0.0, WEATHER_OKTAS_MAX);
 	return 0;
 }
 
@@ -422,10 +309,13 @@ int weather_map(const struct weather *w, const struct atmo *a, struct weather_ma
 	m.sets_mie = !isnan(w->visibility_km) || !isnan(w->relative_humidity) ||
 		     w->aerosol != WEATHER_AEROSOL_AUTO || !isnan(w->angstrom_beta);
 	if (m.sets_mie && mie < 0) {
+		/* Named after the first aerosol input given. */
+#define FIELD(f) #f
 		snprintf(err, err_size, "%s: the atmosphere has no mie constituent",
-			 !isnan(w->visibility_km) ? "visibility_km"
-			 : !isnan(w->relative_humidity) ? "relative_humidity"
-			 : !isnan(w->angstrom_beta) ? "angstrom_beta" : "aerosol");
+			 !isnan(w->visibility_km) ? FIELD(visibility_km)
+			 : !isnan(w->relative_humidity) ? FIELD(relative_humidity)
+			 : !isnan(w->angstrom_beta) ? FIELD(angstrom_beta) : FIELD(aerosol));
+#undef FIELD
 		return -EINVAL;
 	}
 	double air_550 = ground_extinction_550(a, mie);
@@ -462,48 +352,4 @@ void weather_apply(const struct weather_map *m, struct atmo *a)
 	if (m->sets_ozone && ozone >= 0)
 		for (int ch = 0; ch < 3; ch++)
 			a->c[ozone].absorption_per_km[ch] = m->ozone_absorption_per_km[ch];
-}
-
-static void emit(weather_emit_fn fn, void *ctx, const char *key, const char *fmt, ...)
-	__attribute__((format(printf, 4, 5)));
-static void emit(weather_emit_fn fn, void *ctx, const char *key, const char *fmt, ...)
-{
-	char buf[128];
-	va_list ap;
-	va_start(ap, fmt);
-	vsnprintf(buf, sizeof(buf), fmt, ap);
-	va_end(ap);
-	fn(ctx, key, buf);
-}
-
-void weather_describe(const struct weather *w, const struct weather_map *m, weather_emit_fn fn,
-		      void *ctx)
-{
-	weather_foreach(w, fn, ctx);
-	emit(fn, ctx, "mie_source", "%s", m->sets_mie ? "weather" : "atmosphere");
-	if (m->sets_mie) {
-		const struct weather_mie *p = &m->mie;
-		emit(fn, ctx, "aerosol_used", "%s", weather_aerosol_name(m->aerosol));
-		emit(fn, ctx, "relative_humidity_used", "%.9g", m->relative_humidity);
-		emit(fn, ctx, "humidity_growth", "%.9g", m->growth);
-		emit(fn, ctx, "aerosol_extinction_550_per_km", "%.9g", m->extinction_550_per_km);
-		emit(fn, ctx, "aerosol_optical_depth_550", "%.9g", m->aod_550);
-		emit(fn, ctx, "single_scattering_albedo", "%.9g", m->ssa);
-		emit(fn, ctx, "angstrom_440_550", "%.9g", m->angstrom_440_550);
-		emit(fn, ctx, "angstrom_550_680", "%.9g", m->angstrom_550_680);
-		emit(fn, ctx, "mie_scattering_per_km", "%.9g,%.9g,%.9g", p->scattering_per_km[0],
-		     p->scattering_per_km[1], p->scattering_per_km[2]);
-		emit(fn, ctx, "mie_absorption_per_km", "%.9g,%.9g,%.9g", p->absorption_per_km[0],
-		     p->absorption_per_km[1], p->absorption_per_km[2]);
-		emit(fn, ctx, "mie_g", "%.9g", p->g);
-		emit(fn, ctx, "mie_scale_height_km", "%.9g", p->scale_height_km);
-	}
-	emit(fn, ctx, "visibility_effective_km", "%.9g", m->visibility_km);
-	emit(fn, ctx, "ozone_source", "%s", m->sets_ozone ? "weather" : "atmosphere");
-	emit(fn, ctx, "ozone_du_effective", "%.9g", m->ozone_du);
-	if (m->sets_ozone)
-		emit(fn, ctx, "ozone_absorption_per_km", "%.9g,%.9g,%.9g",
-		     m->ozone_absorption_per_km[0], m->ozone_absorption_per_km[1],
-		     m->ozone_absorption_per_km[2]);
-	emit(fn, ctx, "cloud_light_factor", "%.9g", m->light_factor);
 }

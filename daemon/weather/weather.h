@@ -7,7 +7,8 @@
  * constituent (scattering and absorption per channel, g, scale height), a
  * scale for the ozone absorption and a light factor for the sun and moon.
  * weather_apply() writes the map into an atmosphere. Formulas, sources and
- * ranges: docs/weather.md.
+ * ranges: docs/weather.md. The keys that set the inputs are the sky
+ * state's (daemon/state/state_keys.c).
  *
  * The inputs are a plain value struct, not an opaque one, so that the sky's
  * state can embed and copy it like struct atmo; compare two with
@@ -50,12 +51,6 @@ struct weather {
 	double cloud_oktas;		/* cloud cover 0..8 */
 };
 
-/* What a key changes, for the caller to turn into tables to recompute. */
-enum {
-	WEATHER_AFFECTS_ATMOSPHERE = 1,	/* the constituents: every table */
-	WEATHER_AFFECTS_LIGHTS = 2,	/* the sun's and moon's illuminance only */
-};
-
 /* The Mie constituent a weather maps to. */
 struct weather_mie {
 	double scattering_per_km[3];	/* at the ground, 680 / 550 / 440 nm */
@@ -65,7 +60,7 @@ struct weather_mie {
 };
 
 /* The outcome of weather_map: what weather_apply writes, and the figures
- * weather_describe reports. */
+ * `get weather` reports (state_describe_weather). */
 struct weather_map {
 	bool sets_mie;			/* false: no aerosol input, Mie left as it is */
 	struct weather_mie mie;
@@ -95,28 +90,10 @@ bool weather_is_empty(const struct weather *w);
 /* True when a and b give the same inputs (NAN equals NAN here). */
 bool weather_equal(const struct weather *a, const struct weather *b);
 
-/* The keys, NULL-terminated: visibility_km, relative_humidity, aerosol,
- * angstrom_beta, ozone_du, cloud_oktas, cloud_fraction. */
-extern const char *const weather_keys[];
-/* WEATHER_AFFECTS_* bits of a key; 0 when key is not a weather key. */
-unsigned weather_key_affects(const char *key);
-
-/* Parses one key=value into w: a number in the key's range, an aerosol
- * name, or "auto" (not given). cloud_fraction (0..1) sets cloud_oktas to 8
- * times it. Returns 0, -ENOENT for a key that is not a weather key, or
- * -EINVAL (malformed) / -ERANGE (out of range) with a message naming the
- * key in err; w is unchanged on failure. Numbers are read in the C locale. */
-int weather_set(struct weather *w, const char *key, const char *value, char *err,
-		size_t err_size);
-/* Formats one key's value ("auto" when not given); -ENOENT if unknown. */
-int weather_get(const struct weather *w, const char *key, char *buf, size_t size);
-
 typedef void (*weather_emit_fn)(void *ctx, const char *key, const char *value);
-/* Calls fn for every key of weather_keys but cloud_fraction with its value. */
-void weather_foreach(const struct weather *w, weather_emit_fn fn, void *ctx);
 
 /* Checks every input against its range. Returns 0 or -ERANGE with a
- * message naming the key. */
+ * message naming the field (the key that sets it). */
 int weather_validate(const struct weather *w, char *err, size_t err_size);
 
 /* Maps w against atmosphere a (found by constituent name: "rayleigh" and
@@ -133,11 +110,6 @@ int weather_map(const struct weather *w, const struct atmo *a, struct weather_ma
  * the caller's to apply to the illuminances. */
 void weather_apply(const struct weather_map *m, struct atmo *a);
 
-/* Calls fn with "key: value" pairs for `get weather`: the inputs, then what
- * they map to (m as weather_map made it from w). */
-void weather_describe(const struct weather *w, const struct weather_map *m, weather_emit_fn fn,
-		      void *ctx);
-
 /* Kasten and Czeplak (1980): global irradiance under N oktas of cloud over
  * the clear-sky value, 1 - 0.75 (N / 8)^3.4; oktas clamped to [0, 8]. */
 double weather_cloud_light_factor(double oktas);
@@ -152,9 +124,9 @@ double weather_ozone_du(const struct atmo *a);
  * km; INFINITY for an atmosphere with no extinction. */
 double weather_visibility_km(const struct atmo *a);
 
-/* The name of an aerosol type ("auto", "clean", "continental", ...) and its
- * parser (-EINVAL if unknown). */
+/* The aerosol types' names, NULL-terminated, in enum order ("auto",
+ * "clean", "continental", ...), and the name of one. */
+extern const char *const weather_aerosol_names[];
 const char *weather_aerosol_name(enum weather_aerosol t);
-int weather_aerosol_parse(const char *name, enum weather_aerosol *ret);
 
 #endif
