@@ -17,7 +17,7 @@
 #include "proto.h"
 #include "sky.h"
 
-/* Exit codes, documented in usage() and client/README-skyctl.md. */
+/* Exit codes, documented in usage() and skyctl(1) (man/skyctl.1.scd). */
 enum { EXIT_OK = 0, EXIT_REFUSED = 1, EXIT_USAGE = 2 };
 
 struct opts {

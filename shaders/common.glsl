@@ -629,7 +629,7 @@ bool ray_in_shell(float h0, vec3 dir, out Entry en)
 // f is the phase's 6th Legendre moment, not delta-Eddington's 2nd: a wide
 // peak taken as undeflected brightens the horizon, where the light changes
 // within the peak's width. docs/physics.md derives the split; the figures
-// are in docs/findings.md.
+// are in docs/findings/shaders.md.
 
 // The scattering that the scaled medium removes, per unit density of
 // DELTA_CONST: f sigma_D.

@@ -14,7 +14,7 @@ layout(constant_id = SPEC_MS_DIRS) const int MS_DIRS = 64;
 // (ring_edge()): the rings at the horizon are 0.66 of the mean cell's solid
 // angle, those at the zenith and nadir 1.18 of it, each weighted by its
 // exact solid angle. The grids and powers compared are in
-// docs/findings.md; skybench accuracy measures it and test_msgrid
+// docs/findings/shaders.md; skybench accuracy measures it and test_msgrid
 // checks the rings' weights.
 const int MS_RINGS = 16, MS_COLS = 4, MS_HALF_COLS = MS_COLS / 2;
 const float MS_RING_POW = 1.2;

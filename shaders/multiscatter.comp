@@ -220,8 +220,9 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 // higher orders psi times each direction's transfer (sum_transfer): they
 // arrive far more from the horizon than L2. Only where the sun is up (lit):
 // in the earth's shadow psi along a path is not the point's, and the shape
-// read twilight skies high (docs/findings.md, "The horizon reads blue low").
-// docs/physics.md derives the bands; docs/findings.md has the variants
+// read twilight skies high (docs/findings/shaders.md, "The horizon reads
+// blue low").
+// docs/physics.md derives the bands; docs/findings/shaders.md has the variants
 // measured on Mars.
 void store_shape(int i, int j, vec3 psi, vec3 sun_j, float escape_lum, float lit)
 {
@@ -248,7 +249,8 @@ void store_shape(int i, int j, vec3 psi, vec3 sun_j, float escape_lum, float lit
 // horizontal paths, where more of it scatters: f_eff = f + 5 g2 <P2>
 // <f P2>, with g2 the medium's at the point (sum sigma_i g2_i / sigma_s)
 // and <P2> the field's of store_shape (from the first psi). Returns
-// f_eff - f per channel (docs/findings.md, "The horizon reads blue low").
+// f_eff - f per channel (docs/findings/shaders.md, "The horizon reads blue
+// low").
 vec3 band2_transfer(int j, float h, vec3 psi, vec3 sun_j)
 {
 	float l = max(dot(sum_l2[j], MS_SHARE_LUM), 1e-30);

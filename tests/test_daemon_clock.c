@@ -281,7 +281,7 @@ static void test_moon(struct conn *c)
 }
 
 /* The night-sky floor: the zenith and the horizontal illuminance that
- * PROTOCOL.md promises, read back from the published tables; 0 turns it off. */
+ * docs/physics.md promises, read back from the published tables; 0 turns it off. */
 static void test_night(struct conn *c, struct conn *ev)
 {
 	CHECK(conn_request(c, "set sun_elevation_deg=-40 moon_illuminance_lx=0", reply, sizeof(reply)) == 0);

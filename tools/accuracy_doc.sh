@@ -1,6 +1,6 @@
 #!/bin/sh
 # accuracy_doc.sh - writes docs/accuracy.md from the output of `skybench
-# accuracy`: a short header that links to the findings (docs/findings.md,
+# accuracy`: a short header that links to the findings (docs/findings/,
 # prose written from the figures), then the generated tables verbatim; copies
 # the plots, the fisheye images and the CSV to docs/accuracy/.
 #   usage: tools/accuracy_doc.sh --run [BUILD_DIR]
@@ -47,9 +47,9 @@ minutes); do not edit by hand.
 
 What the figures mean, whether the truth is good enough, what was changed
 to reach them and what bounds the rest:
-[findings.md, "Accuracy against a path-traced truth"](findings.md#accuracy-against-a-path-traced-truth)
+[findings/shaders.md, "Accuracy against a path-traced truth"](findings/shaders.md#accuracy-against-a-path-traced-truth)
 and, for colour and the observers,
-[findings.md, "Colour and observers from the ground to orbit"](findings.md#colour-and-observers-from-the-ground-to-orbit).
+[findings/tools.md, "Colour and observers from the ground to orbit"](findings/tools.md#colour-and-observers-from-the-ground-to-orbit).
 HEADER
 	printf '\n## The report\n\nMachine: %s.\n\n' "$machine"
 	printf '![error against run time](accuracy/errtime.png)\n\n'

@@ -206,7 +206,7 @@ void acc_write_md_colour(FILE *f, const struct scene *sc, size_t n_sc, const str
 		"km to 0.5 km, then 1, 5 and 20 deg below the geometric horizon, and the "
 		"nadir); from 100 km (the top of Earth's atmosphere) and 400 km (the ISS) "
 		"there is no air above, so they look down only. The same goals hold for every "
-		"observer; what bounds the limb from 100 and 400 km is in docs/findings.md, "
+		"observer; what bounds the limb from 100 and 400 km is in docs/findings/tools.md, "
 		"\"Colour and observers from the ground to orbit\".\n\n");
 	write_goals(f, sc, n_sc, r);
 	fprintf(f, "\nEvery configuration over the scenes of the sweeps, per channel "

@@ -81,7 +81,7 @@ static void march(const struct ctx *c, v3 dir, double a, double b, uint32_t n, b
 	}
 }
 
-/* The night-sky floor of a sky-view direction (PROTOCOL.md): the measured
+/* The night-sky floor of a sky-view direction (docs/physics.md): the measured
  * floor over the sky, L_z (1 + c (1 - mu)); toward the ground only the
  * airlight of the ray, the horizon's floor times (1 - T). */
 static v3 night_sky(const struct ctx *c, double mu, bool sky, v3 tr)

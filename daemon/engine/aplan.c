@@ -117,7 +117,7 @@ static bool same_eye(const struct aplan_camera *a, const struct aplan_camera *b)
  * its rows (48 x 16 for 32 x 32), which holds
  * tests/test_views.c's goal; 64 x 16 brings the 99th percentile of the
  * error on Mars from 9.2 to 7.3 % for a third more march
- * (docs/findings.md). Never fewer than 48 x 16: the error is set by the
+ * (docs/findings/engine.md). Never fewer than 48 x 16: the error is set by the
  * sky's curvature between the panorama's rays, not by the volume's size
  * (16 x 16 volumes from a 24 x 8 panorama read 2.8 % on average). */
 static void panorama_size(const struct sky_state *s, uint32_t *ret_w, uint32_t *ret_h)

@@ -21,7 +21,7 @@
 #define N_SPEC SPEC_COUNT
 /* Texels of a row one invocation shares its rays between: sun angles of
  * multi-scattering, azimuths of sky-view (more azimuths share more work
- * until the registers run out; docs/findings.md). */
+ * until the registers run out; docs/findings/engine.md). */
 #define MS_SUN_GROUP 4
 #define SV_AZ_GROUP 12
 /* The aerial jobs (sky_params.h): a count, then at most one march and one

@@ -88,7 +88,7 @@ int phase_delta_constituent(const struct sky_state *s, const double *g1_of)
 	 * transports psi through the real medium, and the two together
 	 * disagree with the model (test_engine); forced on, the pair reads
 	 * thick atmospheres better, so it is worth making consistent one day
-	 * (docs/findings.md). */
+	 * (docs/findings/shaders.md). */
 	if (s->quality.multiscatter_delta == STATE_MOMENT_OFF || state_multiscatter_iterations(s) > 0)
 		return -1;
 	t = *s;

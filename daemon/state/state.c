@@ -15,7 +15,7 @@ const char *const state_table_names[STATE_N_TABLES] = {
 /* The quality presets behind the key quality=low|medium|high|ultra. medium
  * is the reference of docs/physics.md and the default; it takes at most 20
  * sky-view steps a ray (docs/physics.md: about 4 to 30), where more steps
- * no longer move the error (docs/findings.md). low halves it,
+ * no longer move the error (docs/findings/daemon.md). low halves it,
  * high raises steps by half, ultra doubles sizes and steps (about 8 times
  * the work of medium: more would take seconds on lavapipe). `skybench
  * accuracy` measures their cost and error. Every preset leaves
@@ -143,7 +143,7 @@ uint32_t state_multiscatter_iterations(const struct sky_state *s)
 		return (uint32_t)s->quality.multiscatter_iterations - 1;
 	/* Not on the 2-direction fast path: its f_ms is too coarse for the
 	 * transfer, and iterating spreads its errors instead of correcting
-	 * them (docs/findings.md). */
+	 * them (docs/findings/daemon.md). */
 	if (s->quality.multiscatter_dirs != 64)
 		return 0;
 	/* The threshold needs a few percent: 1000 intervals are plenty. */

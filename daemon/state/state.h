@@ -115,7 +115,7 @@ struct state_clock {
 };
 
 /* Night-sky floor (airglow, starlight, zodiacal light) added to the
- * sky-view and aerial tables; see proto/PROTOCOL.md "Night-sky floor". */
+ * sky-view and aerial tables; see docs/physics.md "The night-sky floor". */
 struct state_night {
 	double zenith_luminance_cd_m2;	/* 0 switches the floor off */
 	double illuminance_lx;		/* horizontal, from the whole floor */
