@@ -19,7 +19,7 @@ static struct fake_skyd fake;
 static void test_projections(sky_client *c)
 {
 	struct sky_view v;
-	CHECK(sky_view_begin(c, &v) == 0);
+	CHECK_EQ(sky_view_begin(c, &v), 0);
 	double sun_el = 30.0, sun_az = 120.0, dir[3], x, y;
 	struct sky_render_params ps[3] = {
 		{ .projection = SKY_PROJECTION_EQUIRECT, .width = 360, .height = 180 },
@@ -39,10 +39,10 @@ static void test_projections(sky_client *c)
 	CHECK(sky_render_position(&ps[2], dir, &x, &y) == 1 && fabs(x - 176.0) < 1e-9 &&
 	      fabs(y - 75.5) < 1e-9);
 	skysample_direction(-5.0 * DEG, 0.0, dir);
-	CHECK(sky_render_position(&ps[2], dir, &x, &y) == 0);
+	CHECK_EQ(sky_render_position(&ps[2], dir, &x, &y), 0);
 	skysample_direction(20.0 * DEG, 100.0 * DEG, dir);	/* perspective axis: the centre */
 	CHECK(sky_render_position(&ps[1], dir, &x, &y) == 1 && fabs(x - 80) < 1e-9 && fabs(y - 45) < 1e-9);
-	CHECK(sky_render_direction(&ps[2], 0.5, 0.5, dir) == 0);	/* corner outside */
+	CHECK_EQ(sky_render_direction(&ps[2], 0.5, 0.5, dir), 0);	/* corner outside */
 
 	for (int n = 0; n < 3; n++) {
 		struct sky_render_params p = ps[n];
@@ -62,7 +62,7 @@ static void test_projections(sky_client *c)
 		/* the brightest pixel of a render is where the sun's disk is */
 		p.flags = SKY_SAMPLE_SUN_DISK;
 		float *img = malloc(sizeof(float) * 3 * p.width * p.height);
-		CHECK(sky_render(&v, &p, img) == 0);
+		CHECK_EQ(sky_render(&v, &p, img), 0);
 		double best = -1, bx = 0, by = 0, sx, sy;
 		double sum_x = 0, sum_y = 0, cnt = 0;
 		for (uint32_t py = 0; py < p.height; py++)
@@ -80,7 +80,7 @@ static void test_projections(sky_client *c)
 				}
 			}
 		skysample_direction(sun_el * DEG, sun_az * DEG, dir);
-		CHECK(sky_render_position(&p, dir, &sx, &sy) == 1);
+		CHECK_EQ(sky_render_position(&p, dir, &sx, &sy), 1);
 		printf("projection %d: sun disk centroid (%.2f, %.2f) over %.0f px, expected (%.2f, %.2f)\n",
 		       n, sum_x / cnt, sum_y / cnt, cnt, sx, sy);
 		CHECK(cnt > 3 && fabs(sum_x / cnt - sx) < 1.0 && fabs(sum_y / cnt - sy) < 1.0);
@@ -88,9 +88,9 @@ static void test_projections(sky_client *c)
 		/* a pixel off the disk holds the sky-view value in that direction */
 		double d[3], rgb[3];
 		double qx = p.width / 4 + 0.5, qy = p.height / 2 + 0.5;
-		CHECK(sky_render_direction(&p, qx, qy, d) == 1);
+		CHECK_EQ(sky_render_direction(&p, qx, qy, d), 1);
 		double el = asin(d[2]) / DEG, az = atan2(d[0], d[1]) / DEG;
-		CHECK(sky_sample_sky(&v, el, az, 0, rgb) == 0);
+		CHECK_EQ(sky_sample_sky(&v, el, az, 0, rgb), 0);
 		CHECK(fabsf(img[((p.height / 2) * p.width + p.width / 4) * 3 + 2] - (float)rgb[2]) <= 1e-6f * (float)rgb[2] + 1e-6f);
 		free(img);
 	}

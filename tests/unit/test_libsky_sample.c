@@ -18,7 +18,7 @@ static struct fake_skyd fake;
 static void test_sampling_at_texel_centres(sky_client *c)
 {
 	struct sky_view v;
-	CHECK(sky_view_begin(c, &v) == 0);
+	CHECK_EQ(sky_view_begin(c, &v), 0);
 	CHECK(v.valid_tables == SKY_TABLES_ALL && v.generation == 1 && v.slot_index == 1);
 	const float *t = fake_skyd_table(&fake, 1, SKY_TABLE_TRANSMITTANCE);
 	double worst = 0.0;
@@ -27,7 +27,7 @@ static void test_sampling_at_texel_centres(sky_client *c)
 			double alt, mu, rgb[3];
 			skymap_transmittance_inverse(6360.0, 6460.0, (i + 0.5) / FAKE_TW, (j + 0.5) / FAKE_TH,
 						     FAKE_TW, FAKE_TH, &alt, &mu);
-			CHECK(sky_sample_transmittance(&v, alt, mu, rgb) == 0);
+			CHECK_EQ(sky_sample_transmittance(&v, alt, mu, rgb), 0);
 			for (int k = 0; k < 3; k++)
 				worst = fmax(worst, fabs(rgb[k] - t[(j * FAKE_TW + i) * 4 + k]));
 		}
@@ -41,7 +41,7 @@ static void test_sampling_at_texel_centres(sky_client *c)
 			double zen, az, rgb[3];
 			double hc = skymap_horizon_cos(6360.0, 0.2);
 			skymap_skyview_inverse(hc, (i + 0.5) / FAKE_SW, (j + 0.5) / FAKE_SH, FAKE_SH, &zen, &az);
-			CHECK(sky_sample_sky(&v, 90.0 - zen / DEG, az / DEG, 0, rgb) == 0);
+			CHECK_EQ(sky_sample_sky(&v, 90.0 - zen / DEG, az / DEG, 0, rgb), 0);
 			worst = fmax(worst, fabs(rgb[0] - (i + 1)));
 			worst = fmax(worst, fabs(rgb[1] - (j + 1)));
 			worst = fmax(worst, fabs(rgb[2] - (i + FAKE_SW * j)));
@@ -53,7 +53,7 @@ static void test_sampling_at_texel_centres(sky_client *c)
 		double zen, az, rgb[3];
 		skymap_skyview_inverse(skymap_horizon_cos(6360.0, 0.2), 0.5 / FAKE_SW, 2.5 / FAKE_SH, FAKE_SH,
 				       &zen, &az);
-		CHECK(sky_sample_sky(&v, 90.0 - zen / DEG, 0.0, 0, rgb) == 0);
+		CHECK_EQ(sky_sample_sky(&v, 90.0 - zen / DEG, 0.0, 0, rgb), 0);
 		CHECK(fabs(rgb[0] - 0.5 * (1 + FAKE_SW)) < 1e-6);
 		CHECK(fabs(rgb[1] - 3.0) < 1e-6);
 	}
@@ -65,7 +65,7 @@ static void test_sampling_at_texel_centres(sky_client *c)
 			for (int i = 0; i < FAKE_AW; i++) {
 				double rgb[3], tr;
 				double d = skymap_aerial_depth_km(k, FAKE_AD, 32.0, 1);
-				CHECK(sky_sample_aerial(&v, (i + 0.5) / FAKE_AW, (j + 0.5) / FAKE_AH, d, rgb, &tr) == 0);
+				CHECK_EQ(sky_sample_aerial(&v, (i + 0.5) / FAKE_AW, (j + 0.5) / FAKE_AH, d, rgb, &tr), 0);
 				worst = fmax(worst, fabs(rgb[0] - (k + 1)));
 				worst = fmax(worst, fabs(rgb[1] - (i + 1)));
 				worst = fmax(worst, fabs(rgb[2] - (j + 1)));
@@ -74,17 +74,17 @@ static void test_sampling_at_texel_centres(sky_client *c)
 	printf("aerial at froxel centres: worst |error| %.3g\n", worst);
 	CHECK(worst < 1e-6);
 	double rgb[3], tr;
-	CHECK(sky_sample_aerial(&v, 0.5, 0.5, 0.0, rgb, &tr) == 0);
+	CHECK_EQ(sky_sample_aerial(&v, 0.5, 0.5, 0.0, rgb, &tr), 0);
 	CHECK(rgb[0] == 0.0 && tr == 1.0);
 	/* halfway (in the slice coordinate) between the camera and slice 0 */
 	double half = 32.0 * pow(0.5 / FAKE_AD, 2.0);
-	CHECK(sky_sample_aerial(&v, (0.5) / FAKE_AW, 0.5 / FAKE_AH, half, rgb, &tr) == 0);
+	CHECK_EQ(sky_sample_aerial(&v, (0.5) / FAKE_AW, 0.5 / FAKE_AH, half, rgb, &tr), 0);
 	CHECK(fabs(rgb[0] - 0.5) < 1e-9 && fabs(tr - 0.95) < 1e-6);
-	CHECK(sky_sample_aerial(&v, 0.5, 0.5, -1.0, rgb, &tr) == -EINVAL);
+	CHECK_EQ(sky_sample_aerial(&v, 0.5, 0.5, -1.0, rgb, &tr), -EINVAL);
 
 	/* sun: top-of-atmosphere illuminance times the table at (altitude, mu_sun) */
 	double lx[3], tr3[3];
-	CHECK(sky_sample_sun(&v, lx) == 0);
+	CHECK_EQ(sky_sample_sun(&v, lx), 0);
 	skysample_transmittance(&(struct skysample_table){ t, SKY_FORMAT_RGBA32F, FAKE_TW, FAKE_TH, 1, 0 },
 				&v.slot->state, 0.2, sin(30.0 * DEG), tr3);
 	for (int k = 0; k < 3; k++)
