@@ -293,7 +293,7 @@ enum aerial_source {
 };
 
 /* Says on stderr where view k's aerial perspective comes from, when that
- * changed: the one line a user (and tests/test_render.c) reads to know
+ * changed: the one line a user (and tests/system/test_render.c) reads to know
  * that a wall's tiles read a panorama. */
 static void say_source(struct link *l, uint32_t k, enum aerial_source src,
 		       const struct sky_gpu_table *t)

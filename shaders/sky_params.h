@@ -1,7 +1,7 @@
 /* sky_params.h - what the engine (C) and the shaders (GLSL) share, defined
  * once: the specialization constants' ids, the descriptor set's bindings and
  * the uniform block's members. The engine includes it through
- * eng_internal.h, the shaders through common.glsl; tests/test_params.c
+ * eng_internal.h, the shaders through common.glsl; tests/unit/test_params.c
  * checks the compiled SPIR-V against the C side. */
 #ifndef SKY_PARAMS_H
 #define SKY_PARAMS_H

@@ -82,7 +82,8 @@ int bench_stability(int argc, char **argv)
 		   "so the difference is precision alone; PSNR with the model's largest RGB as peak, "
 		   "max rel among RGB above 1e-3 of it. f16: the same engine with storage=f16 against its "
 		   "float32 tables. The random sweeps (10,000 atmospheres on the model, 300 on the engine) "
-		   "are in tests/test_stability_model.c and tests/test_stability_gpu.c.\n\n");
+		   "are in tests/numerical/test_stability_model.c and "
+		   "tests/numerical/test_stability_gpu.c.\n\n");
 
 	fprintf(f, "## Invariants\n\n| case | on | stresses");
 	for (int i = 0; i < STAB_N_INVARIANTS - 1; i++)

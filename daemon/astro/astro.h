@@ -101,7 +101,7 @@ struct astro_moon {
 					 * astro_moon_illuminance_lx() */
 	double color[3];		/* linear RGB (680, 550, 440 nm, the tables'
 					 * channels) of the moonlight relative to the
-					 * sunlight, luminance 1; see astro.c */
+					 * sunlight, luminance 1; see astro_moon.c */
 	double delta_t_s;		/* the TT - UT1 that was used */
 };
 

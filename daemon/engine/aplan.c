@@ -115,7 +115,7 @@ static bool same_eye(const struct aplan_camera *a, const struct aplan_camera *b)
 /* The panorama's columns and rows for s's aerial size (one column more is
  * stored: panorama_mapping): three quarters of one volume's columns, half
  * its rows (48 x 16 for 32 x 32), which holds
- * tests/test_views.c's goal; 64 x 16 brings the 99th percentile of the
+ * tests/numerical/test_views.c's goal; 64 x 16 brings the 99th percentile of the
  * error on Mars from 9.2 to 7.3 % for a third more march
  * (docs/findings/engine.md). Never fewer than 48 x 16: the error is set by the
  * sky's curvature between the panorama's rays, not by the volume's size

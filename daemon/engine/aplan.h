@@ -51,7 +51,7 @@ struct aplan {
 
 /* The plan of s. share: cameras of form volume on one eye point are
  * resampled from its panorama (the default), else each is marched (the
- * reference, tests/test_views.c); views of form panorama read their eye
+ * reference, tests/numerical/test_views.c); views of form panorama read their eye
  * point's panorama either way. Volumes and published panoramas are
  * numbered the same either way. */
 void aplan_make(const struct sky_state *s, bool share, struct aplan *ret);

@@ -115,7 +115,7 @@ void eng_forget_columns(struct eng *e);
  * same altitude and position) share one march of aerial perspective, a
  * panorama of the eye point resampled into each volume (the default), or
  * each volume is marched on its own: the reference the shared volumes are
- * measured against (tests/test_views.c, docs/performance.md). Applies
+ * measured against (tests/numerical/test_views.c, docs/performance.md). Applies
  * from the next eng_submit. */
 void eng_set_view_sharing(struct eng *e, int share);
 /* Blocks until the submitted work has finished. */

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Writes the mocked USB light sensors that tests/test_sensor_usb.c and
-tests/test_sensor_hotplug.c run against: umockdev device descriptions
+"""Writes the mocked USB light sensors that tests/system/test_sensor_usb.c and
+tests/system/test_sensor_hotplug.c run against: umockdev device descriptions
 (*.umockdev) and usbmon captures (*.pcap) that umockdev replays.
 
 Run it from anywhere; it rewrites the files beside it. The files are

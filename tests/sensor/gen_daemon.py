@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Writes the usbmon captures that the daemon's sensor test
-(tests/test_daemon_sensor.c) and latbench's sensor figure replay: the same
+(tests/system/test_daemon_sensor.c) and latbench's sensor figure replay: the same
 devices as gen.py's (als.umockdev, mcp.umockdev), other exchanges. gen.py
 says how umockdev replays a capture; its helpers write these too.
 

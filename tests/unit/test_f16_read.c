@@ -67,7 +67,7 @@ static void test_published(void)
 	state_default(&s);
 	for (size_t i = 0; i < sizeof(small) / sizeof(small[0]); i++)
 		set(&s, small[i]);
-	CHECK(pub_new(&s, 0, &p) == 0);
+	CHECK_EQ(pub_new(&s, 0, &p), 0);
 	if (!p)
 		return;
 	const void *tables[STATE_N_TABLES];
@@ -79,10 +79,10 @@ static void test_published(void)
 	const struct sky_shm_header *h = pub_header(p);
 	const struct sky_shm_slot *slot = pub_current(p, &base);
 	CHECK(h->layout_version == SKY_SHM_LAYOUT_VERSION && SKY_SHM_LAYOUT_VERSION >= 4); /* rgb_scale_log2 since 4 */
-	CHECK(skysample_slot_checksum(h, base) == slot->checksum);
+	CHECK_EQ(skysample_slot_checksum(h, base), slot->checksum);
 	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
 		struct skysample_table t = { 0 };
-		CHECK(slot->state.rgb_scale_log2[id] == scales[id]);
+		CHECK_EQ(slot->state.rgb_scale_log2[id], scales[id]);
 		CHECK(skysample_table_from_slot(h, base, id, &t) == 0 && t.rgb_scale_log2 == scales[id]);
 		/* every texel: RGB times 2^k, exactly; A as stored */
 		for (uint32_t i = 0; i < t.width * t.height * t.depth; i++) {
@@ -99,7 +99,7 @@ static void test_published(void)
 		double f = 0;
 		CHECK(sky_table_scale(&v, id, &f) == 0 && f == ldexp(1.0, scales[id]));
 		v.valid_tables = 0;
-		CHECK(sky_table_scale(&v, id, &f) == -ENODATA);
+		CHECK_EQ(sky_table_scale(&v, id, &f), -ENODATA);
 	}
 	struct sky_view v = { .header = h, .slot = slot, .valid_tables = 0xf, .slot_base = base };
 	double f;
@@ -115,7 +115,7 @@ static void test_published(void)
 	pub_publish(p, &s, STATE_ALL_TABLES, tables, NULL, NULL, 2);
 	slot = pub_current(p, &base);
 	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++)
-		CHECK(slot->state.rgb_scale_log2[id] == 0);
+		CHECK_EQ(slot->state.rgb_scale_log2[id], 0);
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		free((void *)tables[t]);
 	pub_free(p);
@@ -153,18 +153,18 @@ static void test_dump(void)
 	tf.texels = f;
 	tf.rgb_scale_log2 = 0;
 	snprintf(path, sizeof(path), "%s/f16.exr", dir);
-	CHECK(dump_exr(path, &th, err, sizeof(err)) == 0);
+	CHECK_EQ(dump_exr(path, &th, err, sizeof(err)), 0);
 	struct dump_exr_info info;
 	float *back = NULL;
-	CHECK(dump_read_exr(path, &info, &back, err, sizeof(err)) == 0);
+	CHECK_EQ(dump_read_exr(path, &info, &back, err, sizeof(err)), 0);
 	if (back) {
 		/* the file's scanlines in table order: compare as sets of values
 		 * through the float32 table written the same way */
 		float *ref = NULL;
 		char ref_path[160];
 		snprintf(ref_path, sizeof(ref_path), "%s/f32.exr", dir);
-		CHECK(dump_exr(ref_path, &tf, err, sizeof(err)) == 0);
-		CHECK(dump_read_exr(ref_path, &info, &ref, err, sizeof(err)) == 0);
+		CHECK_EQ(dump_exr(ref_path, &tf, err, sizeof(err)), 0);
+		CHECK_EQ(dump_read_exr(ref_path, &info, &ref, err, sizeof(err)), 0);
 		CHECK(ref && memcmp(back, ref, W * H * 16) == 0);
 		CHECK(back[0] == 131072.0f && back[3] == 0.25f);	/* texel 0: 1 * 2^17, A 0.25 */
 		unlink(ref_path);

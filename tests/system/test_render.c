@@ -37,7 +37,7 @@ static const char *const tables[] = {
 static const char *const exposure = "0.0002";	/* about 1 / the sky's radiance, cd/m2 */
 /* A frame of the wall drawn through the panorama against one through the
  * wall camera's own volume: the panorama is resampled aerial perspective
- * (skyd's accuracy goal for it, tests/test_views.c), a few percent of the
+ * (skyd's accuracy goal for it, tests/numerical/test_views.c), a few percent of the
  * terrain's in-scattering at most, so a few levels on the terrain and
  * nothing on the sky. */
 #define PANORAMA_VS_VOLUME_MEAN 1.0

@@ -17,36 +17,36 @@ static void test_rates(void)
 	struct simclock *c;
 	double mono_s = 1000.0;
 
-	CHECK(simclock_new(mono_s, &c) == 0);
-	CHECK(simclock_rate(c) == 1.0);
-	CHECK(simclock_set_utc(c, solstice_s, mono_s) == 0);
-	CHECK(simclock_utc_s(c, mono_s + 10.0) == solstice_s + 10.0);
+	CHECK_EQ(simclock_new(mono_s, &c), 0);
+	CHECK_EQ(simclock_rate(c), 1.0);
+	CHECK_EQ(simclock_set_utc(c, solstice_s, mono_s), 0);
+	CHECK_EQ(simclock_utc_s(c, mono_s + 10.0), solstice_s + 10.0);
 
 	/* Rate 60: an hour a minute. */
-	CHECK(simclock_set_rate(c, 60.0, mono_s) == 0);
-	CHECK(simclock_utc_s(c, mono_s + 60.0) == solstice_s + 3600.0);
+	CHECK_EQ(simclock_set_rate(c, 60.0, mono_s), 0);
+	CHECK_EQ(simclock_utc_s(c, mono_s + 60.0), solstice_s + 3600.0);
 
 	/* The change of rate keeps the time continuous: 1 min at 60x, then freeze. */
-	CHECK(simclock_set_rate(c, 0.0, mono_s + 60.0) == 0);
-	CHECK(simclock_utc_s(c, mono_s + 60.0) == solstice_s + 3600.0);
-	CHECK(simclock_utc_s(c, mono_s + 1e6) == solstice_s + 3600.0);
+	CHECK_EQ(simclock_set_rate(c, 0.0, mono_s + 60.0), 0);
+	CHECK_EQ(simclock_utc_s(c, mono_s + 60.0), solstice_s + 3600.0);
+	CHECK_EQ(simclock_utc_s(c, mono_s + 1e6), solstice_s + 3600.0);
 
 	/* Backward at 2x from there. */
-	CHECK(simclock_set_rate(c, -2.0, mono_s + 100.0) == 0);
-	CHECK(simclock_utc_s(c, mono_s + 110.0) == solstice_s + 3600.0 - 20.0);
+	CHECK_EQ(simclock_set_rate(c, -2.0, mono_s + 100.0), 0);
+	CHECK_EQ(simclock_utc_s(c, mono_s + 110.0), solstice_s + 3600.0 - 20.0);
 
 	/* Setting the time keeps the rate. */
-	CHECK(simclock_set_utc(c, solstice_s, mono_s + 200.0) == 0);
-	CHECK(simclock_rate(c) == -2.0);
-	CHECK(simclock_utc_s(c, mono_s + 201.0) == solstice_s - 2.0);
+	CHECK_EQ(simclock_set_utc(c, solstice_s, mono_s + 200.0), 0);
+	CHECK_EQ(simclock_rate(c), -2.0);
+	CHECK_EQ(simclock_utc_s(c, mono_s + 201.0), solstice_s - 2.0);
 
 	/* Refusals leave the clock as it was. */
-	CHECK(simclock_set_rate(c, NAN, mono_s) == -EINVAL);
-	CHECK(simclock_set_rate(c, INFINITY, mono_s) == -EINVAL);
-	CHECK(simclock_set_rate(c, 2 * SIMCLOCK_RATE_MAX, mono_s) == -EINVAL);
-	CHECK(simclock_set_utc(c, NAN, mono_s) == -EINVAL);
-	CHECK(simclock_rate(c) == -2.0);
-	CHECK(simclock_utc_s(c, mono_s + 201.0) == solstice_s - 2.0);
+	CHECK_EQ(simclock_set_rate(c, NAN, mono_s), -EINVAL);
+	CHECK_EQ(simclock_set_rate(c, INFINITY, mono_s), -EINVAL);
+	CHECK_EQ(simclock_set_rate(c, 2 * SIMCLOCK_RATE_MAX, mono_s), -EINVAL);
+	CHECK_EQ(simclock_set_utc(c, NAN, mono_s), -EINVAL);
+	CHECK_EQ(simclock_rate(c), -2.0);
+	CHECK_EQ(simclock_utc_s(c, mono_s + 201.0), solstice_s - 2.0);
 
 	simclock_free(c);
 	simclock_free(NULL);
@@ -59,23 +59,23 @@ static void test_now_and_timers(void)
 
 	simclock_read_clocks(&real_s, &mono_s);
 	CHECK(real_s > 1.6e9 && mono_s > 0.0);
-	CHECK(simclock_new(mono_s, &c) == 0);
-	CHECK(simclock_set_rate(c, 3600.0, mono_s) == 0);
-	CHECK(simclock_set_now(c, real_s, mono_s + 5.0) == 0);
-	CHECK(simclock_rate(c) == 1.0);
-	CHECK(simclock_utc_s(c, mono_s + 5.0) == real_s);
-	CHECK(NEAR(simclock_utc_s(c, mono_s + 65.0), real_s + 60.0, 1e-6));
+	CHECK_EQ(simclock_new(mono_s, &c), 0);
+	CHECK_EQ(simclock_set_rate(c, 3600.0, mono_s), 0);
+	CHECK_EQ(simclock_set_now(c, real_s, mono_s + 5.0), 0);
+	CHECK_EQ(simclock_rate(c), 1.0);
+	CHECK_EQ(simclock_utc_s(c, mono_s + 5.0), real_s);
+	CHECK_NEAR(simclock_utc_s(c, mono_s + 65.0), real_s + 60.0, 1e-6);
 
 	/* When does the clock reach a target? */
-	CHECK(simclock_set_utc(c, solstice_s, 100.0) == 0);
-	CHECK(simclock_set_rate(c, 60.0, 100.0) == 0);
-	CHECK(simclock_mono_for_utc(c, solstice_s + 3600.0, &at_s) == 0);
-	CHECK(at_s == 160.0);
-	CHECK(simclock_set_rate(c, -60.0, 100.0) == 0);
-	CHECK(simclock_mono_for_utc(c, solstice_s - 3600.0, &at_s) == 0);
-	CHECK(at_s == 160.0);
-	CHECK(simclock_set_rate(c, 0.0, 100.0) == 0);
-	CHECK(simclock_mono_for_utc(c, solstice_s + 1.0, &at_s) == -ERANGE);
+	CHECK_EQ(simclock_set_utc(c, solstice_s, 100.0), 0);
+	CHECK_EQ(simclock_set_rate(c, 60.0, 100.0), 0);
+	CHECK_EQ(simclock_mono_for_utc(c, solstice_s + 3600.0, &at_s), 0);
+	CHECK_EQ(at_s, 160.0);
+	CHECK_EQ(simclock_set_rate(c, -60.0, 100.0), 0);
+	CHECK_EQ(simclock_mono_for_utc(c, solstice_s - 3600.0, &at_s), 0);
+	CHECK_EQ(at_s, 160.0);
+	CHECK_EQ(simclock_set_rate(c, 0.0, 100.0), 0);
+	CHECK_EQ(simclock_mono_for_utc(c, solstice_s + 1.0, &at_s), -ERANGE);
 	simclock_free(c);
 }
 
@@ -137,7 +137,7 @@ static void test_format(void)
 	char buf[SIMCLOCK_UTC_TEXT_MAX];
 	double back;
 
-	CHECK(simclock_format_utc(solstice_s, buf, sizeof(buf)) == 20);
+	CHECK_EQ(simclock_format_utc(solstice_s, buf, sizeof(buf)), 20);
 	CHECK(strcmp(buf, "2026-06-21T18:30:00Z") == 0);
 	CHECK(simclock_format_utc(-1.0, buf, sizeof(buf)) > 0);
 	CHECK(strcmp(buf, "1969-12-31T23:59:59Z") == 0);
@@ -146,15 +146,15 @@ static void test_format(void)
 	/* Rounding carries into the next minute rather than printing :60. */
 	CHECK(simclock_format_utc(solstice_s - 1e-7, buf, sizeof(buf)) > 0);
 	CHECK(strcmp(buf, "2026-06-21T18:30:00Z") == 0);
-	CHECK(simclock_format_utc(solstice_s + 0.123456, buf, sizeof(buf)) == SIMCLOCK_UTC_TEXT_MAX - 1);
+	CHECK_EQ(simclock_format_utc(solstice_s + 0.123456, buf, sizeof(buf)), SIMCLOCK_UTC_TEXT_MAX - 1);
 	CHECK(strcmp(buf, "2026-06-21T18:30:00.123456Z") == 0);
 	CHECK(simclock_format_utc(253402300799.5, buf, sizeof(buf)) > 0);
 	CHECK(strcmp(buf, "9999-12-31T23:59:59.5Z") == 0);
-	CHECK(simclock_format_utc(253402300800.0, buf, sizeof(buf)) == -EINVAL);
+	CHECK_EQ(simclock_format_utc(253402300800.0, buf, sizeof(buf)), -EINVAL);
 
-	CHECK(simclock_format_utc(solstice_s, buf, 20) == -ENOSPC);
-	CHECK(simclock_format_utc(NAN, buf, sizeof(buf)) == -EINVAL);
-	CHECK(simclock_format_utc(1e15, buf, sizeof(buf)) == -EINVAL);
+	CHECK_EQ(simclock_format_utc(solstice_s, buf, 20), -ENOSPC);
+	CHECK_EQ(simclock_format_utc(NAN, buf, sizeof(buf)), -EINVAL);
+	CHECK_EQ(simclock_format_utc(1e15, buf, sizeof(buf)), -EINVAL);
 
 	/* Round trip over four millennia with a fixed-seed generator: whole
 	 * seconds come back exactly, fractions to the microsecond. */
@@ -175,9 +175,9 @@ static void test_format(void)
 
 static void test_calendar(void)
 {
-	CHECK(simclock_days_from_civil(1970, 1, 1) == 0);
-	CHECK(simclock_days_from_civil(2000, 3, 1) == 11017);
-	CHECK(simclock_days_from_civil(1600, 1, 1) == -135140);
+	CHECK_EQ(simclock_days_from_civil(1970, 1, 1), 0);
+	CHECK_EQ(simclock_days_from_civil(2000, 3, 1), 11017);
+	CHECK_EQ(simclock_days_from_civil(1600, 1, 1), -135140);
 	CHECK(simclock_valid_date(2000, 2, 29));
 	CHECK(!simclock_valid_date(2100, 2, 29));
 	CHECK(simclock_valid_date(2024, 2, 29));

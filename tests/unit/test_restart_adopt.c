@@ -68,7 +68,7 @@ int main(void)
 	tables_of(&s, 0x22, t2);
 
 	/* The first skyd: generations 1..5, the last ahead of its time. */
-	CHECK(pub_new_adoptable(&s, 0, &a) == 0);
+	CHECK_EQ(pub_new_adoptable(&s, 0, &a), 0);
 	if (!a)
 		return test_report("test_restart_adopt");
 	for (uint64_t g = 1; g <= 4; g++)
@@ -89,16 +89,16 @@ int main(void)
 
 	/* The next skyd adopts it: torn and spare slots emptied, the current
 	 * slot untouched, the count going on above 5. */
-	CHECK(pub_adopt(fd, &s, &b, &gen) == 0);
-	CHECK(gen == 5);
+	CHECK_EQ(pub_adopt(fd, &s, &b, &gen), 0);
+	CHECK_EQ(gen, 5);
 	if (!b)
 		return test_report("test_restart_adopt");
 	CHECK(pub_header(b) != NULL && pub_bytes(b) == bytes);
 	CHECK(r->current_slot == cur && slot_at(r, cur)->generation == 4 &&
 	      (slot_at(r, cur)->seq & 1u) == 0 && slot_at(r, cur)->valid_tables == STATE_ALL_TABLES);
-	CHECK(skysample_slot_checksum(r, slot_at(r, cur)) == slot_at(r, cur)->checksum);
+	CHECK_EQ(skysample_slot_checksum(r, slot_at(r, cur)), slot_at(r, cur)->checksum);
 	CHECK((slot_at(r, torn)->seq & 1u) == 0 && slot_at(r, torn)->valid_tables == 0);
-	CHECK(skysample_slot_checksum(r, slot_at(r, torn)) == slot_at(r, torn)->checksum);
+	CHECK_EQ(skysample_slot_checksum(r, slot_at(r, torn)), slot_at(r, torn)->checksum);
 	CHECK(slot_at(r, PUB_SLOTS - 1)->apply_time_ns == 0 &&
 	      slot_at(r, PUB_SLOTS - 1)->generation == 0);
 	/* It writes into the memory the reader has mapped. */
@@ -106,8 +106,8 @@ int main(void)
 	CHECK(r->generation == 6 && r->current_slot != cur);
 	const struct sky_shm_slot *n = slot_at(r, r->current_slot);
 	CHECK(n->generation == 6 && (n->seq & 1u) == 0);
-	CHECK(((const uint8_t *)n)[r->tables[STATE_SKYVIEW].offset] == 0x22);
-	CHECK(skysample_slot_checksum(r, n) == n->checksum);
+	CHECK_EQ(((const uint8_t *)n)[r->tables[STATE_SKYVIEW].offset], 0x22);
+	CHECK_EQ(skysample_slot_checksum(r, n), n->checksum);
 	CHECK(!r->superseded);
 
 	/* Another layout: refused, superseded, the count handed on. */
@@ -119,9 +119,9 @@ int main(void)
 	close(fd2);
 
 	/* A region sealed against writes, or no memfd: never adopted. */
-	CHECK(pub_new(&s, 0, &strict) == 0);
+	CHECK_EQ(pub_new(&s, 0, &strict), 0);
 	int fd3 = fcntl(pub_fd(strict), F_DUPFD_CLOEXEC, 3);
-	CHECK(pub_store_fd(strict) == -EPERM);
+	CHECK_EQ(pub_store_fd(strict), -EPERM);
 	CHECK(pub_adopt(fd3, &s, &c, &gen2) == -EPERM && c == NULL);
 	close(fd3);
 	int p[2];

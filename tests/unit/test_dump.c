@@ -112,7 +112,7 @@ static void test_exr_3d_f32(void)
 	size_t bad = 0;
 
 	fill_3d(t);
-	CHECK(dump_exr(path, &table, err, sizeof(err)) == 0);
+	CHECK_EQ(dump_exr(path, &table, err, sizeof(err)), 0);
 	if (err[0])
 		FAIL("dump_exr: %s", err);
 	if (dump_read_exr(path, &info, &back, err, sizeof(err)) != 0) {
@@ -121,7 +121,7 @@ static void test_exr_3d_f32(void)
 	}
 	CHECK(info.width == W3 && info.height == H3 && info.depth == D3);
 	CHECK(strcmp(info.name, "aerial") == 0);
-	CHECK(info.uv_mapping_version == SKYMAP_VERSION);
+	CHECK_EQ(info.uv_mapping_version, SKYMAP_VERSION);
 	for (size_t n = 0; n < sizeof(t) / sizeof(t[0]); n++)
 		bad += !same_bits(back[n], t[n]);
 	if (bad)
@@ -166,7 +166,7 @@ static void test_exr_2d_f16(void)
 
 	for (int n = 0; n < N; n++)
 		t[n] = v[n % NV].h;
-	CHECK(dump_exr(path, &table, err, sizeof(err)) == 0);
+	CHECK_EQ(dump_exr(path, &table, err, sizeof(err)), 0);
 	if (dump_read_exr(path, &info, &back, err, sizeof(err)) != 0) {
 		FAIL("dump_read_exr: %s", err);
 		return;
@@ -237,7 +237,7 @@ static void test_png_orientation(void)
 		for (int c = 0; c < 3; c++)
 			t[n * 4 + c] = 0.01f * (float)(n + 1);
 	/* The 99th percentile of 105 texels is texel 103, luminance 1.04. */
-	CHECK(dump_auto_exposure(&table, &exposure) == 0);
+	CHECK_EQ(dump_auto_exposure(&table, &exposure), 0);
 	CHECK(fabs(exposure * 1.04 - 1.0) < 1e-6);
 	CHECK(dump_png(path, &table, NULL, err, sizeof(err)) == 0);
 	px = read_png(path, &w, &h);
@@ -278,7 +278,7 @@ static void test_png_orientation(void)
 	struct dump_table half = { "odd", 4, 3, 1, SKY_FORMAT_RGBA16F, ht, 0 };
 	struct dump_tonemap tm = { 2.0, DUMP_CURVE_REINHARD };
 	path = in_dir("odd.png");
-	CHECK(dump_png(path, &half, &tm, err, sizeof(err)) == 0);
+	CHECK_EQ(dump_png(path, &half, &tm, err, sizeof(err)), 0);
 	px = read_png(path, &w, &h);
 	CHECK(px && w == 4 && h == 3);
 	free(px);
@@ -338,8 +338,8 @@ static void test_json(void)
 	dump_json_key(j, "empty");
 	dump_json_begin_object(j);
 	dump_json_end_object(j);
-	CHECK(dump_json_end_object(j) == 0);
-	CHECK(dump_json_finish(j) == 0);
+	CHECK_EQ(dump_json_end_object(j), 0);
+	CHECK_EQ(dump_json_finish(j), 0);
 	CHECK(strcmp(json_text(j), want) == 0);
 	CHECK(dump_json_buffer(j, &len) && len == strlen(want));
 	if (strcmp(json_text(j), want) != 0)
@@ -356,7 +356,7 @@ static void test_json(void)
 	dump_json_begin_array(j);
 	dump_json_number(j, 2.5);
 	dump_json_end_array(j);
-	CHECK(dump_json_finish(j) == 0);
+	CHECK_EQ(dump_json_finish(j), 0);
 	dump_json_free(j);
 	setlocale(LC_NUMERIC, "C");
 	if (f)
@@ -402,7 +402,7 @@ static void test_json_misuse(void)
 		dump_json_begin_array(j);
 	for (int d = 0; d < 32; d++)
 		dump_json_end_array(j);
-	CHECK(dump_json_finish(j) == 0);
+	CHECK_EQ(dump_json_finish(j), 0);
 	dump_json_free(j);
 	CHECK(dump_json_new_file(NULL) == NULL);
 	dump_json_free(NULL);
@@ -421,13 +421,13 @@ static void test_errors(void)
 	FILE *f;
 
 	err[0] = '\0';
-	CHECK(dump_exr(path, &table, err, sizeof(err)) == -ENOENT);
+	CHECK_EQ(dump_exr(path, &table, err, sizeof(err)), -ENOENT);
 	CHECK(strstr(err, path) != NULL);
 	err[0] = '\0';
 	CHECK(dump_png(in_dir("missing/one.png"), &table, NULL, err, sizeof(err)) == -ENOENT);
 	CHECK(strstr(err, "missing/one.png") != NULL);
 	err[0] = '\0';
-	CHECK(dump_read_exr(path, &info, &back, err, sizeof(err)) == -ENOENT);
+	CHECK_EQ(dump_read_exr(path, &info, &back, err, sizeof(err)), -ENOENT);
 	CHECK(strstr(err, path) != NULL);
 	CHECK(info.width == 12345 && back == &sentinel);
 
@@ -443,7 +443,7 @@ static void test_errors(void)
 	CHECK(info.width == 12345 && back == &sentinel);
 
 	bad.width = 0;
-	CHECK(dump_exr(in_dir("bad.exr"), &bad, err, sizeof(err)) == -EINVAL);
+	CHECK_EQ(dump_exr(in_dir("bad.exr"), &bad, err, sizeof(err)), -EINVAL);
 	CHECK(access(in_dir("bad.exr"), F_OK) != 0);
 	bad = table;
 	bad.format = 7;
@@ -453,7 +453,7 @@ static void test_errors(void)
 	CHECK(dump_exr(in_dir("bad.exr"), &bad, NULL, 0) == -EINVAL);
 	CHECK(dump_exr(NULL, &table, NULL, 0) == -EINVAL);
 	struct dump_tonemap tm = { NAN, DUMP_CURVE_ACES };
-	CHECK(dump_png(in_dir("bad.png"), &table, &tm, err, sizeof(err)) == -EINVAL);
+	CHECK_EQ(dump_png(in_dir("bad.png"), &table, &tm, err, sizeof(err)), -EINVAL);
 }
 
 static bool file_is(const char *path, const char *text)
@@ -512,21 +512,21 @@ static void test_failed_write_keeps_old_file(void)
 	small = old;
 	small.rlim_cur = 1000;
 	signal(SIGXFSZ, SIG_IGN);
-	CHECK(setrlimit(RLIMIT_FSIZE, &small) == 0);
-	CHECK(dump_exr(exr, &table, err, sizeof(err)) == -EFBIG);
+	CHECK_EQ(setrlimit(RLIMIT_FSIZE, &small), 0);
+	CHECK_EQ(dump_exr(exr, &table, err, sizeof(err)), -EFBIG);
 	CHECK(strstr(err, exr) != NULL);
 	CHECK(dump_png(png, &table, NULL, err, sizeof(err)) == -EFBIG);
 	CHECK(strstr(err, png) != NULL);
-	CHECK(setrlimit(RLIMIT_FSIZE, &old) == 0);
+	CHECK_EQ(setrlimit(RLIMIT_FSIZE, &old), 0);
 	signal(SIGXFSZ, SIG_DFL);
 	CHECK(file_is(exr, "previous") && file_is(png, "previous"));
-	CHECK(count_temporaries() == 0);
+	CHECK_EQ(count_temporaries(), 0);
 
-	CHECK(dump_exr(exr, &table, err, sizeof(err)) == 0);
-	CHECK(dump_read_exr(exr, &info, &back, err, sizeof(err)) == 0);
+	CHECK_EQ(dump_exr(exr, &table, err, sizeof(err)), 0);
+	CHECK_EQ(dump_read_exr(exr, &info, &back, err, sizeof(err)), 0);
 	CHECK(back && memcmp(back, t, sizeof(t)) == 0);
 	free(back);
-	CHECK(count_temporaries() == 0);
+	CHECK_EQ(count_temporaries(), 0);
 }
 
 static void remove_dir(void)

@@ -56,7 +56,7 @@ static void test_flat(void)
 	struct sensor_hid_layout l;
 	double scale;
 
-	CHECK(sensor_hid_parse(als_desc, sizeof(als_desc), &l) == 0);
+	CHECK_EQ(sensor_hid_parse(als_desc, sizeof(als_desc), &l), 0);
 	CHECK(l.uses_report_ids);
 	CHECK(l.illuminance.present && l.illuminance.report_id == 1);
 	CHECK(l.illuminance.bit_offset == 8 && l.illuminance.bit_size == 32);
@@ -64,7 +64,7 @@ static void test_flat(void)
 	CHECK(l.illuminance.unit == SENSOR_HID_UNIT_LUX && l.illuminance.unit_exponent == -2);
 	CHECK(sensor_hid_lux_scale(&l.illuminance, &scale) == 0 && fabs(scale - 0.01) < 1e-15);
 	CHECK(l.sensor_state.present && l.sensor_state.is_array && l.sensor_state.bit_offset == 0);
-	CHECK(l.sensor_state.wanted == 1);
+	CHECK_EQ(l.sensor_state.wanted, 1);
 	CHECK(l.reporting_state.present && l.reporting_state.is_array);
 	CHECK(l.reporting_state.bit_offset == 0 && l.reporting_state.wanted == 1);
 	CHECK(l.power_state.present && l.power_state.bit_offset == 8 && l.power_state.wanted == 1);
@@ -72,29 +72,29 @@ static void test_flat(void)
 	CHECK(l.report_interval.bit_size == 32 && l.report_interval.unit == 0);
 	CHECK(l.sensitivity_abs.present && l.sensitivity_abs.bit_offset == 48);
 	CHECK(l.sensitivity_abs.unit_exponent == -2 && !l.sensitivity_rel.present);
-	CHECK(sensor_hid_report_bytes(&l, SENSOR_HID_FEATURE, 1) == 9);
-	CHECK(sensor_hid_report_bytes(&l, SENSOR_HID_INPUT, 1) == 6);
-	CHECK(sensor_hid_report_bytes(&l, SENSOR_HID_INPUT, 2) == 0);
+	CHECK_EQ(sensor_hid_report_bytes(&l, SENSOR_HID_FEATURE, 1), 9);
+	CHECK_EQ(sensor_hid_report_bytes(&l, SENSOR_HID_INPUT, 1), 6);
+	CHECK_EQ(sensor_hid_report_bytes(&l, SENSOR_HID_INPUT, 2), 0);
 
 	/* An input report: id 1, state Ready (1), 123456 = 1234.56 lx. */
 	const uint8_t in[] = { 1, 1, 0x40, 0xE2, 0x01, 0x00 };
 	int64_t v;
 	CHECK(sensor_hid_get(&l, &l.illuminance, in, sizeof(in), &v) == 0 && v == 123456);
 	CHECK(sensor_hid_get(&l, &l.sensor_state, in, sizeof(in), &v) == 0 && v == 1);
-	CHECK(sensor_hid_get(&l, &l.illuminance, in, sizeof(in) - 1, &v) == -EMSGSIZE);
+	CHECK_EQ(sensor_hid_get(&l, &l.illuminance, in, sizeof(in) - 1, &v), -EMSGSIZE);
 	const uint8_t other[] = { 2, 1, 0x40, 0xE2, 0x01, 0x00 };
-	CHECK(sensor_hid_get(&l, &l.illuminance, other, sizeof(other), &v) == -EMSGSIZE);
-	CHECK(sensor_hid_get(&l, &l.illuminance, in, 0, &v) == -EMSGSIZE);
+	CHECK_EQ(sensor_hid_get(&l, &l.illuminance, other, sizeof(other), &v), -EMSGSIZE);
+	CHECK_EQ(sensor_hid_get(&l, &l.illuminance, in, 0, &v), -EMSGSIZE);
 
 	/* A feature report built field by field. */
 	uint8_t feat[9];
 	memset(feat, 0xAA, sizeof(feat));
-	CHECK(sensor_hid_put(&l, &l.reporting_state, feat, sizeof(feat), 1) == 0);
-	CHECK(sensor_hid_put(&l, &l.report_interval, feat, sizeof(feat), 500) == 0);
-	CHECK(sensor_hid_put(&l, &l.sensitivity_abs, feat, sizeof(feat), 0) == 0);
+	CHECK_EQ(sensor_hid_put(&l, &l.reporting_state, feat, sizeof(feat), 1), 0);
+	CHECK_EQ(sensor_hid_put(&l, &l.report_interval, feat, sizeof(feat), 500), 0);
+	CHECK_EQ(sensor_hid_put(&l, &l.sensitivity_abs, feat, sizeof(feat), 0), 0);
 	const uint8_t want[] = { 1, 1, 0xAA, 0xF4, 0x01, 0, 0, 0, 0 };
 	CHECK(memcmp(feat, want, sizeof(want)) == 0);
-	CHECK(sensor_hid_put(&l, &l.sensitivity_abs, feat, 8, 0) == -EMSGSIZE);
+	CHECK_EQ(sensor_hid_put(&l, &l.sensitivity_abs, feat, 8, 0), -EMSGSIZE);
 }
 
 /* A hub: an accelerometer (report 2) and an ambient light sensor (report
@@ -123,16 +123,16 @@ static void test_hub(void)
 	double scale;
 	int64_t v;
 
-	CHECK(sensor_hid_parse(hub_desc, sizeof(hub_desc), &l) == 0);
+	CHECK_EQ(sensor_hid_parse(hub_desc, sizeof(hub_desc), &l), 0);
 	CHECK(l.illuminance.report_id == 3 && l.illuminance.bit_offset == 0);
 	CHECK(l.illuminance.logical_min == -32768 && l.illuminance.logical_max == 32767);
 	CHECK(sensor_hid_lux_scale(&l.illuminance, &scale) == 0 && scale == 10.0);
 	CHECK(l.reporting_state.present && l.reporting_state.wanted == 2);
 	CHECK(l.sensitivity_rel.present && l.sensitivity_rel.bit_offset == 8);
 	CHECK(!l.sensitivity_abs.present && !l.power_state.present && !l.sensor_state.present);
-	CHECK(sensor_hid_report_bytes(&l, SENSOR_HID_INPUT, 2) == 7);
-	CHECK(sensor_hid_report_bytes(&l, SENSOR_HID_INPUT, 3) == 3);
-	CHECK(sensor_hid_report_bytes(&l, SENSOR_HID_FEATURE, 3) == 5);	/* 8 + 16 + 4 bits */
+	CHECK_EQ(sensor_hid_report_bytes(&l, SENSOR_HID_INPUT, 2), 7);
+	CHECK_EQ(sensor_hid_report_bytes(&l, SENSOR_HID_INPUT, 3), 3);
+	CHECK_EQ(sensor_hid_report_bytes(&l, SENSOR_HID_FEATURE, 3), 5);	/* 8 + 16 + 4 bits */
 	const uint8_t in[] = { 3, 0xFE, 0xFF };
 	CHECK(sensor_hid_get(&l, &l.illuminance, in, sizeof(in), &v) == 0 && v == -2);
 }
@@ -151,35 +151,35 @@ static void test_refusals(void)
 	uint8_t buf[sizeof(als_desc) + 8];
 	double scale;
 
-	CHECK(sensor_hid_parse(keyboard_desc, sizeof(keyboard_desc), &l) == -ENOENT);
+	CHECK_EQ(sensor_hid_parse(keyboard_desc, sizeof(keyboard_desc), &l), -ENOENT);
 	CHECK(sensor_hid_parse(NULL, 0, &l) == -ENOENT);
 	/* Cut in the middle of an item; a collection left open. */
-	CHECK(sensor_hid_parse(als_desc, 7, &l) == -EINVAL);
-	CHECK(sensor_hid_parse(als_desc, sizeof(als_desc) - 1, &l) == -EINVAL);
+	CHECK_EQ(sensor_hid_parse(als_desc, 7, &l), -EINVAL);
+	CHECK_EQ(sensor_hid_parse(als_desc, sizeof(als_desc) - 1, &l), -EINVAL);
 	/* An End Collection too many. */
 	memcpy(buf, als_desc, sizeof(als_desc));
 	buf[sizeof(als_desc)] = END;
-	CHECK(sensor_hid_parse(buf, sizeof(als_desc) + 1, &l) == -EINVAL);
+	CHECK_EQ(sensor_hid_parse(buf, sizeof(als_desc) + 1, &l), -EINVAL);
 	/* Report id 0 is reserved; Pop without Push; a report of 8 KiB. */
 	const uint8_t id0[] = { PAGE(0x20), ID(0) };
-	CHECK(sensor_hid_parse(id0, sizeof(id0), &l) == -EINVAL);
+	CHECK_EQ(sensor_hid_parse(id0, sizeof(id0), &l), -EINVAL);
 	const uint8_t pop[] = { 0xB4 };
-	CHECK(sensor_hid_parse(pop, sizeof(pop), &l) == -EINVAL);
+	CHECK_EQ(sensor_hid_parse(pop, sizeof(pop), &l), -EINVAL);
 	const uint8_t big[] = { SIZE(32), 0x96, U16(2048), INPUT(0x01) };
-	CHECK(sensor_hid_parse(big, sizeof(big), &l) == -EINVAL);
+	CHECK_EQ(sensor_hid_parse(big, sizeof(big), &l), -EINVAL);
 	/* A long item is skipped; one running past the end is not. */
 	uint8_t lng[sizeof(als_desc) + 5] = { 0xFE, 2, 0x10, 0xAB, 0xCD };
 	memcpy(lng + 5, als_desc, sizeof(als_desc));
-	CHECK(sensor_hid_parse(lng, sizeof(lng), &l) == 0);
-	CHECK(sensor_hid_parse(lng, 4, &l) == -EINVAL);
+	CHECK_EQ(sensor_hid_parse(lng, sizeof(lng), &l), 0);
+	CHECK_EQ(sensor_hid_parse(lng, 4, &l), -EINVAL);
 
 	/* A unit skyd cannot turn into lux: kelvin. */
 	memcpy(buf, als_desc, sizeof(als_desc));
 	uint8_t *u = memchr(buf, 0x67, sizeof(als_desc));
 	CHECK(u && u[1] == 0xE1);
 	u[1] = 0x01, u[2] = 0x00, u[3] = 0x01, u[4] = 0x00;	/* 0x00010001 */
-	CHECK(sensor_hid_parse(buf, sizeof(als_desc), &l) == 0);
-	CHECK(sensor_hid_lux_scale(&l.illuminance, &scale) == -ENOTSUP);
+	CHECK_EQ(sensor_hid_parse(buf, sizeof(als_desc), &l), 0);
+	CHECK_EQ(sensor_hid_lux_scale(&l.illuminance, &scale), -ENOTSUP);
 }
 
 /* Bits that straddle bytes, and the sign of a field whose range is
@@ -196,15 +196,15 @@ static void test_bits(void)
 	f.bit_offset = 3;
 	f.bit_size = 12;
 	f.logical_min = 0;
-	CHECK(sensor_hid_put(&l, &f, r, sizeof(r), 0xABC) == 0);
+	CHECK_EQ(sensor_hid_put(&l, &f, r, sizeof(r), 0xABC), 0);
 	CHECK(r[0] == 0xE0 && r[1] == 0x55 && r[2] == 0x00);
 	CHECK(sensor_hid_get(&l, &f, r, sizeof(r), &v) == 0 && v == 0xABC);
 	f.logical_min = -2048;
 	CHECK(sensor_hid_get(&l, &f, r, sizeof(r), &v) == 0 && v == 0xABC - 4096);
 	f.bit_offset = 21;
-	CHECK(sensor_hid_get(&l, &f, r, sizeof(r), &v) == -EMSGSIZE);
+	CHECK_EQ(sensor_hid_get(&l, &f, r, sizeof(r), &v), -EMSGSIZE);
 	f.bit_offset = 20;
-	CHECK(sensor_hid_get(&l, &f, r, sizeof(r), &v) == 0);
+	CHECK_EQ(sensor_hid_get(&l, &f, r, sizeof(r), &v), 0);
 }
 
 /* Mutated descriptors parse or are refused; whatever parses is read from

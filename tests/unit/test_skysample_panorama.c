@@ -173,7 +173,7 @@ static void check_at(const struct region *r, const char *name, double f, double 
 	const struct sky_shm_view *vw;
 	struct skysample_table t;
 	const struct sky_shm_slot *s = (const struct sky_shm_slot *)r->slot;
-	CHECK(skysample_view_from_slot(r->hdr, r->slot, name, &t, &vw) == 0);
+	CHECK_EQ(skysample_view_from_slot(r->hdr, r->slot, name, &t, &vw), 0);
 	double d[3], rgb[3], tr, want[3], want_t;
 	dir_at(&vw->panorama, f, g, d);
 	double w = skymap_aerial_slice(dist, t.depth, s->state.aerial_range_km, 1);
@@ -210,7 +210,7 @@ static void test_sampling(const struct region *r)
 	double mid = (PW - 1) + 0.5 * gap / step;
 	const struct sky_shm_view *vw;
 	struct skysample_table t;
-	CHECK(skysample_view_from_slot(r->hdr, r->slot, "pano", &t, &vw) == 0);
+	CHECK_EQ(skysample_view_from_slot(r->hdr, r->slot, "pano", &t, &vw), 0);
 	double d[3], rgb[3], tr, want[3], want_t;
 	dir_at(arc, mid - 0.01, 4.5, d);
 	skysample_panorama(&t, arc, &s->state, d, 12.0, rgb, &tr);
@@ -240,10 +240,10 @@ static void test_entries(struct region *r)
 	struct sky_shm_slot *s = (struct sky_shm_slot *)r->slot;
 	const struct sky_shm_view *vw;
 	struct skysample_table t, t2;
-	CHECK(skysample_check_layout(r->hdr, r->hdr->total_bytes) == 0);
-	CHECK(skysample_view_from_slot(r->hdr, r->slot, "vol", &t, &vw) == 0);
+	CHECK_EQ(skysample_check_layout(r->hdr, r->hdr->total_bytes), 0);
+	CHECK_EQ(skysample_view_from_slot(r->hdr, r->slot, "vol", &t, &vw), 0);
 	CHECK(vw == &s->views[0] && t.texels == r->slot + r->hdr->view_offset && t.depth == AD);
-	CHECK(skysample_view_from_slot(r->hdr, r->slot, "pano", &t, &vw) == 0);
+	CHECK_EQ(skysample_view_from_slot(r->hdr, r->slot, "pano", &t, &vw), 0);
 	CHECK(vw == &s->views[1] && t.texels == r->slot + r->arc_offset &&
 	      t.format == SKY_FORMAT_RGBA32F && t.width == PW && t.height == PH && t.depth == PD &&
 	      t.rgb_scale_log2 == 0);
@@ -291,8 +291,8 @@ static void test_checksum(struct region *r)
 	c = sky_shm_checksum_words(c, r->slot + r->arc_offset, s->views[1].panorama.bytes / 8);
 	c = sky_shm_checksum_words(c, r->slot + r->arc_offset, s->views[2].panorama.bytes / 8);
 	c = sky_shm_checksum_words(c, r->slot + r->ring_offset, s->views[3].panorama.bytes / 8);
-	CHECK(skysample_slot_checksum(r->hdr, s) == c);
-	CHECK(s->checksum == c);
+	CHECK_EQ(skysample_slot_checksum(r->hdr, s), c);
+	CHECK_EQ(s->checksum, c);
 	/* A panorama's texel counts; a panorama view's unused volume does not. */
 	float *px = (float *)(r->slot + r->arc_offset) + 4 * 37;
 	float keep = *px;
@@ -301,13 +301,13 @@ static void test_checksum(struct region *r)
 	*px = keep;
 	unsigned char *unused = r->slot + r->hdr->view_offset + 2 * r->hdr->view_stride;
 	*unused ^= 0xff;
-	CHECK(skysample_slot_checksum(r->hdr, s) == c);
+	CHECK_EQ(skysample_slot_checksum(r->hdr, s), c);
 	*unused ^= 0xff;
 	/* A panorama outside the slot adds nothing: no match, no read. */
 	s->views[3].panorama.offset = r->hdr->slot_bytes;
 	CHECK(skysample_slot_checksum(r->hdr, s) != c);
 	s->views[3].panorama.offset = r->ring_offset;
-	CHECK(skysample_slot_checksum(r->hdr, s) == c);
+	CHECK_EQ(skysample_slot_checksum(r->hdr, s), c);
 }
 
 static void test_libsky(const struct region *r)
@@ -324,27 +324,27 @@ static void test_libsky(const struct region *r)
 	dir_at(&pv->panorama, 6.25, 2.5, d);
 	double w = skymap_aerial_slice(9.0, PD, s->state.aerial_range_km, 1);
 	expected(6.25, 2.5, w, PD, want, &want_t);
-	CHECK(sky_sample_view_aerial_dir(&v, "pano", d, 9.0, rgb, &tr) == 0);
+	CHECK_EQ(sky_sample_view_aerial_dir(&v, "pano", d, 9.0, rgb, &tr), 0);
 	CHECK(close_to(rgb, tr, want, want_t, 1e-9));
 	double d3[3] = { 3.0 * d[0], 3.0 * d[1], 3.0 * d[2] };	/* any length */
-	CHECK(sky_sample_view_aerial_dir(&v, "pano", d3, 9.0, rgb2, &tr2) == 0);
+	CHECK_EQ(sky_sample_view_aerial_dir(&v, "pano", d3, 9.0, rgb2, &tr2), 0);
 	CHECK(close_to(rgb2, tr2, want, want_t, 1e-12));
 	double su = 0.3, sv = 0.8, sd[3];
 	skysample_screen_dir(pv->camera_forward, pv->camera_right, pv->camera_up,
 			     tan(0.5 * pv->camera_vfov_rad), pv->camera_aspect, su, sv, sd);
-	CHECK(sky_sample_view_aerial(&v, "pano", su, sv, 9.0, rgb, &tr) == 0);
-	CHECK(sky_sample_view_aerial_dir(&v, "pano", sd, 9.0, rgb2, &tr2) == 0);
+	CHECK_EQ(sky_sample_view_aerial(&v, "pano", su, sv, 9.0, rgb, &tr), 0);
+	CHECK_EQ(sky_sample_view_aerial_dir(&v, "pano", sd, 9.0, rgb2, &tr2), 0);
 	CHECK(close_to(rgb, tr, rgb2, tr2, 1e-12));
 	skysample_screen_dir(vv->camera_forward, vv->camera_right, vv->camera_up,
 			     tan(0.5 * vv->camera_vfov_rad), vv->camera_aspect, su, sv, sd);
-	CHECK(sky_sample_view_aerial(&v, "vol", su, sv, 9.0, rgb, &tr) == 0);
-	CHECK(sky_sample_view_aerial_dir(&v, "vol", sd, 9.0, rgb2, &tr2) == 0);
+	CHECK_EQ(sky_sample_view_aerial(&v, "vol", su, sv, 9.0, rgb, &tr), 0);
+	CHECK_EQ(sky_sample_view_aerial_dir(&v, "vol", sd, 9.0, rgb2, &tr2), 0);
 	CHECK(close_to(rgb, tr, rgb2, tr2, 1e-12));
 	double zero[3] = { 0.0, 0.0, 0.0 }, nan3[3] = { NAN, 0.0, 1.0 };
-	CHECK(sky_sample_view_aerial_dir(&v, "pano", zero, 9.0, rgb, &tr) == -EINVAL);
-	CHECK(sky_sample_view_aerial_dir(&v, "pano", nan3, 9.0, rgb, &tr) == -EINVAL);
-	CHECK(sky_sample_view_aerial_dir(&v, "pano", d, -1.0, rgb, &tr) == -EINVAL);
-	CHECK(sky_sample_view_aerial_dir(&v, "nobody", d, 9.0, rgb, &tr) == -ENOENT);
+	CHECK_EQ(sky_sample_view_aerial_dir(&v, "pano", zero, 9.0, rgb, &tr), -EINVAL);
+	CHECK_EQ(sky_sample_view_aerial_dir(&v, "pano", nan3, 9.0, rgb, &tr), -EINVAL);
+	CHECK_EQ(sky_sample_view_aerial_dir(&v, "pano", d, -1.0, rgb, &tr), -EINVAL);
+	CHECK_EQ(sky_sample_view_aerial_dir(&v, "nobody", d, 9.0, rgb, &tr), -ENOENT);
 
 	/* The texels for upload. */
 	const void *texels;
@@ -358,15 +358,15 @@ static void test_libsky(const struct region *r)
 
 	/* The uniforms: the panorama's fields, 0 for a volume. */
 	struct sky_gpu_state g;
-	CHECK(sky_gpu_state(&v, "pano", &g) == 0);
+	CHECK_EQ(sky_gpu_state(&v, "pano", &g), 0);
 	CHECK(g.panorama[0] == 1.0f && g.panorama[1] == 0.05f && g.panorama[2] == -0.3f &&
 	      g.panorama[3] == 0.08f);
 	CHECK(g.panorama_grid[0] == -0.01f && g.panorama_grid[1] == PW && g.panorama_grid[2] == PH &&
 	      g.panorama_grid[3] == 1.0f);
 	CHECK(g.camera_forward[0] == (float)pv->camera_forward[0] && g.aerial[3] == 2.0f);
-	CHECK(sky_gpu_state(&v, "ring", &g) == 0);
+	CHECK_EQ(sky_gpu_state(&v, "ring", &g), 0);
 	CHECK(g.panorama_grid[3] == 2.0f && g.panorama_grid[1] == RW && g.panorama[0] == 5.0f);
-	CHECK(sky_gpu_state(&v, "vol", &g) == 0);
+	CHECK_EQ(sky_gpu_state(&v, "vol", &g), 0);
 	CHECK(g.panorama[0] == 0.0f && g.panorama[1] == 0.0f && g.panorama_grid[1] == 0.0f &&
 	      g.panorama_grid[3] == 0.0f);
 	CHECK(sky_gpu_state(&v, NULL, &g) == 0 && g.panorama_grid[3] == 0.0f);

@@ -27,14 +27,6 @@ static const char *get_str(struct conn *c, const char *req, const char *key, cha
 	return buf;
 }
 
-#define CHECK_NEAR(a, b, tol)                                                           \
-	do {                                                                            \
-		double a_ = (a), b_ = (b);                                              \
-		test_checks++;                                                          \
-		if (!(fabs(a_ - b_) <= (tol)))                                          \
-			FAIL("%s = %.9g, want %.9g within %g", #a, a_, b_, (double)(tol)); \
-	} while (0)
-
 static const struct astro_site golden = { 39.742476, -105.1786, 1830.0 };
 #define GOLDEN_SET "lat_deg=39.742476 lon_deg=-105.1786 site_elevation_m=1830"
 

@@ -9,15 +9,6 @@
 #include "simclock.h"
 #include "test.h"
 
-#define NEAR(a, b, tol) (fabs((a) - (b)) <= (tol))
-#define CHECK_NEAR(a, b, tol)                                                          \
-	do {                                                                           \
-		test_checks++;                                                         \
-		if (!NEAR(a, b, tol))                                                  \
-			FAIL("%s = %.9f, want %.9f +- %g", #a, (double)(a), (double)(b), \
-			     (double)(tol));                                           \
-	} while (0)
-
 static double utc(const char *text)
 {
 	double s = NAN;
@@ -56,7 +47,7 @@ static void test_spa_published_case(void)
 	struct astro_sun s;
 	char err[256] = "";
 
-	CHECK(astro_sun(&golden, utc("2003-10-17T12:30:30-07:00"), &o, &s, err, sizeof(err)) == 0);
+	CHECK_EQ(astro_sun(&golden, utc("2003-10-17T12:30:30-07:00"), &o, &s, err, sizeof(err)), 0);
 	CHECK_NEAR(s.apparent.zenith_deg, 50.11162, 1e-5);
 	CHECK_NEAR(s.apparent.azimuth_deg, 194.34024, 1e-5);
 	CHECK_NEAR(s.apparent.elevation_deg, 90.0 - 50.11162, 1e-5);
@@ -66,8 +57,8 @@ static void test_spa_published_case(void)
 	CHECK_NEAR(s.declination_deg, -9.31434, 1e-5);
 	CHECK_NEAR(s.geometric.elevation_deg, 39.872046, 1e-5);
 	CHECK_NEAR(s.equation_of_time_min, 14.641503, 1e-4);
-	CHECK(s.geometric.azimuth_deg == s.apparent.azimuth_deg);
-	CHECK(s.delta_t_s == 67.0);
+	CHECK_EQ(s.geometric.azimuth_deg, s.apparent.azimuth_deg);
+	CHECK_EQ(s.delta_t_s, 67.0);
 	CHECK_NEAR(s.angular_radius_deg, 0.2667, 0.001);
 	CHECK(s.illuminance_lx > 130000.0 && s.illuminance_lx < 140000.0);
 }
@@ -90,8 +81,8 @@ static void test_spa_published_times(void)
 	char err[256];
 
 	struct astro_date ut_day = { 2003, 10, 17, 0 };
-	CHECK(astro_sun_times(&golden, &ut_day, &o, &t, err, sizeof(err)) == 0);
-	CHECK(t.sunrise_sunset.kind == ASTRO_RISES_AND_SETS);
+	CHECK_EQ(astro_sun_times(&golden, &ut_day, &o, &t, err, sizeof(err)), 0);
+	CHECK_EQ(t.sunrise_sunset.kind, ASTRO_RISES_AND_SETS);
 	double tr = local_hours(t.transit_utc_s, 2003, 10, 17, -420);
 	double ri = local_hours(t.sunrise_sunset.rise_utc_s, 2003, 10, 17, -420);
 	double se = local_hours(t.sunrise_sunset.set_utc_s, 2003, 10, 16, -420);
@@ -103,7 +94,7 @@ static void test_spa_published_times(void)
 	CHECK_NEAR(se, sunset_h, 0.05 * second_h);
 
 	struct astro_date oct17 = { 2003, 10, 17, -420 }, oct16 = { 2003, 10, 16, -420 };
-	CHECK(astro_sun_times(&golden, &oct17, &o, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(astro_sun_times(&golden, &oct17, &o, &t, err, sizeof(err)), 0);
 	CHECK_NEAR(local_hours(t.transit_utc_s, 2003, 10, 17, -420), transit_h, second_h);
 	CHECK_NEAR(local_hours(t.sunrise_sunset.rise_utc_s, 2003, 10, 17, -420), sunrise_h, second_h);
 	double set17 = local_hours(t.sunrise_sunset.set_utc_s, 2003, 10, 17, -420);
@@ -116,7 +107,7 @@ static void test_spa_published_times(void)
 	CHECK(t.civil.set_utc_s < t.nautical.set_utc_s);
 	CHECK(t.nautical.set_utc_s < t.astronomical.set_utc_s);
 
-	CHECK(astro_sun_times(&golden, &oct16, &o, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(astro_sun_times(&golden, &oct16, &o, &t, err, sizeof(err)), 0);
 	double set16 = local_hours(t.sunrise_sunset.set_utc_s, 2003, 10, 16, -420);
 	printf("SPA case, local days: sunset Oct 16 %.6f h (%+.3f s vs the report), Oct 17 %.6f h\n",
 	       set16, (set16 - sunset_h) * 3600.0, set17);
@@ -134,20 +125,20 @@ static void test_events_hit_their_thresholds(void)
 	struct astro_sun s;
 	char err[256];
 
-	CHECK(astro_sun_times(&golden, &day, &o, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(astro_sun_times(&golden, &day, &o, &t, err, sizeof(err)), 0);
 	const struct astro_rise_set *rs[] = { &t.sunrise_sunset, &t.civil, &t.nautical,
 					      &t.astronomical };
 	for (size_t i = 0; i < 4; i++) {
-		CHECK(rs[i]->kind == ASTRO_RISES_AND_SETS);
-		CHECK(astro_sun(&golden, rs[i]->rise_utc_s, &o, &s, err, sizeof(err)) == 0);
+		CHECK_EQ(rs[i]->kind, ASTRO_RISES_AND_SETS);
+		CHECK_EQ(astro_sun(&golden, rs[i]->rise_utc_s, &o, &s, err, sizeof(err)), 0);
 		CHECK_NEAR(s.geometric.elevation_deg, rs[i]->threshold_deg, 0.003);
 		CHECK(s.geometric.azimuth_deg < 180.0);
-		CHECK(astro_sun(&golden, rs[i]->set_utc_s, &o, &s, err, sizeof(err)) == 0);
+		CHECK_EQ(astro_sun(&golden, rs[i]->set_utc_s, &o, &s, err, sizeof(err)), 0);
 		CHECK_NEAR(s.geometric.elevation_deg, rs[i]->threshold_deg, 0.003);
 		CHECK(s.geometric.azimuth_deg > 180.0);
 	}
 	CHECK_NEAR(t.sunrise_sunset.threshold_deg, -0.83337, 1e-9);
-	CHECK(astro_sun(&golden, t.transit_utc_s, &o, &s, err, sizeof(err)) == 0);
+	CHECK_EQ(astro_sun(&golden, t.transit_utc_s, &o, &s, err, sizeof(err)), 0);
 	CHECK_NEAR(s.hour_angle_deg, 0.0, 0.01);
 }
 
@@ -212,7 +203,7 @@ static void test_spa_reference_csv(void)
 	printf("spa_reference.csv: %d rows, %d outside 0.0003 deg; worst zenith error %.2e deg (%s), "
 	       "worst azimuth error x sin(zenith) %.2e deg (%s)\n",
 	       rows, bad, worst_zen, worst_zen_line, worst_az, worst_az_line);
-	CHECK(rows == 512);
+	CHECK_EQ(rows, 512);
 }
 
 /* Meeus example 47.a (1992-04-12 0h TD) and 48.a (same instant). */
@@ -226,7 +217,7 @@ static void test_meeus_moon(void)
 	astro_options_default(&o);
 	o.delta_t_auto = false;
 	o.delta_t_s = 0.0;	/* 0h TD: give the time as TT */
-	CHECK(astro_moon(&site, utc("1992-04-12T00:00:00Z"), &o, &m, err, sizeof(err)) == 0);
+	CHECK_EQ(astro_moon(&site, utc("1992-04-12T00:00:00Z"), &o, &m, err, sizeof(err)), 0);
 	CHECK_NEAR(m.longitude_deg, 133.162655, 0.5e-6);
 	CHECK_NEAR(m.latitude_deg, -3.229126, 0.5e-6);
 	CHECK_NEAR(m.distance_km, 368409.7, 0.05);
@@ -254,8 +245,8 @@ static void test_moon_light(void)
 	CHECK_NEAR(full, 0.314, 0.002);
 	/* docs/physics.md: a quarter moon is about 9 % of the full one. */
 	CHECK_NEAR(astro_moon_illuminance_lx(90.0, 384400.0, 1.0) / full, 0.09, 0.01);
-	CHECK(astro_moon_illuminance_lx(180.0, 384400.0, 1.0) == 0.0);
-	CHECK(astro_moon_illuminance_lx(NAN, 384400.0, 1.0) == 0.0);
+	CHECK_EQ(astro_moon_illuminance_lx(180.0, 384400.0, 1.0), 0.0);
+	CHECK_EQ(astro_moon_illuminance_lx(NAN, 384400.0, 1.0), 0.0);
 
 	/* Full moon 2024-01-25 17:54 UTC, new moon 2024-01-11 11:57 UTC. */
 	CHECK(astro_moon(&site, utc("2024-01-25T17:54:00Z"), NULL, &m, err, sizeof(err)) == 0);
@@ -288,25 +279,25 @@ static void test_polar(void)
 
 	struct astro_date midsummer = { 2026, 6, 21, 120 }, midwinter = { 2026, 12, 21, 60 };
 	CHECK(astro_sun_times(&tromso, &midsummer, NULL, &t, err, sizeof(err)) == 0);
-	CHECK(t.sunrise_sunset.kind == ASTRO_ALWAYS_ABOVE);
+	CHECK_EQ(t.sunrise_sunset.kind, ASTRO_ALWAYS_ABOVE);
 	CHECK(isnan(t.sunrise_sunset.rise_utc_s) && isnan(t.sunrise_sunset.set_utc_s));
-	CHECK(t.astronomical.kind == ASTRO_ALWAYS_ABOVE);
+	CHECK_EQ(t.astronomical.kind, ASTRO_ALWAYS_ABOVE);
 	CHECK(isfinite(t.transit_utc_s));
 
 	CHECK(astro_sun_times(&tromso, &midwinter, NULL, &t, err, sizeof(err)) == 0);
-	CHECK(t.sunrise_sunset.kind == ASTRO_ALWAYS_BELOW);
+	CHECK_EQ(t.sunrise_sunset.kind, ASTRO_ALWAYS_BELOW);
 	CHECK(isnan(t.sunrise_sunset.rise_utc_s) && isnan(t.sunrise_sunset.set_utc_s));
 	/* The noon sun reaches about -3 degrees: civil twilight still happens. */
-	CHECK(t.civil.kind == ASTRO_RISES_AND_SETS);
+	CHECK_EQ(t.civil.kind, ASTRO_RISES_AND_SETS);
 	CHECK(t.civil.rise_utc_s < t.transit_utc_s && t.transit_utc_s < t.civil.set_utc_s);
 	CHECK(t.transit_elevation_deg > -4.0 && t.transit_elevation_deg < -2.0);
 
 	CHECK(astro_sun_times(&south_pole, &midwinter, NULL, &t, err, sizeof(err)) == 0);
-	CHECK(t.sunrise_sunset.kind == ASTRO_ALWAYS_ABOVE);
-	CHECK(t.civil.kind == ASTRO_ALWAYS_ABOVE);
+	CHECK_EQ(t.sunrise_sunset.kind, ASTRO_ALWAYS_ABOVE);
+	CHECK_EQ(t.civil.kind, ASTRO_ALWAYS_ABOVE);
 	CHECK(astro_sun_times(&north_pole, &midwinter, NULL, &t, err, sizeof(err)) == 0);
-	CHECK(t.sunrise_sunset.kind == ASTRO_ALWAYS_BELOW);
-	CHECK(t.astronomical.kind == ASTRO_ALWAYS_BELOW);
+	CHECK_EQ(t.sunrise_sunset.kind, ASTRO_ALWAYS_BELOW);
+	CHECK_EQ(t.astronomical.kind, ASTRO_ALWAYS_BELOW);
 
 	/* At the pole the sun's elevation is its declination, give or take. */
 	struct astro_sun s;
@@ -358,7 +349,7 @@ static void test_1900_and_2100(void)
 		CHECK(astro_sun(&greenwich, t.transit_utc_s, NULL, &s, err, sizeof(err)) == 0);
 		double noon_h = local_hours(t.transit_utc_s, days[i].year, days[i].month, days[i].day, 0);
 		CHECK_NEAR(noon_h, 12.0 - s.equation_of_time_min / 60.0, 1.0 / 3600.0);
-		CHECK(t.sunrise_sunset.kind == ASTRO_RISES_AND_SETS);
+		CHECK_EQ(t.sunrise_sunset.kind, ASTRO_RISES_AND_SETS);
 	}
 
 	struct astro_moon m;
@@ -378,21 +369,21 @@ static void test_refraction(void)
 	struct astro_date day = { 2026, 3, 20, 0 };
 
 	astro_options_default(&o);
-	CHECK(astro_sun_times(&site, &day, &o, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(astro_sun_times(&site, &day, &o, &t, err, sizeof(err)), 0);
 	/* Two minutes after sunrise (centre 0.33 deg below the horizon) the
 	 * apparent centre is lifted about half a degree (SPA eq. 42: 0.53). */
 	double after_s = t.sunrise_sunset.rise_utc_s + 120.0;
-	CHECK(astro_sun(&site, after_s, &o, &s, err, sizeof(err)) == 0);
+	CHECK_EQ(astro_sun(&site, after_s, &o, &s, err, sizeof(err)), 0);
 	double lift = s.apparent.elevation_deg - s.geometric.elevation_deg;
 	CHECK(lift > 0.45 && lift < 0.6);
 	/* No air, no refraction; deep below the horizon, none either. */
 	o.pressure_mbar = 0.0;
-	CHECK(astro_sun(&site, after_s, &o, &s, err, sizeof(err)) == 0);
-	CHECK(s.apparent.elevation_deg == s.geometric.elevation_deg);
+	CHECK_EQ(astro_sun(&site, after_s, &o, &s, err, sizeof(err)), 0);
+	CHECK_EQ(s.apparent.elevation_deg, s.geometric.elevation_deg);
 	astro_options_default(&o);
-	CHECK(astro_sun(&site, t.transit_utc_s + 43200.0, &o, &s, err, sizeof(err)) == 0);
+	CHECK_EQ(astro_sun(&site, t.transit_utc_s + 43200.0, &o, &s, err, sizeof(err)), 0);
 	CHECK(s.geometric.elevation_deg < -80.0);
-	CHECK(s.apparent.elevation_deg == s.geometric.elevation_deg);
+	CHECK_EQ(s.apparent.elevation_deg, s.geometric.elevation_deg);
 	CHECK_NEAR(s.geometric.zenith_deg + s.geometric.elevation_deg, 90.0, 1e-12);
 }
 
@@ -437,9 +428,9 @@ static void test_refusals(void)
 
 	/* Times: not ISO, month 13, outside SPA's years, not a number. */
 	double x = 0.0;
-	CHECK(simclock_parse_utc("2026-13-01T00:00:00Z", &x) == -EINVAL);
-	CHECK(simclock_parse_utc("21/06/2026 18:30", &x) == -EINVAL);
-	CHECK(simclock_parse_utc("2026-06-21T18:30:00", &x) == -EINVAL);
+	CHECK_EQ(simclock_parse_utc("2026-13-01T00:00:00Z", &x), -EINVAL);
+	CHECK_EQ(simclock_parse_utc("21/06/2026 18:30", &x), -EINVAL);
+	CHECK_EQ(simclock_parse_utc("2026-06-21T18:30:00", &x), -EINVAL);
 	static const double bad_times[] = { NAN, INFINITY, -1e12, 1e12 };
 	for (size_t i = 0; i < 4; i++) {
 		err[0] = '\0';
@@ -478,7 +469,7 @@ static void test_refusals(void)
 		case 4: o.horizon_refraction_deg = NAN; break;
 		}
 		err[0] = '\0';
-		CHECK(astro_sun(&ok, now, &o, &s, err, sizeof(err)) == -EINVAL);
+		CHECK_EQ(astro_sun(&ok, now, &o, &s, err, sizeof(err)), -EINVAL);
 		CHECK(strstr(err, opt_keys[i]) != NULL);
 	}
 	/* A NULL or zero-sized err buffer is fine. */
