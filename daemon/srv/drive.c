@@ -32,20 +32,6 @@ struct drive {
 	uint64_t ticks, changes;
 };
 
-void drive_site(const struct sky_state *s, struct astro_site *ret_site, struct astro_options *ret_opt)
-{
-	const struct state_clock *c = &s->clock;
-
-	*ret_site = (struct astro_site){ .lat_deg = c->lat_deg, .lon_deg = c->lon_deg,
-		.elevation_m = c->site_elevation_m };
-	astro_options_default(ret_opt);
-	ret_opt->delta_t_auto = isnan(c->delta_t_s);
-	ret_opt->delta_t_s = isnan(c->delta_t_s) ? 0.0 : c->delta_t_s;
-	ret_opt->pressure_mbar = c->pressure_mbar;
-	ret_opt->temperature_c = c->temperature_c;
-	ret_opt->horizon_refraction_deg = c->horizon_refraction_deg;
-}
-
 int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *err,
 		 size_t err_size)
 {
@@ -58,7 +44,7 @@ int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *
 
 	next.lights_utc_s = NAN;
 	if ((sun || moon) && !isnan(utc_s)) {
-		drive_site(s, &site, &opt);
+		state_astro_site(s, &site, &opt);
 		next.lights_utc_s = utc_s;
 	}
 	if (sun && !isnan(utc_s)) {

@@ -31,10 +31,6 @@ struct drive;
  * own motion is slower and in the other direction. */
 #define DRIVE_MAX_SPEED_DEG_PER_H 15.1
 
-/* The astro inputs of s: its site and options. */
-void drive_site(const struct sky_state *s, struct astro_site *ret_site,
-		struct astro_options *ret_opt);
-
 /* Puts into s the lights whose mode is STATE_CLOCK as they are at monotonic
  * time mono_s: sun direction, illuminance (133.8 klx / R^2, clear sky: the
  * tables get it times the state's cloud factor, state_resolve) and angular
