@@ -28,26 +28,6 @@ void eng_set_err(char *err, size_t n, const char *fmt, ...)
 	va_end(ap);
 }
 
-const char *eng_vk_result_name(VkResult r)
-{
-	switch (r) {
-	case VK_SUCCESS: return "VK_SUCCESS";
-	case VK_NOT_READY: return "VK_NOT_READY";
-	case VK_TIMEOUT: return "VK_TIMEOUT";
-	case VK_INCOMPLETE: return "VK_INCOMPLETE";
-	case VK_ERROR_OUT_OF_HOST_MEMORY: return "VK_ERROR_OUT_OF_HOST_MEMORY";
-	case VK_ERROR_OUT_OF_DEVICE_MEMORY: return "VK_ERROR_OUT_OF_DEVICE_MEMORY";
-	case VK_ERROR_INITIALIZATION_FAILED: return "VK_ERROR_INITIALIZATION_FAILED";
-	case VK_ERROR_DEVICE_LOST: return "VK_ERROR_DEVICE_LOST";
-	case VK_ERROR_MEMORY_MAP_FAILED: return "VK_ERROR_MEMORY_MAP_FAILED";
-	case VK_ERROR_EXTENSION_NOT_PRESENT: return "VK_ERROR_EXTENSION_NOT_PRESENT";
-	case VK_ERROR_FEATURE_NOT_PRESENT: return "VK_ERROR_FEATURE_NOT_PRESENT";
-	case VK_ERROR_INCOMPATIBLE_DRIVER: return "VK_ERROR_INCOMPATIBLE_DRIVER";
-	case VK_ERROR_TOO_MANY_OBJECTS: return "VK_ERROR_TOO_MANY_OBJECTS";
-	default: return "VkResult";
-	}
-}
-
 /* Loader and instance ------------------------------------------------------ */
 
 static int load_loader(struct vkfn *vk, void **ret_handle, char *err, size_t err_size)
@@ -269,22 +249,6 @@ static int pick_device(struct eng *e, const char *selector, char *err, size_t er
 
 /* Device objects ------------------------------------------------------------ */
 
-static int find_memory(struct eng *e, uint32_t type_bits, VkMemoryPropertyFlags want,
-		       VkMemoryPropertyFlags prefer)
-{
-	int fallback = -1;
-	for (uint32_t i = 0; i < e->mem_props.memoryTypeCount; i++) {
-		VkMemoryPropertyFlags f = e->mem_props.memoryTypes[i].propertyFlags;
-		if (!(type_bits & (1u << i)) || (f & want) != want)
-			continue;
-		if ((f & prefer) == prefer)
-			return (int)i;
-		if (fallback < 0)
-			fallback = (int)i;
-	}
-	return fallback;
-}
-
 void eng_buffer_free(struct eng *e, struct gpu_buffer *b)
 {
 	if (b->buf)
@@ -306,7 +270,7 @@ int eng_buffer_new(struct eng *e, VkDeviceSize bytes, VkBufferUsageFlags usage,
 
 	VK_TRY(e->vk.vkCreateBuffer(e->dev, &bi, NULL, &b.buf));
 	e->vk.vkGetBufferMemoryRequirements(e->dev, b.buf, &req);
-	int type = find_memory(e, req.memoryTypeBits, want, prefer);
+	int type = vkcheck_find_memory(&e->mem_props, req.memoryTypeBits, want, prefer);
 	if (type < 0) {
 		eng_set_err(err, err_size, "no Vulkan memory type with flags 0x%x", want);
 		rc = -ENOMEM;

@@ -13,6 +13,7 @@
 #include "aplan.h"
 #include "eng.h"
 #include "phase.h"
+#include "vkcheck.h"
 #include "vkfn.h"
 
 #include "sky_params.h"
@@ -186,21 +187,6 @@ struct eng {
 
 void eng_set_err(char *err, size_t n, const char *fmt, ...)
 	__attribute__((format(printf, 3, 4)));
-const char *eng_vk_result_name(VkResult r);
-
-/* Every Vulkan call goes through VK_TRY: on failure it names the call and
- * the result in err and jumps to the function's one cleanup label. */
-#define VK_TRY(call)                                                                 \
-	do {                                                                         \
-		VkResult vk_r_ = (call);                                             \
-		if (vk_r_ != VK_SUCCESS) {                                           \
-			eng_set_err(err, err_size, "%s failed: %s (%d) at %s:%d", #call, \
-				    eng_vk_result_name(vk_r_), (int)vk_r_, __FILE_NAME__, \
-				    __LINE__);                                       \
-			rc = vk_r_ == VK_ERROR_OUT_OF_HOST_MEMORY ? -ENOMEM : -EIO;  \
-			goto fail;                                                   \
-		}                                                                    \
-	} while (0)
 
 /* eng_device.c: device memory. buffer_new maps host-visible memory; the
  * vec4 buffers are float32 RGBA storage with a texel view on them. */
