@@ -201,10 +201,11 @@ void eng_vec4_buffer_free(struct eng *e, struct gpu_buffer *b, VkBufferView *vie
 VkDescriptorType eng_binding_type(int binding);
 
 /* eng_params.c: the uniform block and the specialization of the passes. */
-/* Fills the uniform block and the constants every pass starts from for s;
- * keeps the phases' fits in e while a constituent's phase stays. */
-void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p,
-		     struct spec *base);
+/* Fills the uniform block and the constants every pass starts from for s
+ * lit by lights; keeps the phases' fits in e while a constituent's phase
+ * stays. */
+void eng_fill_params(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		     struct gpu_params *p, struct spec *base);
 /* The aerial jobs of s (sky_params.h, VIEW_BUFFER_BYTES) as planned by
  * p: the volumes marched on their own, then the panoramas (at texel
  * pano_base of the aerial buffer, one after the other), each with the

@@ -33,10 +33,12 @@ static void put4(float d[4], double a, double b, double c, double w)
 static void fill_delta(struct eng *e, const struct sky_state *s, int delta, struct gpu_params *p,
 		       struct spec *base);
 
-void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p, struct spec *base)
+void eng_fill_params(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		     struct gpu_params *p, struct spec *base)
 {
 	const struct atmo *a = &s->atmo;
-	double sun[3], moon[3], fwd[3], right[3], up[3];
+	const double *sun = lights->sun, *moon = lights->moon;
+	double fwd[3], right[3], up[3];
 	double h0 = s->altitude_km > 0.0 ? s->altitude_km : 0.0;
 	double shell = a->top_radius_km - a->bottom_radius_km;
 
@@ -44,8 +46,6 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params
 	memset(base, 0, sizeof(*base));
 	put4(p->planet, a->bottom_radius_km, a->top_radius_km, shell, h0);
 	put4(p->albedo, a->ground_albedo[0], a->ground_albedo[1], a->ground_albedo[2], 0);
-	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, sun);
-	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, moon);
 	put4(p->sun_dir, sun[0], sun[1], sun[2], s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
 	put4(p->moon_dir, moon[0], moon[1], moon[2], s->moon.angular_radius_deg * SKYMAP_PI / 180.0);
 	put4(p->sun_illum, s->sun.illuminance_lx * s->sun.color[0],
