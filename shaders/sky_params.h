@@ -59,49 +59,83 @@
 #define BINDING_COUNT 15
 
 /* The aerial jobs at BINDING_VIEWS (eng_fill_views, aerial.comp,
- * aerial_resample.comp): vec4 0 holds the number of march jobs in x; then
- * AERIAL_JOB_VEC4 vec4s per job, the march jobs (a dispatch's z each) and
- * after them the resample jobs. A march job marches a camera's volume or an
- * eye point's panorama; a resample job fills a camera's volume from a
- * panorama. Offsets are in texels of the aerial buffer, as uint bits. */
-#define AERIAL_JOB_VEC4 6
-#define AERIAL_JOB_CAMERA 0	/* march job kinds, in vec4 4's w */
-#define AERIAL_JOB_PANORAMA 1
+ * aerial_resample.comp): a head whose first word is the number of march
+ * jobs, then one AerialJob each, the march jobs (a dispatch's z each) and
+ * after them the resample jobs. A march job marches a camera's volume or
+ * an eye point's panorama (kind); a resample job fills a camera's volume
+ * from a panorama. Offsets are in texels of the aerial buffer. */
+#define AERIAL_JOB_CAMERA 0u	/* march job kinds */
+#define AERIAL_JOB_PANORAMA 1u
 
 #define SKY_MAX_CONSTITUENTS 4	/* ATMO_MAX_CONSTITUENTS */
 #define SKY_GROUND_FIT 8	/* PHASE_GROUND_FIT */
 
-/* The uniform block (std140, vec4s only, so that C's float[4] matches).
- * X-lists: V(name) a vec4, A(name, n) an array of n vec4, S(name, n) an
- * array of n constituents. Lengths in km, coefficients in 1/km. */
-#define SKY_CONSTITUENT_MEMBERS(V)                                               \
-	V(scattering)	/* rgb, w = g */                                         \
-	V(absorption)	/* rgb, w = g1, the phase's first Legendre moment */     \
-	V(layer0)	/* width_km, exp_term, exp_scale_per_km, linear_per_km */ \
-	V(layer0c_1)	/* layer 0's constant, then layer 1's exp_term,          \
-			 * exp_scale_per_km, linear_per_km */                    \
-	V(layer1c)	/* layer 1's constant, y = g2, the phase's second        \
-			 * Legendre moment, z = f, w = g' of the delta-M         \
-			 * truncation (the delta-M constituent only) */
+/* The shared structs as X-lists: V(name) a vec4, V3(name) a vec3 (always
+ * followed by a scalar, so that C's float[3] and the shader's vec3 leave
+ * no gap), F(name) a float, U(name) a uint, A(name, n) an array of n vec4,
+ * S(name, n) an array of n constituents. Lengths in km, coefficients in
+ * 1/km, angles in radians. tests/test_params.c checks every member's name,
+ * offset and size in the SPIR-V against the C side. */
 
-#define SKY_PARAMS_MEMBERS(V, A, S)                                              \
-	V(planet)	/* bottom radius, top radius, shell, observer altitude */ \
-	V(albedo)	/* ground albedo rgb */                                  \
-	V(sun_dir)	/* unit, w = angular radius (rad) */                     \
-	V(sun_illum)	/* lx per channel at the top of the atmosphere */        \
-	V(moon_dir)                                                              \
+/* One aerial job (std430). A camera's frame serves camera and resample
+ * jobs, a panorama's mapping (struct sky_shm_panorama's fields, as
+ * skymap_panorama_uv takes them) panorama and resample jobs. */
+#define SKY_AERIAL_JOB_MEMBERS(V3, F, U)                                         \
+	V3(fwd) F(tan_half_vfov)	/* a camera's forward; tan(vfov / 2) */  \
+	V3(right) F(aspect)		/* its right; width / height */          \
+	V3(up) F(eye_km)		/* its up; the eye's altitude (any job) */ \
+	F(azimuth0_rad)			/* a panorama's column 0 azimuth */      \
+	F(azimuth_step_rad)		/* between columns */                    \
+	F(row0) F(row_step)		/* row j at x = row0 + j row_step, x =   \
+					 * sign(e) sqrt(|e|), e above horizon */ \
+	F(horizon_rad)			/* the eye's horizon elevation */        \
+	F(width) F(height)		/* columns (stored), rows */             \
+	F(full_circle)			/* 1: the last column repeats column 0 */ \
+	V3(sun) U(out_texel)		/* the sun in the eye's local frame; the \
+					 * output's first texel */               \
+	V3(moon) U(kind)		/* the moon likewise; AERIAL_JOB_* of a  \
+					 * march job */                          \
+	U(panorama_texel)		/* a resample job's panorama */          \
+	U(pad0) U(pad1) U(pad2)
+
+/* The uniform block (std140). */
+#define SKY_CONSTITUENT_MEMBERS(V, V3, F)                                        \
+	V3(scattering) F(g)	/* per channel; the phase's asymmetry g */       \
+	V3(absorption) F(g1)	/* per channel; the phase's first Legendre moment */ \
+	V(layer0)		/* the lower layer's profile: exp_term,          \
+				 * exp_scale_per_km, linear_per_km, constant */  \
+	V(layer1)		/* the upper layer's, the same terms */          \
+	F(layer0_width_km)	/* where the lower layer ends */                 \
+	F(g2)			/* the phase's second Legendre moment */         \
+	F(delta_f)		/* delta-M (the delta-M constituent only): the   \
+				 * forward fraction f */                          \
+	F(delta_g)		/* and the truncated phase's g' */
+
+#define SKY_PARAMS_MEMBERS(V, V3, F, U, A, S)                                    \
+	F(bottom_radius_km) F(top_radius_km)                                     \
+	F(shell_km)		/* top - bottom */                               \
+	F(observer_km)		/* the observer's altitude, >= 0 */              \
+	V(albedo)		/* ground albedo rgb */                          \
+	V3(sun_dir) F(sun_radius_rad)	/* unit; angular radius */               \
+	V(sun_illum)		/* lx per channel at the top of the atmosphere */ \
+	V3(moon_dir) F(moon_radius_rad)                                          \
 	V(moon_illum)                                                            \
-	V(cam_fwd)	/* w = tan(vfov / 2) */                                  \
-	V(cam_right)	/* w = aspect */                                         \
-	V(cam_up)	/* w = aerial range km */                                \
-	V(misc)		/* x horizon cos of the observer, y sky-view min steps,  \
-			 * z aerial squared (1/0), w H = sqrt(top^2 - bottom^2), \
-			 * the horizontal distance to the top from the ground */ \
+	V3(cam_fwd) F(cam_tan_half_vfov)                                         \
+	V3(cam_right) F(cam_aspect)                                              \
+	V3(cam_up) F(aerial_range_km)                                            \
+	F(horizon_cos)		/* of the observer */                            \
+	F(skyview_min_steps)                                                     \
+	U(aerial_squared)	/* 1: squared slice spacing, 0: linear */        \
+	F(top_distance_km)	/* H = sqrt(top^2 - bottom^2), the horizontal    \
+				 * distance to the top from the ground */        \
 	S(c, SKY_MAX_CONSTITUENTS)                                               \
-	V(night)	/* night-sky floor: rgb zenith cd/m2, w horizon gain */  \
+	V3(night) F(night_gain)	/* night-sky floor: rgb zenith cd/m2; the horizon \
+				 * gain c of L_z (1 + c (1 - mu)) */              \
 	A(ground_fit, SKY_GROUND_FIT)	/* phase_ground_fit's coefficients,      \
 					 * a component per constituent */        \
-	V(delta_peak)	/* delta-M's forward peak: x = h, y = its spread (rad) */
+	F(delta_peak_h)		/* delta-M's forward peak: its h */              \
+	F(delta_peak_spread_rad)	/* and its spread */                     \
+	F(pad0) F(pad1)
 
 /* The pack pass (storage=f16, pack.comp), per table in state_table order:
  * the texels to pack (0: not computed this time; the aerial table counts
@@ -121,28 +155,53 @@ struct gpu_pack {
 };
 
 #define SKY_C_VEC4(name) float name[4];
+#define SKY_C_VEC3(name) float name[3];
+#define SKY_C_FLOAT(name) float name;
+#define SKY_C_UINT(name) uint32_t name;
 #define SKY_C_VEC4_ARRAY(name, n) float name[n][4];
 #define SKY_C_CONSTITUENTS(name, n) struct gpu_constituent name[n];
 struct gpu_constituent {
-	SKY_CONSTITUENT_MEMBERS(SKY_C_VEC4)
+	SKY_CONSTITUENT_MEMBERS(SKY_C_VEC4, SKY_C_VEC3, SKY_C_FLOAT)
 };
 struct gpu_params {
-	SKY_PARAMS_MEMBERS(SKY_C_VEC4, SKY_C_VEC4_ARRAY, SKY_C_CONSTITUENTS)
+	SKY_PARAMS_MEMBERS(SKY_C_VEC4, SKY_C_VEC3, SKY_C_FLOAT, SKY_C_UINT, SKY_C_VEC4_ARRAY,
+			   SKY_C_CONSTITUENTS)
+};
+struct gpu_aerial_job {
+	SKY_AERIAL_JOB_MEMBERS(SKY_C_VEC3, SKY_C_FLOAT, SKY_C_UINT)
+};
+/* The buffer at BINDING_VIEWS: this head, then the jobs. */
+struct gpu_aerial_head {
+	uint32_t n_march;
+	uint32_t pad[3];
 };
 #undef SKY_C_VEC4
+#undef SKY_C_VEC3
+#undef SKY_C_FLOAT
+#undef SKY_C_UINT
 #undef SKY_C_VEC4_ARRAY
 #undef SKY_C_CONSTITUENTS
 #else
 #define SKY_GLSL_VEC4(name) vec4 name;
+#define SKY_GLSL_VEC3(name) vec3 name;
+#define SKY_GLSL_FLOAT(name) float name;
+#define SKY_GLSL_UINT(name) uint name;
 #define SKY_GLSL_VEC4_ARRAY(name, n) vec4 name[n];
 #define SKY_GLSL_CONSTITUENTS(name, n) Constituent name[n];
 struct Constituent {
-	SKY_CONSTITUENT_MEMBERS(SKY_GLSL_VEC4)
+	SKY_CONSTITUENT_MEMBERS(SKY_GLSL_VEC4, SKY_GLSL_VEC3, SKY_GLSL_FLOAT)
 };
 struct Params {
-	SKY_PARAMS_MEMBERS(SKY_GLSL_VEC4, SKY_GLSL_VEC4_ARRAY, SKY_GLSL_CONSTITUENTS)
+	SKY_PARAMS_MEMBERS(SKY_GLSL_VEC4, SKY_GLSL_VEC3, SKY_GLSL_FLOAT, SKY_GLSL_UINT,
+			   SKY_GLSL_VEC4_ARRAY, SKY_GLSL_CONSTITUENTS)
+};
+struct AerialJob {
+	SKY_AERIAL_JOB_MEMBERS(SKY_GLSL_VEC3, SKY_GLSL_FLOAT, SKY_GLSL_UINT)
 };
 #undef SKY_GLSL_VEC4
+#undef SKY_GLSL_VEC3
+#undef SKY_GLSL_FLOAT
+#undef SKY_GLSL_UINT
 #undef SKY_GLSL_VEC4_ARRAY
 #undef SKY_GLSL_CONSTITUENTS
 #endif

@@ -25,9 +25,11 @@
  * until the registers run out; docs/findings.md). */
 #define MS_SUN_GROUP 4
 #define SV_AZ_GROUP 12
-/* The aerial jobs (sky_params.h): a count, then at most one march and one
- * resample job per volume (the state's camera and STATE_MAX_VIEWS views). */
-#define VIEW_BUFFER_BYTES ((1 + 3 * APLAN_CAMERAS * AERIAL_JOB_VEC4) * 4 * sizeof(float))
+/* The aerial jobs (sky_params.h): the head, then at most a march job per
+ * volume and per panorama and a resample job per volume (the state's
+ * camera and STATE_MAX_VIEWS views). */
+#define VIEW_BUFFER_BYTES                                                                 \
+	(sizeof(struct gpu_aerial_head) + 3 * APLAN_CAMERAS * sizeof(struct gpu_aerial_job))
 
 /* The tables later passes look up: transmittance and multi-scattering. */
 #define N_LOOKUPS 2
@@ -86,7 +88,7 @@ struct gpu_buffer {
  * (the column pass's specialization). Coefficients are not in it. */
 struct column_key {
 	float planet[3];	/* bottom, top, shell: the observer left out */
-	float h_top;		/* misc.w */
+	float h_top;		/* top_distance_km */
 	float layers[ATMO_MAX_CONSTITUENTS][12];
 	struct spec spec;
 };
@@ -212,7 +214,7 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, const struct stat
  * volumes resampled from it. ret_march and ret_resample get the jobs'
  * counts (the dispatches' z). */
 void eng_fill_views(const struct sky_state *s, const struct aplan *p, uint64_t pano_base,
-		    float *out, uint32_t *ret_march, uint32_t *ret_resample);
+		    void *out, uint32_t *ret_march, uint32_t *ret_resample);
 struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t);
 struct spec eng_column_spec(const struct spec *base, const struct sky_state *s);
 void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,
