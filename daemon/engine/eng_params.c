@@ -39,25 +39,24 @@ static void put3(float d[3], const double v[3])
 static void fill_delta(struct eng *e, const struct sky_state *s, int delta, struct gpu_params *p,
 		       struct spec *base);
 
-void eng_fill_params(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
-		     struct gpu_params *p, struct spec *base)
+/* The lanes of the planet, the lights, the observer's camera and the
+ * night floor: everything but the constituents. */
+static void fill_scene(const struct sky_state *s, const struct state_lights *lights,
+		       struct gpu_params *p)
 {
 	const struct atmo *a = &s->atmo;
-	const double *sun = lights->sun, *moon = lights->moon;
-	double fwd[3], right[3], up[3];
+	double fwd[3], right[3], up[3], night_cd_m2, night_gain;
 	double h0 = s->altitude_km > 0.0 ? s->altitude_km : 0.0;
 	double shell = a->top_radius_km - a->bottom_radius_km;
 
-	memset(p, 0, sizeof(*p));
-	memset(base, 0, sizeof(*base));
 	p->bottom_radius_km = (float)a->bottom_radius_km;
 	p->top_radius_km = (float)a->top_radius_km;
 	p->shell_km = (float)shell;
 	p->observer_km = (float)h0;
 	put4(p->albedo, a->ground_albedo[0], a->ground_albedo[1], a->ground_albedo[2], 0);
-	put3(p->sun_dir, sun);
+	put3(p->sun_dir, lights->sun);
 	p->sun_radius_rad = (float)(s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
-	put3(p->moon_dir, moon);
+	put3(p->moon_dir, lights->moon);
 	p->moon_radius_rad = (float)(s->moon.angular_radius_deg * SKYMAP_PI / 180.0);
 	put4(p->sun_illum, s->sun.illuminance_lx * s->sun.color[0],
 	     s->sun.illuminance_lx * s->sun.color[1], s->sun.illuminance_lx * s->sun.color[2], 0);
@@ -74,11 +73,19 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, const struct stat
 	p->skyview_min_steps = (float)s->quality.skyview_min_steps;
 	p->aerial_squared = s->quality.aerial_spacing == STATE_SQUARED;
 	p->top_distance_km = (float)sqrt(shell * (2.0 * a->bottom_radius_km + shell));
-
-	double night_cd_m2, night_gain;
 	state_night_floor(s, &night_cd_m2, &night_gain);
 	p->night[0] = p->night[1] = p->night[2] = (float)night_cd_m2;
 	p->night_gain = (float)night_gain;
+}
+
+void eng_fill_params(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		     struct gpu_params *p, struct spec *base)
+{
+	const struct atmo *a = &s->atmo;
+
+	memset(p, 0, sizeof(*p));
+	memset(base, 0, sizeof(*base));
+	fill_scene(s, lights, p);
 
 	/* Constituents that are zero everywhere are left out of the shaders. */
 	double g1[ATMO_MAX_CONSTITUENTS] = { 0 };	/* by index in a */
