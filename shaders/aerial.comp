@@ -58,7 +58,7 @@ void main()
 	// carry the same work (as in skyview.comp).
 	px.y = (px.y & 1) == 0 ? px.y >> 1 : rows - 1 - (px.y >> 1);
 
-	float h0 = VB.job[z].eye_km, range = P.aerial_range_km;
+	float h0 = VB.job[z].eye_km, range = P.AERIAL_RANGE_KM;
 	vec3 dir;
 	int col = px.y * OUT_W + px.x;		// the panorama's column
 	if (panorama) {
@@ -82,7 +82,7 @@ void main()
 	float tau_view = 0.0;		// the peak's optical depth along it (scaled_step)
 	float prev_depth = 0.0;
 	for (int k = 0; k < OUT_D; k++) {
-		float depth = skymap_aerial_depth_km(k, OUT_D, range, P.aerial_squared != 0u);
+		float depth = skymap_aerial_depth_km(k, OUT_D, range, P.AERIAL_SQUARED > 0.5);
 		// The part of this slice inside the atmosphere and above the ground.
 		float a = max(prev_depth, t0), b = inside ? min(depth, t1) : a;
 		prev_depth = depth;
@@ -100,11 +100,11 @@ void main()
 				Scaled ds = scaled_step(sc, m, view_up, dt, tau_view);
 				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
 				float mu_l = dot(up, sun_dir);
-				march_source(ta, mu_l, light_visible(ta, mu_l, P.sun_radius_rad), P.sun_illum.rgb, sc, ph_sun, m,
+				march_source(ta, mu_l, light_visible(ta, mu_l, P.SUN_RADIUS_RAD), P.sun_illum.rgb, sc, ph_sun, m,
 					     ground, forward, ds, view_up, sun_v, s, s_scaled);
 				if (MOON_LIT) {
 					mu_l = dot(up, moon_dir);
-					march_source(ta, mu_l, light_visible(ta, mu_l, P.moon_radius_rad), P.moon_illum.rgb, sc,
+					march_source(ta, mu_l, light_visible(ta, mu_l, P.MOON_RADIUS_RAD), P.moon_illum.rgb, sc,
 						     ph_moon, m, ground, forward, ds, view_up, moon_v, s, s_scaled);
 				}
 				vec3 step_t;
@@ -118,7 +118,7 @@ void main()
 			}
 		}
 		// Night-sky floor: airlight (1 - T) of a sky of the floor's mean level L_z (1 + c / 3).
-		vec3 night = P.night * (1.0 + P.night_gain / 3.0) * (1.0 - tr);
+		vec3 night = P.night.rgb * (1.0 + P.NIGHT_GAIN / 3.0) * (1.0 - tr);
 		vec4 texel = vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0);
 		// A panorama is published in float32 (views of form panorama) or
 		// resampled into volumes, whose range is noted there. Its

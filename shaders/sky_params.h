@@ -70,16 +70,13 @@
 #define SKY_MAX_CONSTITUENTS 4	/* ATMO_MAX_CONSTITUENTS */
 #define SKY_GROUND_FIT 8	/* PHASE_GROUND_FIT */
 
-/* The shared structs as X-lists: V(name) a vec4, V3(name) a vec3 (always
- * followed by a scalar, so that C's float[3] and the shader's vec3 leave
- * no gap), F(name) a float, U(name) a uint, A(name, n) an array of n vec4,
- * S(name, n) an array of n constituents. Lengths in km, coefficients in
- * 1/km, angles in radians. tests/test_params.c checks every member's name,
- * offset and size in the SPIR-V against the C side. */
-
-/* One aerial job (std430). A camera's frame serves camera and resample
- * jobs, a panorama's mapping (struct sky_shm_panorama's fields, as
- * skymap_panorama_uv takes them) panorama and resample jobs. */
+/* One aerial job (std430) as an X-list: V3(name) a vec3 (always followed
+ * by a scalar, so that C's float[3] and the shader's vec3 leave no gap),
+ * F(name) a float, U(name) a uint. A camera's frame serves camera and
+ * resample jobs, a panorama's mapping (struct sky_shm_panorama's fields,
+ * as skymap_panorama_uv takes them) panorama and resample jobs.
+ * tests/test_params.c checks every member's name, offset and size in the
+ * SPIR-V against the C side. */
 #define SKY_AERIAL_JOB_MEMBERS(V3, F, U)                                         \
 	V3(fwd) F(tan_half_vfov)	/* a camera's forward; tan(vfov / 2) */  \
 	V3(right) F(aspect)		/* its right; width / height */          \
@@ -98,44 +95,69 @@
 	U(panorama_texel)		/* a resample job's panorama */          \
 	U(pad0) U(pad1) U(pad2)
 
-/* The uniform block (std140). */
-#define SKY_CONSTITUENT_MEMBERS(V, V3, F)                                        \
-	V3(scattering) F(g)	/* per channel; the phase's asymmetry g */       \
-	V3(absorption) F(g1)	/* per channel; the phase's first Legendre moment */ \
-	V(layer0)		/* the lower layer's profile: exp_term,          \
-				 * exp_scale_per_km, linear_per_km, constant */  \
-	V(layer1)		/* the upper layer's, the same terms */          \
-	F(layer0_width_km)	/* where the lower layer ends */                 \
-	F(g2)			/* the phase's second Legendre moment */         \
-	F(delta_f)		/* delta-M (the delta-M constituent only): the   \
-				 * forward fraction f */                          \
-	F(delta_g)		/* and the truncated phase's g' */
+/* The uniform block (std140, vec4s only, so that C's float[4] matches).
+ * X-lists: V(name) a vec4, A(name, n) an array of n vec4, S(name, n) an
+ * array of n constituents. Lengths in km, coefficients in 1/km, angles in
+ * radians. The lanes that hold a value of their own have names below. */
+#define SKY_CONSTITUENT_MEMBERS(V)                                               \
+	V(scattering)	/* rgb, w = PHASE_G */                                   \
+	V(absorption)	/* rgb, w = PHASE_G1 */                                  \
+	V(layer0)	/* LAYER0_WIDTH_KM, then layer 0's exp_term,             \
+			 * exp_scale_per_km, linear_per_km */                    \
+	V(layer0c_1)	/* LAYER0_CONSTANT, then layer 1's exp_term,             \
+			 * exp_scale_per_km, linear_per_km */                    \
+	V(layer1c)	/* LAYER1_CONSTANT, PHASE_G2, DELTA_F, DELTA_G */
 
-#define SKY_PARAMS_MEMBERS(V, V3, F, U, A, S)                                    \
-	F(bottom_radius_km) F(top_radius_km)                                     \
-	F(shell_km)		/* top - bottom */                               \
-	F(observer_km)		/* the observer's altitude, >= 0 */              \
-	V(albedo)		/* ground albedo rgb */                          \
-	V3(sun_dir) F(sun_radius_rad)	/* unit; angular radius */               \
-	V(sun_illum)		/* lx per channel at the top of the atmosphere */ \
-	V3(moon_dir) F(moon_radius_rad)                                          \
+#define SKY_PARAMS_MEMBERS(V, A, S)                                              \
+	V(planet)	/* BOTTOM_RADIUS_KM, TOP_RADIUS_KM, SHELL_KM, OBSERVER_KM */ \
+	V(albedo)	/* ground albedo rgb */                                  \
+	V(sun_dir)	/* unit xyz, w = SUN_RADIUS_RAD */                       \
+	V(sun_illum)	/* lx per channel at the top of the atmosphere */        \
+	V(moon_dir)	/* unit xyz, w = MOON_RADIUS_RAD */                      \
 	V(moon_illum)                                                            \
-	V3(cam_fwd) F(cam_tan_half_vfov)                                         \
-	V3(cam_right) F(cam_aspect)                                              \
-	V3(cam_up) F(aerial_range_km)                                            \
-	F(horizon_cos)		/* of the observer */                            \
-	F(skyview_min_steps)                                                     \
-	U(aerial_squared)	/* 1: squared slice spacing, 0: linear */        \
-	F(top_distance_km)	/* H = sqrt(top^2 - bottom^2), the horizontal    \
-				 * distance to the top from the ground */        \
+	V(cam_fwd)	/* w = CAM_TAN_HALF_VFOV */                              \
+	V(cam_right)	/* w = CAM_ASPECT */                                     \
+	V(cam_up)	/* w = AERIAL_RANGE_KM */                                \
+	V(misc)		/* HORIZON_COS, SKYVIEW_MIN_STEPS, AERIAL_SQUARED,       \
+			 * TOP_DISTANCE_KM */                                    \
 	S(c, SKY_MAX_CONSTITUENTS)                                               \
-	V3(night) F(night_gain)	/* night-sky floor: rgb zenith cd/m2; the horizon \
-				 * gain c of L_z (1 + c (1 - mu)) */              \
+	V(night)	/* night-sky floor: rgb zenith cd/m2, w = NIGHT_GAIN */  \
 	A(ground_fit, SKY_GROUND_FIT)	/* phase_ground_fit's coefficients,      \
 					 * a component per constituent */        \
-	F(delta_peak_h)		/* delta-M's forward peak: its h */              \
-	F(delta_peak_spread_rad)	/* and its spread */                     \
-	F(pad0) F(pad1)
+	V(delta_peak)	/* DELTA_PEAK_H, DELTA_PEAK_SPREAD_RAD */
+
+/* The named lanes, member[lane] alike in C and GLSL: a shader reads
+ * P.SUN_RADIUS_RAD, the engine writes p->SUN_RADIUS_RAD. Indexing a
+ * vector by a constant is a swizzle, so the passes compile as with .w;
+ * splitting the vec4s into float and vec3 members instead made lavapipe
+ * compile every pass slower (the private copy, load_params(), grows). */
+#define BOTTOM_RADIUS_KM planet[0]
+#define TOP_RADIUS_KM planet[1]
+#define SHELL_KM planet[2]		/* top - bottom */
+#define OBSERVER_KM planet[3]		/* the observer's altitude, >= 0 */
+#define SUN_RADIUS_RAD sun_dir[3]	/* the sun's angular radius */
+#define MOON_RADIUS_RAD moon_dir[3]
+#define CAM_TAN_HALF_VFOV cam_fwd[3]	/* the observer's camera: tan(vfov / 2) */
+#define CAM_ASPECT cam_right[3]		/* width / height */
+#define AERIAL_RANGE_KM cam_up[3]	/* the aerial volume's depth */
+#define HORIZON_COS misc[0]		/* cos of the observer's horizon zenith angle */
+#define SKYVIEW_MIN_STEPS misc[1]	/* sky-view's fewest march steps */
+#define AERIAL_SQUARED misc[2]		/* a flag: 1 squared slice spacing, 0 linear */
+#define TOP_DISTANCE_KM misc[3]		/* H = sqrt(top^2 - bottom^2), the horizontal
+					 * distance to the top from the ground */
+#define NIGHT_GAIN night[3]		/* c of the floor's L_z (1 + c (1 - mu)) */
+#define DELTA_PEAK_H delta_peak[0]	/* delta-M's forward peak: h */
+#define DELTA_PEAK_SPREAD_RAD delta_peak[1]	/* and its spread */
+/* A constituent's. */
+#define PHASE_G scattering[3]		/* the phase's asymmetry g */
+#define PHASE_G1 absorption[3]		/* its first Legendre moment */
+#define PHASE_G2 layer1c[1]		/* its second */
+#define LAYER0_WIDTH_KM layer0[0]	/* where the lower layer ends */
+#define LAYER0_CONSTANT layer0c_1[0]	/* the lower layer's constant term */
+#define LAYER1_CONSTANT layer1c[0]	/* the upper layer's */
+#define DELTA_F layer1c[2]		/* delta-M (its constituent only): the forward
+					 * fraction f */
+#define DELTA_G layer1c[3]		/* and the truncated phase's g' */
 
 /* The pack pass (storage=f16, pack.comp), per table in state_table order:
  * the texels to pack (0: not computed this time; the aerial table counts
@@ -161,11 +183,10 @@ struct gpu_pack {
 #define SKY_C_VEC4_ARRAY(name, n) float name[n][4];
 #define SKY_C_CONSTITUENTS(name, n) struct gpu_constituent name[n];
 struct gpu_constituent {
-	SKY_CONSTITUENT_MEMBERS(SKY_C_VEC4, SKY_C_VEC3, SKY_C_FLOAT)
+	SKY_CONSTITUENT_MEMBERS(SKY_C_VEC4)
 };
 struct gpu_params {
-	SKY_PARAMS_MEMBERS(SKY_C_VEC4, SKY_C_VEC3, SKY_C_FLOAT, SKY_C_UINT, SKY_C_VEC4_ARRAY,
-			   SKY_C_CONSTITUENTS)
+	SKY_PARAMS_MEMBERS(SKY_C_VEC4, SKY_C_VEC4_ARRAY, SKY_C_CONSTITUENTS)
 };
 struct gpu_aerial_job {
 	SKY_AERIAL_JOB_MEMBERS(SKY_C_VEC3, SKY_C_FLOAT, SKY_C_UINT)
@@ -189,11 +210,10 @@ struct gpu_aerial_head {
 #define SKY_GLSL_VEC4_ARRAY(name, n) vec4 name[n];
 #define SKY_GLSL_CONSTITUENTS(name, n) Constituent name[n];
 struct Constituent {
-	SKY_CONSTITUENT_MEMBERS(SKY_GLSL_VEC4, SKY_GLSL_VEC3, SKY_GLSL_FLOAT)
+	SKY_CONSTITUENT_MEMBERS(SKY_GLSL_VEC4)
 };
 struct Params {
-	SKY_PARAMS_MEMBERS(SKY_GLSL_VEC4, SKY_GLSL_VEC3, SKY_GLSL_FLOAT, SKY_GLSL_UINT,
-			   SKY_GLSL_VEC4_ARRAY, SKY_GLSL_CONSTITUENTS)
+	SKY_PARAMS_MEMBERS(SKY_GLSL_VEC4, SKY_GLSL_VEC4_ARRAY, SKY_GLSL_CONSTITUENTS)
 };
 struct AerialJob {
 	SKY_AERIAL_JOB_MEMBERS(SKY_GLSL_VEC3, SKY_GLSL_FLOAT, SKY_GLSL_UINT)

@@ -24,7 +24,7 @@ void main()
 	vec4 column = CB.d[i];
 	vec3 tau = vec3(0.0);
 	for (int k = 0; k < N_CONST; k++)
-		tau += (P.c[k].scattering + P.c[k].absorption) * column[k];
+		tau += (P.c[k].scattering.rgb + P.c[k].absorption.rgb) * column[k];
 	vec3 t = exp(-tau);
 	STORE_TEXEL(TB, i, vec4(t, 1.0));
 	// storage=f16: the binary16 copy after the float32 texels, scaled by

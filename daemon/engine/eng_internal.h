@@ -88,7 +88,7 @@ struct gpu_buffer {
  * (the column pass's specialization). Coefficients are not in it. */
 struct column_key {
 	float planet[3];	/* bottom, top, shell: the observer left out */
-	float h_top;		/* top_distance_km */
+	float h_top;		/* TOP_DISTANCE_KM */
 	float layers[ATMO_MAX_CONSTITUENTS][12];
 	struct spec spec;
 };

@@ -49,33 +49,33 @@ static void fill_scene(const struct sky_state *s, const struct state_lights *lig
 	double h0 = s->altitude_km > 0.0 ? s->altitude_km : 0.0;
 	double shell = a->top_radius_km - a->bottom_radius_km;
 
-	p->bottom_radius_km = (float)a->bottom_radius_km;
-	p->top_radius_km = (float)a->top_radius_km;
-	p->shell_km = (float)shell;
-	p->observer_km = (float)h0;
+	p->BOTTOM_RADIUS_KM = (float)a->bottom_radius_km;
+	p->TOP_RADIUS_KM = (float)a->top_radius_km;
+	p->SHELL_KM = (float)shell;
+	p->OBSERVER_KM = (float)h0;
 	put4(p->albedo, a->ground_albedo[0], a->ground_albedo[1], a->ground_albedo[2], 0);
 	put3(p->sun_dir, lights->sun);
-	p->sun_radius_rad = (float)(s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
+	p->SUN_RADIUS_RAD = (float)(s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
 	put3(p->moon_dir, lights->moon);
-	p->moon_radius_rad = (float)(s->moon.angular_radius_deg * SKYMAP_PI / 180.0);
+	p->MOON_RADIUS_RAD = (float)(s->moon.angular_radius_deg * SKYMAP_PI / 180.0);
 	put4(p->sun_illum, s->sun.illuminance_lx * s->sun.color[0],
 	     s->sun.illuminance_lx * s->sun.color[1], s->sun.illuminance_lx * s->sun.color[2], 0);
 	put4(p->moon_illum, s->moon.illuminance_lx * s->moon.color[0],
 	     s->moon.illuminance_lx * s->moon.color[1], s->moon.illuminance_lx * s->moon.color[2], 0);
 	state_camera_basis(&s->camera, fwd, right, up);
 	put3(p->cam_fwd, fwd);
-	p->cam_tan_half_vfov = (float)tan(s->camera.vfov_deg * SKYMAP_PI / 360.0);
+	p->CAM_TAN_HALF_VFOV = (float)tan(s->camera.vfov_deg * SKYMAP_PI / 360.0);
 	put3(p->cam_right, right);
-	p->cam_aspect = (float)s->camera.aspect;
+	p->CAM_ASPECT = (float)s->camera.aspect;
 	put3(p->cam_up, up);
-	p->aerial_range_km = (float)s->quality.aerial_range_km;
-	p->horizon_cos = (float)skymap_horizon_cos(a->bottom_radius_km, h0);
-	p->skyview_min_steps = (float)s->quality.skyview_min_steps;
-	p->aerial_squared = s->quality.aerial_spacing == STATE_SQUARED;
-	p->top_distance_km = (float)sqrt(shell * (2.0 * a->bottom_radius_km + shell));
+	p->AERIAL_RANGE_KM = (float)s->quality.aerial_range_km;
+	p->HORIZON_COS = (float)skymap_horizon_cos(a->bottom_radius_km, h0);
+	p->SKYVIEW_MIN_STEPS = (float)s->quality.skyview_min_steps;
+	p->AERIAL_SQUARED = s->quality.aerial_spacing == STATE_SQUARED ? 1.0f : 0.0f;
+	p->TOP_DISTANCE_KM = (float)sqrt(shell * (2.0 * a->bottom_radius_km + shell));
 	state_night_floor(s, &night_cd_m2, &night_gain);
 	p->night[0] = p->night[1] = p->night[2] = (float)night_cd_m2;
-	p->night_gain = (float)night_gain;
+	p->NIGHT_GAIN = (float)night_gain;
 }
 
 void eng_fill_params(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
@@ -97,7 +97,7 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, const struct stat
 		struct gpu_constituent *g = &p->c[n];
 		const struct atmo_layer *l0 = &c->density.layers[0], *l1 = &c->density.layers[1];
 		put3(g->scattering, c->scattering_per_km);
-		g->g = (float)c->g;
+		g->PHASE_G = (float)c->g;
 		struct ground_cache *gc = &e->ground[n];
 		enum atmo_phase kind = constituent_scatters(c) ? c->phase : ATMO_PHASE_NONE;
 		if (!gc->valid || gc->kind != kind || gc->g != c->g) {
@@ -112,11 +112,11 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, const struct stat
 		}
 		g1[i] = gc->legendre[0];
 		put3(g->absorption, c->absorption_per_km);
-		g->g1 = (float)gc->legendre[0];
-		put4(g->layer0, l0->exp_term, l0->exp_scale_per_km, l0->linear_per_km, l0->constant);
-		put4(g->layer1, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km, l1->constant);
-		g->layer0_width_km = (float)l0->width_km;
-		g->g2 = (float)gc->legendre[1];
+		g->PHASE_G1 = (float)gc->legendre[0];
+		put4(g->layer0, l0->width_km, l0->exp_term, l0->exp_scale_per_km, l0->linear_per_km);
+		put4(g->layer0c_1, l0->constant, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km);
+		g->LAYER1_CONSTANT = (float)l1->constant;
+		g->PHASE_G2 = (float)gc->legendre[1];
 		/* A constituent that scatters nothing needs no phase function. */
 		base->v[SPEC_PHASE_0 + n] = constituent_scatters(c) ? (int32_t)c->phase : 0;
 		for (int k = 0; k < PHASE_GROUND_FIT; k++)
@@ -153,7 +153,7 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, const struct stat
 
 /* Delta-M for the higher orders (common.glsl's delta_source): the
  * constituent's index among those in the shaders plus 1 in constant 23,
- * its forward fraction f and the truncated phase's g' (delta_f, delta_g), and
+ * its forward fraction f and the truncated phase's g' (DELTA_F, DELTA_G), and
  * the ground's first bounce through the truncated phase, which is what
  * scatters psi_ms in the scaled medium. Kept while the phase stays (a
  * quadrature and 30000 phase evaluations, more than a sun change's tables). */
@@ -178,12 +178,12 @@ static void fill_delta(struct eng *e, const struct sky_state *s, int delta, stru
 	}
 	for (int k = 0; k < PHASE_GROUND_FIT; k++)
 		p->ground_fit[k][n] = (float)dc->fit[k];
-	p->c[n].delta_f = (float)dc->legendre[0];
-	p->c[n].delta_g = (float)dc->legendre[1];
+	p->c[n].DELTA_F = (float)dc->legendre[0];
+	p->c[n].DELTA_G = (float)dc->legendre[1];
 	double h, spread;
 	phase_delta_peak(a->c[delta].phase, a->c[delta].g, &h, &spread);
-	p->delta_peak_h = (float)h;
-	p->delta_peak_spread_rad = (float)spread;
+	p->DELTA_PEAK_H = (float)h;
+	p->DELTA_PEAK_SPREAD_RAD = (float)spread;
 	base->v[SPEC_DELTA_LOBE] = n + 1;
 }
 
@@ -314,20 +314,12 @@ void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,
 		       struct column_key *ret)
 {
 	memset(ret, 0, sizeof(*ret));
-	ret->planet[0] = p->bottom_radius_km;
-	ret->planet[1] = p->top_radius_km;
-	ret->planet[2] = p->shell_km;
-	ret->h_top = p->top_distance_km;
+	memcpy(ret->planet, p->planet, sizeof(ret->planet));
+	ret->h_top = p->TOP_DISTANCE_KM;
 	for (int i = 0; i < column_spec->v[SPEC_N_CONST]; i++) {
-		const struct gpu_constituent *c = &p->c[i];
-		memcpy(ret->layers[i], c->layer0, sizeof(c->layer0));
-		memcpy(ret->layers[i] + 4, c->layer1, sizeof(c->layer1));
-		/* The phase's moments do not change the columns; the key keeps
-		 * them as it always did, so the column pass runs when it did. */
-		ret->layers[i][8] = c->layer0_width_km;
-		ret->layers[i][9] = c->g2;
-		ret->layers[i][10] = c->delta_f;
-		ret->layers[i][11] = c->delta_g;
+		memcpy(ret->layers[i], p->c[i].layer0, 4 * sizeof(float));
+		memcpy(ret->layers[i] + 4, p->c[i].layer0c_1, 4 * sizeof(float));
+		memcpy(ret->layers[i] + 8, p->c[i].layer1c, 4 * sizeof(float));
 	}
 	ret->spec = *column_spec;
 }
