@@ -504,8 +504,9 @@ static int apply_keys(struct sense *s)
 }
 
 /* srv's listener: the served state changed. Its sensor keys start, stop
- * or reconfigure the manager; a new mode applies the last reading. What
- * the readings change comes back here too, and changes no key of theirs. */
+ * or reconfigure the manager; a new mode applies the last reading. The
+ * readings' own changes and the clock's come here too: they leave the
+ * sensor keys as they were, so apply_keys does nothing then. */
 static void on_changed(void *ctx, const struct sky_state *st, uint64_t generation,
 		       int64_t apply_time_ns)
 {

@@ -11,10 +11,10 @@
  * Every change goes one way: srv_apply, from a request (ctl), a reload,
  * replication or the light sensor; the clock drive, which srv owns, moves
  * the lights the same way. srv resolves each change once (the weather
- * applied, the lights' directions computed) and keeps that for the
- * engine and the publisher. Whoever reacts to a change (the
- * light sensor, replication) or to a publication (the control server,
- * systemd) is a listener (srv_add_listener); srv calls nobody by name.
+ * applied, the lights' directions computed) and keeps that for the engine
+ * and the publisher. Whoever reacts to a change (the light sensor,
+ * replication) or to a publication (the control server, systemd) is a
+ * listener (srv_add_listener): srv knows none of them by name.
  */
 #ifndef SKYD_SRV_H
 #define SKYD_SRV_H
@@ -37,8 +37,8 @@ struct srv_listener {
 	 * the one that shows it, apply_time_ns the CLOCK_REALTIME instant it
 	 * becomes visible (now, when it waits for nothing). Called once srv is
 	 * done with it; the listener may make a change of its own (srv_apply),
-	 * which every listener hears of after this one in turn. st is valid
-	 * for the call. */
+	 * which every listener hears of once all have heard of this one. st
+	 * is valid for the call. */
 	void (*changed)(void *ctx, const struct sky_state *st, uint64_t generation,
 			int64_t apply_time_ns);
 	/* A new generation is current. tables: those computed for it.
