@@ -462,13 +462,12 @@ static int cmd_dump(const struct opts *o, int argc, char **argv)
 
 /* render --view fisheye|equirect|perspective [--size WxH] [--yaw D]
  * [--pitch D] [--vfov D] [--exposure E] [--no-disks] OUT.png */
-static int cmd_render(const struct opts *o, int argc, char **argv)
+/* render's arguments into p, *ret_out and *ret_exposure: 0, or
+ * EXIT_USAGE (said on stderr). */
+static int render_args(int argc, char **argv, struct sky_render_params *p, const char **ret_out,
+		       double *ret_exposure)
 {
-	struct sky_render_params p = { .projection = SKY_PROJECTION_FISHEYE, .vfov_deg = 60.0,
-				       .flags = SKY_SAMPLE_SUN_DISK | SKY_SAMPLE_MOON_DISK |
-						SKY_SAMPLE_LIMB_DARKENING };
 	const char *out = NULL;
-	double exposure = 0.0;
 	bool sized = false;
 	for (int i = 0; i < argc; i++) {
 		const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
@@ -476,11 +475,11 @@ static int cmd_render(const struct opts *o, int argc, char **argv)
 		if (strcmp(a, "--view") == 0 && val) {
 			i++;
 			if (strcmp(val, "fisheye") == 0)
-				p.projection = SKY_PROJECTION_FISHEYE;
+				p->projection = SKY_PROJECTION_FISHEYE;
 			else if (strcmp(val, "equirect") == 0)
-				p.projection = SKY_PROJECTION_EQUIRECT;
+				p->projection = SKY_PROJECTION_EQUIRECT;
 			else if (strcmp(val, "perspective") == 0)
-				p.projection = SKY_PROJECTION_PERSPECTIVE;
+				p->projection = SKY_PROJECTION_PERSPECTIVE;
 			else
 				bad = 1;
 		} else if (strcmp(a, "--size") == 0 && val) {
@@ -490,20 +489,20 @@ static int cmd_render(const struct opts *o, int argc, char **argv)
 			if (*end == 'x')
 				h = strtoul(end + 1, &end, 10);
 			bad = *end || w < 1 || h < 1 || w > 16384 || h > 16384 || val[0] == '-';
-			p.width = (uint32_t)w;
-			p.height = (uint32_t)h;
+			p->width = (uint32_t)w;
+			p->height = (uint32_t)h;
 			sized = true;
 		} else if (strcmp(a, "--yaw") == 0 && val) {
-			bad = proto_parse_number(argv[++i], &p.yaw_deg) < 0;
+			bad = proto_parse_number(argv[++i], &p->yaw_deg) < 0;
 		} else if (strcmp(a, "--pitch") == 0 && val) {
-			bad = proto_parse_number(argv[++i], &p.pitch_deg) < 0 || fabs(p.pitch_deg) > 90.0;
+			bad = proto_parse_number(argv[++i], &p->pitch_deg) < 0 || fabs(p->pitch_deg) > 90.0;
 		} else if (strcmp(a, "--vfov") == 0 && val) {
-			bad = proto_parse_number(argv[++i], &p.vfov_deg) < 0 || p.vfov_deg <= 0.0 ||
-			      p.vfov_deg >= 180.0;
+			bad = proto_parse_number(argv[++i], &p->vfov_deg) < 0 || p->vfov_deg <= 0.0 ||
+			      p->vfov_deg >= 180.0;
 		} else if (strcmp(a, "--exposure") == 0 && val) {
-			bad = proto_parse_number(argv[++i], &exposure) < 0 || exposure < 0.0;
+			bad = proto_parse_number(argv[++i], ret_exposure) < 0 || *ret_exposure < 0.0;
 		} else if (strcmp(a, "--no-disks") == 0) {
-			p.flags = 0;
+			p->flags = 0;
 		} else if (a[0] != '-' && !out) {
 			out = a;
 		} else {
@@ -520,49 +519,78 @@ static int cmd_render(const struct opts *o, int argc, char **argv)
 		return EXIT_USAGE;
 	}
 	if (!sized) {
-		p.width = p.projection == SKY_PROJECTION_FISHEYE ? 1024 : 1024;
-		p.height = p.projection == SKY_PROJECTION_EQUIRECT ? 512 :
-			   p.projection == SKY_PROJECTION_FISHEYE ? 1024 : 576;
+		p->width = p->projection == SKY_PROJECTION_FISHEYE ? 1024 : 1024;
+		p->height = p->projection == SKY_PROJECTION_EQUIRECT ? 512 :
+			    p->projection == SKY_PROJECTION_FISHEYE ? 1024 : 576;
 	}
+	*ret_out = out;
+	return 0;
+}
+
+/* A rendered frame (rgb, top row first) as a tone-mapped PNG at path: 0,
+ * or EXIT_REFUSED (said on stderr). */
+static int render_png(const char *path, const struct sky_render_params *p, const float *rgb,
+		      double exposure)
+{
+	size_t npx = (size_t)p->width * p->height;
+	float *rgba = malloc(npx * 4 * sizeof(float));
+	char err[256];
+	int e = 0;
+
+	if (!rgba) {
+		fprintf(stderr, "skyctl: render: %s\n", sky_strerror(-ENOMEM));
+		return EXIT_REFUSED;
+	}
+	/* dump_png shows row 0 at the bottom; ours is the top row. */
+	for (uint32_t y = 0; y < p->height; y++) {
+		const float *src = rgb + (size_t)(p->height - 1 - y) * p->width * 3;
+		float *dst = rgba + (size_t)y * p->width * 4;
+		for (uint32_t x = 0; x < p->width; x++) {
+			dst[4 * x + 0] = src[3 * x + 0];
+			dst[4 * x + 1] = src[3 * x + 1];
+			dst[4 * x + 2] = src[3 * x + 2];
+			dst[4 * x + 3] = 1.0f;
+		}
+	}
+	struct dump_table dt = { .name = "render", .width = p->width, .height = p->height,
+				 .depth = 1, .format = SKY_FORMAT_RGBA32F, .texels = rgba };
+	struct dump_tonemap tm = { .exposure = exposure, .curve = DUMP_CURVE_ACES };
+	if (dump_png(path, &dt, &tm, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skyctl: render: %s\n", err);
+		e = EXIT_REFUSED;
+	}
+	free(rgba);
+	return e;
+}
+
+static int cmd_render(const struct opts *o, int argc, char **argv)
+{
+	struct sky_render_params p = { .projection = SKY_PROJECTION_FISHEYE, .vfov_deg = 60.0,
+				       .flags = SKY_SAMPLE_SUN_DISK | SKY_SAMPLE_MOON_DISK |
+						SKY_SAMPLE_LIMB_DARKENING };
+	const char *out = NULL;
+	double exposure = 0.0;
+	int e = render_args(argc, argv, &p, &out, &exposure);
+	if (e)
+		return e;
 	sky_client *c;
 	void *buf = NULL;
 	struct sky_view v;
 	uint32_t need = SKY_TABLE_BIT(SKY_TABLE_SKYVIEW) | SKY_TABLE_BIT(SKY_TABLE_TRANSMITTANCE);
-	int e = take_snapshot(o, need, &c, &buf, &v);
+	e = take_snapshot(o, need, &c, &buf, &v);
 	if (e)
 		return e;
-	size_t npx = (size_t)p.width * p.height;
-	float *rgb = malloc(npx * 3 * sizeof(float));
-	float *rgba = malloc(npx * 4 * sizeof(float));
-	int r = rgb && rgba ? sky_render(&v, &p, rgb) : -ENOMEM;
-	if (r == 0) {
-		/* dump_png shows row 0 at the bottom; ours is the top row. */
-		for (uint32_t y = 0; y < p.height; y++) {
-			const float *src = rgb + (size_t)(p.height - 1 - y) * p.width * 3;
-			float *dst = rgba + (size_t)y * p.width * 4;
-			for (uint32_t x = 0; x < p.width; x++) {
-				dst[4 * x + 0] = src[3 * x + 0];
-				dst[4 * x + 1] = src[3 * x + 1];
-				dst[4 * x + 2] = src[3 * x + 2];
-				dst[4 * x + 3] = 1.0f;
-			}
-		}
-		struct dump_table dt = { .name = "render", .width = p.width, .height = p.height,
-					 .depth = 1, .format = SKY_FORMAT_RGBA32F, .texels = rgba };
-		struct dump_tonemap tm = { .exposure = exposure, .curve = DUMP_CURVE_ACES };
-		char err[256];
-		if (dump_png(out, &dt, &tm, err, sizeof(err)) < 0) {
-			fprintf(stderr, "skyctl: render: %s\n", err);
-			e = EXIT_REFUSED;
-		} else {
-			printf("%s: %ux%u generation %u\n", out, p.width, p.height, v.generation);
-		}
-	} else {
+	float *rgb = malloc((size_t)p.width * p.height * 3 * sizeof(float));
+	int r = rgb ? sky_render(&v, &p, rgb) : -ENOMEM;
+	if (r != 0) {
 		fprintf(stderr, "skyctl: render: %s\n", sky_strerror(r));
 		e = EXIT_REFUSED;
+	} else {
+		e = render_png(out, &p, rgb, exposure);
+		if (!e)
+			printf("%s: %ux%u generation %u\n", out, p.width, p.height, v.generation);
 	}
 	free(rgb);
-	free(rgba);
 	free(buf);
 	sky_disconnect(c);
 	return e;

@@ -384,47 +384,48 @@ static int list_sensors(const struct sky_state *s)
 	return 0;
 }
 
-/* The srv listener: the control server hears first (changed: lines), then
- * the light sensor, which reads the new slot. */
-struct hooks {
+/* The running daemon, built by the start-up steps below in order and
+ * torn down by daemon_finish in reverse. */
+struct daemon {
+	const struct options *o;
+	struct svc_reload *reload;
+	struct role_step *roles;
+	struct fdstore *fds;
+	struct loop *loop;
+	struct eng *eng;
+	struct srv *srv;
+	struct svc_notify *notify;
 	struct ctl *ctl;
 	struct sense *sense;
-	struct svc_notify *notify;
-	struct svc_reload *reload;
-	struct loop *loop;
-	struct srv *srv;
-	struct fdstore *fdstore;
+	struct repl *repl;
+	int activated;			/* systemd passed the listening socket */
+	char path[108];			/* the control socket, for the log */
 };
 
+/* The service's own srv listener, after the control server and the light
+ * sensor: systemd's STATUS, and the fd store keeps the newest region. */
 static void on_published(void *ctx, uint64_t generation, uint32_t tables, int new_region)
 {
-	struct hooks *h = ctx;
+	struct daemon *d = ctx;
 
-	ctl_published(h->ctl, generation, tables, new_region);
-	sense_published(h->sense, generation);
-	svc_notify_published(h->notify);
+	(void)generation;
+	(void)tables;
+	svc_notify_published(d->notify);
 	if (new_region)
-		fdstore_replaced(h->fdstore, srv_pub(h->srv));
-}
-
-static void on_failed(void *ctx, uint64_t generation, const char *message)
-{
-	struct hooks *h = ctx;
-
-	ctl_failed(h->ctl, generation, message);
+		fdstore_replaced(d->fds, srv_pub(d->srv));
 }
 
 static void on_signal(void *ctx, int signo)
 {
-	struct hooks *h = ctx;
+	struct daemon *d = ctx;
 	char err[512];
 
 	if (signo == SIGHUP) {
-		svc_reload_run(h->reload, err, sizeof(err));	/* logs its outcome */
+		svc_reload_run(d->reload, err, sizeof(err));	/* logs its outcome */
 		return;
 	}
 	log_info("%s: shutting down", strsignal(signo));
-	loop_quit(h->loop);
+	loop_quit(d->loop);
 }
 
 /* Many clients each hold a socket: take the whole hard limit of fds. */
@@ -438,155 +439,192 @@ static void raise_fd_limit(void)
 	}
 }
 
-static int run_daemon(const struct options *o, struct svc_reload *reload,
-		      struct role_step *roles, const struct sky_state *initial)
+/* Each start-up step logs what failed and returns its -errno. */
+
+/* The process, systemd's fd store and the event loop with its signals. */
+static int start_loop(struct daemon *d, const struct sky_state *initial)
 {
 	static const int signals[] = { SIGINT, SIGTERM, SIGHUP };
-	struct loop *loop = NULL;
-	struct eng *eng = NULL;
-	struct srv *srv = NULL;
-	struct ctl *ctl = NULL;
-	struct drive *drive = NULL;
-	struct sense *sense = NULL;
-	struct repl *repl = NULL;
-	struct fdstore *fds = NULL;
-	struct pub *region = NULL;
-	uint64_t generation = 0;
-	struct svc_notify *notify = NULL;
-	struct hooks hooks = { .reload = reload };
-	struct sky_state lit = *initial;
-	char err[512] = "", path[108];
-	int listen_fd = -1, r;
+	int r;
 
+	(void)initial;
 	signal(SIGPIPE, SIG_IGN);
 	raise_fd_limit();
-	r = fdstore_new(&fds);
+	r = fdstore_new(&d->fds);
 	if (r < 0) {
 		log_error("fd store: %s", strerror(-r));
-		goto out;
+		return r;
 	}
-	r = loop_new(&loop);
+	r = loop_new(&d->loop);
 	if (r < 0) {
 		log_error("event loop: %s", strerror(-r));
-		goto out;
+		return r;
 	}
-	hooks.loop = loop;
-	r = loop_signals(loop, signals, 3, on_signal, &hooks);
-	if (r < 0) {
+	r = loop_signals(d->loop, signals, 3, on_signal, d);
+	if (r < 0)
 		log_error("signalfd: %s", strerror(-r));
-		goto out;
-	}
-	r = eng_new(o->device, err, sizeof(err), &eng);
+	return r;
+}
+
+/* The Vulkan device, and the initial state checked against it. */
+static int start_engine(struct daemon *d, const struct sky_state *initial)
+{
+	char err[512] = "";
+	int r = eng_new(d->o->device, err, sizeof(err), &d->eng);
+
 	if (r < 0) {
 		log_error("no Vulkan device: %s (skyd --list-devices lists them; lavapipe comes with mesa-vulkan-drivers)", err);
-		goto out;
+		return r;
 	}
-	log_info("device: %s (%s)", eng_device(eng)->name, eng_device(eng)->type_name);
+	log_info("device: %s (%s)", eng_device(d->eng)->name, eng_device(d->eng)->type_name);
 	err[0] = 0;
-	r = state_validate(initial, eng_max_table_bytes(eng), err, sizeof(err));
-	if (r < 0) {
+	r = state_validate(initial, eng_max_table_bytes(d->eng), err, sizeof(err));
+	if (r < 0)
 		log_error("initial state: %s", err);
-		goto out;
-	}
-	/* A time or place among the initial keys lights the first tables. */
+	return r;
+}
+
+/* The sky service with its first computation, publishing into the region
+ * a restart under systemd handed back (or a new one), and what it tells
+ * systemd. */
+static int start_sky(struct daemon *d, const struct sky_state *initial)
+{
+	struct sky_state lit = *initial;
+	struct pub *region = NULL;
+	uint64_t generation = 0;
+	char err[512] = "";
 	double mono_s;
+	int r;
+
+	/* A time or place among the initial keys lights the first tables. */
 	simclock_read_clocks(NULL, &mono_s);
 	r = drive_lights(&lit, mono_s, NULL, err, sizeof(err));
 	if (r < 0) {
 		log_error("initial state: %s", err);
-		goto out;
+		return r;
 	}
-	/* A restart under systemd: the stored region and socket come back. */
-	r = fdstore_region(fds, &lit, &region, &generation);
+	r = fdstore_region(d->fds, &lit, &region, &generation);
+	if (r == 0)
+		r = srv_new_from(d->loop, d->eng, &lit, region, generation, &d->srv);
 	if (r < 0) {
 		log_error("publisher: %s", strerror(-r));
-		goto out;
+		return r;
 	}
-	r = srv_new_from(loop, eng, &lit, region, generation, &srv);
-	if (r < 0) {
-		log_error("publisher: %s", strerror(-r));
-		goto out;
-	}
-	r = svc_notify_new(loop, srv, &notify);
-	if (r < 0) {
+	r = svc_notify_new(d->loop, d->srv, &d->notify);
+	if (r < 0)
 		log_error("sd_notify: %s", strerror(-r));
-		goto out;
-	}
-	hooks.notify = notify;
-	int activated = 0;
-	if (o->socket_path) {
-		snprintf(path, sizeof(path), "%s", o->socket_path);
-	} else if ((listen_fd = fdstore_activated(fds)) >= 0) {
-		activated = 1;
-		snprintf(path, sizeof(path), "(socket activation)");
-	} else if (ctl_default_path(path, sizeof(path)) < 0) {
+	return r;
+}
+
+/* The control socket: --socket, else systemd's, else the default path;
+ * then the region and the socket go to systemd's fd store. */
+static int start_control(struct daemon *d, const struct sky_state *initial)
+{
+	char err[512] = "";
+	int listen_fd = -1, r;
+
+	(void)initial;
+	if (d->o->socket_path) {
+		snprintf(d->path, sizeof(d->path), "%s", d->o->socket_path);
+	} else if ((listen_fd = fdstore_activated(d->fds)) >= 0) {
+		d->activated = 1;
+		snprintf(d->path, sizeof(d->path), "(socket activation)");
+	} else if (ctl_default_path(d->path, sizeof(d->path)) < 0) {
 		log_error("$XDG_RUNTIME_DIR is too long for a socket path; pass --socket");
-		r = -ENAMETOOLONG;
-		goto out;
+		return -ENAMETOOLONG;
 	}
-	if (!activated)
-		listen_fd = fdstore_control(fds, path);
-	err[0] = 0;
-	r = ctl_new(loop, srv, path, listen_fd, err, sizeof(err), &ctl);
+	if (!d->activated)
+		listen_fd = fdstore_control(d->fds, d->path);
+	r = ctl_new(d->loop, d->srv, d->path, listen_fd, err, sizeof(err), &d->ctl);
 	if (r < 0) {
 		log_error("%s", err);
-		goto out;
+		return r;
 	}
-	ctl_set_roles(ctl, &o->roles);
-	roles->ctl = ctl;
-	hooks.ctl = ctl;
-	svc_notify_set_ctl(notify, ctl);
-	hooks.srv = srv;
-	hooks.fdstore = fds;
-	if (fdstore_enabled(fds))
-		fdstore_hand_over(fds, srv_pub(srv), activated ? -1 : ctl_keep_socket(ctl));
-	srv_set_listener(srv, &(struct srv_listener){ on_published, on_failed }, &hooks);
-	r = drive_new(loop, srv, &drive);
-	if (r < 0) {
-		log_error("clock: %s", strerror(-r));
-		goto out;
-	}
-	ctl_set_drive(ctl, drive);
-	r = sense_new(loop, srv, drive, &sense);
+	ctl_set_roles(d->ctl, &d->o->roles);
+	d->roles->ctl = d->ctl;
+	svc_notify_set_ctl(d->notify, d->ctl);
+	if (fdstore_enabled(d->fds))
+		fdstore_hand_over(d->fds, srv_pub(d->srv), d->activated ? -1 : ctl_keep_socket(d->ctl));
+	return 0;
+}
+
+/* The light sensor, its events to the control server; then the service's
+ * own listener, which hears of publications after both. */
+static int start_sensor(struct daemon *d, const struct sky_state *initial)
+{
+	int r;
+
+	(void)initial;
+	r = sense_new(d->loop, d->srv, &d->sense);
 	if (r < 0) {
 		log_error("light sensor: %s", strerror(-r));
-		goto out;
+		return r;
 	}
-	sense_set_listener(sense, ctl_sensor_event, ctl);
-	ctl_set_sense(ctl, sense);
-	hooks.sense = sense;
-	if (o->sync.url[0]) {
-		/* After everything it drives is up: the retained state may arrive
-		 * in the first dispatch. */
-		r = repl_new(loop, &o->sync.cfg, srv, drive, ctl, sense, &repl);
-		if (r < 0) {
-			log_error("sync: %s", strerror(-r));
-			goto out;
-		}
-		log_info("sync: %s, %s", o->sync.url, sync_role_name(o->sync.cfg.role));
-	}
-	svc_reload_attach(reload, srv, drive, sense, notify, ctl);
-	log_info("listening on %s, protocol %s", path, SKY_PROTO_VERSION);
-	svc_notify_ready(notify);
-	r = loop_run(loop);
+	sense_set_listener(d->sense, ctl_sensor_event, d->ctl);
+	r = srv_add_listener(d->srv, &(struct srv_listener){ .published = on_published, .ctx = d });
 	if (r < 0)
-		log_error("event loop: %s", strerror(-r));
-	svc_notify_stopping(notify);
-out:
-	svc_reload_attach(reload, NULL, NULL, NULL, NULL, NULL);
-	roles->ctl = NULL;
-	repl_free(repl);
-	hooks.sense = NULL;
-	if (ctl)
-		ctl_set_sense(ctl, NULL);
-	sense_free(sense);
-	ctl_free(ctl);
-	drive_free(drive);
-	svc_notify_free(notify);
-	srv_free(srv);
-	eng_free(eng);
-	loop_free(loop);
-	fdstore_free(fds);
+		log_error("publisher: %s", strerror(-r));
+	return r;
+}
+
+/* Replication, after everything it drives is up: the retained state may
+ * arrive in the first dispatch. */
+static int start_sync(struct daemon *d, const struct sky_state *initial)
+{
+	const struct sync_settings *ss = &d->o->sync;
+	int r;
+
+	(void)initial;
+	if (!ss->url[0])
+		return 0;
+	r = repl_new(d->loop, &ss->cfg, d->srv, d->ctl, &d->repl);
+	if (r < 0) {
+		log_error("sync: %s", strerror(-r));
+		return r;
+	}
+	log_info("sync: %s, %s", ss->url, sync_role_name(ss->cfg.role));
+	return 0;
+}
+
+static int (*const start_steps[])(struct daemon *d, const struct sky_state *initial) = {
+	start_loop, start_engine, start_sky, start_control, start_sensor, start_sync,
+};
+
+/* Undoes the steps that ran, in reverse; accepts a half-built daemon. */
+static void daemon_finish(struct daemon *d)
+{
+	svc_reload_attach(d->reload, NULL, NULL, NULL);
+	d->roles->ctl = NULL;
+	repl_free(d->repl);
+	sense_free(d->sense);
+	if (d->srv)
+		srv_remove_listener(d->srv, d);
+	ctl_free(d->ctl);
+	svc_notify_free(d->notify);
+	srv_free(d->srv);
+	eng_free(d->eng);
+	loop_free(d->loop);
+	fdstore_free(d->fds);
+}
+
+static int run_daemon(const struct options *o, struct svc_reload *reload,
+		      struct role_step *roles, const struct sky_state *initial)
+{
+	struct daemon d = { .o = o, .reload = reload, .roles = roles };
+	int r = 0;
+
+	for (size_t i = 0; i < sizeof(start_steps) / sizeof(start_steps[0]) && r == 0; i++)
+		r = start_steps[i](&d, initial);
+	if (r == 0) {
+		svc_reload_attach(reload, d.srv, d.notify, d.ctl);
+		log_info("listening on %s, protocol %s", d.path, SKY_PROTO_VERSION);
+		svc_notify_ready(d.notify);
+		r = loop_run(d.loop);
+		if (r < 0)
+			log_error("event loop: %s", strerror(-r));
+		svc_notify_stopping(d.notify);
+	}
+	daemon_finish(&d);
 	return r < 0 ? 1 : 0;
 }
 

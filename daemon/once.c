@@ -146,6 +146,97 @@ static void usage(FILE *f)
 		   "Exit status: 0 done, 1 device or file failure, 2 bad input.\n");
 }
 
+/* The state of the key=value arguments, parsed whole and validated before
+ * any GPU work; with the daemon's clock lights and weather: ret_keys as
+ * given (the manifest's), ret_sky resolved (the tables'). 0, or 2 (said on
+ * stderr). */
+static int read_state(int argc, char **argv, int first, struct sky_state *ret_keys,
+		      struct sky_state *ret_sky)
+{
+	struct sky_state s;
+	char err[512];
+	double mono_s;
+
+	state_default(&s);
+	for (int i = first; i < argc; i++)
+		if (state_set_pair(&s, argv[i], NULL, err, sizeof(err)) < 0) {
+			fprintf(stderr, "skyd: %s\n", err);
+			return 2;
+		}
+	if (state_validate(&s, 0, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		return 2;
+	}
+	/* utc= and a place light the tables as the daemon's clock would. */
+	simclock_read_clocks(NULL, &mono_s);
+	if (drive_lights(&s, mono_s, NULL, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		return 2;
+	}
+	/* The tables see the weather as the daemon's would; the manifest keeps
+	 * the keys as given. */
+	if (state_resolve(&s, ret_sky, NULL, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		return 2;
+	}
+	*ret_keys = s;
+	return 0;
+}
+
+/* Computes the tables of sky (keys: as given) on device, and writes them
+ * to dump_dir (NULL: nowhere). The exit status. */
+static int compute(const char *device, const char *dump_dir, const struct sky_state *keys,
+		   const struct sky_state *sky)
+{
+	struct eng_timing t;
+	struct eng *e;
+	char err[512];
+
+	if (eng_new(device, err, sizeof(err), &e) < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		return 1;
+	}
+	int rc = state_validate(keys, eng_max_table_bytes(e), err, sizeof(err));
+	if (rc < 0) {
+		fprintf(stderr, "skyd: %s\n", err);
+		eng_free(e);
+		return 2;
+	}
+	rc = eng_compute(e, sky, STATE_ALL_TABLES, &t, err, sizeof(err));
+	if (rc == -EINVAL) {
+		fprintf(stderr, "skyd: %s\n", err);
+		eng_free(e);
+		return 2;
+	}
+	if (rc < 0) {
+		fprintf(stderr, "skyd: compute failed on '%s': %s\n", eng_device(e)->name, err);
+		eng_free(e);
+		return 1;
+	}
+	printf("skyd: %s: tables in %.2f ms (transmittance %.2f, multiscatter %.2f, skyview %.2f, aerial %.2f)\n",
+	       eng_device(e)->name, t.total_ms, t.table_ms[0], t.table_ms[1], t.table_ms[2], t.table_ms[3]);
+	struct eng_f16_range range;
+	eng_f16_range(e, sky, STATE_ALL_TABLES, &range);
+	if (eng_f16_broken(&range))
+		fprintf(stderr, "skyd: warning: storage=f16 breaks here: %llu values not finite, "
+				"%llu of %llu sky radiance values above the night floor stored as "
+				"subnormal halves (low precision); use storage=f32\n",
+			(unsigned long long)range.overflow, (unsigned long long)range.subnormal,
+			(unsigned long long)range.radiance_values);
+	if (dump_dir) {
+		rc = dump_tables(dump_dir, keys, e, &t, err, sizeof(err));
+		if (rc < 0) {
+			fprintf(stderr, "skyd: %s\n", err);
+			eng_free(e);
+			return 1;
+		}
+		printf("skyd: wrote %s/{transmittance,multiscatter,skyview,aerial}.{exr,png} and manifest.json\n",
+		       dump_dir);
+	}
+	eng_free(e);
+	return 0;
+}
+
 int once_main(int argc, char **argv)
 {
 	static const struct option opts[] = {
@@ -175,78 +266,7 @@ int once_main(int argc, char **argv)
 		usage(stderr);
 		return 2;
 	}
-
-	/* Parse whole and validate before any GPU work. */
-	struct sky_state s;
-	char err[512];
-	state_default(&s);
-	for (int i = optind; i < argc; i++)
-		if (state_set_pair(&s, argv[i], NULL, err, sizeof(err)) < 0) {
-			fprintf(stderr, "skyd: %s\n", err);
-			return 2;
-		}
-	if (state_validate(&s, 0, err, sizeof(err)) < 0) {
-		fprintf(stderr, "skyd: %s\n", err);
-		return 2;
-	}
-	/* utc= and a place light the tables as the daemon's clock would. */
-	double mono_s;
-	simclock_read_clocks(NULL, &mono_s);
-	if (drive_lights(&s, mono_s, NULL, err, sizeof(err)) < 0) {
-		fprintf(stderr, "skyd: %s\n", err);
-		return 2;
-	}
-	/* The tables see the weather as the daemon's would; the manifest keeps
-	 * the keys as given. state_validate resolved it already. */
-	struct sky_state sky;
-	if (state_resolve(&s, &sky, NULL, err, sizeof(err)) < 0) {
-		fprintf(stderr, "skyd: %s\n", err);
-		return 2;
-	}
-
-	struct eng *e;
-	if (eng_new(device, err, sizeof(err), &e) < 0) {
-		fprintf(stderr, "skyd: %s\n", err);
-		return 1;
-	}
-	int rc = state_validate(&s, eng_max_table_bytes(e), err, sizeof(err));
-	if (rc < 0) {
-		fprintf(stderr, "skyd: %s\n", err);
-		eng_free(e);
-		return 2;
-	}
-	struct eng_timing t;
-	rc = eng_compute(e, &sky, STATE_ALL_TABLES, &t, err, sizeof(err));
-	if (rc == -EINVAL) {
-		fprintf(stderr, "skyd: %s\n", err);
-		eng_free(e);
-		return 2;
-	}
-	if (rc < 0) {
-		fprintf(stderr, "skyd: compute failed on '%s': %s\n", eng_device(e)->name, err);
-		eng_free(e);
-		return 1;
-	}
-	printf("skyd: %s: tables in %.2f ms (transmittance %.2f, multiscatter %.2f, skyview %.2f, aerial %.2f)\n",
-	       eng_device(e)->name, t.total_ms, t.table_ms[0], t.table_ms[1], t.table_ms[2], t.table_ms[3]);
-	struct eng_f16_range range;
-	eng_f16_range(e, &sky, STATE_ALL_TABLES, &range);
-	if (eng_f16_broken(&range))
-		fprintf(stderr, "skyd: warning: storage=f16 breaks here: %llu values not finite, "
-				"%llu of %llu sky radiance values above the night floor stored as "
-				"subnormal halves (low precision); use storage=f32\n",
-			(unsigned long long)range.overflow, (unsigned long long)range.subnormal,
-			(unsigned long long)range.radiance_values);
-	if (dump_dir) {
-		rc = dump_tables(dump_dir, &s, e, &t, err, sizeof(err));
-		if (rc < 0) {
-			fprintf(stderr, "skyd: %s\n", err);
-			eng_free(e);
-			return 1;
-		}
-		printf("skyd: wrote %s/{transmittance,multiscatter,skyview,aerial}.{exr,png} and manifest.json\n",
-		       dump_dir);
-	}
-	eng_free(e);
-	return 0;
+	struct sky_state s, sky;
+	int rc = read_state(argc, argv, optind, &s, &sky);
+	return rc ? rc : compute(device, dump_dir, &s, &sky);
 }

@@ -15,7 +15,9 @@ const char *rvk_result_name(VkResult r);
 
 /* Every Vulkan call goes through VK_TRY: on failure it names the call and
  * the result in err and jumps to the function's one cleanup label, with rc
- * set to -ENOMEM or -EIO. */
+ * set to -ENOMEM or -EIO. VK_TRY, rvk_result_name and rvk.c's find_memory
+ * are a copy of the engine's (daemon/engine/vkcheck.h), kept on purpose:
+ * skyrender is the example a client copies, and it links libsky only. */
 #define VK_TRY(call)                                                                     \
 	do {                                                                             \
 		VkResult vk_r_ = (call);                                                 \

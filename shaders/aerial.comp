@@ -1,7 +1,7 @@
 // aerial.comp - aerial perspective, every march job in one dispatch: per
 // froxel column, one march through all slices; slice k holds the integral
 // from the eye to the slice's far edge (see proto/skymap.h).
-// gl_GlobalInvocationID.z is the job (sky_params.h, AERIAL_JOB_VEC4): a
+// gl_GlobalInvocationID.z is the job (sky_params.h, struct AerialJob): a
 // camera's volume (the state's camera, a view), or the panorama of an eye
 // point that several cameras share, which views of form panorama read and
 // aerial_resample.comp resamples into the volumes of the others.
@@ -11,15 +11,10 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
-// The jobs: see eng_fill_views. A camera: forward (w = tan(vfov / 2)),
-// right (w = aspect), up (w = the eye's altitude in km). A panorama:
-// (first azimuth, azimuth step, first row's x, row step) with x =
-// sign(e) sqrt(|e|), e the elevation above the eye's horizon in radians,
-// (the horizon's elevation, columns, rows, 1 for a full circle: the last
-// column repeats the first; aplan.c), (w = the
-// eye's altitude). Both: the sun and the moon in the eye's local frame,
-// with the output's texel offset and the kind in w.
-layout(std430, binding = BINDING_VIEWS) readonly buffer ViewBuf { vec4 v[]; } VB;
+// The jobs (eng_fill_views): a camera's frame, or a panorama's mapping
+// (aplan.c); both with the eye's altitude, the sun and the moon in the
+// eye's local frame and the output's first texel.
+layout(std430, binding = BINDING_VIEWS) readonly buffer ViewBuf { uvec4 head; AerialJob job[]; } VB;
 
 // The aerial table again, a texel per element: lavapipe stores a vector
 // with one loop over the lanes where STORE_TEXEL's four words take four,
@@ -32,14 +27,15 @@ void store_texel(int i, vec4 v)
 	note_range(v.rgb);
 }
 
-// The direction of a panorama's column i, row j (job vec4s m0, m1); around
-// the full circle the last column is the first again, bit for bit.
-vec3 panorama_dir(vec4 m0, vec4 m1, int i, int j)
+// The direction of column i, row j of job z's panorama; around the full
+// circle the last column is the first again, bit for bit.
+vec3 panorama_dir(uint z, int i, int j)
 {
-	if (m1.w > 0.5)
-		i %= int(m1.y) - 1;
-	float az = m0.x + float(i) * m0.y, x = m0.z + float(j) * m0.w;
-	float el = m1.x + sign(x) * x * x;
+	if (VB.job[z].full_circle > 0.5)
+		i %= int(VB.job[z].width) - 1;
+	float az = VB.job[z].azimuth0_rad + float(i) * VB.job[z].azimuth_step_rad;
+	float x = VB.job[z].row0 + float(j) * VB.job[z].row_step;
+	float el = VB.job[z].horizon_rad + sign(x) * x * x;
 	return vec3(cos(el) * sin(az), cos(el) * cos(az), sin(el));
 }
 
@@ -47,14 +43,14 @@ void main()
 {
 	load_params();
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-	int job = 1 + AERIAL_JOB_VEC4 * int(gl_GlobalInvocationID.z);
-	vec4 j0 = VB.v[job], j1 = VB.v[job + 1], j2 = VB.v[job + 2];
-	vec3 sun_dir = VB.v[job + 3].xyz, moon_dir = VB.v[job + 4].xyz;
-	int out_base = int(floatBitsToUint(VB.v[job + 3].w));
-	bool panorama = VB.v[job + 4].w > 0.5;
+	uint z = gl_GlobalInvocationID.z;
+	vec3 sun_dir = VB.job[z].sun, moon_dir = VB.job[z].moon;
+	int out_base = int(VB.job[z].out_texel);
+	bool panorama = VB.job[z].kind == AERIAL_JOB_PANORAMA;
+	float pano_w = VB.job[z].width, pano_h = VB.job[z].height;
 	// A panorama's columns, row-major, take rows of OUT_W invocations,
 	// as many as they need (the dispatch has enough for the largest).
-	int pw = int(j1.y), rows = panorama ? (pw * int(j1.z) + OUT_W - 1) / OUT_W : OUT_H;
+	int pw = int(pano_w), rows = panorama ? (pw * int(pano_h) + OUT_W - 1) / OUT_W : OUT_H;
 	if (px.x >= OUT_W || px.y >= rows)
 		return;
 	// Rows that look at the ground end early: interleave the volume's rows
@@ -62,17 +58,18 @@ void main()
 	// carry the same work (as in skyview.comp).
 	px.y = (px.y & 1) == 0 ? px.y >> 1 : rows - 1 - (px.y >> 1);
 
-	float h0 = j2.w, range = P.cam_up.w;
+	float h0 = VB.job[z].eye_km, range = P.AERIAL_RANGE_KM;
 	vec3 dir;
 	int col = px.y * OUT_W + px.x;		// the panorama's column
 	if (panorama) {
-		if (col >= pw * int(j1.z))
+		if (col >= pw * int(pano_h))
 			return;
-		dir = panorama_dir(j0, j1, col % pw, col / pw);
+		dir = panorama_dir(z, col % pw, col / pw);
 	} else {
 		vec2 ndc = (vec2(px) + 0.5) / vec2(OUT_W, OUT_H) * 2.0 - 1.0;
-		float tan_half = j0.w;
-		dir = normalize(j0.xyz + ndc.x * tan_half * j1.w * j1.xyz + ndc.y * tan_half * j2.xyz);
+		float tan_half = VB.job[z].tan_half_vfov;
+		dir = normalize(VB.job[z].fwd + ndc.x * tan_half * VB.job[z].aspect * VB.job[z].right +
+				ndc.y * tan_half * VB.job[z].up);
 	}
 
 	Phases ph_sun = ray_phases(dir, sun_dir), ph_moon = ray_phases(dir, moon_dir);
@@ -85,7 +82,7 @@ void main()
 	float tau_view = 0.0;		// the peak's optical depth along it (scaled_step)
 	float prev_depth = 0.0;
 	for (int k = 0; k < OUT_D; k++) {
-		float depth = skymap_aerial_depth_km(k, OUT_D, range, P.misc.z > 0.5);
+		float depth = skymap_aerial_depth_km(k, OUT_D, range, P.AERIAL_SQUARED > 0.5);
 		// The part of this slice inside the atmosphere and above the ground.
 		float a = max(prev_depth, t0), b = inside ? min(depth, t1) : a;
 		prev_depth = depth;
@@ -103,11 +100,11 @@ void main()
 				Scaled ds = scaled_step(sc, m, view_up, dt, tau_view);
 				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
 				float mu_l = dot(up, sun_dir);
-				march_source(ta, mu_l, light_visible(ta, mu_l, P.sun_dir.w), P.sun_illum.rgb, sc, ph_sun, m,
+				march_source(ta, mu_l, light_visible(ta, mu_l, P.SUN_RADIUS_RAD), P.sun_illum.rgb, sc, ph_sun, m,
 					     ground, forward, ds, view_up, sun_v, s, s_scaled);
 				if (MOON_LIT) {
 					mu_l = dot(up, moon_dir);
-					march_source(ta, mu_l, light_visible(ta, mu_l, P.moon_dir.w), P.moon_illum.rgb, sc,
+					march_source(ta, mu_l, light_visible(ta, mu_l, P.MOON_RADIUS_RAD), P.moon_illum.rgb, sc,
 						     ph_moon, m, ground, forward, ds, view_up, moon_v, s, s_scaled);
 				}
 				vec3 step_t;
@@ -121,7 +118,7 @@ void main()
 			}
 		}
 		// Night-sky floor: airlight (1 - T) of a sky of the floor's mean level L_z (1 + c / 3).
-		vec3 night = P.night.rgb * (1.0 + P.night.w / 3.0) * (1.0 - tr);
+		vec3 night = P.night.rgb * (1.0 + P.NIGHT_GAIN / 3.0) * (1.0 - tr);
 		vec4 texel = vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0);
 		// A panorama is published in float32 (views of form panorama) or
 		// resampled into volumes, whose range is noted there. Its
@@ -130,7 +127,7 @@ void main()
 		// ground, about 1 / sin of the depression, which is far closer to
 		// linear in log than in radiance.
 		if (panorama)
-			AT.d[out_base + k * int(j1.y * j1.z) + col] =
+			AT.d[out_base + k * int(pano_w * pano_h) + col] =
 				floatBitsToUint(vec4(log(max(texel.rgb, vec3(1e-30))), texel.a));
 		else
 			store_texel(out_base + (k * OUT_H + px.y) * OUT_W + px.x, texel);

@@ -13,7 +13,7 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
-layout(std430, binding = BINDING_VIEWS) readonly buffer ViewBuf { vec4 v[]; } VB;
+layout(std430, binding = BINDING_VIEWS) readonly buffer ViewBuf { uvec4 head; AerialJob job[]; } VB;
 layout(std430, binding = BINDING_AERIAL) writeonly buffer AerialTexels { uvec4 d[]; } AT;
 // The same memory, read through a texel buffer: gathers are vectorized on
 // lavapipe where a storage-buffer load with a varying index is a loop.
@@ -24,21 +24,24 @@ void main()
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
 	if (px.x >= OUT_W || px.y >= OUT_H)
 		return;
-	int job = 1 + AERIAL_JOB_VEC4 * (int(VB.v[0].x) + int(gl_GlobalInvocationID.z));
-	vec4 fwd = VB.v[job], right = VB.v[job + 1], cup = VB.v[job + 2];
-	vec4 m0 = VB.v[job + 3], m1 = VB.v[job + 4];
-	int out_base = int(floatBitsToUint(VB.v[job + 5].x));
-	int pano = int(floatBitsToUint(VB.v[job + 5].y));
+	// VB.head.x: the march jobs, which come first.
+	uint z = VB.head.x + gl_GlobalInvocationID.z;
+	int out_base = int(VB.job[z].out_texel);
+	int pano = int(VB.job[z].panorama_texel);
 
 	// The column's direction exactly as aerial.comp marches a camera's.
 	vec2 ndc = (vec2(px) + 0.5) / vec2(OUT_W, OUT_H) * 2.0 - 1.0;
-	vec3 dir = normalize(fwd.xyz + ndc.x * fwd.w * right.w * right.xyz + ndc.y * fwd.w * cup.xyz);
+	float tan_half = VB.job[z].tan_half_vfov;
+	vec3 dir = normalize(VB.job[z].fwd + ndc.x * tan_half * VB.job[z].aspect * VB.job[z].right +
+			     ndc.y * tan_half * VB.job[z].up);
 
 	// The column and row around it: skymap_panorama_uv, the mapping that
 	// clients reading a published panorama use.
-	int pw = int(m1.y), ph = int(m1.z);
-	vec2 uv = skymap_panorama_uv(m0.x, m0.y, m0.z, m0.w, m1.x, pw, ph, m1.w > 0.5,
-				     atan(dir.x, dir.y), asin(clamp(dir.z, -1.0, 1.0)));
+	int pw = int(VB.job[z].width), ph = int(VB.job[z].height);
+	vec2 uv = skymap_panorama_uv(VB.job[z].azimuth0_rad, VB.job[z].azimuth_step_rad,
+				     VB.job[z].row0, VB.job[z].row_step, VB.job[z].horizon_rad, pw, ph,
+				     VB.job[z].full_circle > 0.5, atan(dir.x, dir.y),
+				     asin(clamp(dir.z, -1.0, 1.0)));
 	float fu = uv.x * float(pw) - 0.5, fv = uv.y * float(ph) - 0.5;
 	int i0 = clamp(int(fu), 0, pw - 2), j0 = clamp(int(fv), 0, ph - 2), i1 = i0 + 1;
 	float wu = fu - float(i0), wv = fv - float(j0);

@@ -29,7 +29,7 @@ float chord_altitude(Chord c, float u)
 // |u| where the chord crosses altitude h (>= h_tan).
 float chord_crossing(Chord c, float h)
 {
-	return safe_sqrt((h - c.h_tan) * (h + c.h_tan + 2.0 * P.planet.x));
+	return safe_sqrt((h - c.h_tan) * (h + c.h_tan + 2.0 * P.BOTTOM_RADIUS_KM));
 }
 
 // x - asinh(x) for x >= 0 without cancellation: the series below 0.5 (its
@@ -134,8 +134,8 @@ void main()
 	if (px.x >= OUT_W || px.y >= OUT_H)
 		return;
 
-	float rb = P.planet.x, shell = P.planet.z;
-	float H = P.misc.w;
+	float rb = P.BOTTOM_RADIUS_KM, shell = P.SHELL_KM;
+	float H = P.TOP_DISTANCE_KM;
 	float x_mu = tex_to_unit((float(px.x) + 0.5) / float(OUT_W), OUT_W);
 	float x_r = tex_to_unit((float(px.y) + 0.5) / float(OUT_H), OUT_H);
 	float rho = H * x_r;
@@ -157,9 +157,9 @@ void main()
 	float width[4];
 	for (int k = 0; k < N_CONST; k++) {
 		Constituent c = P.c[k];
-		lay0[k] = vec4(c.layer0.yzw, c.layer0c_1.x);
-		lay1[k] = vec4(c.layer0c_1.yzw, c.layer1c.x);
-		width[k] = c.layer0.x;
+		lay0[k] = vec4(c.layer0.yzw, c.LAYER0_CONSTANT);
+		lay1[k] = vec4(c.layer0c_1.yzw, c.LAYER1_CONSTANT);
+		width[k] = c.LAYER0_WIDTH_KM;
 		column[k] = 0.0;
 	}
 	if (EXP_MASK != 0) {

@@ -126,14 +126,15 @@ void flush_range(int table)
 // skymap.glsl's, at this planet.
 float safe_sqrt(float x) { return skymap_safe_sqrt(x); }
 float tex_to_unit(float u, int n) { return skymap_tex_to_unit(u, n); }
-float rho2(float h) { return skymap_rho2(P.planet.x, h); }
-float horizon_cos(float h) { return skymap_horizon_cos(P.planet.x, h); }
+float rho2(float h) { return skymap_rho2(P.BOTTOM_RADIUS_KM, h); }
+float horizon_cos(float h) { return skymap_horizon_cos(P.BOTTOM_RADIUS_KM, h); }
 
 // Layer 0 below its width, layer 1 above: (exp_term, exp_scale_per_km,
 // linear_per_km, constant), so that one exp() serves either layer.
 vec4 layer_at(Constituent c, float h)
 {
-	return h < c.layer0.x ? vec4(c.layer0.yzw, c.layer0c_1.x) : vec4(c.layer0c_1.yzw, c.layer1c.x);
+	return h < c.LAYER0_WIDTH_KM ? vec4(c.layer0.yzw, c.LAYER0_CONSTANT)
+				     : vec4(c.layer0c_1.yzw, c.LAYER1_CONSTANT);
 }
 
 float density(int i, float h)
@@ -209,7 +210,7 @@ vec3 step_weight(vec3 sigma, float dt, out vec3 ret_step_t)
 // point at altitude h: (r_t^2 - Rb^2) / (r_t + Rb), no cancellation.
 float altitude_along(float h, float mu, float t, out float ret_r)
 {
-	float rb = P.planet.x, r = rb + h;
+	float rb = P.BOTTOM_RADIUS_KM, r = rb + h;
 	float excess = rho2(h) + t * (t + 2.0 * r * mu);
 	ret_r = sqrt(rb * rb + max(excess, 0.0));
 	return excess / (ret_r + rb);
@@ -218,7 +219,7 @@ float altitude_along(float h, float mu, float t, out float ret_r)
 // Distance from altitude h (inside the shell) to the top along mu.
 float distance_to_top(float h, float mu)
 {
-	float rb = P.planet.x, r = rb + h, shell = P.planet.z;
+	float rb = P.BOTTOM_RADIUS_KM, r = rb + h, shell = P.SHELL_KM;
 	float c = (shell - h) * (2.0 * rb + shell + h);	// rt^2 - r^2 >= 0
 	return max(-r * mu + safe_sqrt(r * r * mu * mu + c), 0.0);
 }
@@ -232,7 +233,7 @@ bool hits_ground(float h, float mu, out float ret_t)
 	ret_t = 0.0;
 	if (h < 0.0 || mu >= mu_h)
 		return false;
-	float r = P.planet.x + h;
+	float r = P.BOTTOM_RADIUS_KM + h;
 	float disc = r * r * (mu - mu_h) * (mu + mu_h);
 	ret_t = max(-r * mu - safe_sqrt(disc), 0.0);
 	return true;
@@ -280,11 +281,11 @@ struct TAlt {
 
 TAlt t_alt(float h)
 {
-	float rb = P.planet.x, shell = P.planet.z;
+	float rb = P.BOTTOM_RADIUS_KM, shell = P.SHELL_KM;
 	TAlt a;
 	a.h = clamp(h, 0.0, shell);
 	a.r = rb + a.h;
-	float H = P.misc.w;
+	float H = P.TOP_DISTANCE_KM;
 	float rho = safe_sqrt(rho2(a.h));
 	// Below the ground (rounding at a ray's end) nothing is in the way, as
 	// in hits_ground().
@@ -332,7 +333,7 @@ vec3 transmittance_at(TAlt a, float mu)
 // and the sky would brighten in steps as the sun sets.
 float light_visible(TAlt a, float mu, float radius_rad)
 {
-	float e = P.planet.x / a.r * radius_rad, x = mu - a.mu_horizon;
+	float e = P.BOTTOM_RADIUS_KM / a.r * radius_rad, x = mu - a.mu_horizon;
 	return e > 0.0 ? smoothstep(-e, e, x) : (x < 0.0 ? 0.0 : 1.0);
 }
 
@@ -423,7 +424,7 @@ Phases ray_phases(vec3 view_dir, vec3 light_dir)
 	Phases ph;
 	float mu = dot(view_dir, light_dir);
 	for (int i = 0; i < 4; i++)
-		ph.p[i] = i < N_CONST && phase_kind(i) != 0 ? phase(phase_kind(i), P.c[i].scattering.w, mu) : 0.0;
+		ph.p[i] = i < N_CONST && phase_kind(i) != 0 ? phase(phase_kind(i), P.c[i].PHASE_G, mu) : 0.0;
 	ph.mu = mu;
 	return ph;
 }
@@ -480,12 +481,12 @@ vec3 forward_scattering(Scatter sc)
 {
 	if (MOMENT_CONST < 0)
 		return vec3(0.0);
-	if (P.c[max(MOMENT_CONST, 0)].absorption.w != 0.0)
+	if (P.c[max(MOMENT_CONST, 0)].PHASE_G1 != 0.0)
 		return sc.s[max(MOMENT_CONST, 0)];
 	vec3 f = vec3(0.0);
 	for (int i = 0; i < N_CONST; i++)
-		f += sc.s[i] * P.c[i].layer1c.y;
-	return f / P.c[max(MOMENT_CONST, 0)].layer1c.y;
+		f += sc.s[i] * P.c[i].PHASE_G2;
+	return f / P.c[max(MOMENT_CONST, 0)].PHASE_G2;
 }
 
 // multiscatter_at and the shape of the same texels (MomentTex).
@@ -529,11 +530,11 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 	// o_x^2 - o_y^2 = 2 o_x^2 + o_z^2 - 1.
 	float b2 = sh.y * (1.5 * o_z * o_z - 0.5) +
 		   sh.z * (DELTA_CONST >= 0 ? 2.0 * o_x * o_x + o_z * o_z - 1.0 : o_x * o_z);
-	vec2 g = vec2(P.c[max(MOMENT_CONST, 0)].absorption.w, P.c[max(MOMENT_CONST, 0)].layer1c.y);
+	vec2 g = vec2(P.c[max(MOMENT_CONST, 0)].PHASE_G1, P.c[max(MOMENT_CONST, 0)].PHASE_G2);
 	// With delta-M the field is the scaled medium's, scattered by the
 	// truncated phase: Henyey-Greenstein g', moments g' and g'^2.
 	if (DELTA_CONST >= 0)
-		g = vec2(P.c[max(DELTA_CONST, 0)].layer1c.w, P.c[max(DELTA_CONST, 0)].layer1c.w * P.c[max(DELTA_CONST, 0)].layer1c.w);
+		g = vec2(P.c[max(DELTA_CONST, 0)].DELTA_G, P.c[max(DELTA_CONST, 0)].DELTA_G * P.c[max(DELTA_CONST, 0)].DELTA_G);
 	// A truncated expansion may go negative where the field is strongly
 	// directed; the light scattered never does.
 	float gl = g.x * g.x;
@@ -568,7 +569,7 @@ struct Entry {
 
 bool ray_in_shell(float h0, vec3 dir, out Entry en)
 {
-	float rb = P.planet.x, shell = P.planet.z, mu = dir.z;
+	float rb = P.BOTTOM_RADIUS_KM, shell = P.SHELL_KM, mu = dir.z;
 	float r = rb + h0;
 	en.t0 = 0.0;
 	en.len = 0.0;
@@ -636,7 +637,7 @@ bool ray_in_shell(float h0, vec3 dir, out Entry en)
 vec3 delta_removed()
 {
 	int k = max(DELTA_CONST, 0);
-	return DELTA_CONST >= 0 ? P.c[k].layer1c.z * P.c[k].scattering.rgb : vec3(0.0);
+	return DELTA_CONST >= 0 ? P.c[k].DELTA_F * P.c[k].scattering.rgb : vec3(0.0);
 }
 
 // The column densities of every constituent from the altitude of a toward
@@ -665,7 +666,7 @@ Scaled scaled_step(Scatter sc, Medium m, float view_up, float dt, inout float ta
 	if (DELTA_CONST < 0)
 		return d;
 	int k = max(DELTA_CONST, 0);
-	d.removed = sc.s[k] * P.c[k].layer1c.z;
+	d.removed = sc.s[k] * P.c[k].DELTA_F;
 	Scatter scs = sc;
 	scs.s[k] -= d.removed;
 	d.sigma_s = m.scattering - d.removed;
@@ -693,8 +694,8 @@ float delta_peak_phase(float mu_l, float tau, Phases ph)
 {
 	int k = max(DELTA_CONST, 0);
 	float n = tau < 1e-4 ? 1.0 + 0.5 * tau : tau / (1.0 - exp(-tau));
-	float above = 1.0 / (1.0 + exp(-1.702 * asin(clamp(mu_l, -1.0, 1.0)) / max(P.delta_peak.y * sqrt(n), 1e-6)));
-	return above * phase(phase_kind(k), P.c[k].scattering.w * pow(P.delta_peak.x, n), ph.mu);
+	float above = 1.0 / (1.0 + exp(-1.702 * asin(clamp(mu_l, -1.0, 1.0)) / max(P.DELTA_PEAK_SPREAD_RAD * sqrt(n), 1e-6)));
+	return above * phase(phase_kind(k), P.c[k].PHASE_G * pow(P.DELTA_PEAK_H, n), ph.mu);
 }
 
 // The march's source for one light with delta-M: ret_real weighs with the

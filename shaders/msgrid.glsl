@@ -67,7 +67,7 @@ vec4 densities(float h)
 // Row py's altitude in km.
 float ms_row_altitude(int py)
 {
-	return clamp(tex_to_unit((float(py) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0) * P.planet.z;
+	return clamp(tex_to_unit((float(py) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0) * P.SHELL_KM;
 }
 
 // The suns (in the x-z plane) of texels x0 .. x0 + MS_SUN_GROUP - 1 of the

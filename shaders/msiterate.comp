@@ -41,10 +41,10 @@ struct QuadRows {
 QuadRows quad_rows(float h)
 {
 	QuadRows c;
-	float p = clamp(h / P.planet.z, 0.0, 1.0) * float(M_H - 1);
+	float p = clamp(h / P.SHELL_KM, 0.0, 1.0) * float(M_H - 1);
 	c.i = clamp(int(floor(p + 0.5)), 1, M_H - 2);
 	c.f = p - float(c.i);
-	float dh = P.planet.z / float(M_H - 1);
+	float dh = P.SHELL_KM / float(M_H - 1);
 	c.horizon = vec3(horizon_cos(float(c.i - 1) * dh), horizon_cos(float(c.i) * dh),
 			 horizon_cos(float(c.i + 1) * dh));
 	c.below = 1.0 / (1.0 + c.horizon);
@@ -99,7 +99,7 @@ void main()
 	ms_row_suns(x0, h, sun);
 	const int n_dirs = MS_MARCHED;
 	const float norm = MS_NORM;
-	float r0 = P.planet.x + h;
+	float r0 = P.BOTTOM_RADIUS_KM + h;
 	mat4x3 scattering_of = mat4x3(0.0), absorption_of = mat4x3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
 		scattering_of[i] = P.c[i].scattering.rgb;
@@ -145,7 +145,7 @@ void main()
 		absorbed *= wk;
 		vec3 returned = vec3(0.0);
 		if (ground && !GROUND_BLACK) {
-			vec3 n = vec3(dir.xy * t_end, r0 + dir.z * t_end) / P.planet.x;
+			vec3 n = vec3(dir.xy * t_end, r0 + dir.z * t_end) / P.BOTTOM_RADIUS_KM;
 			returned = tr * P.albedo.rgb;
 			for (int j = 0; j < MS_SUN_GROUP; j++) {
 				float mu_g = dot(n, sun[j]);

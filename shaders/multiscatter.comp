@@ -104,7 +104,7 @@ void cell_phases(vec3 sun[MS_SUN_GROUP])
 					continue;
 				bool truncated = i == DELTA_CONST;
 				vec4 p = phase4(truncated ? 3 : phase_kind(i),
-						truncated ? P.c[i].layer1c.w : P.c[i].scattering.w, mu);
+						truncated ? P.c[i].DELTA_G : P.c[i].PHASE_G, mu);
 				float c = dot(p, vec4(0.25));
 				if (i == MOMENT_CONST)	// only delta-M uses it (store_shape())
 					cell_xy2[k * MS_SUN_GROUP + j] = truncated ? dot(p, xy2) / max(4.0 * c, 1e-30) : 0.0;
@@ -159,7 +159,7 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 		TAlt a = t_alt(hs);
 		vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
 		for (int j = 0; j < MS_SUN_GROUP; j++)
-			l2[j] += w * (phased_of[j] * dens) * sunlight(a, dot(up, sun[j]), P.sun_dir.w, ext_scaled);
+			l2[j] += w * (phased_of[j] * dens) * sunlight(a, dot(up, sun[j]), P.SUN_RADIUS_RAD, ext_scaled);
 		absorbed += w * absorption;
 		transfer += w * scattering;
 		tr *= step_t;
@@ -185,7 +185,7 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 	vec3 returned = vec3(0.0);
 	if (ground && !GROUND_BLACK) {
 		// Lambertian ground lit by the sun: albedo / pi times the cosine.
-		vec3 n = vec3(dir.xy * t_end, r0 + dir.z * t_end) / P.planet.x;
+		vec3 n = vec3(dir.xy * t_end, r0 + dir.z * t_end) / P.BOTTOM_RADIUS_KM;
 		TAlt a = t_alt(0.0);
 		for (int j = 0; j < MS_SUN_GROUP; j++) {
 			float mu_g = dot(n, sun[j]);
@@ -230,8 +230,8 @@ void store_shape(int i, int j, vec3 psi, vec3 sun_j, float escape_lum, float lit
 	float share = l * MS_NORM / escape_lum / max(dot(psi, MS_SHARE_LUM), 1e-30);
 	vec2 m = sum_moment[j] / l;
 	vec3 t = sum_second[j] / l;
-	float k = DELTA_CONST >= 0 ? P.c[max(DELTA_CONST, 0)].layer1c.w	// the truncated phase's g'
-				   : P.c[max(MOMENT_CONST, 0)].absorption.w;
+	float k = DELTA_CONST >= 0 ? P.c[max(DELTA_CONST, 0)].DELTA_G	// the truncated phase's g'
+				   : P.c[max(MOMENT_CONST, 0)].PHASE_G1;
 	if (k == 0.0) {
 		float field = l + dot(psi * sum_transfer[0], MS_SHARE_LUM);
 		t.xy = (sum_second[j].xy + vec2(dot(psi * sum_transfer[1], MS_SHARE_LUM),
@@ -262,9 +262,9 @@ vec3 band2_transfer(int j, float h, vec3 psi, vec3 sun_j)
 	vec3 s0 = vec3(0.0), s2 = vec3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
 		s0 += sc.s[i];
-		s2 += sc.s[i] * P.c[i].layer1c.y;
+		s2 += sc.s[i] * P.c[i].PHASE_G2;
 	}
-	return 5.0 * s2 / max(s0, vec3(1e-30)) * p2 * fp2 * light_visible(t_alt(h), sun_j.z, P.sun_dir.w);
+	return 5.0 * s2 / max(s0, vec3(1e-30)) * p2 * fp2 * light_visible(t_alt(h), sun_j.z, P.SUN_RADIUS_RAD);
 }
 
 void main()
@@ -286,7 +286,7 @@ void main()
 	float h = ms_row_altitude(py);
 	vec3 sun[MS_SUN_GROUP];
 	ms_row_suns(x0, h, sun);
-	float r0 = P.planet.x + h;
+	float r0 = P.BOTTOM_RADIUS_KM + h;
 	// Only the scattering at x and beyond stays isotropic (Hillaire's
 	// assumption); the first scattering's phases are per cell and sun.
 	cell_phases(sun);
@@ -319,7 +319,7 @@ void main()
 		// 1 - f_ms is a sum of non-negative terms; the floor only keeps
 		// 0 / 0 away (where the escape is 0, L2 is 0 too).
 		vec3 psi = (sum_l2[j] + sum_ground[j] * ground_kept) * MS_NORM / max(escape, vec3(1e-6));
-		if (MOMENT_CONST >= 0 && P.c[max(MOMENT_CONST, 0)].absorption.w == 0.0)
+		if (MOMENT_CONST >= 0 && P.c[max(MOMENT_CONST, 0)].PHASE_G1 == 0.0)
 			psi = (sum_l2[j] + sum_ground[j] * ground_kept) * MS_NORM /
 			      max(escape - band2_transfer(j, h, psi, sun[j]), vec3(1e-6));
 		// A: the ground's first bounce G (its mean over the sphere) as a
@@ -332,7 +332,7 @@ void main()
 		note_range(psi);
 		if (MOMENT_CONST >= 0)
 			store_shape(py * OUT_W + x0 + j, j, psi, sun[j], escape_lum,
-				    light_visible(t_alt(h), sun[j].z, P.sun_dir.w));
+				    light_visible(t_alt(h), sun[j].z, P.SUN_RADIUS_RAD));
 	}
 	flush_range(BINDING_MULTISCATTER - BINDING_TRANSMITTANCE);
 }

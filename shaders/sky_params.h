@@ -59,49 +59,105 @@
 #define BINDING_COUNT 15
 
 /* The aerial jobs at BINDING_VIEWS (eng_fill_views, aerial.comp,
- * aerial_resample.comp): vec4 0 holds the number of march jobs in x; then
- * AERIAL_JOB_VEC4 vec4s per job, the march jobs (a dispatch's z each) and
- * after them the resample jobs. A march job marches a camera's volume or an
- * eye point's panorama; a resample job fills a camera's volume from a
- * panorama. Offsets are in texels of the aerial buffer, as uint bits. */
-#define AERIAL_JOB_VEC4 6
-#define AERIAL_JOB_CAMERA 0	/* march job kinds, in vec4 4's w */
-#define AERIAL_JOB_PANORAMA 1
+ * aerial_resample.comp): a head whose first word is the number of march
+ * jobs, then one AerialJob each, the march jobs (a dispatch's z each) and
+ * after them the resample jobs. A march job marches a camera's volume or
+ * an eye point's panorama (kind); a resample job fills a camera's volume
+ * from a panorama. Offsets are in texels of the aerial buffer. */
+#define AERIAL_JOB_CAMERA 0u	/* march job kinds */
+#define AERIAL_JOB_PANORAMA 1u
 
 #define SKY_MAX_CONSTITUENTS 4	/* ATMO_MAX_CONSTITUENTS */
 #define SKY_GROUND_FIT 8	/* PHASE_GROUND_FIT */
 
+/* One aerial job (std430) as an X-list: V3(name) a vec3 (always followed
+ * by a scalar, so that C's float[3] and the shader's vec3 leave no gap),
+ * F(name) a float, U(name) a uint. A camera's frame serves camera and
+ * resample jobs, a panorama's mapping (struct sky_shm_panorama's fields,
+ * as skymap_panorama_uv takes them) panorama and resample jobs.
+ * tests/test_params.c checks every member's name, offset and size in the
+ * SPIR-V against the C side. */
+#define SKY_AERIAL_JOB_MEMBERS(V3, F, U)                                         \
+	V3(fwd) F(tan_half_vfov)	/* a camera's forward; tan(vfov / 2) */  \
+	V3(right) F(aspect)		/* its right; width / height */          \
+	V3(up) F(eye_km)		/* its up; the eye's altitude (any job) */ \
+	F(azimuth0_rad)			/* a panorama's column 0 azimuth */      \
+	F(azimuth_step_rad)		/* between columns */                    \
+	F(row0) F(row_step)		/* row j at x = row0 + j row_step, x =   \
+					 * sign(e) sqrt(|e|), e above horizon */ \
+	F(horizon_rad)			/* the eye's horizon elevation */        \
+	F(width) F(height)		/* columns (stored), rows */             \
+	F(full_circle)			/* 1: the last column repeats column 0 */ \
+	V3(sun) U(out_texel)		/* the sun in the eye's local frame; the \
+					 * output's first texel */               \
+	V3(moon) U(kind)		/* the moon likewise; AERIAL_JOB_* of a  \
+					 * march job */                          \
+	U(panorama_texel)		/* a resample job's panorama */          \
+	U(pad0) U(pad1) U(pad2)
+
 /* The uniform block (std140, vec4s only, so that C's float[4] matches).
  * X-lists: V(name) a vec4, A(name, n) an array of n vec4, S(name, n) an
- * array of n constituents. Lengths in km, coefficients in 1/km. */
+ * array of n constituents. Lengths in km, coefficients in 1/km, angles in
+ * radians. The lanes that hold a value of their own have names below. */
 #define SKY_CONSTITUENT_MEMBERS(V)                                               \
-	V(scattering)	/* rgb, w = g */                                         \
-	V(absorption)	/* rgb, w = g1, the phase's first Legendre moment */     \
-	V(layer0)	/* width_km, exp_term, exp_scale_per_km, linear_per_km */ \
-	V(layer0c_1)	/* layer 0's constant, then layer 1's exp_term,          \
+	V(scattering)	/* rgb, w = PHASE_G */                                   \
+	V(absorption)	/* rgb, w = PHASE_G1 */                                  \
+	V(layer0)	/* LAYER0_WIDTH_KM, then layer 0's exp_term,             \
 			 * exp_scale_per_km, linear_per_km */                    \
-	V(layer1c)	/* layer 1's constant, y = g2, the phase's second        \
-			 * Legendre moment, z = f, w = g' of the delta-M         \
-			 * truncation (the delta-M constituent only) */
+	V(layer0c_1)	/* LAYER0_CONSTANT, then layer 1's exp_term,             \
+			 * exp_scale_per_km, linear_per_km */                    \
+	V(layer1c)	/* LAYER1_CONSTANT, PHASE_G2, DELTA_F, DELTA_G */
 
 #define SKY_PARAMS_MEMBERS(V, A, S)                                              \
-	V(planet)	/* bottom radius, top radius, shell, observer altitude */ \
+	V(planet)	/* BOTTOM_RADIUS_KM, TOP_RADIUS_KM, SHELL_KM, OBSERVER_KM */ \
 	V(albedo)	/* ground albedo rgb */                                  \
-	V(sun_dir)	/* unit, w = angular radius (rad) */                     \
+	V(sun_dir)	/* unit xyz, w = SUN_RADIUS_RAD */                       \
 	V(sun_illum)	/* lx per channel at the top of the atmosphere */        \
-	V(moon_dir)                                                              \
+	V(moon_dir)	/* unit xyz, w = MOON_RADIUS_RAD */                      \
 	V(moon_illum)                                                            \
-	V(cam_fwd)	/* w = tan(vfov / 2) */                                  \
-	V(cam_right)	/* w = aspect */                                         \
-	V(cam_up)	/* w = aerial range km */                                \
-	V(misc)		/* x horizon cos of the observer, y sky-view min steps,  \
-			 * z aerial squared (1/0), w H = sqrt(top^2 - bottom^2), \
-			 * the horizontal distance to the top from the ground */ \
+	V(cam_fwd)	/* w = CAM_TAN_HALF_VFOV */                              \
+	V(cam_right)	/* w = CAM_ASPECT */                                     \
+	V(cam_up)	/* w = AERIAL_RANGE_KM */                                \
+	V(misc)		/* HORIZON_COS, SKYVIEW_MIN_STEPS, AERIAL_SQUARED,       \
+			 * TOP_DISTANCE_KM */                                    \
 	S(c, SKY_MAX_CONSTITUENTS)                                               \
-	V(night)	/* night-sky floor: rgb zenith cd/m2, w horizon gain */  \
+	V(night)	/* night-sky floor: rgb zenith cd/m2, w = NIGHT_GAIN */  \
 	A(ground_fit, SKY_GROUND_FIT)	/* phase_ground_fit's coefficients,      \
 					 * a component per constituent */        \
-	V(delta_peak)	/* delta-M's forward peak: x = h, y = its spread (rad) */
+	V(delta_peak)	/* DELTA_PEAK_H, DELTA_PEAK_SPREAD_RAD */
+
+/* The named lanes, member[lane] alike in C and GLSL: a shader reads
+ * P.SUN_RADIUS_RAD, the engine writes p->SUN_RADIUS_RAD. Indexing a
+ * vector by a constant is a swizzle, so the passes compile as with .w;
+ * splitting the vec4s into float and vec3 members instead made lavapipe
+ * compile every pass slower (the private copy, load_params(), grows). */
+#define BOTTOM_RADIUS_KM planet[0]
+#define TOP_RADIUS_KM planet[1]
+#define SHELL_KM planet[2]		/* top - bottom */
+#define OBSERVER_KM planet[3]		/* the observer's altitude, >= 0 */
+#define SUN_RADIUS_RAD sun_dir[3]	/* the sun's angular radius */
+#define MOON_RADIUS_RAD moon_dir[3]
+#define CAM_TAN_HALF_VFOV cam_fwd[3]	/* the observer's camera: tan(vfov / 2) */
+#define CAM_ASPECT cam_right[3]		/* width / height */
+#define AERIAL_RANGE_KM cam_up[3]	/* the aerial volume's depth */
+#define HORIZON_COS misc[0]		/* cos of the observer's horizon zenith angle */
+#define SKYVIEW_MIN_STEPS misc[1]	/* sky-view's fewest march steps */
+#define AERIAL_SQUARED misc[2]		/* a flag: 1 squared slice spacing, 0 linear */
+#define TOP_DISTANCE_KM misc[3]		/* H = sqrt(top^2 - bottom^2), the horizontal
+					 * distance to the top from the ground */
+#define NIGHT_GAIN night[3]		/* c of the floor's L_z (1 + c (1 - mu)) */
+#define DELTA_PEAK_H delta_peak[0]	/* delta-M's forward peak: h */
+#define DELTA_PEAK_SPREAD_RAD delta_peak[1]	/* and its spread */
+/* A constituent's. */
+#define PHASE_G scattering[3]		/* the phase's asymmetry g */
+#define PHASE_G1 absorption[3]		/* its first Legendre moment */
+#define PHASE_G2 layer1c[1]		/* its second */
+#define LAYER0_WIDTH_KM layer0[0]	/* where the lower layer ends */
+#define LAYER0_CONSTANT layer0c_1[0]	/* the lower layer's constant term */
+#define LAYER1_CONSTANT layer1c[0]	/* the upper layer's */
+#define DELTA_F layer1c[2]		/* delta-M (its constituent only): the forward
+					 * fraction f */
+#define DELTA_G layer1c[3]		/* and the truncated phase's g' */
 
 /* The pack pass (storage=f16, pack.comp), per table in state_table order:
  * the texels to pack (0: not computed this time; the aerial table counts
@@ -121,6 +177,9 @@ struct gpu_pack {
 };
 
 #define SKY_C_VEC4(name) float name[4];
+#define SKY_C_VEC3(name) float name[3];
+#define SKY_C_FLOAT(name) float name;
+#define SKY_C_UINT(name) uint32_t name;
 #define SKY_C_VEC4_ARRAY(name, n) float name[n][4];
 #define SKY_C_CONSTITUENTS(name, n) struct gpu_constituent name[n];
 struct gpu_constituent {
@@ -129,11 +188,25 @@ struct gpu_constituent {
 struct gpu_params {
 	SKY_PARAMS_MEMBERS(SKY_C_VEC4, SKY_C_VEC4_ARRAY, SKY_C_CONSTITUENTS)
 };
+struct gpu_aerial_job {
+	SKY_AERIAL_JOB_MEMBERS(SKY_C_VEC3, SKY_C_FLOAT, SKY_C_UINT)
+};
+/* The buffer at BINDING_VIEWS: this head, then the jobs. */
+struct gpu_aerial_head {
+	uint32_t n_march;
+	uint32_t pad[3];
+};
 #undef SKY_C_VEC4
+#undef SKY_C_VEC3
+#undef SKY_C_FLOAT
+#undef SKY_C_UINT
 #undef SKY_C_VEC4_ARRAY
 #undef SKY_C_CONSTITUENTS
 #else
 #define SKY_GLSL_VEC4(name) vec4 name;
+#define SKY_GLSL_VEC3(name) vec3 name;
+#define SKY_GLSL_FLOAT(name) float name;
+#define SKY_GLSL_UINT(name) uint name;
 #define SKY_GLSL_VEC4_ARRAY(name, n) vec4 name[n];
 #define SKY_GLSL_CONSTITUENTS(name, n) Constituent name[n];
 struct Constituent {
@@ -142,7 +215,13 @@ struct Constituent {
 struct Params {
 	SKY_PARAMS_MEMBERS(SKY_GLSL_VEC4, SKY_GLSL_VEC4_ARRAY, SKY_GLSL_CONSTITUENTS)
 };
+struct AerialJob {
+	SKY_AERIAL_JOB_MEMBERS(SKY_GLSL_VEC3, SKY_GLSL_FLOAT, SKY_GLSL_UINT)
+};
 #undef SKY_GLSL_VEC4
+#undef SKY_GLSL_VEC3
+#undef SKY_GLSL_FLOAT
+#undef SKY_GLSL_UINT
 #undef SKY_GLSL_VEC4_ARRAY
 #undef SKY_GLSL_CONSTITUENTS
 #endif

@@ -50,13 +50,13 @@ void main()
 	// ends: every workgroup gets half of each, every thread the same work.
 	int py = (gy & 1) == 0 ? gy >> 1 : OUT_H - 1 - (gy >> 1);
 
-	float h0 = P.planet.w;
+	float h0 = P.OBSERVER_KM;
 	// The row's direction from angles that keep their bits: the horizon's
 	// angle from the nadir, beta = atan(Rb / rho), rather than acos of its
 	// cosine, and the angle from the nadir for rays that point down. From
 	// 1e6 km the planet spans 0.36 degree around the nadir, where acos(mu_h)
 	// lost 5e-6 rad (5 km at the limb) and a zenith angle near pi 2e-7.
-	float beta = atan(P.planet.x, safe_sqrt(rho2(max(h0, 0.0)))), th = PI - beta;
+	float beta = atan(P.BOTTOM_RADIUS_KM, safe_sqrt(rho2(max(h0, 0.0)))), th = PI - beta;
 	float x = clamp(tex_to_unit((float(py) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0);
 	bool sky = x < 0.5;
 	float sin_z, cos_z;
@@ -100,7 +100,7 @@ void main()
 	Entry en;
 	if (ray_in_shell(h0, dir[0], en)) {
 		float len = en.len;
-		float n_f = ceil(mix(P.misc.y, float(STEPS), clamp(len / 100.0, 0.0, 1.0)));
+		float n_f = ceil(mix(P.SKYVIEW_MIN_STEPS, float(STEPS), clamp(len / 100.0, 0.0, 1.0)));
 		int n = max(int(n_f), 1);
 		// The visible part of each light's disk is averaged over each step
 		// (disk_visible_mean) from the light's height over the local horizon
@@ -123,7 +123,7 @@ void main()
 			float view_up = sin_z * up_h + cos_z * up_z;
 			vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);
 			TAlt ta = t_alt(hs);
-			float e_sun = P.planet.x / ta.r * P.sun_dir.w, e_moon = P.planet.x / ta.r * P.moon_dir.w;
+			float e_sun = P.BOTTOM_RADIUS_KM / ta.r * P.SUN_RADIUS_RAD, e_moon = P.BOTTOM_RADIUS_KM / ta.r * P.MOON_RADIUS_RAD;
 			float sun_k = e_sun > 0.0 ? 0.5 / e_sun : 1e30, moon_k = e_moon > 0.0 ? 0.5 / e_moon : 1e30;
 			vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
 			Scaled ds = scaled_step(sc, m, view_up, dt, tau_view);
@@ -154,7 +154,7 @@ void main()
 	}
 	float tr_mean = (tr.r + tr.g + tr.b) / 3.0;
 	// Night-sky floor: L_z (1 + c (1 - mu)) over the sky, its airlight (1 - T) toward the ground.
-	vec3 night = P.night.rgb * (1.0 + P.night.w * (1.0 - max(cos_z, 0.0))) *
+	vec3 night = P.night.rgb * (1.0 + P.NIGHT_GAIN * (1.0 - max(cos_z, 0.0))) *
 		     (sky ? vec3(1.0) : 1.0 - tr);
 	for (int j = 0; j < SV_AZ_GROUP; j++)
 		if (x0 + j < OUT_W) {

@@ -7,7 +7,6 @@
 #include <string.h>
 
 #include "astro.h"
-#include "drive.h"
 #include "simclock.h"
 #include "srv.h"
 
@@ -36,7 +35,7 @@ static int light_request(const struct client *c, const struct proto_request *req
 		return code;
 	if (req->n_args > 1)
 		return CTL_ACK(SKY_ACK_SYNTAX, "get %s takes no arguments", verb);
-	drive_site(s, ret_site, ret_opt);
+	state_astro_site(s, ret_site, ret_opt);
 	return 0;
 }
 
@@ -180,7 +179,7 @@ int ctl_get_times(struct client *c, const struct proto_request *req, struct repl
 		    sscanf(buf, "%d-%d-%d", &d.year, &d.month, &d.day) != 3)
 			return CTL_ACK(SKY_ACK_RANGE, "utc: outside years 0..9999");
 	}
-	drive_site(s, &site, &opt);
+	state_astro_site(s, &site, &opt);
 	if (astro_sun_times(&site, &d, &opt, &t, err, sizeof(err)) < 0)
 		return CTL_ACK(SKY_ACK_RANGE, "%s", err);
 	ctl_reply_add(r, "date: %04d-%02d-%02d\nutc_offset_min: %d\n", d.year, d.month, d.day,

@@ -7,7 +7,6 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "sense.h"
 #include "srv.h"
 
 /* Values never hold spaces: device names and reasons get '_' for them. */
@@ -56,7 +55,7 @@ static void reply_device(struct reply *r, const struct sensor_info *d)
 }
 
 /* The reading, what it did, the counters. */
-static void reply_reading(struct reply *r, const struct sense_status *st)
+static void reply_reading(struct reply *r, const struct srv_sensor_status *st)
 {
 	const struct sensor_reading *rd = &st->sensor.reading;
 	char a[64], b[64];
@@ -74,7 +73,7 @@ static void reply_reading(struct reply *r, const struct sense_status *st)
 	number(st->deg_per_ln, b, sizeof(b));
 	ctl_reply_add(r, "elevation_deg: %s\ndeg_per_ln: %s\n", a, b);
 	ctl_reply_add(r, "curve: %s\ncurve_points: %zu\n",
-		      st->curve == SENSE_CURVE_TABLES ? "tables+usno" : "usno", st->curve_points);
+		      st->curve == SRV_SENSOR_CURVE_TABLES ? "tables+usno" : "usno", st->curve_points);
 	if (st->curve_points)
 		ctl_reply_add(r, "curve_range_deg: %.3f,%.3f\n", st->curve_min_deg, st->curve_max_deg);
 	else
@@ -85,7 +84,7 @@ static void reply_reading(struct reply *r, const struct sense_status *st)
 		      (unsigned long long)st->changes, (unsigned long long)st->generation);
 }
 
-static void reply_counters(struct reply *r, const struct sense_status *st)
+static void reply_counters(struct reply *r, const struct srv_sensor_status *st)
 {
 	const struct sensor_status *s = &st->sensor;
 	const struct sensor_counters *k = &s->counters;
@@ -115,13 +114,12 @@ static void reply_counters(struct reply *r, const struct sense_status *st)
 int ctl_get_sensor(struct client *c, const struct proto_request *req, struct reply *r,
 		   char *msg, size_t msg_size)
 {
-	struct sense_status st;
+	struct srv_sensor_status st;
 
 	if (req->n_args > 1)
 		return CTL_ACK(SKY_ACK_SYNTAX, "get sensor takes no arguments");
-	if (!c->ctl->sense)
+	if (srv_sensor_status(c->ctl->srv, &st) < 0)
 		return CTL_ACK(SKY_ACK_STATE, "no light sensor in this skyd");
-	sense_status(c->ctl->sense, &st);
 	ctl_reply_add(r, "mode: %s\nstate: %s\n", state_sensor_mode_name(st.mode),
 		      sensor_state_name(st.sensor.state));
 	reply_device(r, &st.sensor.device);
@@ -135,7 +133,7 @@ static void reply_list(struct client *c, struct reply *r)
 {
 	struct sensor_info infos[32];
 	char name[SENSOR_TEXT_MAX], detail[SENSOR_TEXT_MAX], serial[64];
-	size_t n = c->ctl->sense ? sense_devices(c->ctl->sense, infos, 32) : 0;
+	size_t n = srv_sensor_devices(c->ctl->srv, infos, 32);
 
 	ctl_reply_add(r, "devices: %zu\n", n);
 	for (size_t i = 0; i < n && i < 32; i++) {
@@ -170,12 +168,11 @@ int ctl_cmd_sensor(struct client *c, const struct proto_request *req, struct rep
 
 void ctl_status_sensor(struct ctl *ctl, struct reply *r)
 {
-	struct sense_status st;
+	struct srv_sensor_status st;
 	char a[64];
 
-	if (!ctl->sense)
+	if (srv_sensor_status(ctl->srv, &st) < 0)
 		return;
-	sense_status(ctl->sense, &st);
 	if (st.mode == STATE_SENSOR_OFF)
 		return;
 	ctl_reply_add(r, "sensor_mode: %s\nsensor_state: %s\n", state_sensor_mode_name(st.mode),
@@ -187,7 +184,7 @@ void ctl_status_sensor(struct ctl *ctl, struct reply *r)
 	ctl_reply_add(r, "sensor_ev100: %s\nsensor_cloud_factor: %.9g\n", a, st.cloud_factor);
 }
 
-void ctl_sensor_event(void *ctx, const struct sense_status *st)
+void ctl_sensor_event(void *ctx, const struct srv_sensor_status *st)
 {
 	struct ctl *ctl = ctx;
 	const struct sensor_reading *rd = &st->sensor.reading;

@@ -7,7 +7,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sense.h"
 #include "srv.h"
 
 /* The ACK code of a state_set refusal, from its -errno. */
@@ -49,15 +48,12 @@ int ctl_commit(struct client *c, const struct sky_state *next, uint32_t dirty, s
 {
 	char err[256] = "", names[64];
 	uint64_t generation;
-	int e = srv_apply(c->ctl->srv, c->ctl->drive, next, dirty, &generation, &dirty, err,
-			  sizeof(err));
+	int e = srv_apply(c->ctl->srv, next, dirty, &generation, &dirty, err, sizeof(err));
 
 	if (e == -ERANGE)
 		return CTL_ACK(SKY_ACK_RANGE, "%s", err);
 	if (e < 0)
 		return CTL_ACK(SKY_ACK_ENGINE, "state unchanged, computation failed: %s", err);
-	/* The sensor keys start, stop or reconfigure the sensor. */
-	sense_changed(c->ctl->sense);
 	state_format_tables(dirty, names, sizeof(names));
 	ctl_reply_add(r, "generation: %llu\ntables: %s\n", (unsigned long long)generation, names);
 	return 0;

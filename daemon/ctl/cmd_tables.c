@@ -9,7 +9,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "drive.h"
 #include "pub.h"
 #include "skymap.h"
 #include "skysample.h"
@@ -60,16 +59,12 @@ int ctl_cmd_status(struct client *c, const struct proto_request *req, struct rep
 		      role_name(c->role), controllers, c->ctl->roles.max_connections);
 	ctl_reply_add(r, "shm_bytes: %llu\n", (unsigned long long)pub_bytes(srv_pub(s)));
 	ctl_reply_add(r, "protocol: %s\n", SKY_PROTO_VERSION);
-	if (c->ctl->drive) {
-		struct drive_stats ds;
-		drive_stats(c->ctl->drive, &ds);
-		ctl_reply_add(r, "clock_ticks: %llu\nclock_changes: %llu\n", (unsigned long long)ds.ticks,
-			  (unsigned long long)ds.changes);
-		if (ds.next_tick_s < 0)
-			ctl_reply_add(r, "clock_next_tick_s: none\n");
-		else
-			ctl_reply_add(r, "clock_next_tick_s: %.3f\n", ds.next_tick_s);
-	}
+	ctl_reply_add(r, "clock_ticks: %llu\nclock_changes: %llu\n",
+		      (unsigned long long)st.clock_ticks, (unsigned long long)st.clock_changes);
+	if (st.clock_next_tick_s < 0)
+		ctl_reply_add(r, "clock_next_tick_s: none\n");
+	else
+		ctl_reply_add(r, "clock_next_tick_s: %.3f\n", st.clock_next_tick_s);
 	ctl_status_sensor(c->ctl, r);
 	if (c->ctl->sync.status) {
 		char sync[1024] = "";

@@ -32,6 +32,7 @@ void ctl_views_drop_owner(struct ctl *ctl, uint64_t owner)
 	struct sky_state next = *srv_state(ctl->srv);
 	char err[256];
 	uint64_t generation;
+	uint32_t dirty = STATE_BIT(STATE_AERIAL);
 	int changed = 0;
 
 	for (uint32_t i = next.n_views; i-- > 0;)
@@ -39,8 +40,7 @@ void ctl_views_drop_owner(struct ctl *ctl, uint64_t owner)
 			view_remove(&next, i);
 			changed = 1;
 		}
-	if (changed && srv_change(ctl->srv, &next, STATE_BIT(STATE_AERIAL), &generation, err,
-				  sizeof(err)) < 0)
+	if (changed && srv_apply(ctl->srv, &next, dirty, &generation, &dirty, err, sizeof(err)) < 0)
 		log_error("dropping the views of client %llu: %s", (unsigned long long)owner, err);
 }
 

@@ -29,7 +29,8 @@ void ctl_update_demand(struct ctl *ctl)
 
 /* Events ---------------------------------------------------------------- */
 
-void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_region)
+/* srv's listener: a new generation. */
+static void on_published(void *ctx, uint64_t generation, uint32_t tables, int new_region)
 {
 	struct ctl *ctl = ctx;
 	struct pub *p = srv_pub(ctl->srv);
@@ -58,7 +59,8 @@ void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_regi
 	ctl_resume_deferred(ctl, 0);
 }
 
-void ctl_failed(void *ctx, uint64_t generation, const char *message)
+/* srv's listener: a computation failed. */
+static void on_failed(void *ctx, uint64_t generation, const char *message)
 {
 	struct ctl *ctl = ctx;
 	struct client *c, *next;
@@ -366,6 +368,10 @@ int ctl_new(struct loop *l, struct srv *s, const char *path, int listen_fd, char
 	r = loop_io_add(l, ctl->listen_fd, EPOLLIN, accept_ready, ctl, &ctl->listen_io);
 	if (r < 0)
 		goto fail;
+	r = srv_add_listener(s, &(struct srv_listener){ .published = on_published,
+			     .failed = on_failed, .ctx = ctl });
+	if (r < 0)
+		goto fail;
 	*ret = ctl;
 	return 0;
 fail:
@@ -375,22 +381,12 @@ fail:
 	return r;
 }
 
-void ctl_set_drive(struct ctl *ctl, struct drive *d)
-{
-	ctl->drive = d;
-}
-
 void ctl_set_sync(struct ctl *ctl, const struct ctl_sync *sync)
 {
 	if (sync)
 		ctl->sync = *sync;
 	else
 		memset(&ctl->sync, 0, sizeof(ctl->sync));
-}
-
-void ctl_set_sense(struct ctl *ctl, struct sense *s)
-{
-	ctl->sense = s;
 }
 
 int ctl_keep_socket(struct ctl *ctl)
@@ -404,6 +400,7 @@ void ctl_free(struct ctl *ctl)
 	if (!ctl)
 		return;
 	ctl->finishing = 1;	/* no demand or view changes on the way out */
+	srv_remove_listener(ctl->srv, ctl);
 	while (ctl->clients)
 		ctl_client_drop(ctl->clients, NULL);
 	loop_io_del(ctl->listen_io);

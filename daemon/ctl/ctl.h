@@ -24,11 +24,9 @@
 
 struct ctl;
 struct role_settings;
-struct drive;
-struct sense;
-struct sense_status;
 struct loop;
 struct srv;
+struct srv_sensor_status;
 
 /* Where the socket goes when --socket is not given:
  * $XDG_RUNTIME_DIR/skyd/control, else /run/skyd/control. */
@@ -38,7 +36,9 @@ int ctl_default_path(char *buf, size_t size);
  * ours and writable by nobody else; a stale socket is replaced, a live one
  * (another skyd answers) is an error. listen_fd >= 0 uses an inherited,
  * listening socket instead (systemd socket activation) and path only for
- * messages. err says what to do on failure. */
+ * messages. err says what to do on failure. ctl is one of s's listeners
+ * (changed: and failed: lines) until ctl_free. Changes go to srv_apply;
+ * the clock's and the light sensor's status come from srv. */
 int ctl_new(struct loop *l, struct srv *s, const char *path, int listen_fd, char *err,
 	    size_t err_size, struct ctl **ret);
 /* Closes every connection and removes the socket it created. */
@@ -53,17 +53,9 @@ int ctl_keep_socket(struct ctl *c);
  * next: nobody is dropped when they shrink. Until called: the defaults. */
 void ctl_set_roles(struct ctl *ctl, const struct role_settings *s);
 
-/* The clock told of every committed change (re-arms its timer), and asked
- * for its counters in status. d must outlive ctl; NULL: no clock. */
-void ctl_set_drive(struct ctl *ctl, struct drive *d);
-
-/* The light sensor: its status for get sensor and status, its devices for
- * the sensor verb, told of every committed change (its keys). s must
- * outlive ctl; NULL: none. */
-void ctl_set_sense(struct ctl *ctl, struct sense *s);
-/* The sense listener's hook, to be wired by main: a sensor: line to every
- * connection that asked (sensor events=1). */
-void ctl_sensor_event(void *ctx, const struct sense_status *st);
+/* The light sensor's event hook, to be wired by main:
+ * a sensor: line to every connection that asked (sensor events=1). */
+void ctl_sensor_event(void *ctx, const struct srv_sensor_status *st);
 
 /* Replication (docs/sync.md). may_change says whether this instance may
  * change the replicated state; when not, it names the controller in
@@ -82,9 +74,5 @@ int ctl_sky_follows(struct ctl *ctl, char *who, size_t who_size);
 
 /* The connections open now (systemd's STATUS line). */
 int ctl_clients(const struct ctl *ctl);
-
-/* The srv listener's hooks, to be wired by main. */
-void ctl_published(void *ctx, uint64_t generation, uint32_t tables, int new_region);
-void ctl_failed(void *ctx, uint64_t generation, const char *message);
 
 #endif

@@ -22,7 +22,6 @@
 #include "state.h"
 
 struct chunk;
-struct sense;
 struct loop_io;
 struct loop_timer;
 
@@ -102,8 +101,6 @@ struct ctl {
 	struct client *clients;
 	int n_clients;
 	uint64_t next_id;
-	struct drive *drive;		/* the clock; NULL: none */
-	struct sense *sense;		/* the light sensor; NULL: none */
 	struct ctl_sync sync;		/* replication; may_change NULL: none */
 	struct role_settings roles;	/* who controls, the bounds */
 	struct ctl_refusals refusals;	/* connections refused, for the log */

@@ -81,11 +81,12 @@ static void rotate(const double m[3][3], const double v[3], double ret[3])
 }
 
 /* Camera i of s: 0 the state's camera, then the views. */
-static void camera_of(const struct sky_state *s, uint32_t i, struct aplan_camera *ret)
+static void camera_of(const struct sky_state *s, const struct state_lights *lights, uint32_t i,
+		      struct aplan_camera *ret)
 {
 	const struct state_camera *c = i ? &s->views[i - 1].camera : &s->camera;
 	double h = i && !isnan(s->views[i - 1].altitude_km) ? s->views[i - 1].altitude_km : s->altitude_km;
-	double sun[3], moon[3];
+	const double *sun = lights->sun, *moon = lights->moon;
 
 	memset(ret, 0, sizeof(*ret));
 	ret->h_km = h > 0.0 ? h : 0.0;
@@ -94,11 +95,9 @@ static void camera_of(const struct sky_state *s, uint32_t i, struct aplan_camera
 	state_camera_basis(c, ret->fwd, ret->right, ret->up);
 	ret->tan_half = tan(c->vfov_deg * SKYMAP_PI / 360.0);
 	ret->aspect = c->aspect;
-	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, sun);
-	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, moon);
 	if (ret->east_km == 0.0 && ret->north_km == 0.0) {
-		memcpy(ret->sun, sun, sizeof(sun));
-		memcpy(ret->moon, moon, sizeof(moon));
+		memcpy(ret->sun, sun, sizeof(ret->sun));
+		memcpy(ret->moon, moon, sizeof(ret->moon));
 		return;
 	}
 	double m[3][3];
@@ -271,6 +270,15 @@ static void add_panorama(const struct sky_state *s, struct aplan *p, uint32_t i,
 
 void aplan_make(const struct sky_state *s, bool share, struct aplan *ret)
 {
+	struct state_lights lights;
+
+	state_lights_of(s, &lights);
+	aplan_make_lit(s, &lights, share, ret);
+}
+
+void aplan_make_lit(const struct sky_state *s, const struct state_lights *lights, bool share,
+		    struct aplan *ret)
+{
 	uint32_t group[APLAN_CAMERAS], pw, ph;
 
 	memset(ret, 0, sizeof(*ret));
@@ -280,7 +288,7 @@ void aplan_make(const struct sky_state *s, bool share, struct aplan *ret)
 	ret->height = ph;
 	ret->depth = s->quality.t[STATE_AERIAL].depth;
 	for (uint32_t c = 0; c < ret->n_cameras; c++) {
-		camera_of(s, c, &ret->cam[c]);
+		camera_of(s, lights, c, &ret->cam[c]);
 		bool own = c == 0 || s->views[c - 1].form != SKY_VIEW_PANORAMA;
 		ret->volume[c] = own ? (int32_t)ret->n_volumes++ : -1;
 		ret->panorama[c] = -1;

@@ -55,6 +55,11 @@ struct aplan {
  * point's panorama either way. Volumes and published panoramas are
  * numbered the same either way. */
 void aplan_make(const struct sky_state *s, bool share, struct aplan *ret);
+/* aplan_make with the state's lights as its owner computed them
+ * (state_lights_of): the engine's and the publisher's plans of one state
+ * see the same vectors. */
+void aplan_make_lit(const struct sky_state *s, const struct state_lights *lights, bool share,
+		    struct aplan *ret);
 
 /* The columns (the stored ones) and rows of every panorama of s, which
  * depend on its aerial table's size only. */

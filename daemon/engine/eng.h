@@ -69,15 +69,17 @@ const struct eng_device *eng_device(const struct eng *e);
 /* The largest table in bytes the device can hold in one storage buffer. */
 uint64_t eng_max_table_bytes(const struct eng *e);
 
-/* Starts computing the tables in mask for state s (already validated). The
+/* Starts computing the tables in mask for state s (already validated and
+ * resolved), lit by lights (its state_lights_of, which the caller kept:
+ * NULL computes them). The
  * caller passes exactly what must be recomputed and nothing else is: the
  * engine keeps the other tables from earlier computations, so the
  * dependencies of mask that are not in it must be valid for s. A size or
  * storage change reallocates; a reallocated dependency of mask is computed
  * too, a reallocated table outside mask's closure is left zeroed. Returns 0, -EBUSY while a computation is in flight,
  * -EINVAL on a bad state, or -EIO on a device error (err says which). */
-int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err,
-	       size_t err_size);
+int eng_submit(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+	       uint32_t mask, char *err, size_t err_size);
 /* Where float16 storage breaks, in the tables of mask as last computed:
  * RGB values that are not finite (infinite or NaN: the scale keeps every
  * finite float32 value finite, so only a computation that produced them
@@ -120,7 +122,7 @@ void eng_forget_columns(struct eng *e);
 void eng_set_view_sharing(struct eng *e, int share);
 /* Blocks until the submitted work has finished. */
 int eng_wait(struct eng *e, struct eng_timing *ret, char *err, size_t err_size);
-/* eng_submit then eng_wait. */
+/* eng_submit (lights computed from s) then eng_wait. */
 int eng_compute(struct eng *e, const struct sky_state *s, uint32_t mask,
 		struct eng_timing *ret, char *err, size_t err_size);
 

@@ -28,26 +28,6 @@ void eng_set_err(char *err, size_t n, const char *fmt, ...)
 	va_end(ap);
 }
 
-const char *eng_vk_result_name(VkResult r)
-{
-	switch (r) {
-	case VK_SUCCESS: return "VK_SUCCESS";
-	case VK_NOT_READY: return "VK_NOT_READY";
-	case VK_TIMEOUT: return "VK_TIMEOUT";
-	case VK_INCOMPLETE: return "VK_INCOMPLETE";
-	case VK_ERROR_OUT_OF_HOST_MEMORY: return "VK_ERROR_OUT_OF_HOST_MEMORY";
-	case VK_ERROR_OUT_OF_DEVICE_MEMORY: return "VK_ERROR_OUT_OF_DEVICE_MEMORY";
-	case VK_ERROR_INITIALIZATION_FAILED: return "VK_ERROR_INITIALIZATION_FAILED";
-	case VK_ERROR_DEVICE_LOST: return "VK_ERROR_DEVICE_LOST";
-	case VK_ERROR_MEMORY_MAP_FAILED: return "VK_ERROR_MEMORY_MAP_FAILED";
-	case VK_ERROR_EXTENSION_NOT_PRESENT: return "VK_ERROR_EXTENSION_NOT_PRESENT";
-	case VK_ERROR_FEATURE_NOT_PRESENT: return "VK_ERROR_FEATURE_NOT_PRESENT";
-	case VK_ERROR_INCOMPATIBLE_DRIVER: return "VK_ERROR_INCOMPATIBLE_DRIVER";
-	case VK_ERROR_TOO_MANY_OBJECTS: return "VK_ERROR_TOO_MANY_OBJECTS";
-	default: return "VkResult";
-	}
-}
-
 /* Loader and instance ------------------------------------------------------ */
 
 static int load_loader(struct vkfn *vk, void **ret_handle, char *err, size_t err_size)
@@ -269,22 +249,6 @@ static int pick_device(struct eng *e, const char *selector, char *err, size_t er
 
 /* Device objects ------------------------------------------------------------ */
 
-static int find_memory(struct eng *e, uint32_t type_bits, VkMemoryPropertyFlags want,
-		       VkMemoryPropertyFlags prefer)
-{
-	int fallback = -1;
-	for (uint32_t i = 0; i < e->mem_props.memoryTypeCount; i++) {
-		VkMemoryPropertyFlags f = e->mem_props.memoryTypes[i].propertyFlags;
-		if (!(type_bits & (1u << i)) || (f & want) != want)
-			continue;
-		if ((f & prefer) == prefer)
-			return (int)i;
-		if (fallback < 0)
-			fallback = (int)i;
-	}
-	return fallback;
-}
-
 void eng_buffer_free(struct eng *e, struct gpu_buffer *b)
 {
 	if (b->buf)
@@ -306,7 +270,7 @@ int eng_buffer_new(struct eng *e, VkDeviceSize bytes, VkBufferUsageFlags usage,
 
 	VK_TRY(e->vk.vkCreateBuffer(e->dev, &bi, NULL, &b.buf));
 	e->vk.vkGetBufferMemoryRequirements(e->dev, b.buf, &req);
-	int type = find_memory(e, req.memoryTypeBits, want, prefer);
+	int type = vkcheck_find_memory(&e->mem_props, req.memoryTypeBits, want, prefer);
 	if (type < 0) {
 		eng_set_err(err, err_size, "no Vulkan memory type with flags 0x%x", want);
 		rc = -ENOMEM;
@@ -389,11 +353,13 @@ VkDescriptorType eng_binding_type(int binding)
 		       : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 }
 
-static int create_device(struct eng *e, char *err, size_t err_size)
+/* The device's limits and memory, and the queue family the engine uses:
+ * one with compute, one without graphics if there is one (it runs beside
+ * rendering). */
+static int choose_queue(struct eng *e, char *err, size_t err_size)
 {
 	VkPhysicalDeviceProperties props;
 	uint32_t nq = 0;
-	int rc = 0;
 
 	e->vk.vkGetPhysicalDeviceProperties(e->phys, &props);
 	e->limits = props.limits;
@@ -407,7 +373,6 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	e->queue_family = UINT32_MAX;
 	for (uint32_t i = 0; i < nq; i++)
 		if (qf[i].queueFlags & VK_QUEUE_COMPUTE_BIT) {
-			/* Prefer a compute queue without graphics: it runs beside rendering. */
 			if (e->queue_family == UINT32_MAX || !(qf[i].queueFlags & VK_QUEUE_GRAPHICS_BIT))
 				e->queue_family = i;
 		}
@@ -419,24 +384,15 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 		eng_set_err(err, err_size, "device '%s' has no compute queue", e->info.name);
 		return -ENODEV;
 	}
+	return 0;
+}
 
-	float prio = 1.0f;
-	VkDeviceQueueCreateInfo qi = { .sType = VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO,
-		.queueFamilyIndex = e->queue_family, .queueCount = 1, .pQueuePriorities = &prio };
-	VkDeviceCreateInfo di = { .sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO,
-		.queueCreateInfoCount = 1, .pQueueCreateInfos = &qi };
-	VK_TRY(e->vk.vkCreateDevice(e->phys, &di, NULL, &e->dev));
-#define LOAD_DEVICE(name)                                                       \
-	e->vk.name = (PFN_##name)e->vk.vkGetDeviceProcAddr(e->dev, #name);      \
-	if (!e->vk.name) {                                                      \
-		eng_set_err(err, err_size, "Vulkan device lacks %s", #name);        \
-		return -ENOSYS;                                                 \
-	}
-	VKFN_DEVICE(LOAD_DEVICE)
-#undef LOAD_DEVICE
-	e->vk.vkGetDeviceQueue(e->dev, e->queue_family, 0, &e->queue);
-
+/* The one descriptor set, its layout and the pipelines' layout. */
+static int create_descriptors(struct eng *e, char *err, size_t err_size)
+{
 	VkDescriptorSetLayoutBinding b[N_BINDINGS];
+	int rc = 0;
+
 	for (int i = 0; i < N_BINDINGS; i++)
 		b[i] = (VkDescriptorSetLayoutBinding){ .binding = (uint32_t)i,
 			.descriptorType = eng_binding_type(i), .descriptorCount = 1,
@@ -457,6 +413,55 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	VkDescriptorSetAllocateInfo dai = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO,
 		.descriptorPool = e->desc_pool, .descriptorSetCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkAllocateDescriptorSets(e->dev, &dai, &e->set));
+fail:
+	return rc;
+}
+
+/* The host-visible buffers the engine writes before each computation: the
+ * uniform block, the aerial jobs and the pack pass's counts. */
+static int create_host_buffers(struct eng *e, char *err, size_t err_size)
+{
+	const VkMemoryPropertyFlags host =
+		VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+	int rc = eng_buffer_new(e, sizeof(struct gpu_params), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
+				host, 0, &e->params, err, err_size);
+
+	if (rc == 0)
+		rc = eng_buffer_new(e, VIEW_BUFFER_BYTES, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, host, 0,
+				    &e->views, err, err_size);
+	if (rc == 0)
+		rc = eng_buffer_new(e, sizeof(struct gpu_pack),
+				    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+				    host, 0, &e->pack, err, err_size);
+	if (rc == 0)
+		memset(e->pack.map, 0, sizeof(struct gpu_pack));
+	return rc;
+}
+
+static int create_device(struct eng *e, char *err, size_t err_size)
+{
+	int rc = choose_queue(e, err, err_size);
+
+	if (rc < 0)
+		return rc;
+	float prio = 1.0f;
+	VkDeviceQueueCreateInfo qi = { .sType = VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO,
+		.queueFamilyIndex = e->queue_family, .queueCount = 1, .pQueuePriorities = &prio };
+	VkDeviceCreateInfo di = { .sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO,
+		.queueCreateInfoCount = 1, .pQueueCreateInfos = &qi };
+	VK_TRY(e->vk.vkCreateDevice(e->phys, &di, NULL, &e->dev));
+#define LOAD_DEVICE(name)                                                       \
+	e->vk.name = (PFN_##name)e->vk.vkGetDeviceProcAddr(e->dev, #name);      \
+	if (!e->vk.name) {                                                      \
+		eng_set_err(err, err_size, "Vulkan device lacks %s", #name);        \
+		return -ENOSYS;                                                 \
+	}
+	VKFN_DEVICE(LOAD_DEVICE)
+#undef LOAD_DEVICE
+	e->vk.vkGetDeviceQueue(e->dev, e->queue_family, 0, &e->queue);
+	rc = create_descriptors(e, err, err_size);
+	if (rc < 0)
+		return rc;
 
 	for (int t = 0; t < N_PASSES; t++) {
 		VkShaderModuleCreateInfo si = { .sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO,
@@ -478,20 +483,7 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	}
 	VkFenceCreateInfo fi = { .sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO };
 	VK_TRY(e->vk.vkCreateFence(e->dev, &fi, NULL, &e->fence));
-	rc = eng_buffer_new(e, sizeof(struct gpu_params), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
-			VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT, 0,
-			&e->params, err, err_size);
-	if (rc == 0)
-		rc = eng_buffer_new(e, VIEW_BUFFER_BYTES, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-				VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT,
-				0, &e->views, err, err_size);
-	if (rc == 0)
-		rc = eng_buffer_new(e, sizeof(struct gpu_pack),
-				VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-				VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT,
-				0, &e->pack, err, err_size);
-	if (rc == 0)
-		memset(e->pack.map, 0, sizeof(struct gpu_pack));
+	rc = create_host_buffers(e, err, err_size);
 fail:
 	return rc;
 }

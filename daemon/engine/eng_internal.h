@@ -13,6 +13,7 @@
 #include "aplan.h"
 #include "eng.h"
 #include "phase.h"
+#include "vkcheck.h"
 #include "vkfn.h"
 
 #include "sky_params.h"
@@ -24,9 +25,11 @@
  * until the registers run out; docs/findings/engine.md). */
 #define MS_SUN_GROUP 4
 #define SV_AZ_GROUP 12
-/* The aerial jobs (sky_params.h): a count, then at most one march and one
- * resample job per volume (the state's camera and STATE_MAX_VIEWS views). */
-#define VIEW_BUFFER_BYTES ((1 + 3 * APLAN_CAMERAS * AERIAL_JOB_VEC4) * 4 * sizeof(float))
+/* The aerial jobs (sky_params.h): the head, then at most a march job per
+ * volume and per panorama and a resample job per volume (the state's
+ * camera and STATE_MAX_VIEWS views). */
+#define VIEW_BUFFER_BYTES                                                                 \
+	(sizeof(struct gpu_aerial_head) + 3 * APLAN_CAMERAS * sizeof(struct gpu_aerial_job))
 
 /* The tables later passes look up: transmittance and multi-scattering. */
 #define N_LOOKUPS 2
@@ -85,7 +88,7 @@ struct gpu_buffer {
  * (the column pass's specialization). Coefficients are not in it. */
 struct column_key {
 	float planet[3];	/* bottom, top, shell: the observer left out */
-	float h_top;		/* misc.w */
+	float h_top;		/* TOP_DISTANCE_KM */
 	float layers[ATMO_MAX_CONSTITUENTS][12];
 	struct spec spec;
 };
@@ -186,21 +189,6 @@ struct eng {
 
 void eng_set_err(char *err, size_t n, const char *fmt, ...)
 	__attribute__((format(printf, 3, 4)));
-const char *eng_vk_result_name(VkResult r);
-
-/* Every Vulkan call goes through VK_TRY: on failure it names the call and
- * the result in err and jumps to the function's one cleanup label. */
-#define VK_TRY(call)                                                                 \
-	do {                                                                         \
-		VkResult vk_r_ = (call);                                             \
-		if (vk_r_ != VK_SUCCESS) {                                           \
-			eng_set_err(err, err_size, "%s failed: %s (%d) at %s:%d", #call, \
-				    eng_vk_result_name(vk_r_), (int)vk_r_, __FILE_NAME__, \
-				    __LINE__);                                       \
-			rc = vk_r_ == VK_ERROR_OUT_OF_HOST_MEMORY ? -ENOMEM : -EIO;  \
-			goto fail;                                                   \
-		}                                                                    \
-	} while (0)
 
 /* eng_device.c: device memory. buffer_new maps host-visible memory; the
  * vec4 buffers are float32 RGBA storage with a texel view on them. */
@@ -215,17 +203,18 @@ void eng_vec4_buffer_free(struct eng *e, struct gpu_buffer *b, VkBufferView *vie
 VkDescriptorType eng_binding_type(int binding);
 
 /* eng_params.c: the uniform block and the specialization of the passes. */
-/* Fills the uniform block and the constants every pass starts from for s;
- * keeps the phases' fits in e while a constituent's phase stays. */
-void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p,
-		     struct spec *base);
+/* Fills the uniform block and the constants every pass starts from for s
+ * lit by lights; keeps the phases' fits in e while a constituent's phase
+ * stays. */
+void eng_fill_params(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		     struct gpu_params *p, struct spec *base);
 /* The aerial jobs of s (sky_params.h, VIEW_BUFFER_BYTES) as planned by
  * p: the volumes marched on their own, then the panoramas (at texel
  * pano_base of the aerial buffer, one after the other), each with the
  * volumes resampled from it. ret_march and ret_resample get the jobs'
  * counts (the dispatches' z). */
 void eng_fill_views(const struct sky_state *s, const struct aplan *p, uint64_t pano_base,
-		    float *out, uint32_t *ret_march, uint32_t *ret_resample);
+		    void *out, uint32_t *ret_march, uint32_t *ret_resample);
 struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t);
 struct spec eng_column_spec(const struct spec *base, const struct sky_state *s);
 void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,

@@ -30,39 +30,62 @@ static void put4(float d[4], double a, double b, double c, double w)
 	d[3] = (float)w;
 }
 
+static void put3(float d[3], const double v[3])
+{
+	for (int i = 0; i < 3; i++)
+		d[i] = (float)v[i];
+}
+
 static void fill_delta(struct eng *e, const struct sky_state *s, int delta, struct gpu_params *p,
 		       struct spec *base);
 
-void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params *p, struct spec *base)
+/* The lanes of the planet, the lights, the observer's camera and the
+ * night floor: everything but the constituents. */
+static void fill_scene(const struct sky_state *s, const struct state_lights *lights,
+		       struct gpu_params *p)
 {
 	const struct atmo *a = &s->atmo;
-	double sun[3], moon[3], fwd[3], right[3], up[3];
+	double fwd[3], right[3], up[3], night_cd_m2, night_gain;
 	double h0 = s->altitude_km > 0.0 ? s->altitude_km : 0.0;
 	double shell = a->top_radius_km - a->bottom_radius_km;
 
-	memset(p, 0, sizeof(*p));
-	memset(base, 0, sizeof(*base));
-	put4(p->planet, a->bottom_radius_km, a->top_radius_km, shell, h0);
+	p->BOTTOM_RADIUS_KM = (float)a->bottom_radius_km;
+	p->TOP_RADIUS_KM = (float)a->top_radius_km;
+	p->SHELL_KM = (float)shell;
+	p->OBSERVER_KM = (float)h0;
 	put4(p->albedo, a->ground_albedo[0], a->ground_albedo[1], a->ground_albedo[2], 0);
-	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, sun);
-	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, moon);
-	put4(p->sun_dir, sun[0], sun[1], sun[2], s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
-	put4(p->moon_dir, moon[0], moon[1], moon[2], s->moon.angular_radius_deg * SKYMAP_PI / 180.0);
+	put3(p->sun_dir, lights->sun);
+	p->SUN_RADIUS_RAD = (float)(s->sun.angular_radius_deg * SKYMAP_PI / 180.0);
+	put3(p->moon_dir, lights->moon);
+	p->MOON_RADIUS_RAD = (float)(s->moon.angular_radius_deg * SKYMAP_PI / 180.0);
 	put4(p->sun_illum, s->sun.illuminance_lx * s->sun.color[0],
 	     s->sun.illuminance_lx * s->sun.color[1], s->sun.illuminance_lx * s->sun.color[2], 0);
 	put4(p->moon_illum, s->moon.illuminance_lx * s->moon.color[0],
 	     s->moon.illuminance_lx * s->moon.color[1], s->moon.illuminance_lx * s->moon.color[2], 0);
 	state_camera_basis(&s->camera, fwd, right, up);
-	put4(p->cam_fwd, fwd[0], fwd[1], fwd[2], tan(s->camera.vfov_deg * SKYMAP_PI / 360.0));
-	put4(p->cam_right, right[0], right[1], right[2], s->camera.aspect);
-	put4(p->cam_up, up[0], up[1], up[2], s->quality.aerial_range_km);
-	put4(p->misc, skymap_horizon_cos(a->bottom_radius_km, h0), s->quality.skyview_min_steps,
-	     s->quality.aerial_spacing == STATE_SQUARED ? 1.0 : 0.0,
-	     sqrt(shell * (2.0 * a->bottom_radius_km + shell)));
-
-	double night_cd_m2, night_gain;
+	put3(p->cam_fwd, fwd);
+	p->CAM_TAN_HALF_VFOV = (float)tan(s->camera.vfov_deg * SKYMAP_PI / 360.0);
+	put3(p->cam_right, right);
+	p->CAM_ASPECT = (float)s->camera.aspect;
+	put3(p->cam_up, up);
+	p->AERIAL_RANGE_KM = (float)s->quality.aerial_range_km;
+	p->HORIZON_COS = (float)skymap_horizon_cos(a->bottom_radius_km, h0);
+	p->SKYVIEW_MIN_STEPS = (float)s->quality.skyview_min_steps;
+	p->AERIAL_SQUARED = s->quality.aerial_spacing == STATE_SQUARED ? 1.0f : 0.0f;
+	p->TOP_DISTANCE_KM = (float)sqrt(shell * (2.0 * a->bottom_radius_km + shell));
 	state_night_floor(s, &night_cd_m2, &night_gain);
-	put4(p->night, night_cd_m2, night_cd_m2, night_cd_m2, night_gain);
+	p->night[0] = p->night[1] = p->night[2] = (float)night_cd_m2;
+	p->NIGHT_GAIN = (float)night_gain;
+}
+
+void eng_fill_params(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		     struct gpu_params *p, struct spec *base)
+{
+	const struct atmo *a = &s->atmo;
+
+	memset(p, 0, sizeof(*p));
+	memset(base, 0, sizeof(*base));
+	fill_scene(s, lights, p);
 
 	/* Constituents that are zero everywhere are left out of the shaders. */
 	double g1[ATMO_MAX_CONSTITUENTS] = { 0 };	/* by index in a */
@@ -73,8 +96,8 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params
 			continue;
 		struct gpu_constituent *g = &p->c[n];
 		const struct atmo_layer *l0 = &c->density.layers[0], *l1 = &c->density.layers[1];
-		put4(g->scattering, c->scattering_per_km[0], c->scattering_per_km[1],
-		     c->scattering_per_km[2], c->g);
+		put3(g->scattering, c->scattering_per_km);
+		g->PHASE_G = (float)c->g;
 		struct ground_cache *gc = &e->ground[n];
 		enum atmo_phase kind = constituent_scatters(c) ? c->phase : ATMO_PHASE_NONE;
 		if (!gc->valid || gc->kind != kind || gc->g != c->g) {
@@ -88,11 +111,12 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params
 			gc->g = c->g;
 		}
 		g1[i] = gc->legendre[0];
-		put4(g->absorption, c->absorption_per_km[0], c->absorption_per_km[1],
-		     c->absorption_per_km[2], gc->legendre[0]);
+		put3(g->absorption, c->absorption_per_km);
+		g->PHASE_G1 = (float)gc->legendre[0];
 		put4(g->layer0, l0->width_km, l0->exp_term, l0->exp_scale_per_km, l0->linear_per_km);
 		put4(g->layer0c_1, l0->constant, l1->exp_term, l1->exp_scale_per_km, l1->linear_per_km);
-		put4(g->layer1c, l1->constant, gc->legendre[1], 0, 0);
+		g->LAYER1_CONSTANT = (float)l1->constant;
+		g->PHASE_G2 = (float)gc->legendre[1];
 		/* A constituent that scatters nothing needs no phase function. */
 		base->v[SPEC_PHASE_0 + n] = constituent_scatters(c) ? (int32_t)c->phase : 0;
 		for (int k = 0; k < PHASE_GROUND_FIT; k++)
@@ -129,7 +153,7 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, struct gpu_params
 
 /* Delta-M for the higher orders (common.glsl's delta_source): the
  * constituent's index among those in the shaders plus 1 in constant 23,
- * its forward fraction f and the truncated phase's g' in layer1c.zw, and
+ * its forward fraction f and the truncated phase's g' (DELTA_F, DELTA_G), and
  * the ground's first bounce through the truncated phase, which is what
  * scatters psi_ms in the scaled medium. Kept while the phase stays (a
  * quadrature and 30000 phase evaluations, more than a sun change's tables). */
@@ -154,52 +178,64 @@ static void fill_delta(struct eng *e, const struct sky_state *s, int delta, stru
 	}
 	for (int k = 0; k < PHASE_GROUND_FIT; k++)
 		p->ground_fit[k][n] = (float)dc->fit[k];
-	p->c[n].layer1c[2] = (float)dc->legendre[0];
-	p->c[n].layer1c[3] = (float)dc->legendre[1];
+	p->c[n].DELTA_F = (float)dc->legendre[0];
+	p->c[n].DELTA_G = (float)dc->legendre[1];
 	double h, spread;
 	phase_delta_peak(a->c[delta].phase, a->c[delta].g, &h, &spread);
-	put4(p->delta_peak, h, spread, 0, 0);
+	p->DELTA_PEAK_H = (float)h;
+	p->DELTA_PEAK_SPREAD_RAD = (float)spread;
 	base->v[SPEC_DELTA_LOBE] = n + 1;
 }
 
 /* ---- the aerial jobs ---- */
 
-static float uint_bits(uint32_t u)
+/* A camera's frame: forward, right, up, the field and the eye's altitude. */
+static void put_camera(struct gpu_aerial_job *job, const struct aplan_camera *v)
 {
-	float f;
-	memcpy(&f, &u, sizeof(f));
-	return f;
+	put3(job->fwd, v->fwd);
+	job->tan_half_vfov = (float)v->tan_half;
+	put3(job->right, v->right);
+	job->aspect = (float)v->aspect;
+	put3(job->up, v->up);
+	job->eye_km = (float)v->h_km;
 }
 
-/* A camera's job vec4s: forward, right, up (w: tan of half the field,
- * aspect, the eye's altitude). */
-static void put_camera(float *job, const struct aplan_camera *v)
+/* A panorama's mapping, the floats of aplan's m0 and m1 exactly. */
+static void put_mapping(struct gpu_aerial_job *job, const struct aplan_panorama *o)
 {
-	put4(job, v->fwd[0], v->fwd[1], v->fwd[2], v->tan_half);
-	put4(job + 4, v->right[0], v->right[1], v->right[2], v->aspect);
-	put4(job + 8, v->up[0], v->up[1], v->up[2], v->h_km);
+	job->azimuth0_rad = o->m0[0];
+	job->azimuth_step_rad = o->m0[1];
+	job->row0 = o->m0[2];
+	job->row_step = o->m0[3];
+	job->horizon_rad = o->m1[0];
+	job->width = o->m1[1];
+	job->height = o->m1[2];
+	job->full_circle = o->m1[3];
 }
 
-static void put_lights(float *job, const struct aplan_camera *v, uint32_t out_texel, int kind)
+static void put_lights(struct gpu_aerial_job *job, const struct aplan_camera *v, uint32_t out_texel,
+		       uint32_t kind)
 {
-	put4(job + 12, v->sun[0], v->sun[1], v->sun[2], 0);
-	job[15] = uint_bits(out_texel);
-	put4(job + 16, v->moon[0], v->moon[1], v->moon[2], kind);
+	put3(job->sun, v->sun);
+	job->out_texel = out_texel;
+	put3(job->moon, v->moon);
+	job->kind = kind;
 }
 
 void eng_fill_views(const struct sky_state *s, const struct aplan *p, uint64_t pano_base,
-		    float *out, uint32_t *ret_march, uint32_t *ret_resample)
+		    void *out, uint32_t *ret_march, uint32_t *ret_resample)
 {
 	const struct state_table_quality *q = &s->quality.t[STATE_AERIAL];
-	const int stride = 4 * AERIAL_JOB_VEC4;
 	uint32_t texels = q->width * q->height * q->depth, n_march = 0, n_resample = 0;
-	float resample[APLAN_CAMERAS][4 * AERIAL_JOB_VEC4];
+	struct gpu_aerial_head *head = out;
+	struct gpu_aerial_job *jobs = (struct gpu_aerial_job *)(head + 1);
+	struct gpu_aerial_job resample[APLAN_CAMERAS];
 
 	memset(out, 0, VIEW_BUFFER_BYTES);
 	for (uint32_t c = 0; c < p->n_cameras; c++) {
 		if (p->volume[c] < 0 || p->panorama[c] >= 0)
 			continue;
-		float *job = out + 4 + stride * n_march++;
+		struct gpu_aerial_job *job = &jobs[n_march++];
 		put_camera(job, &p->cam[c]);
 		put_lights(job, &p->cam[c], (uint32_t)p->volume[c] * texels, AERIAL_JOB_CAMERA);
 	}
@@ -207,24 +243,23 @@ void eng_fill_views(const struct sky_state *s, const struct aplan *p, uint64_t p
 		const struct aplan_panorama *o = &p->pano[k];
 		const struct aplan_camera *eye = &p->cam[o->leader];
 		uint32_t at = (uint32_t)(pano_base + k * aplan_panorama_texels(p));
-		float *job = out + 4 + stride * n_march++;
-		memcpy(job, o->m0, sizeof(o->m0));
-		memcpy(job + 4, o->m1, sizeof(o->m1));
-		put4(job + 8, 0, 0, 0, eye->h_km);
+		struct gpu_aerial_job *job = &jobs[n_march++];
+		put_mapping(job, o);
+		job->eye_km = (float)eye->h_km;
 		put_lights(job, eye, at, AERIAL_JOB_PANORAMA);
 		for (uint32_t c = 0; c < p->n_cameras; c++) {
 			if (p->panorama[c] != (int32_t)k || p->volume[c] < 0)
 				continue;
-			float *r = resample[n_resample++];
-			memset(r, 0, sizeof(resample[0]));
+			struct gpu_aerial_job *r = &resample[n_resample++];
+			memset(r, 0, sizeof(*r));
 			put_camera(r, &p->cam[c]);
-			memcpy(r + 12, job, 8 * sizeof(float));
-			r[20] = uint_bits((uint32_t)p->volume[c] * texels);
-			r[21] = uint_bits(at);
+			put_mapping(r, o);
+			r->out_texel = (uint32_t)p->volume[c] * texels;
+			r->panorama_texel = at;
 		}
 	}
-	out[0] = (float)n_march;
-	memcpy(out + 4 + stride * n_march, resample, n_resample * sizeof(resample[0]));
+	head->n_march = n_march;
+	memcpy(jobs + n_march, resample, n_resample * sizeof(resample[0]));
 	*ret_march = n_march;
 	*ret_resample = n_resample;
 }
@@ -280,7 +315,7 @@ void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,
 {
 	memset(ret, 0, sizeof(*ret));
 	memcpy(ret->planet, p->planet, sizeof(ret->planet));
-	ret->h_top = p->misc[3];
+	ret->h_top = p->TOP_DISTANCE_KM;
 	for (int i = 0; i < column_spec->v[SPEC_N_CONST]; i++) {
 		memcpy(ret->layers[i], p->c[i].layer0, 4 * sizeof(float));
 		memcpy(ret->layers[i] + 4, p->c[i].layer0c_1, 4 * sizeof(float));

@@ -417,15 +417,16 @@ static int plan_pack(struct eng *e, const struct sky_state *s, struct plan *pl, 
 }
 
 /* Fills params and plan for s and mask, creating the pipelines it lacks. */
-static int make_plan(struct eng *e, const struct sky_state *s, uint32_t mask, struct gpu_params *params,
-		     struct plan *ret, char *err, size_t err_size)
+static int make_plan(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		     uint32_t mask, struct gpu_params *params, struct plan *ret, char *err,
+		     size_t err_size)
 {
 	struct spec base;
 	int rc;
 
 	memset(ret, 0, sizeof(*ret));
 	ret->mask = mask;
-	eng_fill_params(e, s, params, &base);
+	eng_fill_params(e, s, lights, params, &base);
 	eng_fill_views(s, &e->aplan, e->panorama_offset / 16, e->views.map, &ret->aerial_march,
 		       &ret->aerial_resample);
 	if ((mask & STATE_BIT(STATE_AERIAL)) && ret->aerial_resample) {
@@ -533,9 +534,11 @@ fail:
 	return rc;
 }
 
-int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *err, size_t err_size)
+int eng_submit(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+	       uint32_t mask, char *err, size_t err_size)
 {
 	struct gpu_params params;
+	struct state_lights own;
 	struct plan pl;
 	uint32_t lost = 0;
 	int rc = 0;
@@ -547,8 +550,12 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 		eng_set_err(err, err_size, "a computation is in flight");
 		return -EBUSY;
 	}
+	if (!lights) {
+		state_lights_of(s, &own);
+		lights = &own;
+	}
 	/* The plan of this computation: the buffers' sizes and the jobs. */
-	aplan_make(s, e->share_views, &e->aplan);
+	aplan_make_lit(s, lights, e->share_views, &e->aplan);
 	rc = check_limits(e, s, err, err_size);
 	if (rc == 0)
 		rc = ensure_tables(e, s, &lost, err, err_size);
@@ -558,7 +565,7 @@ int eng_submit(struct eng *e, const struct sky_state *s, uint32_t mask, char *er
 	 * nor forced, so demand decides the cost. Only a dependency of mask
 	 * whose buffer was reallocated must come along. */
 	mask |= lost & state_closure(mask);
-	rc = make_plan(e, s, mask, &params, &pl, err, err_size);
+	rc = make_plan(e, s, lights, mask, &params, &pl, err, err_size);
 	if (rc < 0)
 		return rc;
 	memcpy(e->params.map, &params, sizeof(params));
@@ -689,6 +696,6 @@ int eng_wait(struct eng *e, struct eng_timing *ret, char *err, size_t err_size)
 int eng_compute(struct eng *e, const struct sky_state *s, uint32_t mask, struct eng_timing *ret,
 		char *err, size_t err_size)
 {
-	int rc = eng_submit(e, s, mask, err, err_size);
+	int rc = eng_submit(e, s, NULL, mask, err, err_size);
 	return rc < 0 ? rc : eng_wait(e, ret, err, err_size);
 }

@@ -227,7 +227,8 @@ const struct sky_shm_slot *pub_current(const struct pub *p, const uint8_t **ret_
 	return (const struct sky_shm_slot *)base;
 }
 
-void pub_shm_state(const struct sky_state *s, struct sky_shm_state *ret)
+void pub_shm_state(const struct sky_state *s, const struct state_lights *lights,
+		   struct sky_shm_state *ret)
 {
 	struct sky_shm_state o = { 0 };
 	const double deg = SKYMAP_PI / 180.0;
@@ -246,8 +247,8 @@ void pub_shm_state(const struct sky_state *s, struct sky_shm_state *ret)
 		o.moon_illuminance_lx[c] = s->moon.illuminance_lx * s->moon.color[c];
 	}
 	/* The vectors the engine lit the tables with. */
-	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, o.sun_direction);
-	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, o.moon_direction);
+	memcpy(o.sun_direction, lights->sun, sizeof(o.sun_direction));
+	memcpy(o.moon_direction, lights->moon, sizeof(o.moon_direction));
 	o.sun_angular_radius_rad = s->sun.angular_radius_deg * deg;
 	o.moon_angular_radius_rad = s->moon.angular_radius_deg * deg;
 
@@ -299,7 +300,8 @@ static void futex_wake_all(uint32_t *word)
  * panoramas; a panorama goes into the region of the first view that reads
  * it, and every view reading it points there. */
 static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *slot,
-			  uint8_t *base, const struct sky_state *s, uint32_t valid,
+			  uint8_t *base, const struct sky_state *s,
+			  const struct state_lights *lights, uint32_t valid,
 			  const void *aerial, const void *panoramas)
 {
 	const double deg = SKYMAP_PI / 180.0;
@@ -313,7 +315,7 @@ static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *s
 	slot->valid_views = 0;
 	if (!n)
 		return;
-	aplan_make(s, true, &ap);
+	aplan_make_lit(s, lights, true, &ap);
 	for (uint32_t i = 0; i < n; i++) {
 		const struct state_view *v = &s->views[i];
 		struct sky_shm_view *o = &slot->views[i];
@@ -348,23 +350,29 @@ static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *s
 
 /* Writes one slot under its seqlock: s and the valid tables, as generation,
  * to become current at apply_time_ns (0: now). Touches no header word. */
-static void write_slot(struct pub *p, uint32_t i, const struct sky_state *s, uint32_t valid,
+static void write_slot(struct pub *p, uint32_t i, const struct sky_state *s,
+		       const struct state_lights *lights, uint32_t valid,
 		       const void *const tables[STATE_N_TABLES], const void *panoramas,
 		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		       int64_t apply_time_ns)
 {
+	struct state_lights own;
 	struct sky_shm_header *h = p->header;
 	uint8_t *base = slot_base(p, i);
 	struct sky_shm_slot *slot = (struct sky_shm_slot *)base;
 	_Atomic uint32_t *seq = (_Atomic uint32_t *)&slot->seq;
 	uint32_t s0 = atomic_load_explicit(seq, memory_order_relaxed);
 
+	if (!lights) {
+		state_lights_of(s, &own);
+		lights = &own;
+	}
 	/* Seqlock writer: odd, fence, data, even with release. */
 	atomic_store_explicit(seq, s0 + 1, memory_order_relaxed);
 	atomic_thread_fence(memory_order_release);
 	slot->generation = generation;
 	slot->apply_time_ns = apply_time_ns;
-	pub_shm_state(s, &slot->state);
+	pub_shm_state(s, lights, &slot->state);
 	slot->valid_tables = 0;
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if ((valid & STATE_BIT(t)) && tables[t]) {
@@ -372,7 +380,7 @@ static void write_slot(struct pub *p, uint32_t i, const struct sky_state *s, uin
 			slot->valid_tables |= STATE_BIT(t);
 			slot->state.rgb_scale_log2[t] = rgb_scale_log2 ? rgb_scale_log2[t] : 0;
 		}
-	publish_views(h, slot, base, s, valid, tables[STATE_AERIAL], panoramas);
+	publish_views(h, slot, base, s, lights, valid, tables[STATE_AERIAL], panoramas);
 	slot->checksum = pub_checksum(h, slot, base);
 	atomic_store_explicit(seq, s0 + 2, memory_order_release);
 }
@@ -381,10 +389,11 @@ void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
 		 const void *const tables[STATE_N_TABLES], const void *panoramas,
 		 const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation)
 {
-	pub_publish_at(p, s, valid, tables, panoramas, rgb_scale_log2, generation, 0);
+	pub_publish_at(p, s, NULL, valid, tables, panoramas, rgb_scale_log2, generation, 0);
 }
 
-void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
+void pub_publish_at(struct pub *p, const struct sky_state *s, const struct state_lights *lights,
+		    uint32_t valid,
 		    const void *const tables[STATE_N_TABLES], const void *panoramas,
 		    const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		    int64_t apply_time_ns)
@@ -392,7 +401,8 @@ void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
 	struct sky_shm_header *h = p->header;
 	uint32_t i = p->next_slot;
 
-	write_slot(p, i, s, valid, tables, panoramas, rgb_scale_log2, generation, apply_time_ns);
+	write_slot(p, i, s, lights, valid, tables, panoramas, rgb_scale_log2, generation,
+		   apply_time_ns);
 	atomic_store_explicit((_Atomic uint32_t *)&h->current_slot, i, memory_order_release);
 	atomic_store_explicit((_Atomic uint32_t *)&h->generation, (uint32_t)generation,
 			      memory_order_release);
@@ -401,14 +411,16 @@ void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
 	p->next_slot = (i + 1) % (h->n_slots - 1);
 }
 
-void pub_publish_ahead(struct pub *p, const struct sky_state *s, uint32_t valid,
+void pub_publish_ahead(struct pub *p, const struct sky_state *s,
+		       const struct state_lights *lights, uint32_t valid,
 		       const void *const tables[STATE_N_TABLES], const void *panoramas,
 		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		       int64_t apply_time_ns)
 {
 	struct sky_shm_header *h = p->header;
 
-	write_slot(p, h->n_slots - 1, s, valid, tables, panoramas, rgb_scale_log2, generation, apply_time_ns);
+	write_slot(p, h->n_slots - 1, s, lights, valid, tables, panoramas, rgb_scale_log2, generation,
+		   apply_time_ns);
 	/* The word keeps its value: waiters wake, find the slot ahead and
 	 * sleep again until its apply time. */
 	futex_wake_all(&h->generation);

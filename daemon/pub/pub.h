@@ -58,8 +58,11 @@ void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
 		 const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation);
 
 /* pub_publish for a generation that became current at apply_time_ns
- * (CLOCK_REALTIME, passed or now; 0: now): the slot keeps the instant. */
-void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
+ * (CLOCK_REALTIME, passed or now; 0: now): the slot keeps the instant.
+ * lights: s's as its tables were lit (state_lights_of), for the slot's
+ * directions and its views' plan; NULL computes them. */
+void pub_publish_at(struct pub *p, const struct sky_state *s, const struct state_lights *lights,
+		    uint32_t valid,
 		    const void *const tables[STATE_N_TABLES], const void *panoramas,
 		    const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		    int64_t apply_time_ns);
@@ -70,8 +73,9 @@ void pub_publish_at(struct pub *p, const struct sky_state *s, uint32_t valid,
  * ignore apply times keep the current slot until the daemon publishes the
  * same generation with pub_publish_at at that instant. Wakes futex waiters
  * (the word unchanged) so that they sleep until the apply time instead.
- * Overwrites an earlier slot ahead. */
-void pub_publish_ahead(struct pub *p, const struct sky_state *s, uint32_t valid,
+ * Overwrites an earlier slot ahead. lights as pub_publish_at's. */
+void pub_publish_ahead(struct pub *p, const struct sky_state *s,
+		       const struct state_lights *lights, uint32_t valid,
 		       const void *const tables[STATE_N_TABLES], const void *panoramas,
 		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		       int64_t apply_time_ns);
@@ -89,8 +93,9 @@ const struct sky_shm_slot *pub_current(const struct pub *p, const uint8_t **ret_
 uint64_t pub_checksum(const struct sky_shm_header *h, const struct sky_shm_slot *slot,
 		      const uint8_t *base);
 
-/* Converts the daemon's state into the published form. */
-void pub_shm_state(const struct sky_state *s, struct sky_shm_state *ret);
+/* Converts the daemon's state, lit by lights, into the published form. */
+void pub_shm_state(const struct sky_state *s, const struct state_lights *lights,
+		   struct sky_shm_state *ret);
 
 /* The read-write fd of an adoptable region, for systemd's fd store (owned
  * by pub: dup it to keep it); -EPERM for a region sealed against writes. */

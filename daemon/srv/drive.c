@@ -10,7 +10,6 @@
 #include "log.h"
 #include "loop.h"
 #include "simclock.h"
-#include "srv.h"
 
 #define LIGHTS (STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL))
 
@@ -22,29 +21,18 @@
 
 struct drive {
 	struct loop *loop;
-	struct srv *srv;
+	const struct sky_state *served;
+	const struct state_lights *served_lights;
+	drive_move_fn *move;
+	void *ctx;
 	struct loop_timer *timer;
-	double ref_sun[3], ref_moon[3];	/* directions as last submitted */
+	struct state_lights ref;	/* directions as last submitted */
 	int ref_moon_lit;
 	double ref_mono_s;		/* when they were submitted */
 	double armed_mono_s;		/* when the timer fires; -1 disarmed */
 	int warned;			/* astro refused the clock: logged once */
 	uint64_t ticks, changes;
 };
-
-void drive_site(const struct sky_state *s, struct astro_site *ret_site, struct astro_options *ret_opt)
-{
-	const struct state_clock *c = &s->clock;
-
-	*ret_site = (struct astro_site){ .lat_deg = c->lat_deg, .lon_deg = c->lon_deg,
-		.elevation_m = c->site_elevation_m };
-	astro_options_default(ret_opt);
-	ret_opt->delta_t_auto = isnan(c->delta_t_s);
-	ret_opt->delta_t_s = isnan(c->delta_t_s) ? 0.0 : c->delta_t_s;
-	ret_opt->pressure_mbar = c->pressure_mbar;
-	ret_opt->temperature_c = c->temperature_c;
-	ret_opt->horizon_refraction_deg = c->horizon_refraction_deg;
-}
 
 int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *err,
 		 size_t err_size)
@@ -58,7 +46,7 @@ int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *
 
 	next.lights_utc_s = NAN;
 	if ((sun || moon) && !isnan(utc_s)) {
-		drive_site(s, &site, &opt);
+		state_astro_site(s, &site, &opt);
 		next.lights_utc_s = utc_s;
 	}
 	if (sun && !isnan(utc_s)) {
@@ -97,10 +85,10 @@ static double angle_deg(const double a[3], const double b[3])
 	return acos(fmax(-1.0, fmin(1.0, d))) * 180.0 / M_PI;
 }
 
-static void take_reference(struct drive *d, const struct sky_state *s, double mono_s)
+static void take_reference(struct drive *d, const struct sky_state *s,
+			   const struct state_lights *lights, double mono_s)
 {
-	state_direction(s->sun.elevation_deg, s->sun.azimuth_deg, d->ref_sun);
-	state_direction(s->moon.elevation_deg, s->moon.azimuth_deg, d->ref_moon);
+	d->ref = *lights;
 	d->ref_moon_lit = s->moon.illuminance_lx > 0.0;
 	d->ref_mono_s = mono_s;
 }
@@ -129,12 +117,11 @@ static void arm(struct drive *d, const struct sky_state *s, double mono_s)
 static void tick(void *ctx)
 {
 	struct drive *d = ctx;
-	const struct sky_state *cur = srv_state(d->srv);
-	struct sky_state next = *cur;
+	struct sky_state next = *d->served;
+	struct state_lights lights;
 	char err[256] = "";
 	uint32_t dirty = 0;
-	uint64_t generation;
-	double mono_s, sun[3], moon[3];
+	double mono_s;
 
 	d->ticks++;
 	simclock_read_clocks(NULL, &mono_s);
@@ -147,17 +134,15 @@ static void tick(void *ctx)
 		return;
 	}
 	d->warned = 0;
-	state_direction(next.sun.elevation_deg, next.sun.azimuth_deg, sun);
-	state_direction(next.moon.elevation_deg, next.moon.azimuth_deg, moon);
-	double moved = fmax(angle_deg(sun, d->ref_sun),
-			    next.moon.illuminance_lx > 0.0 ? angle_deg(moon, d->ref_moon) : 0.0);
+	state_lights_of(&next, &lights);
+	double moved = fmax(angle_deg(lights.sun, d->ref.sun),
+			    next.moon.illuminance_lx > 0.0 ? angle_deg(lights.moon, d->ref.moon) : 0.0);
 	int lit_changed = (next.moon.illuminance_lx > 0.0) != d->ref_moon_lit;
 	int due = next.clock.cadence_s > 0.0 && mono_s - d->ref_mono_s >= next.clock.cadence_s;
 	if (dirty && (moved >= next.clock.threshold_deg || lit_changed || due)) {
-		if (srv_change(d->srv, &next, dirty, &generation, err, sizeof(err)) < 0)
-			log_warning("clock: computation did not start: %s", err);
+		d->move(d->ctx, &next, &lights, dirty);
 		d->changes++;
-		take_reference(d, &next, mono_s);
+		take_reference(d, &next, &lights, mono_s);
 	}
 	arm(d, &next, mono_s);
 }
@@ -166,12 +151,10 @@ void drive_changed(struct drive *d)
 {
 	double mono_s;
 
-	if (!d)
-		return;
 	simclock_read_clocks(NULL, &mono_s);
-	take_reference(d, srv_state(d->srv), mono_s);
+	take_reference(d, d->served, d->served_lights, mono_s);
 	d->warned = 0;
-	arm(d, srv_state(d->srv), mono_s);
+	arm(d, d->served, mono_s);
 }
 
 void drive_stats(const struct drive *d, struct drive_stats *ret)
@@ -184,7 +167,8 @@ void drive_stats(const struct drive *d, struct drive_stats *ret)
 	ret->next_tick_s = d->armed_mono_s < 0.0 ? -1.0 : fmax(d->armed_mono_s - mono_s, 0.0);
 }
 
-int drive_new(struct loop *l, struct srv *srv, struct drive **ret)
+int drive_new(struct loop *l, const struct sky_state *served, const struct state_lights *lights,
+	      drive_move_fn *move, void *ctx, struct drive **ret)
 {
 	struct drive *d = calloc(1, sizeof(*d));
 	int r;
@@ -192,7 +176,10 @@ int drive_new(struct loop *l, struct srv *srv, struct drive **ret)
 	if (!d)
 		return -ENOMEM;
 	d->loop = l;
-	d->srv = srv;
+	d->served = served;
+	d->served_lights = lights;
+	d->move = move;
+	d->ctx = ctx;
 	d->armed_mono_s = -1.0;
 	r = loop_timer_add(l, tick, d, &d->timer);
 	if (r < 0) {

@@ -1,12 +1,14 @@
 /* drive.h - the simulation clock driving the sun and the moon: it turns the
  * state's time and place into light directions, and a timer on the loop
- * submits a change whenever a light moved past the threshold or the cadence
+ * hands on a move whenever a light moved past the threshold or the cadence
  * elapsed.
  *
  * The tables are lit by the geometric (unrefracted) directions; astro's
- * refracted ones are only reported (ctl's get sun / get moon). Changes go
- * through srv_change like any request, so they coalesce with the rest:
- * at most one computation in flight, only the newest state computed.
+ * refracted ones are only reported (ctl's get sun / get moon). srv owns
+ * the drive: it watches the served state, and srv makes each move a change
+ * like any request's, so that it coalesces with the rest: at most one
+ * computation in flight, only the newest state computed. The drive calls
+ * nothing of srv.
  */
 #ifndef SKYD_DRIVE_H
 #define SKYD_DRIVE_H
@@ -17,9 +19,8 @@
 #include "astro.h"
 #include "state.h"
 
-struct loop;
-struct srv;
 struct drive;
+struct loop;
 
 /* The moon lights the tables while its geometric elevation is above this:
  * lower down, its twilight (the sun's twilight scaled by the moon/sun
@@ -30,10 +31,6 @@ struct drive;
  * of simulated time per hour: the earth turns 15.04 deg/h; the moon's
  * own motion is slower and in the other direction. */
 #define DRIVE_MAX_SPEED_DEG_PER_H 15.1
-
-/* The astro inputs of s: its site and options. */
-void drive_site(const struct sky_state *s, struct astro_site *ret_site,
-		struct astro_options *ret_opt);
 
 /* Puts into s the lights whose mode is STATE_CLOCK as they are at monotonic
  * time mono_s: sun direction, illuminance (133.8 klx / R^2, clear sky: the
@@ -47,8 +44,18 @@ void drive_site(const struct sky_state *s, struct astro_site *ret_site,
 int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *err,
 		 size_t err_size);
 
-/* Takes neither loop nor srv; both must outlive the drive. */
-int drive_new(struct loop *l, struct srv *srv, struct drive **ret);
+/* A move of the clock's lights: next is the served state with the lights
+ * where the clock has them now, lights their directions (state_lights_of),
+ * dirty the tables that invalidates (state_set's mask). */
+typedef void drive_move_fn(void *ctx, const struct sky_state *next,
+			   const struct state_lights *lights, uint32_t dirty);
+
+/* served: the state the clock moves, and lights its directions, both
+ * read at every tick and at drive_changed; move hears of each move. The
+ * loop and what served and lights point to must outlive the drive. The
+ * served lights are the reference at once. */
+int drive_new(struct loop *l, const struct sky_state *served, const struct state_lights *lights,
+	      drive_move_fn *move, void *ctx, struct drive **ret);
 void drive_free(struct drive *d);
 
 /* The served state was changed by a request: the lights it holds are the

@@ -1,5 +1,6 @@
-/* repl.c - replication wired into skyd: the srv's timing and commit hooks,
- * the follower's commits and the control server's refusals and status. */
+/* repl.c - replication wired into skyd: the srv's timing hook and its
+ * listener for committed changes, the follower's commits and the control
+ * server's refusals and status. */
 #include "repl.h"
 
 #include <errno.h>
@@ -11,7 +12,6 @@
 
 #include "ctl.h"
 #include "log.h"
-#include "sense.h"
 #include "srv.h"
 #include "state.h"
 #include "sync.h"
@@ -19,9 +19,7 @@
 struct repl {
 	struct sync *sync;
 	struct srv *srv;
-	struct drive *drive;
 	struct ctl *ctl;
-	struct sense *sense;
 	enum sync_role role;
 };
 
@@ -37,7 +35,7 @@ static int64_t apply_time(void *ctx)
 	return sync_apply_time_ns(r->sync);
 }
 
-/* srv's hook: the active controller publishes every committed state. */
+/* srv's listener: the active controller publishes every committed state. */
 static void committed(void *ctx, const struct sky_state *st, uint64_t generation,
 		      int64_t apply_time_ns)
 {
@@ -74,7 +72,7 @@ static void on_state(void *ctx, const struct sky_state *candidate, uint64_t gene
 	memcpy(next->views, cur->views, sizeof(next->views));
 	dirty = state_diff(cur, next);
 	srv_set_next_apply_time(r->srv, apply_time_ns);
-	int e = srv_apply(r->srv, r->drive, next, dirty, &shown, &dirty, err, sizeof(err));
+	int e = srv_apply(r->srv, next, dirty, &shown, &dirty, err, sizeof(err));
 	srv_set_next_apply_time(r->srv, 0);
 	free(next);
 	if (e < 0) {
@@ -82,7 +80,6 @@ static void on_state(void *ctx, const struct sky_state *candidate, uint64_t gene
 			    err[0] ? err : strerror(-e));
 		return;
 	}
-	sense_changed(r->sense);
 	log_debug("sync: controller's generation %" PRIu64 " is generation %" PRIu64 " here",
 		  generation, shown);
 }
@@ -137,8 +134,8 @@ static void status(void *ctx, char *buf, size_t size)
 		snprintf(buf + n, size - n, "\nsync_error: %s\n", st.why[0] ? st.why : "none");
 }
 
-int repl_new(struct loop *l, const struct sync_config *cfg, struct srv *srv, struct drive *drive,
-	     struct ctl *ctl, struct sense *sense, struct repl **ret)
+int repl_new(struct loop *l, const struct sync_config *cfg, struct srv *srv, struct ctl *ctl,
+	     struct repl **ret)
 {
 	struct repl *r = calloc(1, sizeof(*r));
 	int e;
@@ -146,16 +143,20 @@ int repl_new(struct loop *l, const struct sync_config *cfg, struct srv *srv, str
 	if (!r)
 		return -ENOMEM;
 	r->srv = srv;
-	r->drive = drive;
 	r->ctl = ctl;
-	r->sense = sense;
 	r->role = cfg->role;
 	e = sync_new(l, cfg, &(struct sync_callbacks){ .on_state = on_state, .ctx = r }, &r->sync);
 	if (e < 0) {
 		free(r);
 		return e;
 	}
-	srv_set_sync(srv, &(struct srv_sync){ apply_time, committed, r });
+	e = srv_add_listener(srv, &(struct srv_listener){ .changed = committed, .ctx = r });
+	if (e < 0) {
+		sync_free(r->sync);
+		free(r);
+		return e;
+	}
+	srv_set_sync(srv, &(struct srv_sync){ apply_time, r });
 	if (ctl)
 		ctl_set_sync(ctl, &(struct ctl_sync){ may_change, status, r });
 	if (r->role == SYNC_CONTROLLER) {
@@ -175,6 +176,7 @@ void repl_free(struct repl *r)
 	if (!r)
 		return;
 	srv_set_sync(r->srv, &(struct srv_sync){ 0 });
+	srv_remove_listener(r->srv, r);
 	if (r->ctl)
 		ctl_set_sync(r->ctl, NULL);
 	sync_free(r->sync);

@@ -1,6 +1,6 @@
 /* repl.h - the daemon's side of replication (docs/sync.md): it joins the
- * sync client (daemon/sync/sync.h) to the sky service, the control server
- * and the clock.
+ * sync client (daemon/sync/sync.h) to the sky service and the control
+ * server.
  *
  * A controller times every accepted change (the control socket's, the
  * clock's, the light sensor's) at sync_apply_time_ns and hands the
@@ -13,18 +13,16 @@
 #define SKYD_REPL_H
 
 struct ctl;
-struct drive;
 struct loop;
 struct repl;
-struct sense;
 struct srv;
 struct sync_config;
 
-/* Starts replication with cfg; srv, drive, ctl and sense (each may be NULL
- * but srv) must outlive it. A controller publishes the state it starts
- * with. 0 or sync_new's -errno. */
-int repl_new(struct loop *l, const struct sync_config *cfg, struct srv *srv, struct drive *drive,
-	     struct ctl *ctl, struct sense *sense, struct repl **ret);
+/* Starts replication with cfg; srv and ctl (NULL: none) must outlive it.
+ * It hears of every change srv accepts (a listener). A controller
+ * publishes the state it starts with. 0 or sync_new's -errno. */
+int repl_new(struct loop *l, const struct sync_config *cfg, struct srv *srv, struct ctl *ctl,
+	     struct repl **ret);
 /* Unhooks srv and ctl, then stops the client (a controller hands its
  * claim back). */
 void repl_free(struct repl *r);

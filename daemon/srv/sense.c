@@ -9,7 +9,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "drive.h"
 #include "log.h"
 #include "loop.h"
 #include "pub.h"
@@ -60,7 +59,6 @@ enum cause { CAUSE_READING, CAUSE_MODE, CAUSE_PUBLISHED };
 struct sense {
 	struct loop *loop;
 	struct srv *srv;
-	struct drive *clock;
 	struct sensor *sensor;		/* NULL until a mode first needs one */
 	struct sensor_config cfg;	/* as last given to the manager */
 	enum state_sensor_mode mode;	/* as last applied */
@@ -76,7 +74,7 @@ struct sense {
 	char told_bus[32];
 	enum sensor_dev_state told_dev;
 	struct curve curve;
-	struct sense_status st;
+	struct srv_sensor_status st;
 };
 
 /* ---- the clear-sky curve ---- */
@@ -161,13 +159,13 @@ static void build_curve(struct sense *s)
 				  u->lux[k] * (points ? exp(ratio_at(cv, u->elevation_deg[k])) : 1.0));
 	cv->c = (struct sensor_curve){ cv->el, cv->lux, n };
 	s->st.curve_points = points;
-	s->st.curve = points ? SENSE_CURVE_TABLES : SENSE_CURVE_USNO;
+	s->st.curve = points ? SRV_SENSOR_CURVE_TABLES : SRV_SENSOR_CURVE_USNO;
 	if (!points || sensor_curve_invert(&cv->c, cv->lux[0], &dummy, NULL) == -EDOM) {
 		if (points)
 			log_warning("sensor: the tables' clear-sky points do not rise with the sun; "
 				    "the elevation mode inverts the USNO curve alone");
 		cv->c = sensor_curve_usno;
-		s->st.curve = SENSE_CURVE_USNO;
+		s->st.curve = SRV_SENSOR_CURVE_USNO;
 	}
 }
 
@@ -245,7 +243,7 @@ static int clear_sky(struct sense *s, int record, double *ret_lights_lx, double 
 
 static void emit(struct sense *s)
 {
-	struct sense_status st;
+	struct srv_sensor_status st;
 
 	if (!s->fn)
 		return;
@@ -263,7 +261,7 @@ static int apply(struct sense *s, const struct sky_state *next, uint32_t dirty)
 	char err[256] = "";
 	uint64_t generation;
 	uint32_t all;
-	int r = srv_apply(s->srv, s->clock, next, dirty, &generation, &all, err, sizeof(err));
+	int r = srv_apply(s->srv, next, dirty, &generation, &all, err, sizeof(err));
 
 	if (r < 0) {
 		snprintf(s->st.not_applied, sizeof(s->st.not_applied), "refused: %s", err);
@@ -289,7 +287,7 @@ static void set_exposure(struct sense *s, double ev100)
 		return;
 	struct sky_state next = *cur;
 	next.exposure_ev100 = ev100;
-	if (srv_apply(s->srv, s->clock, &next, 0, &generation, &all, err, sizeof(err)) < 0)
+	if (srv_apply(s->srv, &next, 0, &generation, &all, err, sizeof(err)) < 0)
 		log_warning("sensor: EV100 not kept in the state: %s", err);
 }
 
@@ -437,10 +435,16 @@ static void published_fired(void *ctx)
 		emit(s);
 }
 
-void sense_published(struct sense *s, uint64_t generation)
+/* srv's listener: a generation was published. The cloud and elevation
+ * modes read its tables from a zero-delay timer, not from inside srv. */
+static void on_published(void *ctx, uint64_t generation, uint32_t tables, int new_region)
 {
+	struct sense *s = ctx;
+
 	(void)generation;
-	if (s && s->sensor)
+	(void)tables;
+	(void)new_region;
+	if (s->sensor)
 		loop_timer_arm(s->published, 1);
 }
 
@@ -499,15 +503,22 @@ static int apply_keys(struct sense *s)
 	return 0;
 }
 
-void sense_changed(struct sense *s)
+/* srv's listener: the served state changed. Its sensor keys start, stop
+ * or reconfigure the manager; a new mode applies the last reading. The
+ * readings' own changes and the clock's come here too: they leave the
+ * sensor keys as they were, so apply_keys does nothing then. */
+static void on_changed(void *ctx, const struct sky_state *st, uint64_t generation,
+		       int64_t apply_time_ns)
 {
-	if (s)
-		apply_keys(s);
+	(void)st;
+	(void)generation;
+	(void)apply_time_ns;
+	apply_keys(ctx);
 }
 
 /* ---- the rest ---- */
 
-void sense_status(const struct sense *s, struct sense_status *ret)
+void sense_status(const struct sense *s, struct srv_sensor_status *ret)
 {
 	*ret = s->st;
 	ret->mode = srv_state(s->srv)->sensor.mode;
@@ -533,7 +544,17 @@ void sense_set_listener(struct sense *s, sense_event_fn fn, void *ctx)
 	s->ctx = ctx;
 }
 
-int sense_new(struct loop *l, struct srv *srv, struct drive *clock, struct sense **ret)
+static void status_hook(void *ctx, struct srv_sensor_status *ret)
+{
+	sense_status(ctx, ret);
+}
+
+static size_t devices_hook(void *ctx, struct sensor_info *ret, size_t max)
+{
+	return sense_devices(ctx, ret, max);
+}
+
+int sense_new(struct loop *l, struct srv *srv, struct sense **ret)
 {
 	struct sense *s = calloc(1, sizeof(*s));
 	int r;
@@ -542,7 +563,6 @@ int sense_new(struct loop *l, struct srv *srv, struct drive *clock, struct sense
 		return -ENOMEM;
 	s->loop = l;
 	s->srv = srv;
-	s->clock = clock;
 	s->st.ev100 = s->st.clear_sky_lx = s->st.elevation_deg = s->st.deg_per_ln = NAN;
 	s->st.curve_min_deg = s->st.curve_max_deg = NAN;
 	r = loop_timer_add(l, published_fired, s, &s->published);
@@ -550,6 +570,13 @@ int sense_new(struct loop *l, struct srv *srv, struct drive *clock, struct sense
 		free(s);
 		return r;
 	}
+	r = srv_add_listener(srv, &(struct srv_listener){ .changed = on_changed,
+			     .published = on_published, .ctx = s });
+	if (r < 0) {
+		sense_free(s);
+		return r;
+	}
+	srv_set_sensor(srv, &(struct srv_sensor){ status_hook, devices_hook, s });
 	r = apply_keys(s);
 	if (r < 0 && r != -EINVAL) {
 		sense_free(s);
@@ -563,6 +590,8 @@ void sense_free(struct sense *s)
 {
 	if (!s)
 		return;
+	srv_remove_listener(s->srv, s);
+	srv_set_sensor(s->srv, NULL);
 	sensor_free(s->sensor);
 	loop_timer_del(s->published);
 	free(s);

@@ -13,7 +13,10 @@
  *   exposure: a suggested EV100 for clients; the state and the tables stay.
  *
  * A change goes through srv_apply like a set: it coalesces with the rest
- * and names the generation that shows it. The pipeline's time constant,
+ * and names the generation that shows it. The sense is one of srv's
+ * listeners: every accepted change (its sensor keys start, stop or
+ * reconfigure the manager) and every publication (the cloud and elevation
+ * modes read the new slot); and srv shows its status (srv_set_sensor). The pipeline's time constant,
  * hysteresis and rate limit (sensor_pipe) keep a passing cloud or a hand
  * from flooding the engine; a stale reading changes nothing more.
  */
@@ -24,9 +27,9 @@
 #include <stdint.h>
 
 #include "sensor.h"
+#include "srv.h"
 #include "state.h"
 
-struct drive;
 struct loop;
 struct srv;
 struct sense;
@@ -49,52 +52,18 @@ struct sense;
  * tables add a point to the curve) until the sun moves less than this. */
 #define SENSE_ELEVATION_SETTLE_DEG 0.01
 
-/* Which curve the elevation mode inverts. */
-enum sense_curve_kind {
-	SENSE_CURVE_USNO = 0,		/* sensor_curve_usno alone */
-	SENSE_CURVE_TABLES = 1,		/* refined by points measured from the tables */
-};
-
-struct sense_status {
-	enum state_sensor_mode mode;	/* the served state's sensor_mode */
-	struct sensor_status sensor;	/* the manager's; state off while none runs */
-	int have_reading;		/* an output came since the manager started */
-	double age_s;			/* since the last accepted reading; NAN none */
-	uint64_t reading_mono_ns;	/* CLOCK_MONOTONIC of that reading; 0 none */
-	double ev100;			/* of the last output; NAN none */
-	double cloud_factor;		/* the served state's (weather.cloud_factor) */
-	double clear_sky_lx;		/* the lights' clear-sky illuminance last predicted; NAN none */
-	double elevation_deg;		/* the last inversion; NAN none */
-	double deg_per_ln;		/* its sensitivity, d elevation / d ln E */
-	enum sense_curve_kind curve;
-	size_t curve_points;		/* points from the tables in the curve */
-	double curve_min_deg, curve_max_deg;	/* their range; NAN when none */
-	char not_applied[160];		/* why the last output changed nothing; "" when it did */
-	uint64_t changes;		/* changes the readings made */
-	uint64_t generation;		/* that shows the last output's outcome (the
-					 * current one before the first output) */
-};
-
 /* Called after each output of the pipeline and each change of the
  * manager's state or device, from the loop. */
-typedef void (*sense_event_fn)(void *ctx, const struct sense_status *st);
+typedef void (*sense_event_fn)(void *ctx, const struct srv_sensor_status *st);
 
-/* Takes neither loop, srv nor clock; they must outlive the sense. Starts
- * the manager at once when the served state's sensor_mode is not off. */
-int sense_new(struct loop *l, struct srv *srv, struct drive *clock, struct sense **ret);
+/* Takes neither loop nor srv; they must outlive the sense. Adds itself to
+ * srv's listeners and sensor (sense_free takes itself off). Starts the
+ * manager at once when the served state's sensor_mode is not off. */
+int sense_new(struct loop *l, struct srv *srv, struct sense **ret);
 void sense_free(struct sense *s);
 void sense_set_listener(struct sense *s, sense_event_fn fn, void *ctx);
 
-/* The served state was changed by a request: its sensor keys start, stop
- * or reconfigure the manager; a new mode applies the last reading. NULL
- * is ignored. */
-void sense_changed(struct sense *s);
-
-/* A generation was published (the srv listener): the cloud and elevation
- * modes read its tables, from a zero-delay timer, not from inside srv. */
-void sense_published(struct sense *s, uint64_t generation);
-
-void sense_status(const struct sense *s, struct sense_status *ret);
+void sense_status(const struct sense *s, struct srv_sensor_status *ret);
 /* The devices the manager knows, as sensor_devices; 0 while none runs. */
 size_t sense_devices(const struct sense *s, struct sensor_info *ret, size_t max);
 

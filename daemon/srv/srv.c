@@ -1,5 +1,6 @@
-/* srv.c - coalescing changes into computations and computations into
- * published generations. */
+/* srv.c - one way for a change: resolved once, coalesced into
+ * computations, computations into published generations, and told to the
+ * listeners; the clock drive's moves go the same way. */
 #include "srv.h"
 
 #include <errno.h>
@@ -17,30 +18,49 @@
 /* Four slots of the region must fit in memory beside everything else. */
 #define SRV_MAX_REGION_BYTES (2ull << 30)
 
+/* A state as srv serves it: the keys as set (what get shows, what
+ * listeners hear of), and once resolved what the tables and the slot get
+ * (state_resolve: the weather applied, the lights times the cloud factor)
+ * with its lights' directions, computed once here and handed to the
+ * engine and the publisher. */
+struct served {
+	struct sky_state keys;
+	struct sky_state sky;
+	struct state_lights lights;
+};
+
 struct srv {
 	struct loop *loop;
 	struct eng *eng;
 	struct loop_io *eng_io;
 	struct pub *pub;
-	struct srv_listener listener;
-	void *ctx;
+	struct drive *drive;		/* the clock, moving cur's lights */
+	struct srv_listener listeners[SRV_MAX_LISTENERS];
+	int n_listeners;
+	struct srv_sensor sensor;	/* status NULL: none */
 
-	struct sky_state state;		/* newest, what get shows */
+	struct served cur;		/* newest */
 	uint32_t dirty;			/* invalidated since the last submission */
-	int pending;			/* state differs from what was submitted last */
+	int pending;			/* cur differs from what was submitted last */
 
-	/* state_resolve's of computing_keys: what the tables and the slot get
-	 * (the weather applied, the lights times the cloud factor);
-	 * computing_keys and published_keys are the state as set, of the
-	 * computation and of the current slot. */
-	struct sky_state computing_state;
-	struct sky_state computing_keys;
+	/* Telling the listeners: a change one of them makes meanwhile waits
+	 * for the round to end (queued: the newest only), so that every
+	 * listener hears of every change in order. told: the state of the
+	 * round, which a change inside it leaves alone. */
+	int telling, queued;
+	uint64_t queued_generation;
+	int64_t queued_apply_ns;
+	struct sky_state told;
+
+	/* computing: the computation's; published_keys: the state as set of
+	 * the current slot. */
+	struct served computing;
 	struct sky_state published_keys;
 	int in_flight;
 	uint32_t in_flight_mask;
 	uint64_t in_flight_generation;
 
-	uint32_t eng_valid;		/* engine tables that match computing_state */
+	uint32_t eng_valid;		/* engine tables that match computing.sky */
 	uint32_t demand;		/* tables clients asked for (srv_set_demand) */
 	uint32_t own_demand;		/* tables the daemon reads itself (srv_set_own_demand) */
 	uint64_t generation;		/* published */
@@ -52,7 +72,7 @@ struct srv {
 	 * (libsky switches to it at that instant) and stays in flight (held)
 	 * until hold_timer makes it the current slot. */
 	struct srv_sync sync;
-	int64_t next_apply_ns;		/* for the next srv_change; 0 none */
+	int64_t next_apply_ns;		/* for the next change; 0 none */
 	int64_t pending_apply_ns;
 	int64_t in_flight_apply_ns;
 	int held;
@@ -62,7 +82,7 @@ struct srv {
 
 const struct sky_state *srv_state(const struct srv *s)
 {
-	return &s->state;
+	return &s->cur.keys;
 }
 
 const struct sky_state *srv_published(const struct srv *s)
@@ -82,7 +102,13 @@ const struct eng_device *srv_device(const struct srv *s)
 
 void srv_status(const struct srv *s, struct srv_status *ret)
 {
+	struct drive_stats ds;
+
 	*ret = s->st;
+	drive_stats(s->drive, &ds);
+	ret->clock_ticks = ds.ticks;
+	ret->clock_changes = ds.changes;
+	ret->clock_next_tick_s = ds.next_tick_s;
 	ret->generation = s->generation;
 	ret->computing = s->in_flight;
 	ret->pending = s->pending;
@@ -105,7 +131,7 @@ static uint32_t demand_closure(const struct sky_state *st, uint32_t demand)
 
 uint32_t srv_tables_needed(const struct srv *s)
 {
-	return demand_closure(&s->state, s->demand | s->own_demand);
+	return demand_closure(&s->cur.keys, s->demand | s->own_demand);
 }
 
 uint32_t srv_tables_coming(const struct srv *s)
@@ -115,21 +141,32 @@ uint32_t srv_tables_coming(const struct srv *s)
 	return c | (s->dirty & srv_tables_needed(s));
 }
 
-int srv_check(const struct srv *s, const struct sky_state *next, char *err, size_t err_size)
+/* Resolves c->keys into c->sky (once per change: the computation takes
+ * it as it is) with its lights (given: the clock's, computed for the same
+ * directions; NULL: computed here), then the cross-key and device rules:
+ * those of state_validate, the user's atmosphere and the resolved one
+ * alike, and a region's size. 0, or -EINVAL / -ERANGE with err. */
+static int prepare(const struct srv *s, struct served *c, const struct state_lights *given,
+		   char *err, size_t err_size)
 {
 	uint64_t total = 0;
-	int r = state_validate(next, eng_max_table_bytes(s->eng), err, err_size);
+	int r = atmo_validate(&c->keys.atmo, err, err_size);
 
-	if (r < 0)
+	if (r < 0 || (r = state_resolve(&c->keys, &c->sky, NULL, err, err_size)) < 0 ||
+	    (r = state_validate(&c->sky, eng_max_table_bytes(s->eng), err, err_size)) < 0)
 		return r;
 	for (int t = 0; t < STATE_N_TABLES; t++)
-		total += state_table_bytes(next, (enum state_table)t);
+		total += state_table_bytes(&c->keys, (enum state_table)t);
 	if (total * PUB_SLOTS > SRV_MAX_REGION_BYTES) {
 		snprintf(err, err_size, "tables of %llu bytes in all exceed the %llu bytes of a region's slot",
 			 (unsigned long long)total,
 			 (unsigned long long)(SRV_MAX_REGION_BYTES / PUB_SLOTS));
 		return -ERANGE;
 	}
+	if (given)
+		c->lights = *given;
+	else
+		state_lights_of(&c->keys, &c->lights);
 	return 0;
 }
 
@@ -139,8 +176,9 @@ static void fail(struct srv *s, uint64_t generation, const char *message)
 	s->st.failures++;
 	log_error("computation for generation %llu failed: %s", (unsigned long long)generation,
 		  message);
-	if (s->listener.failed)
-		s->listener.failed(s->ctx, generation, message);
+	for (int i = 0; i < s->n_listeners; i++)
+		if (s->listeners[i].failed)
+			s->listeners[i].failed(s->listeners[i].ctx, generation, message);
 }
 
 /* The engine's valid tables and their scales, as the publisher takes them. */
@@ -155,7 +193,7 @@ static void engine_tables(const struct srv *s, const void *ret_tables[STATE_N_TA
 	}
 }
 
-/* Publishes computing_state with the engine's tables (no GPU work when
+/* Publishes the computation's state with the engine's tables (no GPU work when
  * mask is 0: only the state changed for tables nobody needs), as current
  * from apply_ns (0: now). */
 static void publish(struct srv *s, uint32_t computed, int64_t apply_ns)
@@ -165,9 +203,9 @@ static void publish(struct srv *s, uint32_t computed, int64_t apply_ns)
 	int new_region = 0;
 	uint64_t generation = s->in_flight_generation;
 
-	if (!pub_same_layout(s->pub, &s->computing_state)) {
+	if (!pub_same_layout(s->pub, &s->computing.sky)) {
 		struct pub *p;
-		int r = pub_new_like(s->pub, &s->computing_state, s->generation, &p);
+		int r = pub_new_like(s->pub, &s->computing.sky, s->generation, &p);
 		if (r < 0) {
 			char msg[128];
 			snprintf(msg, sizeof(msg), "new shared memory region: %s", strerror(-r));
@@ -182,16 +220,17 @@ static void publish(struct srv *s, uint32_t computed, int64_t apply_ns)
 		new_region = 1;
 	}
 	engine_tables(s, tables, scales);
-	pub_publish_at(s->pub, &s->computing_state, s->eng_valid, tables,
-		       eng_panoramas(s->eng, NULL), scales, generation,
-		       apply_ns);
-	s->published_keys = s->computing_keys;
+	pub_publish_at(s->pub, &s->computing.sky, &s->computing.lights, s->eng_valid, tables,
+		       eng_panoramas(s->eng, NULL), scales, generation, apply_ns);
+	s->published_keys = s->computing.keys;
 	s->generation = generation;
 	s->st.published_computed = computed;
 	s->st.last_error[0] = 0;
 	log_debug("generation %llu published", (unsigned long long)generation);
-	if (s->listener.published)
-		s->listener.published(s->ctx, generation, computed, new_region);
+	for (int i = 0; i < s->n_listeners; i++)
+		if (s->listeners[i].published)
+			s->listeners[i].published(s->listeners[i].ctx, generation, computed,
+						  new_region);
 }
 
 /* Writes the held computation into the spare slot for its apply time, so
@@ -202,12 +241,12 @@ static void publish_ahead(struct srv *s)
 	const void *tables[STATE_N_TABLES];
 	int32_t scales[STATE_N_TABLES];
 
-	if (!pub_same_layout(s->pub, &s->computing_state))
+	if (!pub_same_layout(s->pub, &s->computing.sky))
 		return;
 	engine_tables(s, tables, scales);
-	pub_publish_ahead(s->pub, &s->computing_state, s->eng_valid, tables,
-			  eng_panoramas(s->eng, NULL), scales,
-			  s->in_flight_generation, s->in_flight_apply_ns);
+	pub_publish_ahead(s->pub, &s->computing.sky, &s->computing.lights, s->eng_valid, tables,
+			  eng_panoramas(s->eng, NULL), scales, s->in_flight_generation,
+			  s->in_flight_apply_ns);
 }
 
 static int64_t realtime_ns(void)
@@ -260,7 +299,7 @@ static void check_storage(struct srv *s, uint32_t computed)
 {
 	struct eng_f16_range r;
 
-	eng_f16_range(s->eng, &s->computing_state, computed, &r);
+	eng_f16_range(s->eng, &s->computing.sky, computed, &r);
 	if (!eng_f16_broken(&r)) {
 		s->st.storage_warning[0] = 0;
 		return;
@@ -273,7 +312,8 @@ static void check_storage(struct srv *s, uint32_t computed)
 	log_warning("%s", s->st.storage_warning);
 }
 
-/* Starts computing the newest state if nothing is in flight. */
+/* Starts computing the newest state, as prepare resolved it, if nothing
+ * is in flight. */
 static void kick(struct srv *s)
 {
 	char err[256] = "";
@@ -282,14 +322,7 @@ static void kick(struct srv *s)
 
 	if (s->in_flight || !s->pending)
 		return;
-	/* The tables see the weather applied and the lights times the cloud
-	 * factor; the state keeps the keys as they were set. srv_check
-	 * resolved the same state, so this cannot fail but on a bug. */
-	if (state_resolve(&s->state, &s->computing_state, NULL, err, sizeof(err)) < 0) {
-		fail(s, s->generation + 1, err);
-		return;
-	}
-	s->computing_keys = s->state;
+	s->computing = s->cur;
 	s->pending = 0;
 	s->eng_valid &= ~s->dirty;
 	mask = s->dirty & srv_tables_needed(s);
@@ -302,7 +335,7 @@ static void kick(struct srv *s)
 		finish(s, 0);
 		return;
 	}
-	r = eng_submit(s->eng, &s->computing_state, mask, err, sizeof(err));
+	r = eng_submit(s->eng, &s->computing.sky, &s->computing.lights, mask, err, sizeof(err));
 	if (r < 0) {
 		s->dirty |= mask;
 		fail(s, s->in_flight_generation, err[0] ? err : strerror(-r));
@@ -354,35 +387,56 @@ void srv_set_next_apply_time(struct srv *s, int64_t apply_time_ns)
 	s->next_apply_ns = apply_time_ns;
 }
 
-static void committed(struct srv *s, uint64_t generation, int64_t apply_ns)
+/* Tells the listeners of an accepted change, in the order they were
+ * added; a change one of them makes meanwhile is told after this round. */
+static void tell_changed(struct srv *s, uint64_t generation, int64_t apply_ns)
 {
-	if (s->sync.committed)
-		s->sync.committed(s->sync.ctx, &s->state, generation,
-				  apply_ns ? apply_ns : realtime_ns());
+	if (s->telling) {
+		s->queued = 1;
+		s->queued_generation = generation;
+		s->queued_apply_ns = apply_ns;
+		return;
+	}
+	s->telling = 1;
+	do {
+		s->queued = 0;
+		s->told = s->cur.keys;
+		for (int i = 0; i < s->n_listeners; i++)
+			if (s->listeners[i].changed)
+				s->listeners[i].changed(s->listeners[i].ctx, &s->told, generation,
+							apply_ns);
+		generation = s->queued_generation;
+		apply_ns = s->queued_apply_ns;
+	} while (s->queued);
+	s->telling = 0;
 }
 
-int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
-	       uint64_t *ret_generation, char *err, size_t err_size)
+/* Makes c (prepared) the served state; dirty: the tables it invalidates.
+ * ret_generation: the generation in which it becomes visible;
+ * ret_apply_ns: the instant (CLOCK_REALTIME) it does. -EIO when the
+ * computation could not start (err says why), -ENOMEM: nothing changed. */
+static int change(struct srv *s, const struct served *c, uint32_t dirty,
+		  uint64_t *ret_generation, int64_t *ret_apply_ns, char *err, size_t err_size)
 {
 	uint64_t failures = s->st.failures;
 	uint32_t prev_dirty = s->dirty;
 	int prev_pending = s->pending;
 	int64_t apply_ns = s->next_apply_ns;
-	struct sky_state *prev = malloc(sizeof(*prev));
+	struct served *prev = malloc(sizeof(*prev));
 
 	s->next_apply_ns = 0;
 	if (!prev)
 		return -ENOMEM;
 	if (!apply_ns && s->sync.apply_time_ns)
 		apply_ns = s->sync.apply_time_ns(s->sync.ctx);
-	*prev = s->state;
-	s->state = *next;
+	*ret_apply_ns = apply_ns ? apply_ns : realtime_ns();
+	*prev = s->cur;
+	s->cur = *c;
 	s->dirty |= dirty;
 	if (!dirty && !s->pending) {
 		/* Nothing new: visible with what is in flight, or already. */
 		*ret_generation = s->in_flight ? s->in_flight_generation : s->generation;
 		free(prev);
-		committed(s, *ret_generation, apply_ns);
 		return 0;
 	}
 	s->pending = 1;
@@ -395,7 +449,7 @@ int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 		 * The engine may have released tables on the way, so everything
 		 * it holds is recomputed before it is published again; the last
 		 * good tables stay published meanwhile. */
-		s->state = *prev;
+		s->cur = *prev;
 		s->dirty = prev_dirty | STATE_ALL_TABLES;
 		s->eng_valid = 0;
 		s->pending = prev_pending;
@@ -405,7 +459,6 @@ int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	}
 	free(prev);
 	*ret_generation = srv_state_generation(s);
-	committed(s, *ret_generation, apply_ns);
 	return 0;
 }
 
@@ -416,27 +469,60 @@ uint64_t srv_state_generation(const struct srv *s)
 	return s->in_flight ? s->in_flight_generation : s->generation;
 }
 
-int srv_apply(struct srv *s, struct drive *clock, const struct sky_state *next, uint32_t dirty,
+int srv_apply(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	      uint64_t *ret_generation, uint32_t *ret_dirty, char *err, size_t err_size)
 {
-	struct sky_state lit = *next;
-	int r;
+	struct served *c = malloc(sizeof(*c));
+	uint64_t generation;
+	int64_t apply_ns;
+	int r = -ERANGE;
 
-	if (memcmp(&lit.clock, &s->state.clock, sizeof(lit.clock)) != 0) {
+	if (!c)
+		return -ENOMEM;
+	c->keys = *next;
+	if (memcmp(&c->keys.clock, &s->cur.keys.clock, sizeof(c->keys.clock)) != 0) {
 		double mono_s;
 		simclock_read_clocks(NULL, &mono_s);
-		state_clock_rebase(&lit, &s->state, mono_s);
-		if (drive_lights(&lit, mono_s, &dirty, err, err_size) < 0)
-			return -ERANGE;
+		state_clock_rebase(&c->keys, &s->cur.keys, mono_s);
+		if (drive_lights(&c->keys, mono_s, &dirty, err, err_size) < 0)
+			goto out;
 	}
-	if (srv_check(s, &lit, err, err_size) < 0)
-		return -ERANGE;
-	r = srv_change(s, &lit, dirty, ret_generation, err, err_size);
+	if (prepare(s, c, NULL, err, err_size) < 0)
+		goto out;
+	r = change(s, c, dirty, &generation, &apply_ns, err, err_size);
 	if (r < 0)
-		return r;
-	drive_changed(clock);
+		goto out;
+	drive_changed(s->drive);
+	*ret_generation = generation;
 	*ret_dirty = dirty;
-	return 0;
+	tell_changed(s, generation, apply_ns);
+out:
+	free(c);
+	return r;
+}
+
+/* The clock's move (drive_move_fn): a change like srv_apply's, but for the
+ * drive's reference, which the drive takes itself. */
+static void clock_moved(void *ctx, const struct sky_state *next, const struct state_lights *lights,
+			uint32_t dirty)
+{
+	struct srv *s = ctx;
+	struct served *c = malloc(sizeof(*c));
+	char err[256] = "";
+	uint64_t generation;
+	int64_t apply_ns;
+
+	if (!c) {
+		log_warning("clock: out of memory; the lights stay where they are");
+		return;
+	}
+	c->keys = *next;
+	if (prepare(s, c, lights, err, sizeof(err)) < 0 ||
+	    change(s, c, dirty, &generation, &apply_ns, err, sizeof(err)) < 0)
+		log_warning("clock: computation did not start: %s", err);
+	else
+		tell_changed(s, generation, apply_ns);
+	free(c);
 }
 
 /* A table asked for that is not current: compute it (and only the
@@ -461,10 +547,43 @@ void srv_set_own_demand(struct srv *s, uint32_t tables)
 	demand_changed(s);
 }
 
-void srv_set_listener(struct srv *s, const struct srv_listener *listener, void *ctx)
+int srv_add_listener(struct srv *s, const struct srv_listener *listener)
 {
-	s->listener = *listener;
-	s->ctx = ctx;
+	if (s->n_listeners == SRV_MAX_LISTENERS)
+		return -ENOSPC;
+	s->listeners[s->n_listeners++] = *listener;
+	return 0;
+}
+
+void srv_remove_listener(struct srv *s, void *ctx)
+{
+	int n = 0;
+
+	for (int i = 0; i < s->n_listeners; i++)
+		if (s->listeners[i].ctx != ctx)
+			s->listeners[n++] = s->listeners[i];
+	s->n_listeners = n;
+}
+
+void srv_set_sensor(struct srv *s, const struct srv_sensor *sensor)
+{
+	if (sensor)
+		s->sensor = *sensor;
+	else
+		memset(&s->sensor, 0, sizeof(s->sensor));
+}
+
+int srv_sensor_status(const struct srv *s, struct srv_sensor_status *ret)
+{
+	if (!s->sensor.status)
+		return -ENODEV;
+	s->sensor.status(s->sensor.ctx, ret);
+	return 0;
+}
+
+size_t srv_sensor_devices(const struct srv *s, struct sensor_info *ret, size_t max)
+{
+	return s->sensor.devices ? s->sensor.devices(s->sensor.ctx, ret, max) : 0;
 }
 
 int srv_new(struct loop *l, struct eng *e, const struct sky_state *initial, struct srv **ret)
@@ -484,7 +603,7 @@ int srv_new_from(struct loop *l, struct eng *e, const struct sky_state *initial,
 	}
 	s->loop = l;
 	s->eng = e;
-	s->state = *initial;
+	s->cur.keys = *initial;
 	s->published_keys = *initial;
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		s->st.table_ms[t] = -1;
@@ -492,6 +611,17 @@ int srv_new_from(struct loop *l, struct eng *e, const struct sky_state *initial,
 	s->generation = generation;
 	s->pub = region;
 	r = region ? 0 : pub_new(initial, 0, &s->pub);
+	if (r < 0)
+		goto fail;
+	/* The initial state was validated by the caller, with the device. */
+	char err[256] = "";
+	r = state_resolve(initial, &s->cur.sky, NULL, err, sizeof(err));
+	if (r < 0) {
+		log_error("initial state: %s", err);
+		goto fail;
+	}
+	state_lights_of(initial, &s->cur.lights);
+	r = drive_new(l, &s->cur.keys, &s->cur.lights, clock_moved, s, &s->drive);
 	if (r < 0)
 		goto fail;
 	/* Edge-triggered: right whether or not eng_complete drains the eventfd. */
@@ -515,6 +645,7 @@ void srv_free(struct srv *s)
 {
 	if (!s)
 		return;
+	drive_free(s->drive);
 	loop_io_del(s->eng_io);
 	loop_timer_del(s->hold_timer);
 	pub_free(s->pub);

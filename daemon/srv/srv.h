@@ -3,10 +3,18 @@
  * each finished computation as a new generation.
  *
  * A change replaces the state at once (get sees it); its tables become
- * visible in a later generation, which srv_change names. While the engine
+ * visible in a later generation, which srv_apply names. While the engine
  * works, later changes overwrite the pending state and only the newest is
  * computed. Only the tables a change invalidated and some client needs are
  * computed. A failed computation keeps the last good tables published.
+ *
+ * Every change goes one way: srv_apply, from a request (ctl), a reload,
+ * replication or the light sensor; the clock drive, which srv owns, moves
+ * the lights the same way. srv resolves each change once (the weather
+ * applied, the lights' directions computed) and keeps that for the engine
+ * and the publisher. Whoever reacts to a change (the light sensor,
+ * replication) or to a publication (the control server, systemd) is a
+ * listener (srv_add_listener): srv knows none of them by name.
  */
 #ifndef SKYD_SRV_H
 #define SKYD_SRV_H
@@ -15,20 +23,33 @@
 #include <stdint.h>
 
 #include "eng.h"
+#include "sensor.h"
 #include "state.h"
 
-struct drive;
 struct loop;
 struct pub;
 struct srv;
 
+/* Who hears of what srv does; any member may be NULL. Listeners are told
+ * in the order they were added. */
 struct srv_listener {
+	/* A change was accepted: st is the served state as set, generation
+	 * the one that shows it, apply_time_ns the CLOCK_REALTIME instant it
+	 * becomes visible (now, when it waits for nothing). Called once srv is
+	 * done with it; the listener may make a change of its own (srv_apply),
+	 * which every listener hears of once all have heard of this one. st
+	 * is valid for the call. */
+	void (*changed)(void *ctx, const struct sky_state *st, uint64_t generation,
+			int64_t apply_time_ns);
 	/* A new generation is current. tables: those computed for it.
 	 * new_region: it lives in a new memfd (srv_pub) with a new layout. */
 	void (*published)(void *ctx, uint64_t generation, uint32_t tables, int new_region);
 	/* The computation meant for generation failed; message says why. */
 	void (*failed)(void *ctx, uint64_t generation, const char *message);
+	void *ctx;
 };
+
+#define SRV_MAX_LISTENERS 8
 
 struct srv_status {
 	uint64_t generation;		/* published */
@@ -45,18 +66,59 @@ struct srv_status {
 	uint64_t column_passes;		/* computations that ran transmittance's column pass */
 	char last_error[256];		/* "" when the last computation succeeded */
 	char storage_warning[192];	/* float16 broke in the last computation; "" when not */
+	uint64_t clock_ticks;		/* the clock drive's timer expirations */
+	uint64_t clock_changes;		/* the moves it made changes */
+	double clock_next_tick_s;	/* real seconds to its next tick; -1 none armed */
+};
+
+/* The light sensor as the protocol shows it (daemon/srv/sense.c fills it;
+ * the control server reads it through srv_sensor_status). */
+enum srv_sensor_curve {
+	SRV_SENSOR_CURVE_USNO = 0,	/* sensor_curve_usno alone */
+	SRV_SENSOR_CURVE_TABLES = 1,	/* refined by points measured from the tables */
+};
+
+struct srv_sensor_status {
+	enum state_sensor_mode mode;	/* the served state's sensor_mode */
+	struct sensor_status sensor;	/* the manager's; state off while none runs */
+	int have_reading;		/* an output came since the manager started */
+	double age_s;			/* since the last accepted reading; NAN none */
+	uint64_t reading_mono_ns;	/* CLOCK_MONOTONIC of that reading; 0 none */
+	double ev100;			/* of the last output; NAN none */
+	double cloud_factor;		/* the served state's (weather.cloud_factor) */
+	double clear_sky_lx;		/* the lights' clear-sky illuminance last predicted; NAN none */
+	double elevation_deg;		/* the last inversion; NAN none */
+	double deg_per_ln;		/* its sensitivity, d elevation / d ln E */
+	enum srv_sensor_curve curve;
+	size_t curve_points;		/* points from the tables in the curve */
+	double curve_min_deg, curve_max_deg;	/* their range; NAN when none */
+	char not_applied[160];		/* why the last output changed nothing; "" when it did */
+	uint64_t changes;		/* changes the readings made */
+	uint64_t generation;		/* that shows the last output's outcome (the
+					 * current one before the first output) */
+};
+
+/* What the light sensor offers the readers of srv: its status and the
+ * devices its manager knows (at most max into ret; 0 while none runs). */
+struct srv_sensor {
+	void (*status)(void *ctx, struct srv_sensor_status *ret);
+	size_t (*devices)(void *ctx, struct sensor_info *ret, size_t max);
+	void *ctx;
 };
 
 /* Takes neither loop nor engine; both must outlive the srv. The first
- * computation (every needed table of initial) starts at once. */
+ * computation (every needed table of initial, resolved) starts at once,
+ * and the clock drive watches initial's clock. */
 int srv_new(struct loop *l, struct eng *e, const struct sky_state *initial, struct srv **ret);
 /* srv_new publishing into region (taken, also on failure; pub_same_layout
  * as initial) whose newest generation is generation: the next publication
  * is generation + 1. Region NULL: srv_new. */
 int srv_new_from(struct loop *l, struct eng *e, const struct sky_state *initial,
 		 struct pub *region, uint64_t generation, struct srv **ret);
-/* Who hears of publications and failures (the control server). */
-void srv_set_listener(struct srv *s, const struct srv_listener *listener, void *ctx);
+/* Adds a listener (copied): 0, or -ENOSPC past SRV_MAX_LISTENERS. */
+int srv_add_listener(struct srv *s, const struct srv_listener *listener);
+/* Removes the listeners whose ctx is ctx. */
+void srv_remove_listener(struct srv *s, void *ctx);
 void srv_free(struct srv *s);
 
 /* The state as last changed (not necessarily computed yet). */
@@ -69,17 +131,6 @@ struct pub *srv_pub(const struct srv *s);
 const struct eng_device *srv_device(const struct srv *s);
 void srv_status(const struct srv *s, struct srv_status *ret);
 
-/* Cross-key and device rules for a candidate state: 0 or -EINVAL / -ERANGE
- * with the reason in err. */
-int srv_check(const struct srv *s, const struct sky_state *next, char *err, size_t err_size);
-
-/* Makes next (checked) the state; dirty: the tables it invalidates
- * (state_set's mask). ret_generation: the generation in which it becomes
- * visible. -EIO when the computation could not start (err says why): the
- * state is kept and computed with the next change. */
-int srv_change(struct srv *s, const struct sky_state *next, uint32_t dirty,
-	       uint64_t *ret_generation, char *err, size_t err_size);
-
 /* The generation that shows the served state as it is now: the published
  * one, the one in flight, or the one after it when a newer change waits. */
 uint64_t srv_state_generation(const struct srv *s);
@@ -88,30 +139,36 @@ uint64_t srv_state_generation(const struct srv *s);
  * one change: a new time_rate re-anchors the running clock
  * (state_clock_rebase); a new clock (time, place, light mode) places the
  * clock-driven lights at once (drive_lights), so that the generation named
- * shows them; then srv_check and srv_change; clock (NULL: none) then takes
- * the new lights as its reference. dirty: the tables the request
- * invalidated (state_set's mask). ret_dirty gets them with the lights'.
- * Returns 0; -ERANGE when refused (astro cannot place the lights, or a
- * cross-key or device rule), or -EIO / -ENOMEM when the computation could
- * not start: err says why and nothing changed. */
-int srv_apply(struct srv *s, struct drive *clock, const struct sky_state *next, uint32_t dirty,
+ * shows them; then the cross-key and device rules on the state resolved
+ * (state_resolve, once: kept for the computation); the clock drive then
+ * takes the new lights as its reference, and the listeners hear of it.
+ * dirty: the tables the request invalidated (state_set's mask). ret_dirty
+ * gets them with the lights'. Returns 0; -ERANGE when refused (astro
+ * cannot place the lights, or a cross-key or device rule), or -EIO /
+ * -ENOMEM when the computation could not start: err says why and nothing
+ * changed. */
+int srv_apply(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	      uint64_t *ret_generation, uint32_t *ret_dirty, char *err, size_t err_size);
 
-/* Replication (docs/sync.md): how changes are timed and where they go.
- * apply_time_ns gives the CLOCK_REALTIME instant at which a change
- * accepted now becomes visible (0: as soon as it is computed); committed
- * hears of every accepted change with the generation that shows it and
- * that instant. Either may be NULL. */
+/* The light sensor registers here (NULL: none); ctl reads it below. */
+void srv_set_sensor(struct srv *s, const struct srv_sensor *sensor);
+/* The sensor's status: 0, or -ENODEV when none is registered. */
+int srv_sensor_status(const struct srv *s, struct srv_sensor_status *ret);
+/* The devices its manager knows, at most max; 0 when none. */
+size_t srv_sensor_devices(const struct srv *s, struct sensor_info *ret, size_t max);
+
+/* Replication (docs/sync.md): when a change accepted now becomes
+ * visible, as a CLOCK_REALTIME instant (0: as soon as it is computed).
+ * NULL apply_time_ns: as soon as computed. Where changes go is a listener's
+ * business (srv_listener.changed). */
 struct srv_sync {
 	int64_t (*apply_time_ns)(void *ctx);
-	void (*committed)(void *ctx, const struct sky_state *st, uint64_t generation,
-			  int64_t apply_time_ns);
 	void *ctx;
 };
 void srv_set_sync(struct srv *s, const struct srv_sync *sync);
 
-/* The next change (srv_change, srv_apply) becomes visible at apply_time_ns
- * (CLOCK_REALTIME) rather than the hook's: its tables are computed at once
+/* The next change (srv_apply, or the clock's) becomes visible at
+ * apply_time_ns (CLOCK_REALTIME) rather than the hook's: its tables are computed at once
  * and written into the region's spare slot with that instant
  * (pub_publish_ahead: libsky switches to it then), and their generation is
  * made the current slot at that instant, or at once when it has passed.

@@ -279,26 +279,3 @@ uint32_t state_closure(uint32_t mask)
 		mask |= T_BIT;
 	return mask;
 }
-
-void state_direction(double elevation_deg, double azimuth_deg, double ret[3])
-{
-	double el = elevation_deg * M_PI / 180.0, az = azimuth_deg * M_PI / 180.0;
-	ret[0] = cos(el) * sin(az);
-	ret[1] = cos(el) * cos(az);
-	ret[2] = sin(el);
-}
-
-void state_camera_basis(const struct state_camera *c, double fwd[3], double right[3], double up[3])
-{
-	double yaw = c->yaw_deg * M_PI / 180.0, roll = c->roll_deg * M_PI / 180.0;
-	double f[3], r0[3] = { cos(yaw), -sin(yaw), 0.0 };	/* level, to the right */
-
-	state_direction(c->pitch_deg, c->yaw_deg, f);
-	double u0[3] = { r0[1] * f[2] - r0[2] * f[1], r0[2] * f[0] - r0[0] * f[2],
-			 r0[0] * f[1] - r0[1] * f[0] };		/* r0 x f: up */
-	for (int i = 0; i < 3; i++) {
-		fwd[i] = f[i];
-		right[i] = cos(roll) * r0[i] + sin(roll) * u0[i];
-		up[i] = -sin(roll) * r0[i] + cos(roll) * u0[i];
-	}
-}

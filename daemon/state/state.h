@@ -13,6 +13,7 @@
 #include <stdio.h>
 
 #include "atmo.h"
+#include "state_geom.h"
 #include "state_keys.h"
 #include "weather.h"
 
@@ -246,13 +247,6 @@ const char *state_sensor_mode_name(enum state_sensor_mode m);
 /* The tables to recompute going from a to b: the masks state_set gives
  * for each key whose text differs (every table for one it cannot set). */
 uint32_t state_diff(const struct sky_state *a, const struct sky_state *b);
-
-/* The camera's unit basis in the observer's east-north-up frame from yaw
- * (azimuth), pitch (elevation) and roll. */
-void state_camera_basis(const struct state_camera *c, double fwd[3], double right[3],
-			double up[3]);
-/* Unit vector in east-north-up from elevation and azimuth (from north, eastward). */
-void state_direction(double elevation_deg, double azimuth_deg, double ret[3]);
 
 /* Bytes of one texel in the given storage (4 channels). */
 size_t state_texel_bytes(enum state_storage st);

@@ -8,9 +8,7 @@
 #include <string.h>
 
 #include "ctl.h"
-#include "drive.h"
 #include "log.h"
-#include "sense.h"
 #include "srv.h"
 #include "state.h"
 #include "svc_notify.h"
@@ -21,8 +19,6 @@ struct svc_reload {
 	int n_args;
 	struct srv *srv;
 	struct ctl *ctl;
-	struct drive *clock;
-	struct sense *sense;
 	struct svc_notify *notify;
 	struct svc_reload_step steps[SVC_RELOAD_MAX_STEPS];
 	int n_steps;
@@ -41,13 +37,11 @@ int svc_reload_new(const char *path, char *const *args, int n_args, struct svc_r
 	return 0;
 }
 
-void svc_reload_attach(struct svc_reload *r, struct srv *srv, struct drive *clock,
-		       struct sense *sense, struct svc_notify *notify, struct ctl *ctl)
+void svc_reload_attach(struct svc_reload *r, struct srv *srv, struct svc_notify *notify,
+		       struct ctl *ctl)
 {
 	r->ctl = ctl;
 	r->srv = srv;
-	r->clock = clock;
-	r->sense = sense;
 	r->notify = notify;
 }
 
@@ -165,14 +159,12 @@ int svc_reload_run(struct svc_reload *r, char *err, size_t err_size)
 		 * nothing when it does; only the tables the changed keys
 		 * invalidate are recomputed. */
 		dirty = state_diff(srv_state(r->srv), &next);
-		e = srv_apply(r->srv, r->clock, &next, dirty, &generation, &dirty, msg, sizeof(msg));
+		e = srv_apply(r->srv, &next, dirty, &generation, &dirty, msg, sizeof(msg));
 		if (e < 0)
 			snprintf(err, err_size, "%s: %s", r->path, msg[0] ? msg : strerror(-e));
 	}
 	if (e == 0) {
 		apply_steps(r);
-		/* The sensor keys start, stop or reconfigure the sensor. */
-		sense_changed(r->sense);
 		log_info("reload: %s applied, generation %llu", r->path,
 			 (unsigned long long)generation);
 	} else {

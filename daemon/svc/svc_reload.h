@@ -19,8 +19,6 @@
 #include "config.h"
 
 struct ctl;
-struct drive;
-struct sense;
 struct srv;
 struct svc_notify;
 struct svc_reload;
@@ -47,12 +45,12 @@ struct svc_reload_step {
  * command line's key=value arguments (n_args of them, kept by pointer). */
 int svc_reload_new(const char *path, char *const *args, int n_args, struct svc_reload **ret);
 void svc_reload_free(struct svc_reload *r);
-/* The running service a reload changes: srv and clock, sense, notify and
- * ctl (NULL: none) must outlive r. Before it, svc_reload_run refuses. A
- * follower of replication (ctl_sky_follows) takes the file's daemon
- * settings but not its sky: that comes from the controller. */
-void svc_reload_attach(struct svc_reload *r, struct srv *srv, struct drive *clock,
-		       struct sense *sense, struct svc_notify *notify, struct ctl *ctl);
+/* The running service a reload changes: srv, notify and ctl (NULL: none)
+ * must outlive r. Before it, svc_reload_run refuses. A follower of
+ * replication (ctl_sky_follows) takes the file's daemon settings but not
+ * its sky: that comes from the controller. */
+void svc_reload_attach(struct svc_reload *r, struct srv *srv, struct svc_notify *notify,
+		       struct ctl *ctl);
 
 /* Adds a settings group; step is copied. 0, or -ENOSPC past
  * SVC_RELOAD_MAX_STEPS. */

@@ -1,7 +1,8 @@
 /* test_params.c - the shaders and the engine agree on what they share: read
  * from the embedded SPIR-V, every specialization constant's id, every
- * descriptor's binding and the uniform block's layout match sky_params.h
- * as the C compiler sees it (struct gpu_params, SPEC_*, BINDING_*). */
+ * descriptor's binding, the uniform block's layout and the aerial job's
+ * match sky_params.h as the C compiler sees it (struct gpu_params, struct
+ * gpu_aerial_job, SPEC_*, BINDING_*). */
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -14,8 +15,9 @@
 
 /* SPIR-V opcodes and decorations read here (SPIR-V 1.3 specification). */
 enum {
-	OP_NAME = 5, OP_MEMBER_NAME = 6, OP_TYPE_FLOAT = 22, OP_TYPE_VECTOR = 23,
-	OP_TYPE_ARRAY = 28, OP_TYPE_STRUCT = 30, OP_TYPE_POINTER = 32, OP_CONSTANT = 43,
+	OP_NAME = 5, OP_MEMBER_NAME = 6, OP_TYPE_INT = 21, OP_TYPE_FLOAT = 22,
+	OP_TYPE_VECTOR = 23, OP_TYPE_ARRAY = 28, OP_TYPE_RUNTIME_ARRAY = 29, OP_TYPE_STRUCT = 30,
+	OP_TYPE_POINTER = 32, OP_CONSTANT = 43,
 	OP_SPEC_CONSTANT_TRUE = 48, OP_SPEC_CONSTANT_FALSE = 49, OP_SPEC_CONSTANT = 50,
 	OP_VARIABLE = 59, OP_DECORATE = 71, OP_MEMBER_DECORATE = 72,
 	DEC_SPEC_ID = 1, DEC_ARRAY_STRIDE = 6, DEC_BINDING = 33, DEC_OFFSET = 35,
@@ -56,8 +58,9 @@ static void record(struct spv *m, const uint32_t *ins, uint32_t words)
 	} else if (op == OP_MEMBER_DECORATE && words >= 5 && ins[1] < m->bound && ins[2] < MAX_MEMBERS &&
 		   ins[3] == DEC_OFFSET) {
 		m->ids[ins[1]].member_offset[ins[2]] = (int)ins[4];
-	} else if ((op == OP_TYPE_FLOAT || op == OP_TYPE_VECTOR || op == OP_TYPE_ARRAY ||
-		    op == OP_TYPE_STRUCT || op == OP_TYPE_POINTER) && ins[1] < m->bound) {
+	} else if ((op == OP_TYPE_INT || op == OP_TYPE_FLOAT || op == OP_TYPE_VECTOR ||
+		    op == OP_TYPE_ARRAY || op == OP_TYPE_RUNTIME_ARRAY || op == OP_TYPE_STRUCT ||
+		    op == OP_TYPE_POINTER) && ins[1] < m->bound) {
 		m->ids[ins[1]].def = ins;
 	} else if ((op == OP_CONSTANT || op == OP_SPEC_CONSTANT || op == OP_SPEC_CONSTANT_TRUE ||
 		    op == OP_SPEC_CONSTANT_FALSE || op == OP_VARIABLE) && ins[2] < m->bound) {
@@ -106,17 +109,23 @@ static const uint32_t *id_def(const struct spv *m, uint32_t id)
 }
 
 /* The size in bytes of a member of type id, as laid out in the block
- * (vec4 of float32, arrays by their stride, structs to their last member's
- * end); -1 for anything else, which the block must not hold. */
+ * (32-bit floats and uints, vec3 and vec4 of float32, arrays by their
+ * stride, structs to their last member's end); -1 for anything else,
+ * which the blocks must not hold. */
 static long type_size(const struct spv *m, uint32_t id)
 {
 	const uint32_t *d = id_def(m, id);
 	if (!d)
 		return -1;
 	switch (d[0] & 0xffff) {
+	case OP_TYPE_FLOAT:
+		return d[2] == 32 ? 4 : -1;
+	case OP_TYPE_INT:
+		return d[2] == 32 && d[3] == 0 ? 4 : -1;
 	case OP_TYPE_VECTOR: {
 		const uint32_t *c = id_def(m, d[2]);
-		return c && (c[0] & 0xffff) == OP_TYPE_FLOAT && c[2] == 32 && d[3] == 4 ? 16 : -1;
+		return c && (c[0] & 0xffff) == OP_TYPE_FLOAT && c[2] == 32 && (d[3] == 3 || d[3] == 4)
+			       ? 4 * (long)d[3] : -1;
 	}
 	case OP_TYPE_ARRAY: {
 		const uint32_t *len = id_def(m, d[3]);
@@ -156,6 +165,12 @@ static const struct c_member params_members[] = {
 	  sizeof(((struct gpu_constituent *)0)->name) },
 static const struct c_member constituent_members[] = {
 	SKY_CONSTITUENT_MEMBERS(CONSTITUENT_MEMBER)
+};
+#define JOB_MEMBER(name)                                           \
+	{ #name, offsetof(struct gpu_aerial_job, name),            \
+	  sizeof(((struct gpu_aerial_job *)0)->name) },
+static const struct c_member job_members[] = {
+	SKY_AERIAL_JOB_MEMBERS(JOB_MEMBER, JOB_MEMBER, JOB_MEMBER)
 };
 
 /* Compares struct type id of the module member by member with the C
@@ -216,6 +231,33 @@ static void check_block(const struct spv *m, uint32_t block)
 	}
 }
 
+/* The aerial jobs: ViewBuf { uvec4 head; AerialJob job[]; } at
+ * BINDING_VIEWS, job after struct gpu_aerial_head, each element struct
+ * gpu_aerial_job. Returns 1 when the block is there. */
+static int check_views(const struct spv *m, uint32_t block)
+{
+	const uint32_t *d = id_def(m, block);
+	test_checks++;
+	if (!d || (d[0] & 0xffff) != OP_TYPE_STRUCT || (d[0] >> 16) != 4) {
+		FAIL("%s: ViewBuf is not { head, job[] }", m->shader);
+		return 0;
+	}
+	const uint32_t *jobs = id_def(m, d[3]);
+	const char *name = m->ids[block].member_name[1] ? m->ids[block].member_name[1] : "";
+	test_checks++;
+	if (strcmp(name, "job") || !jobs || (jobs[0] & 0xffff) != OP_TYPE_RUNTIME_ARRAY ||
+	    m->ids[block].member_offset[1] != (int)sizeof(struct gpu_aerial_head) ||
+	    m->ids[d[3]].array_stride != (int)sizeof(struct gpu_aerial_job)) {
+		FAIL("%s: ViewBuf's jobs are %s at %d, stride %d; C: job at %zu, stride %zu", m->shader,
+		     name, m->ids[block].member_offset[1], m->ids[d[3]].array_stride,
+		     sizeof(struct gpu_aerial_head), sizeof(struct gpu_aerial_job));
+		return 1;
+	}
+	check_struct(m, jobs[2], "AerialJob", job_members, sizeof(job_members) / sizeof(job_members[0]),
+		     sizeof(struct gpu_aerial_job));
+	return 1;
+}
+
 struct named_id {
 	const char *name;
 	int id;
@@ -263,7 +305,7 @@ static const struct named_id *find(const struct named_id *list, size_t n, const 
 /* Checks one module; marks the specialization constants it declares in seen. */
 static void check_module(const struct spv *m, int seen[SPEC_COUNT])
 {
-	int blocks = 0;
+	int blocks = 0, views = 0;
 	for (uint32_t i = 0; i < m->bound; i++) {
 		const struct spv_id *id = &m->ids[i];
 		if (id->spec_id >= 0) {
@@ -293,7 +335,14 @@ static void check_module(const struct spv *m, int seen[SPEC_COUNT])
 			check_block(m, pointee);
 			blocks++;
 		}
+		if (is_block && id->binding == BINDING_VIEWS)
+			views += check_views(m, pointee);
 	}
+	/* The two aerial passes read the jobs, nothing else does. */
+	int reads_jobs = !strcmp(m->shader, "aerial") || !strcmp(m->shader, "aerial_resample");
+	test_checks++;
+	if (views != reads_jobs)
+		FAIL("%s: %d job buffers at BINDING_VIEWS", m->shader, views);
 	/* Every pass reads the uniform block (load_params()), but the pack
 	 * pass, which reads only the tables and struct gpu_pack, and the
 	 * views' resampling, which reads only the aerial jobs and texels. */

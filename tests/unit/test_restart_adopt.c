@@ -73,7 +73,7 @@ int main(void)
 		return test_report("test_restart_adopt");
 	for (uint64_t g = 1; g <= 4; g++)
 		pub_publish(a, &s, STATE_ALL_TABLES, t1, NULL, NULL, g);
-	pub_publish_ahead(a, &s, STATE_ALL_TABLES, t1, NULL, NULL, 5, 1);
+	pub_publish_ahead(a, &s, NULL, STATE_ALL_TABLES, t1, NULL, NULL, 5, 1);
 	int fd = fcntl(pub_store_fd(a), F_DUPFD_CLOEXEC, 3);
 	CHECK(fd >= 0 && fcntl(fd, F_GET_SEALS) == (F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL));
 	/* A reader's own mapping, and a client's view of it. */
