@@ -513,9 +513,27 @@ int state_key_parse(const struct state_key *k, const char *v, void *field, char 
 	return ERR("%s: internal error: no parser", k->name);
 }
 
+/* Set while state_foreach_exact or state_get_exact runs: numbers are then
+ * written so that they read back to the same double. */
+static _Thread_local int format_exact;
+
+static int reads_back(const char *text, double v)
+{
+	double r = strtod(text, NULL);
+	return memcmp(&r, &v, sizeof(v)) == 0;
+}
+
+void state_format_number(double v, char *buf, size_t n)
+{
+	snprintf(buf, n, "%.9g", v);
+	for (int digits = 10; format_exact && digits <= 17 && !reads_back(buf, v); digits++)
+		snprintf(buf, n, "%.*g", digits, v);
+}
+
 void state_key_format(const struct state_key *k, const void *field, char *buf, size_t n)
 {
 	const double *d = field;
+	char c[3][32];
 	int i = 0, w = 0;
 
 	switch (k->kind) {
@@ -523,14 +541,16 @@ void state_key_format(const struct state_key *k, const void *field, char *buf, s
 		if (isnan(*d))
 			snprintf(buf, n, "auto");
 		else
-			snprintf(buf, n, "%.9g", *d);
+			state_format_number(*d, buf, n);
 		break;
 	case STATE_KIND_NUMBER:
 	case STATE_KIND_TIME:
-		snprintf(buf, n, "%.9g", *d);
+		state_format_number(*d, buf, n);
 		break;
 	case STATE_KIND_TRIPLE:
-		snprintf(buf, n, "%.9g,%.9g,%.9g", d[0], d[1], d[2]);
+		for (int j = 0; j < 3; j++)
+			state_format_number(d[j], c[j], sizeof(c[j]));
+		snprintf(buf, n, "%s,%s,%s", c[0], c[1], c[2]);
 		break;
 	case STATE_KIND_INTEGER:
 		snprintf(buf, n, "%u", *(const uint32_t *)field);
@@ -678,6 +698,25 @@ void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx)
 			continue;
 		fn(ctx, k->name, buf);
 	}
+}
+
+void state_foreach_exact(const struct sky_state *s, state_emit_fn fn, void *ctx)
+{
+	int was = format_exact;
+
+	format_exact = 1;
+	state_foreach(s, fn, ctx);
+	format_exact = was;
+}
+
+int state_get_exact(const struct sky_state *s, const char *key, char *buf, size_t size)
+{
+	int was = format_exact;
+
+	format_exact = 1;
+	int r = state_get(s, key, buf, size);
+	format_exact = was;
+	return r;
 }
 
 void state_foreach_given(const struct sky_state *s, state_emit_fn fn, void *ctx)
