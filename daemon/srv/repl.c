@@ -159,7 +159,7 @@ int repl_new(struct loop *l, const struct sync_config *cfg, struct srv *srv, str
 		free(r);
 		return e;
 	}
-	srv_set_sync(srv, &(struct srv_sync){ apply_time, r });
+	srv_set_sync(srv, &(struct srv_sync){ apply_time, may_change, r });
 	if (ctl)
 		ctl_set_sync(ctl, &(struct ctl_sync){ may_change, status, r });
 	if (r->role == SYNC_CONTROLLER) {
