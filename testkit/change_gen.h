@@ -30,6 +30,7 @@ static const char *const change_gen_modes[] = { "clock", NULL };
 static const struct change_key change_keys[] = {
 	{ "sun_elevation_deg", -8, 85, NULL, 0 },
 	{ "sun_azimuth_deg", 0, 360, NULL, 0 },
+	{ "sun_angular_radius_deg", 0.2, 0.35, NULL, 0 },
 	{ "moon_elevation_deg", -10, 70, NULL, 0 },
 	{ "moon_illuminance_lx", 0, 0.3, NULL, 0 },
 	{ "ground_albedo", 0, 0.9, NULL, 0 },

@@ -154,8 +154,10 @@ static const struct state_key keys[] = {
 	  .doc = "the sun's illuminance at the top of the atmosphere (the tables get it times the cloud factor)" },
 	{ .name = "sun_color", TRIPLE(sun.color, 0, 1e3), .def = 1.0, .dirty = LIGHTS, .unit = "-",
 	  .doc = "the sun's linear RGB tint, luminance 1; never the clock's" },
+	/* The multiple-scattering table sees the disk set at the horizon
+	 * (multiscatter.comp's sunlight, light_visible): not the lights alone. */
 	{ .name = "sun_angular_radius_deg", NUMBER(sun.angular_radius_deg, 1e-4, 20),
-	  .def = 0.004675 * 180.0 / M_PI, .dirty = LIGHTS, .unit = "deg",
+	  .def = 0.004675 * 180.0 / M_PI, .dirty = FROM_M, .unit = "deg",
 	  .hands = STATE_HANDS_SUN_TO_USER, .doc = "the sun disk's angular radius" },
 	{ .name = "moon_elevation_deg", NUMBER(moon.elevation_deg, -90, 90), .def = -30.0,
 	  .dirty = LIGHTS, .unit = "deg", .hands = STATE_HANDS_MOON_TO_USER,

@@ -67,11 +67,12 @@ struct sync {
 
 	/* controller: the latest state to send, named by its sequence (the
 	 * last one given); sent_seq: the last one handed to the broker on
-	 * this connection, 0 none */
+	 * this connection, 0 none; inflight_*: the one it has not
+	 * acknowledged yet */
 	struct sky_state *pending;
 	uint64_t seq, pending_gen, sent_seq;
 	int64_t pending_apply;
-	uint64_t inflight_seq, inflight_gen;
+	uint64_t inflight_gen;
 	int64_t inflight_apply;
 	int inflight_mid;		/* 0: nothing in flight */
 	char *buf;			/* SYNC_MSG_MAX + 1 */
@@ -403,7 +404,6 @@ static void send_pending(struct sync *s)
 		return;
 	}
 	s->inflight_mid = mid ? mid : -1;
-	s->inflight_seq = s->seq;
 	s->inflight_gen = s->pending_gen;
 	s->inflight_apply = s->pending_apply;
 	s->sent_seq = s->seq;

@@ -118,12 +118,15 @@ static void emit_body(void *ctx, const char *key, const char *value)
 }
 
 /* The raw coefficients that win over the weather (struct state_weather's
- * overridden bits), by the names `get weather` shows them with. */
+ * overridden bits), by the names `get weather` shows them with, in the
+ * order of their bits (enum state_override). */
 static const char *const override_names[] = {
 	"mie_scattering_per_km", "mie_absorption_per_km", "mie_g", "mie_profile",
 	"ozone_absorption_per_km",
 };
 #define N_OVERRIDES (sizeof(override_names) / sizeof(override_names[0]))
+_Static_assert(1u << (N_OVERRIDES - 1) == STATE_OVERRIDE_OZONE_ABSORPTION &&
+	       STATE_OVERRIDE_MIE_PROFILE == 1u << 3, "one name per override bit");
 
 static void format_overrides(uint32_t bits, char *buf, size_t size)
 {
@@ -140,9 +143,8 @@ static void format_overrides(uint32_t bits, char *buf, size_t size)
 int sync_msg_encode(const struct sky_state *st, const struct sync_msg_header *h, char *buf,
 		    size_t size, size_t *ret_len)
 {
-	char overrides[160];
-
 	struct writer w = { .buf = NULL };
+	char overrides[160];
 	double real_s, mono_s;
 
 	if (!sync_id_valid(h->controller) || h->sequence == 0 || h->generation == 0 ||

@@ -8,6 +8,10 @@
  * is in flight, must hold it: its slot's state and every valid table bit
  * for bit those of a full recompute of the mirror in this process.
  *
+ * First each key the rounds change, alone, on a sky that needs every
+ * table: what its row invalidates is all that differs from a full
+ * recompute.
+ *
  * Usage: test_daemon_converge [SEED] (else $SKYD_TEST_SEED, else a fixed
  * one; printed, and printed again on failure with the line that reruns
  * it). Several rounds, each its seed plus its index. The pauses between
@@ -272,6 +276,34 @@ static void check_slot(struct conn *c, const char *what)
 	munmap((void *)map, (size_t)st.st_size);
 }
 
+/* Each key the rounds change, alone, on a sky that needs every table:
+ * what it invalidates is all that differs from a full recompute. */
+static void keys_alone(void)
+{
+	const size_t n = sizeof(change_keys) / sizeof(change_keys[0]);
+	struct conn all;
+	char line[160], what[96];
+
+	if (conn_open(&all, d.sock) < 0 ||
+	    conn_request(&all, "subscribe tables=all", reply, sizeof(reply)) != 0) {
+		FAIL("keys alone: subscribe tables=all");
+		return;
+	}
+	for (size_t k = 0; k < n; k++) {
+		const struct change_key *key = &change_keys[k];
+		if (key->clock)
+			continue;
+		snprintf(line, sizeof(line), "set %s=%.6g", key->name, 0.3 * key->lo + 0.7 * key->hi);
+		snprintf(what, sizeof(what), "%s alone", key->name);
+		change_on(&ctl, line);
+		settle(last_generation);
+		CHECK(conn_request(&all, "ping", reply, sizeof(reply)) == 0);
+		check_get(what);
+		check_slot(&all, what);
+	}
+	conn_close(&all);
+}
+
 /* A round: OPS_PER_ROUND random things, the other connections closed
  * (their views go: a skyd's views share the marches of its aerial table),
  * one last change, then what it must show. */
@@ -302,6 +334,8 @@ static void round_random(uint64_t seed)
 		return;
 	}
 	settle(reply_u64(reply, "generation"));
+	/* A new region (the views gone) came to all with a layout: line. */
+	CHECK(conn_request(&all, "ping", reply, sizeof(reply)) == 0);
 	check_get(what);
 	check_slot(&all, what);
 	conn_close(&all);
@@ -328,6 +362,7 @@ int main(int argc, char **argv)
 		FAIL("skyd did not start");
 		return test_report("test_daemon_converge");
 	}
+	keys_alone();
 	for (int r = 0; r < ROUNDS; r++)
 		round_random(seed + (uint64_t)r);
 	conn_close(&ctl);

@@ -68,6 +68,10 @@ static void test_invalidation(void)
 	dirty = 0;
 	CHECK(state_set_pair(&s, "ground_albedo=0.1", &dirty, err, sizeof(err)) == 0);
 	CHECK(dirty == (STATE_ALL_TABLES & ~STATE_BIT(STATE_TRANSMITTANCE)));
+	/* The sun's disk setting at the horizon is in the multiple scattering. */
+	dirty = 0;
+	CHECK(state_set_pair(&s, "sun_angular_radius_deg=0.3", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == (STATE_ALL_TABLES & ~STATE_BIT(STATE_TRANSMITTANCE)));
 }
 
 /* state_diff sees every bit: a value the clock computed that get's nine
