@@ -82,7 +82,8 @@ PANORAMA_DTYPE = _dtype([
     ("horizon_rad", "=f8", 64)], 72)
 VIEW_DTYPE = _dtype([
     ("name", "S%d" % VIEW_NAME_MAX, 0), ("altitude_km", "=f8", 32),
-    ("camera_forward", V3, 40), ("camera_right", V3, 64), ("camera_up", V3, 88), ("camera_vfov_rad", "=f8", 112),
+    ("camera_forward", V3, 40), ("camera_right", V3, 64), ("camera_up", V3, 88),
+    ("camera_vfov_rad", "=f8", 112),
     ("camera_aspect", "=f8", 120), ("form", "=u4", 128), ("panorama", PANORAMA_DTYPE, 136)],
     VIEW_BYTES)
 TABLE_DTYPE = _dtype([("id", "=u4", 0), ("format", "=u4", 4), ("width", "=u4", 8),
@@ -118,7 +119,8 @@ class TableInfo:
         self.name = TABLE_NAMES[self.id]
         self.format_id = int(rec["format"])
         self.format = "rgba16f" if self.format_id == FORMAT_RGBA16F else "rgba32f"
-        self.width, self.height, self.depth = int(rec["width"]), int(rec["height"]), int(rec["depth"])
+        self.width, self.height = int(rec["width"]), int(rec["height"])
+        self.depth = int(rec["depth"])
         self.texel_bytes = int(rec["texel_bytes"])
         self.offset = int(rec["offset"])
         self.bytes = int(rec["bytes"])

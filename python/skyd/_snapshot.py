@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from . import _sample as smp
-from ._shm import (FORMAT_RGBA16F, PANORAMA_DTYPE, SLOT_APPLY_TIME_NS, SLOT_CHECKSUM,
+from ._shm import (FORMAT_RGBA16F, SLOT_APPLY_TIME_NS, SLOT_CHECKSUM,
                    SLOT_N_VIEWS, SLOT_STATE, SLOT_VALID_TABLES, SLOT_VALID_VIEWS, SLOT_VIEWS,
                    STATE_BYTES, STATE_DTYPE, TABLE_NAMES, VIEW_BYTES, VIEW_DTYPE, VIEW_PANORAMA,
                    VIEW_VOLUME, CHECKSUM_SEED, checksum_words)

@@ -9,7 +9,7 @@ import socket
 import time
 
 from . import _wire as w
-from .client import EVENTS_MAX, RECONNECT_INTERVAL_S, TABLE_NAMES, Batch, Sample, _Core, \
+from .client import RECONNECT_INTERVAL_S, TABLE_NAMES, Batch, Client, Sample, _Core, \
     table_names
 
 
@@ -232,7 +232,7 @@ class AsyncClient(_Core):
         reply = await self._exchange(data, maps=maps)
         if isinstance(reply, w.SkyError):
             raise reply
-        self._note_generation(reply)
+        self._note_generation(data, reply)
         return reply
 
     async def request(self, verb, *words, **keys):
@@ -260,7 +260,7 @@ class AsyncClient(_Core):
         first = await self._exchange(data, lines_if_refused=len(lines))
         if isinstance(first, w.SkyError):
             raise first
-        self._note_generation(first)
+        self._note_generation(data, first)
         return first
 
     async def status(self):
@@ -416,3 +416,16 @@ class _AsyncBatch(Batch):
         if exc_type is None:
             self._done(await self._send(self.lines))
         return False
+
+
+def _borrow_docs():
+    """The coroutines say what the blocking methods say, where they do not
+    say it themselves."""
+    for name, fn in vars(AsyncClient).items():
+        if callable(fn) and not fn.__doc__ and not name.startswith("_"):
+            blocking = getattr(Client, name, None)
+            if blocking is not None and blocking.__doc__:
+                fn.__doc__ = "As Client.%s (a coroutine): " % name + blocking.__doc__
+
+
+_borrow_docs()

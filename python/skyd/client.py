@@ -10,6 +10,7 @@ from . import _wire as w
 from ._shm import TABLE_NAMES, Region
 
 TOPICS = ("sun", "moon", "times", "weather", "sensor")
+CHANGES = (b"set", b"batch", b"end", b"view", b"sensor")
 RECONNECT_INTERVAL_S = 0.1
 EVENTS_MAX = 100000
 
@@ -111,9 +112,12 @@ class _Core:
         if self.region is None or self.region.identity != identity_before:
             self.last_generation = 0
 
-    def _note_generation(self, reply):
-        g = reply.get("generation") if isinstance(reply, w.Reply) else None
-        if g is not None:
+    def _note_generation(self, line, reply):
+        """A change (set, end, view add/del, sensor) names the generation
+        that will show it: tables() waits for it by default."""
+        verb = line.split(None, 1)[0]
+        g = reply.get("generation")
+        if verb in CHANGES and g is not None:
             self.last_generation = max(self.last_generation, int(g))
 
     def _adopt_region(self, fd):
@@ -195,8 +199,9 @@ class Client(_Core):
 
     The verbs: set, get, batch, status, subscribe, unsubscribe, sample,
     view_add, view_del, views, metar, sensor, sensor_list, sensor_events,
-    commands, help, ping, close; request() sends any line. tables() and
-    wait() read the shared memory; events() yields event lines.
+    commands, help, ping, quit (the close verb); request() sends any line.
+    tables() and wait() read the shared memory; events() yields event
+    lines; close() ends the connection from this side.
     A Client is not thread-safe: use one per thread.
     """
 
@@ -359,7 +364,7 @@ class Client(_Core):
         reply = self._exchange(data, maps=maps)[0]
         if isinstance(reply, w.SkyError):
             raise reply
-        self._note_generation(reply)
+        self._note_generation(data, reply)
         return reply
 
     def request(self, verb, *words, **keys):
@@ -404,11 +409,12 @@ class Client(_Core):
         first = self._exchange(data)[0]
         if isinstance(first, w.SkyError) and first.verb == "batch":
             # A refused batch opens none: every line after it was answered.
-            self._exchange(b"", n_replies=len(lines) + 1)
+            for _ in range(len(lines) + 1):
+                self._read_reply(self.timeout)
             raise first
         if isinstance(first, w.SkyError):
             raise first
-        self._note_generation(first)
+        self._note_generation(data, first)
         return first
 
     def status(self):

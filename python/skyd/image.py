@@ -17,11 +17,12 @@ def luminance(rgb):
 
 
 def auto_exposure(rgb):
-    """A scale that puts the image's mean luminance (of its lit pixels) at
-    0.18, the middle grey a light meter aims for."""
+    """A scale that puts the image's median luminance (of its lit pixels) at
+    0.18, the middle grey a light meter aims for; the median, so that a
+    sun's disk of a few pixels does not darken the sky."""
     y = luminance(rgb)
     lit = y[y > 0.0]
-    return 0.18 / float(lit.mean()) if lit.size else 1.0
+    return 0.18 / float(np.median(lit)) if lit.size else 1.0
 
 
 def to_srgb8(rgb, scale=None):
@@ -73,7 +74,8 @@ def read_png(path):
     while pos < len(data):
         n, kind = struct.unpack(">I4s", data[pos:pos + 8])
         body = data[pos + 8:pos + 8 + n]
-        if zlib.crc32(kind + body) & 0xFFFFFFFF != struct.unpack(">I", data[pos + 8 + n:pos + 12 + n])[0]:
+        crc = struct.unpack(">I", data[pos + 8 + n:pos + 12 + n])[0]
+        if zlib.crc32(kind + body) & 0xFFFFFFFF != crc:
             raise ValueError("a PNG chunk with a bad CRC")
         if kind == b"IHDR":
             hdr = struct.unpack(">IIBBBBB", body)

@@ -117,7 +117,8 @@ def test_status_commands_help(client):
     assert st["protocol"] == 5 and st["role"] == "controller"
     assert isinstance(st["generation"], int) and st["device"]
     assert st["sync"] == "off"
-    assert {"set", "get", "batch", "subscribe", "sample", "view", "sensor"} <= set(client.commands())
+    verbs = {"set", "get", "batch", "subscribe", "sample", "view", "sensor"}
+    assert verbs <= set(client.commands())
     h = client.help("subscribe")
     assert h["usage"].startswith("subscribe")
 

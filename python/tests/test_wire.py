@@ -23,7 +23,8 @@ def test_request_lines():
 
 
 def test_values_as_the_protocol_writes_them():
-    utc = datetime.datetime(2026, 6, 21, 20, 30, tzinfo=datetime.timezone(datetime.timedelta(hours=2)))
+    paris = datetime.timezone(datetime.timedelta(hours=2))
+    utc = datetime.datetime(2026, 6, 21, 20, 30, tzinfo=paris)
     assert w.format_value(utc) == "2026-06-21T18:30:00Z"
     assert w.format_value(datetime.date(2026, 12, 21)) == "2026-12-21"
     assert w.format_value(np.float32(0.5)) == "0.5"
@@ -60,7 +61,8 @@ def test_values_from_replies():
 
 def test_ack_lines():
     e = w.parse_ack("ACK [51] {set} sun_elevation_deg: 100 is outside [-90, 90]")
-    assert (e.code, e.name, e.verb, e.key, e.line) == (51, "range", "set", "sun_elevation_deg", None)
+    assert (e.code, e.name, e.verb, e.key, e.line) == (51, "range", "set", "sun_elevation_deg",
+                                                       None)
     assert e.code == skyd.Ack.RANGE
     assert str(e) == "ACK [51] {set} sun_elevation_deg: 100 is outside [-90, 90]"
     e = w.parse_ack("ACK [51] {end} line 2: sun_elevation_deg: 300 is outside [-90, 90]; "
