@@ -131,9 +131,10 @@ def probe():
 
 
 def pytest_sessionfinish(session, exitstatus):
-    """Nothing ran because the machine has no Vulkan device: 77 for ctest."""
+    """Tests skipped because the machine has no Vulkan device, none failed:
+    77 for ctest, which reports the module skipped rather than passed."""
     reporter = session.config.pluginmanager.get_plugin("terminalreporter")
     stats = reporter.stats if reporter else {}
-    if session.config.stash.get(NO_DEVICE, False) and not stats.get("passed") \
-            and not stats.get("failed") and not stats.get("error"):
+    if session.config.stash.get(NO_DEVICE, False) and not stats.get("failed") \
+            and not stats.get("error"):
         session.exitstatus = 77
