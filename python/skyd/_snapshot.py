@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from . import _sample as smp
-from ._shm import (FORMAT_RGBA16F, SLOT_APPLY_TIME_NS, SLOT_CHECKSUM,
+from ._shm import (FORMAT_RGBA16F, MAX_VIEWS, SLOT_APPLY_TIME_NS, SLOT_BYTES, SLOT_CHECKSUM,
                    SLOT_N_VIEWS, SLOT_STATE, SLOT_VALID_TABLES, SLOT_VALID_VIEWS, SLOT_VIEWS,
                    STATE_BYTES, STATE_DTYPE, TABLE_NAMES, VIEW_BYTES, VIEW_DTYPE, VIEW_PANORAMA,
                    VIEW_VOLUME, CHECKSUM_SEED, checksum_words)
@@ -195,7 +195,7 @@ class Snapshot:
         data = self.raw
         n = int(np.frombuffer(data, "=u4", 1, SLOT_N_VIEWS)[0])
         valid = int(np.frombuffer(data, "=u4", 1, SLOT_VALID_VIEWS)[0])
-        if not n or n > 8:
+        if not n or n > MAX_VIEWS:
             return {}
         recs = np.frombuffer(data, VIEW_DTYPE, n, SLOT_VIEWS)
         out = {}
@@ -220,7 +220,7 @@ class Snapshot:
         off, nbytes = int(p["offset"]), int(p["bytes"])
         # skysample_check_panorama: the entry comes from a peer.
         if (not w or not h or not d or max(w, h, d) > 65536 or nbytes != w * h * d * 16
-                or off % 8 or off < 2120 or off > self._slot_bytes
+                or off % 8 or off < SLOT_BYTES or off > self._slot_bytes
                 or nbytes > self._slot_bytes - off):
             raise ValueError("a view's panorama lies outside its slot")
         return np.frombuffer(self.raw, np.float32, w * h * d * 4, off).reshape(d, h, w, 4)
@@ -235,7 +235,7 @@ class Snapshot:
                 info = self.layout[name]
                 h = checksum_words(h, self.raw, info.offset, info.bytes)
         n = int(np.frombuffer(self.raw, "=u4", 1, SLOT_N_VIEWS)[0])
-        if not n or n > 8:
+        if not n or n > MAX_VIEWS:
             return h == self.checksum
         h = checksum_words(h, self.raw, SLOT_VIEWS, n * VIEW_BYTES)
         valid = int(np.frombuffer(self.raw, "=u4", 1, SLOT_VALID_VIEWS)[0])
