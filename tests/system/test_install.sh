@@ -48,6 +48,8 @@ expected=$tmp/expected
 	for d in README.md PROTOCOL.md clock.md physics.md sensor.md sync.md weather.md render-clients.md render-client-example.md examples/skyd.conf; do
 		echo "$DOCDIR/$d"
 	done
+	# The Python package, where python/CMakeLists.txt put it.
+	[ -f "$build/python/install-files.txt" ] && cat "$build/python/install-files.txt"
 	if [ -f "$build/man/skyd.8" ]; then
 		echo "$MANDIR/man8/skyd.8"
 		echo "$MANDIR/man1/skyctl.1"
