@@ -40,7 +40,7 @@
 #define SKYCLOUD_MAX_LAYERS 4
 /* The field repeats every SKYCLOUD_PERIOD_KM east and north (and up): the
  * wind's offset is taken modulo it in double, so that a float holds it to
- * 0.1 mm. Twice the widest region (cloud_extent_km at most 512). */
+ * 6 cm. Twice the widest region (cloud_extent_km at most 512). */
 #define SKYCLOUD_PERIOD_KM 1024
 #define SKYCLOUD_COVERAGE_OCTAVES 5
 #define SKYCLOUD_DETAIL_OCTAVES 3
@@ -196,7 +196,7 @@ static inline void skycloud_sincos_deg(double deg, double *ret_sin, double *ret_
  * since the POSIX epoch): the wind blows from wind_dir_deg (clockwise from
  * north, as METAR) at wind_speed_mps, so the field moves toward
  * wind_dir_deg + 180. East and north km in [0, SKYCLOUD_PERIOD_KM), in
- * double: a float of the product would lose metres within a day. */
+ * double: a float of the product, some 1e7 km, would lose a kilometre. */
 static inline void skycloud_wind_offset_km(double wind_dir_deg, double wind_speed_mps,
 					   double time_s, double ret_km[2])
 {
@@ -208,7 +208,7 @@ static inline void skycloud_wind_offset_km(double wind_dir_deg, double wind_spee
 		double o = fmod(v[i] * time_s * 1e-3, (double)SKYCLOUD_PERIOD_KM);
 		if (o < 0.0)
 			o += SKYCLOUD_PERIOD_KM;
-		ret_km[i] = o >= SKYCLOUD_PERIOD_KM ? 0.0 : o;
+		ret_km[i] = o >= SKYCLOUD_PERIOD_KM ? 0.0 : o + 0.0;	/* + 0: no -0 */
 	}
 }
 
