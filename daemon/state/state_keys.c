@@ -17,7 +17,7 @@
  *     macro holding what its members share, and one row per member with
  *     the member's literal name: CONSTITUENT below. Layered families such
  *     as cloudN_base_m take the index as an argument and address their
- *     field with it (.offset = OFF(clouds[N - 1].base_m)).
+ *     field with it (.offset = OFF(clouds.layer[N - 1].base_m): CL_BASE).
  *   - Code elsewhere that must name a key uses its row: state_key_find,
  *     or an id (enum state_key_id) in the row and state_key_of.
  * Then regenerate the key list of proto/PROTOCOL.md (tools/gen_keys_doc.sh);
