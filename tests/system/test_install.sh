@@ -33,8 +33,8 @@ expected=$tmp/expected
 	echo "$LIBDIR/libsky.so"
 	echo "$LIBDIR/libsky.so.0"
 	echo "$LIBDIR/libsky.so.0.3.0"
-	for h in sky.h skyproto.h skymap.h skysample.h; do echo "$INCLUDEDIR/$h"; done
-	for g in sky.glsl skymap.glsl; do echo "$INCLUDEDIR/sky/glsl/$g"; done
+	for h in sky.h skyproto.h skymap.h skysample.h skycloud.h; do echo "$INCLUDEDIR/$h"; done
+	for g in sky.glsl skymap.glsl skycloud.glsl; do echo "$INCLUDEDIR/sky/glsl/$g"; done
 	echo "$LIBDIR/pkgconfig/libsky.pc"
 	for f in skyConfig.cmake skyConfigVersion.cmake skyTargets.cmake; do
 		echo "$LIBDIR/cmake/sky/$f"
@@ -45,7 +45,7 @@ expected=$tmp/expected
 	echo "$TMPFILESDIR/skyd.conf"
 	echo "$UDEVRULESDIR/70-skyd-sensor.rules"
 	echo "$SYSCONFDIR/skyd/skyd.conf"
-	for d in README.md PROTOCOL.md clock.md physics.md sensor.md sync.md weather.md render-clients.md render-client-example.md examples/skyd.conf; do
+	for d in README.md PROTOCOL.md clock.md physics.md sensor.md sync.md weather.md clouds.md render-clients.md render-client-example.md examples/skyd.conf; do
 		echo "$DOCDIR/$d"
 	done
 	# The Python package, where python/CMakeLists.txt put it.
@@ -79,7 +79,7 @@ check "the units name the installed skyd" \
 check "the installed skyd accepts the example config" \
 	"'$dest$BINDIR/skyd' -n --config '$dest$SYSCONFDIR/skyd/skyd.conf' >/dev/null"
 
-for h in sky.h skyproto.h skymap.h skysample.h; do
+for h in sky.h skyproto.h skymap.h skysample.h skycloud.h; do
 	echo "#include <$h>" >"$tmp/h.c"
 	check "$h compiles alone" \
 		"cc -std=c17 -Wall -Wextra -Werror -c -I'$dest$INCLUDEDIR' '$tmp/h.c' -o '$tmp/h.o'"
