@@ -78,9 +78,10 @@ def test_ack_lines():
 
 
 def test_greeting():
-    assert w.parse_greeting("OK skyd 5") == "5"
+    v = w.PROTOCOL_VERSION
+    assert w.parse_greeting("OK skyd %s" % v) == v
     with pytest.raises(skyd.ProtocolError):
-        w.parse_greeting("OK skyd 4")
+        w.parse_greeting("OK skyd %d" % (int(v) - 1))
     with pytest.raises(skyd.ProtocolError):
         w.parse_greeting("SSH-2.0-OpenSSH")
     with pytest.raises(skyd.SkyError) as e:
@@ -126,3 +127,16 @@ def test_descriptors_queue_in_the_order_they_came():
     finally:
         os.close(a)
         os.close(b)
+
+
+def test_versions_follow_the_c_headers():
+    """The package's protocol and layout versions are the C headers' own:
+    a bump in proto/ that the package did not follow fails here."""
+    import re
+    from skyd import _shm, _wire
+    proto = os.path.join(os.path.dirname(__file__), "..", "..", "proto", "skyproto.h")
+    with open(proto) as f:
+        text = f.read()
+    assert re.search(r'#define SKY_PROTO_VERSION "([0-9.]+)"', text).group(1) == _wire.PROTOCOL_VERSION
+    layout = re.search(r"#define SKY_SHM_LAYOUT_VERSION (\d+)u?", text)
+    assert layout and int(layout.group(1)) == _shm.LAYOUT_VERSION
