@@ -7,7 +7,7 @@ build's skyd, skyctl and skyrender first in PATH, in a directory of its own.
 
 A block's indented lines are commands. In a block with "$ " lines, those
 are the commands and the lines after each its expected output; a "$ socat"
-session is a transcript, the user's requests between skyd's replies (each
+line opens a transcript, the user's requests between skyd's replies (each
 ending with its OK or ACK line), typed one at a time as a reader would.
 Every command must exit 0. Output compares line by line: the words
 exactly, whole numbers exactly, other figures to a relative 1e-3 (the
@@ -86,7 +86,7 @@ def read_line(proc, deadline):
     return buf.decode().rstrip("\n")
 
 
-def session(cmd, lines, env, cwd):
+def conversation(cmd, lines, env, cwd):
     """A socat transcript: the greeting, then each request and its reply."""
     proc = subprocess.Popen(["bash", "-c", cmd], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                             env=env, cwd=cwd)
@@ -138,7 +138,7 @@ def run_block(lines, env, cwd, build):
     # The build's folder where the README names build/ (before the install).
     lines = [re.sub(r"(?<![\w/.-])build/", build + "/", l) for l in lines]
     if lines and lines[0].startswith("$ socat"):
-        session(lines[0][2:], lines[1:], env, cwd)
+        conversation(lines[0][2:], lines[1:], env, cwd)
         return
     if not any(l.startswith("$ ") for l in lines):
         for l in lines:
