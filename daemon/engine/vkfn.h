@@ -21,6 +21,7 @@
 	X(vkGetPhysicalDeviceProperties2)            \
 	X(vkGetPhysicalDeviceQueueFamilyProperties)  \
 	X(vkGetPhysicalDeviceMemoryProperties)       \
+	X(vkEnumerateDeviceExtensionProperties)      \
 	X(vkCreateDevice)                            \
 	X(vkGetDeviceProcAddr)
 
@@ -46,6 +47,9 @@
 	X(vkDestroyPipelineLayout)           \
 	X(vkCreateComputePipelines)          \
 	X(vkDestroyPipeline)                 \
+	X(vkCreatePipelineCache)             \
+	X(vkDestroyPipelineCache)            \
+	X(vkGetPipelineCacheData)            \
 	X(vkCreateDescriptorPool)            \
 	X(vkDestroyDescriptorPool)           \
 	X(vkAllocateDescriptorSets)          \
