@@ -123,6 +123,18 @@ void flush_range(int table)
 		atomicMax(PB.max_bits[table], range_bits);
 }
 
+// The table row that invocation row gy of n computes: rows from both ends
+// in turn. lavapipe hands each of its threads a contiguous share of the
+// workgroups, so where a row's cost grows from one end of the table to the
+// other (altitude, the horizon) each share gets half of each end and the
+// threads finish together; a GPU does not care. Rows past n stay past it.
+int interleaved_row(int gy, int n)
+{
+	if (gy >= n)
+		return gy;
+	return (gy & 1) == 0 ? gy >> 1 : n - 1 - (gy >> 1);
+}
+
 // skymap.glsl's, at this planet.
 float safe_sqrt(float x) { return skymap_safe_sqrt(x); }
 float tex_to_unit(float u, int n) { return skymap_tex_to_unit(u, n); }

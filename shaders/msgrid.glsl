@@ -109,12 +109,13 @@ int cell_slot(int k)
 
 // The invocation's texels: the first of its row group (x), its row (y) and
 // its lane, which is the first cell it marches (z); it marches every
-// MS_LANES-th cell from there.
+// MS_LANES-th cell from there. The CPU grain's rows are interleaved
+// (interleaved_row()): a row's cost grows with its altitude.
 ivec3 ms_texels()
 {
 	if (MS_LANES > 1)
 		return ivec3(gl_WorkGroupID.xy, gl_LocalInvocationID.x);
-	return ivec3(int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, gl_GlobalInvocationID.y, 0);
+	return ivec3(int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, interleaved_row(int(gl_GlobalInvocationID.y), OUT_H), 0);
 }
 
 // The wide grain's sums over the cells: each lane puts the n parts it
