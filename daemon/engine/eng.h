@@ -141,6 +141,9 @@ int eng_submit_to(struct eng *e, const struct sky_state *s, const struct state_l
  * or the alignment does not hold: err says which) or -errno; at most two
  * regions at a time (-ENOSPC). */
 int eng_host_import(struct eng *e, void *base, size_t bytes, char *err, size_t err_size);
+/* Whether the engine's host copies (eng_table) hold every table of tables
+ * as last computed. */
+int eng_host_fresh(const struct eng *e, uint32_t tables);
 /* Forgets the import of base, waiting first for a computation in flight
  * that writes there; no-op for memory not imported. */
 void eng_host_release(struct eng *e, void *base);

@@ -5,10 +5,11 @@
 
 #include <string.h>
 
+/* The region imported at base; with base NULL, a free entry. */
 static struct host_region *find_region(struct eng *e, const void *base)
 {
 	for (size_t i = 0; i < sizeof(e->regions) / sizeof(e->regions[0]); i++)
-		if (e->regions[i].base && e->regions[i].base == base)
+		if (e->regions[i].base == base)
 			return &e->regions[i];
 	return NULL;
 }
@@ -38,10 +39,13 @@ static int import_buffer(struct eng *e, struct host_region *r, char *err, size_t
 	VK_TRY(e->get_host_pointer_props(e->dev, type, r->base, &hp));
 	VK_TRY(e->vk.vkCreateBuffer(e->dev, &bi, NULL, &r->buf));
 	e->vk.vkGetBufferMemoryRequirements(e->dev, r->buf, &req);
-	int mt = vkcheck_find_memory(&e->mem_props, req.memoryTypeBits & hp.memoryTypeBits, 0,
-				     VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT);
+	/* Coherent: the publisher reads the tables through its own mapping,
+	 * which no vkInvalidateMappedMemoryRanges could reach. */
+	int mt = vkcheck_find_memory(&e->mem_props, req.memoryTypeBits & hp.memoryTypeBits,
+				     VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT,
+				     0);
 	if (mt < 0 || req.size > r->bytes) {
-		eng_set_err(err, err_size, "no memory type of the device can import the region");
+		eng_set_err(err, err_size, "no host-coherent memory type of the device can import the region");
 		return -EOPNOTSUPP;
 	}
 	VkImportMemoryHostPointerInfoEXT imp = { .sType = VK_STRUCTURE_TYPE_IMPORT_MEMORY_HOST_POINTER_INFO_EXT,
@@ -56,7 +60,7 @@ fail:
 
 int eng_host_import(struct eng *e, void *base, size_t bytes, char *err, size_t err_size)
 {
-	struct host_region *r = find_region(e, base);
+	struct host_region *r = base ? find_region(e, base) : NULL;
 	VkDeviceSize a = e->import_alignment;
 
 	if (r)
@@ -97,6 +101,14 @@ void eng_host_release(struct eng *e, void *base)
 	if (writing)
 		e->vk.vkWaitForFences(e->dev, 1, &e->fence, VK_TRUE, UINT64_MAX);
 	region_free(e, r);
+}
+
+int eng_host_fresh(const struct eng *e, uint32_t tables)
+{
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		if ((tables & STATE_BIT(t)) && !e->host_fresh[t])
+			return 0;
+	return 1;
 }
 
 void eng_host_free(struct eng *e)
