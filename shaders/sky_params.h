@@ -39,7 +39,10 @@
 				 * directions: 1, or a lane per cell (the grain) */
 #define SPEC_LOCAL_X 26		/* the workgroup's size, where a pass takes it */
 #define SPEC_LOCAL_Y 27
-#define SPEC_COUNT 28
+#define SPEC_LOOKUP_IMAGES 28	/* sky-view and aerial perspective read transmittance
+				 * and multi-scattering through sampled images (the
+				 * texture units' filtering), not texel buffers */
+#define SPEC_COUNT 29
 
 /* Bindings of the one descriptor set. The tables are storage buffers in
  * state_table order; transmittance and multi-scattering are read again
@@ -60,7 +63,9 @@
 #define BINDING_PACK 13			/* struct gpu_pack: pack.comp's counts, ranges, scales */
 #define BINDING_AERIAL_TEX 14		/* the aerial table's memory as a lookup: the
 					 * eye-point panoramas aerial_resample.comp reads */
-#define BINDING_COUNT 15
+#define BINDING_TRANSMITTANCE_IMG 15	/* transmittance and multi-scattering as */
+#define BINDING_MULTISCATTER_IMG 16	/* sampled images (SPEC_LOOKUP_IMAGES) */
+#define BINDING_COUNT 17
 
 /* The aerial jobs at BINDING_VIEWS (eng_fill_views, aerial.comp,
  * aerial_resample.comp): a head whose first word is the number of march

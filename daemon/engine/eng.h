@@ -84,6 +84,16 @@ enum eng_grain eng_grain(const struct eng *e);
 const char *eng_grain_name(enum eng_grain g);
 /* Forces a grain from the next eng_submit on (tests, diagnostics). */
 void eng_set_grain(struct eng *e, enum eng_grain g);
+/* Whether sky-view and aerial perspective read the transmittance and
+ * multi-scattering tables through sampled images (the texture units'
+ * bilinear filtering) or through texel buffers filtered by hand, which the
+ * grain chose (buffers at both grains, docs/findings/engine.md) unless
+ * $SKYD_LOOKUPS says "images" or "buffers" (a diagnostic and test switch).
+ * The texture units may filter with fewer bits than float32: the tables
+ * then differ by their rounding (tests/numerical/test_grain.c). */
+int eng_lookup_images(const struct eng *e);
+/* Sets it from the next eng_submit on. */
+void eng_set_lookup_images(struct eng *e, int images);
 
 /* Keeps the compiled pipelines in dir (a VkPipelineCache in a file named
  * after the device), so that a later skyd on the same device and driver

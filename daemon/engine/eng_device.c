@@ -345,6 +345,8 @@ VkDescriptorType eng_binding_type(int binding)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
 	if (binding == BINDING_MOMENT_TEX || binding == BINDING_COLUMNS_TEX || binding == BINDING_AERIAL_TEX)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+	if (binding == BINDING_TRANSMITTANCE_IMG || binding == BINDING_MULTISCATTER_IMG)
+		return VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
 	return binding <= STATE_N_TABLES || binding >= BINDING_VIEWS
 		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
 		       : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
@@ -426,11 +428,12 @@ static int create_descriptors(struct eng *e, char *err, size_t err_size)
 	VkPipelineLayoutCreateInfo pli = { .sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
-	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
+	VkDescriptorPoolSize ps[4] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
 		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 5 },
-		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 3 } };
+		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 3 },
+		{ VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, N_LOOKUPS } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
-		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
+		.maxSets = 1, .poolSizeCount = 4, .pPoolSizes = ps };
 	VK_TRY(e->vk.vkCreateDescriptorPool(e->dev, &dpi, NULL, &e->desc_pool));
 	VkDescriptorSetAllocateInfo dai = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO,
 		.descriptorPool = e->desc_pool, .descriptorSetCount = 1, .pSetLayouts = &e->set_layout };
@@ -515,6 +518,15 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	}
 	VkFenceCreateInfo fi = { .sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO };
 	VK_TRY(e->vk.vkCreateFence(e->dev, &fi, NULL, &e->fence));
+	/* Texel coordinates (a table's texel i at i + 0.5), bilinear, clamped:
+	 * the hand-made bilinear() of common.glsl, by the texture units. */
+	VkSamplerCreateInfo sci = { .sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
+		.magFilter = VK_FILTER_LINEAR, .minFilter = VK_FILTER_LINEAR,
+		.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
+		.addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
+		.addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
+		.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE, .unnormalizedCoordinates = VK_TRUE };
+	VK_TRY(e->vk.vkCreateSampler(e->dev, &sci, NULL, &e->sampler));
 	rc = create_host_buffers(e, err, err_size);
 fail:
 	return rc;
@@ -585,6 +597,8 @@ void eng_free(struct eng *e)
 		eng_buffer_free(e, &e->pack);
 		if (e->fence)
 			e->vk.vkDestroyFence(e->dev, e->fence, NULL);
+		if (e->sampler)
+			e->vk.vkDestroySampler(e->dev, e->sampler, NULL);
 		if (e->queries)
 			e->vk.vkDestroyQueryPool(e->dev, e->queries, NULL);
 		if (e->cmd_pool)

@@ -35,7 +35,19 @@ enum eng_grain eng_grain(const struct eng *e)
 
 void eng_set_grain(struct eng *e, enum eng_grain g)
 {
+	bool images = e->grain.lookup_images;
 	e->grain = g == ENG_GRAIN_WIDE ? wide_grain : cpu_grain;
+	e->grain.lookup_images = images;
+}
+
+int eng_lookup_images(const struct eng *e)
+{
+	return e->grain.lookup_images;
+}
+
+void eng_set_lookup_images(struct eng *e, int images)
+{
+	e->grain.lookup_images = images != 0;
 }
 
 /* Every conformant device can run the wide grain (a workgroup of 32
@@ -52,9 +64,15 @@ void eng_grain_choose(struct eng *e)
 	enum eng_grain g = e->info.type == VK_PHYSICAL_DEVICE_TYPE_CPU || !fits ? ENG_GRAIN_CPU
 										: ENG_GRAIN_WIDE;
 
+	const char *lookups = getenv("SKYD_LOOKUPS");
+
 	if (force && !strcmp(force, "wide") && fits)
 		g = ENG_GRAIN_WIDE;
 	else if (force && !strcmp(force, "cpu"))
 		g = ENG_GRAIN_CPU;
-	eng_set_grain(e, g);
+	e->grain = g == ENG_GRAIN_WIDE ? wide_grain : cpu_grain;
+	if (lookups && !strcmp(lookups, "images"))
+		e->grain.lookup_images = true;
+	else if (lookups && !strcmp(lookups, "buffers"))
+		e->grain.lookup_images = false;
 }

@@ -48,6 +48,7 @@ enum pass {
 	PASS_TRANSMITTANCE,
 	PASS_MULTISCATTER,
 	PASS_MSITERATE,		/* the iteration of psi_ms, thick atmospheres */
+	PASS_LOOKUP_IMAGES,	/* transmittance and multi-scattering into images */
 	PASS_SKYVIEW,
 	PASS_AERIAL,		/* every march job: volumes and panoramas */
 	PASS_RESAMPLE,		/* the views' volumes from the panoramas */
@@ -67,6 +68,10 @@ struct grain {
 	/* A lane per marched cell of one multi-scattering texel (a workgroup
 	 * a texel), or 1: each invocation marches every cell in turn. */
 	bool ms_wide;
+	/* Sky-view and aerial perspective read transmittance and
+	 * multi-scattering through sampled images, filtered by the texture
+	 * units, instead of texel buffers filtered by hand. */
+	bool lookup_images;
 };
 
 /* phase_ground_excess of one constituent, kept while its phase stays: it
@@ -199,6 +204,19 @@ struct eng {
 	 * vectorized, where a storage-buffer load with a varying index is a
 	 * loop over the lanes on lavapipe. */
 	VkBufferView lookup_view[N_LOOKUPS];
+	/* The same tables as sampled images (grain.lookup_images), copied
+	 * from the buffers after each computation of them; made whatever the
+	 * grain, since every pipeline's descriptors name them. images_valid:
+	 * they hold the tables as last computed; images_new: their layout is
+	 * still undefined. */
+	struct lookup_image {
+		VkImage img;
+		VkDeviceMemory mem;
+		VkImageView view;
+		uint32_t width, height;
+	} lookup_image[N_LOOKUPS];
+	VkSampler sampler;
+	bool images_valid, images_new;
 	/* struct gpu_pack, host-visible: the engine writes the texel counts
 	 * before a storage=f16 computation and reads the scales after it. */
 	struct gpu_buffer pack;
@@ -269,6 +287,10 @@ int eng_check_limits(const struct eng *e, const struct sky_state *s, char *err, 
 int eng_ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret_lost, char *err,
 		      size_t err_size);
 void eng_free_tables(struct eng *e);
+
+/* Records the move of the lookup images from an undefined layout to the
+ * one the descriptors say, where they were just made. */
+void eng_record_image_layouts(struct eng *e);
 
 /* eng_pass.c: the passes. */
 /* Fills params and pl for s and mask, creating the pipelines it lacks;

@@ -298,8 +298,10 @@ struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, in
 	}
 	if (t == STATE_TRANSMITTANCE)
 		k.v[SPEC_MULTISCATTER_ON] = k.v[SPEC_MOMENT_LOBE] = k.v[SPEC_DELTA_LOBE] = 0;
-	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
+	if (t == STATE_SKYVIEW || t == STATE_AERIAL) {
 		k.v[SPEC_GROUND_BLACK] = 0;	/* the ground enters through the multiscatter table */
+		k.v[SPEC_LOOKUP_IMAGES] = g->lookup_images;
+	}
 	return k;
 }
 

@@ -34,14 +34,15 @@ enum {
 	RES_MOMENT = 1 << 5,		/* the shape of the multiply scattered light */
 	RES_ITERATE = 1 << 6,		/* the iteration's scratch */
 	RES_PACK = 1 << 7,		/* struct gpu_pack: the ranges and scales */
+	RES_IMAGES = 1 << 8,		/* the lookups as sampled images */
 };
 #define RES_TABLES (RES_TRANSMITTANCE | RES_MULTISCATTER | RES_SKYVIEW | RES_AERIAL)
 /* What the passes that look the lower tables up read. */
-#define RES_LOOKUPS (RES_TRANSMITTANCE | RES_MULTISCATTER | RES_MOMENT | RES_COLUMNS)
+#define RES_LOOKUPS (RES_TRANSMITTANCE | RES_MULTISCATTER | RES_MOMENT | RES_COLUMNS | RES_IMAGES)
 
 struct pass_row {
 	const char *name;
-	int shader;		/* SHADER_* */
+	int shader;		/* SHADER_*; -1: no dispatch, record only */
 	int table;		/* whose GPU time it counts in; -1: the last table of the mask */
 	uint32_t reads, writes;	/* RES_* */
 	/* Whether the computation pl runs it; if so its key and groups (the
@@ -176,6 +177,61 @@ static void plan_pack(struct eng *e, const struct sky_state *s, const struct spe
 	r->groups[1] = r->groups[2] = 1;
 }
 
+/* Sky-view and aerial perspective read the lookups through images at
+ * that grain: copied after the tables were computed (or where the images
+ * were remade since), before the passes that read them. */
+static void plan_lookup_images(struct eng *e, const struct sky_state *s, const struct spec *base,
+			       struct plan *pl, struct pass_run *r)
+{
+	uint32_t lookups = STATE_BIT(STATE_TRANSMITTANCE) | STATE_BIT(STATE_MULTISCATTER);
+	uint32_t readers = STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
+	(void)s;
+	(void)base;
+	r->on = e->grain.lookup_images && (pl->mask & readers) && ((pl->mask & lookups) || !e->images_valid);
+	if (pl->mask & lookups)
+		e->images_valid = r->on;
+	else if (r->on)
+		e->images_valid = true;
+}
+
+/* The copies of the lookup tables into their images, from and back to
+ * the layout the shaders sample. */
+static void record_lookup_images(struct eng *e, const struct sky_state *s, const struct plan *pl,
+				 const struct pass_run *run)
+{
+	const VkMemoryBarrier written = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
+		.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT };
+	VkImageMemoryBarrier to[N_LOOKUPS], back[N_LOOKUPS];
+	(void)s;
+	(void)pl;
+	(void)run;
+
+	for (int t = 0; t < N_LOOKUPS; t++) {
+		to[t] = (VkImageMemoryBarrier){ .sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER,
+			.srcAccessMask = VK_ACCESS_SHADER_READ_BIT, .dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+			.oldLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+			.newLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+			.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED, .dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
+			.image = e->lookup_image[t].img, .subresourceRange = { VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1 } };
+		back[t] = to[t];
+		back[t].srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+		back[t].dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+		back[t].oldLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+		back[t].newLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+	}
+	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+				   VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &written, 0, NULL, N_LOOKUPS, to);
+	for (int t = 0; t < N_LOOKUPS; t++) {
+		VkBufferImageCopy c = { .imageSubresource = { VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1 },
+			.imageExtent = { e->lookup_image[t].width, e->lookup_image[t].height, 1 } };
+		e->vk.vkCmdCopyBufferToImage(e->cmd, e->table[t].buf, e->lookup_image[t].img,
+					     VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &c);
+	}
+	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0,
+				   0, NULL, 0, NULL, N_LOOKUPS, back);
+}
+
 /* The steps of the iteration of psi_ms: each writes the next table into
  * the scratch buffer, which is then copied over the table (later passes
  * and the next step read it through the lookup view). With storage=f16
@@ -229,6 +285,9 @@ static const struct pass_row pass_rows[N_PASSES] = {
 			     RES_LOOKUPS | RES_ITERATE,
 			     RES_MULTISCATTER | RES_MOMENT | RES_ITERATE | RES_PACK, plan_msiterate,
 			     record_iteration },
+	/* Counted with the last table, as the pack pass. */
+	[PASS_LOOKUP_IMAGES] = { "lookup_images", -1, -1, RES_TRANSMITTANCE | RES_MULTISCATTER,
+				 RES_IMAGES, plan_lookup_images, record_lookup_images },
 	[PASS_SKYVIEW] = { "skyview", SHADER_SKYVIEW, STATE_SKYVIEW, RES_LOOKUPS,
 			   RES_SKYVIEW | RES_PACK, plan_skyview, NULL },
 	[PASS_AERIAL] = { "aerial", SHADER_AERIAL, STATE_AERIAL, RES_LOOKUPS, RES_AERIAL | RES_PACK,
@@ -323,7 +382,7 @@ int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_l
 		if (!run->on)
 			continue;
 		rc = check_groups(e, p, run, err, err_size);
-		if (rc == 0)
+		if (rc == 0 && pass_rows[p].shader >= 0)
 			rc = get_pipeline(e, pass_rows[p].shader, &run->key, &run->pipe, err, err_size);
 	}
 	if (rc == 0 && pl->run[PASS_MSITERATE].on) {

@@ -28,6 +28,7 @@ static int record(struct eng *e, const struct sky_state *s, const struct plan *p
 		e->vk.vkCmdResetQueryPool(e->cmd, e->queries, 0, 2 * N_PASSES);
 	e->vk.vkCmdBindDescriptorSets(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, e->pipe_layout, 0, 1,
 				      &e->set, 0, NULL);
+	eng_record_image_layouts(e);
 	eng_record_passes(e, s, pl);
 	eng_record_publish(e, s, target, pl->mask);
 	VK_TRY(e->vk.vkEndCommandBuffer(e->cmd));

@@ -9,6 +9,7 @@
 static void bind_buffers(struct eng *e)
 {
 	VkDescriptorBufferInfo bi[N_BINDINGS] = { { e->params.buf, 0, VK_WHOLE_SIZE } };
+	VkDescriptorImageInfo ii[N_LOOKUPS];
 	VkWriteDescriptorSet w[N_BINDINGS];
 	for (int i = 0; i < N_BINDINGS; i++) {
 		w[i] = (VkWriteDescriptorSet){ .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
@@ -28,6 +29,13 @@ static void bind_buffers(struct eng *e)
 		}
 		if (i == BINDING_AERIAL_TEX) {
 			w[i].pTexelBufferView = &e->aerial_view;
+			continue;
+		}
+		if (i == BINDING_TRANSMITTANCE_IMG || i == BINDING_MULTISCATTER_IMG) {
+			const struct lookup_image *li = &e->lookup_image[i - BINDING_TRANSMITTANCE_IMG];
+			ii[i - BINDING_TRANSMITTANCE_IMG] = (VkDescriptorImageInfo){ e->sampler, li->view,
+				VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL };
+			w[i].pImageInfo = &ii[i - BINDING_TRANSMITTANCE_IMG];
 			continue;
 		}
 		if (i == BINDING_VIEWS)
@@ -139,6 +147,90 @@ fail:
 	return rc;
 }
 
+static void image_free(struct eng *e, struct lookup_image *li)
+{
+	if (li->view)
+		e->vk.vkDestroyImageView(e->dev, li->view, NULL);
+	if (li->img)
+		e->vk.vkDestroyImage(e->dev, li->img, NULL);
+	if (li->mem)
+		e->vk.vkFreeMemory(e->dev, li->mem, NULL);
+	memset(li, 0, sizeof(*li));
+}
+
+/* Lookup table t as a width x height float32 RGBA image that copies fill
+ * and shaders sample. */
+static int image_new(struct eng *e, uint32_t width, uint32_t height, struct lookup_image *li,
+		     char *err, size_t err_size)
+{
+	VkImageCreateInfo ci = { .sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO, .imageType = VK_IMAGE_TYPE_2D,
+		.format = VK_FORMAT_R32G32B32A32_SFLOAT, .extent = { width, height, 1 }, .mipLevels = 1,
+		.arrayLayers = 1, .samples = VK_SAMPLE_COUNT_1_BIT, .tiling = VK_IMAGE_TILING_OPTIMAL,
+		.usage = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
+		.sharingMode = VK_SHARING_MODE_EXCLUSIVE, .initialLayout = VK_IMAGE_LAYOUT_UNDEFINED };
+	VkMemoryRequirements req;
+	int rc = 0;
+
+	VK_TRY(e->vk.vkCreateImage(e->dev, &ci, NULL, &li->img));
+	e->vk.vkGetImageMemoryRequirements(e->dev, li->img, &req);
+	int type = vkcheck_find_memory(&e->mem_props, req.memoryTypeBits, 0, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+	if (type < 0) {
+		eng_set_err(err, err_size, "no Vulkan memory type for a lookup image");
+		return -ENOMEM;
+	}
+	VkMemoryAllocateInfo ai = { .sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO,
+		.allocationSize = req.size, .memoryTypeIndex = (uint32_t)type };
+	VK_TRY(e->vk.vkAllocateMemory(e->dev, &ai, NULL, &li->mem));
+	VK_TRY(e->vk.vkBindImageMemory(e->dev, li->img, li->mem, 0));
+	VkImageViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO, .image = li->img,
+		.viewType = VK_IMAGE_VIEW_TYPE_2D, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
+		.subresourceRange = { VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1 } };
+	VK_TRY(e->vk.vkCreateImageView(e->dev, &vi, NULL, &li->view));
+	li->width = width;
+	li->height = height;
+fail:
+	return rc;
+}
+
+/* The lookup images at the size of the lookup tables of s. */
+static int ensure_images(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
+			 size_t err_size)
+{
+	for (int t = 0; t < N_LOOKUPS; t++) {
+		struct lookup_image *li = &e->lookup_image[t];
+		const struct state_table_quality *q = &s->quality.t[t];
+		if (li->img && li->width == q->width && li->height == q->height)
+			continue;
+		image_free(e, li);
+		int rc = image_new(e, q->width, q->height, li, err, err_size);
+		if (rc < 0) {
+			image_free(e, li);
+			return rc;
+		}
+		e->images_valid = false;
+		e->images_new = true;
+		*rebind = true;
+	}
+	return 0;
+}
+
+void eng_record_image_layouts(struct eng *e)
+{
+	VkImageMemoryBarrier b[N_LOOKUPS];
+
+	if (!e->images_new)
+		return;
+	for (int t = 0; t < N_LOOKUPS; t++)
+		b[t] = (VkImageMemoryBarrier){ .sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER,
+			.dstAccessMask = VK_ACCESS_SHADER_READ_BIT, .oldLayout = VK_IMAGE_LAYOUT_UNDEFINED,
+			.newLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+			.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED, .dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
+			.image = e->lookup_image[t].img, .subresourceRange = { VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1 } };
+	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+				   0, 0, NULL, 0, NULL, N_LOOKUPS, b);
+	e->images_new = false;
+}
+
 /* The internal buffers sized by s: the column densities, the iteration's
  * scratch and the shape; *rebind when one was reallocated. */
 static int ensure_internal(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
@@ -198,6 +290,8 @@ int eng_ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret_lo
 		rebind = true;
 	}
 	rc = ensure_internal(e, s, &rebind, err, err_size);
+	if (rc == 0)
+		rc = ensure_images(e, s, &rebind, err, err_size);
 	if (rc < 0)
 		return rc;
 	if (rebind)
@@ -252,4 +346,6 @@ void eng_free_tables(struct eng *e)
 	eng_vec4_buffer_free(e, &e->columns, &e->columns_view);
 	eng_buffer_free(e, &e->ms_iterate);
 	eng_vec4_buffer_free(e, &e->moment, &e->moment_view);
+	for (int t = 0; t < N_LOOKUPS; t++)
+		image_free(e, &e->lookup_image[t]);
 }

@@ -64,6 +64,15 @@
 	X(vkCmdDispatch)                     \
 	X(vkCmdPipelineBarrier)              \
 	X(vkCmdCopyBuffer)                   \
+	X(vkCmdCopyBufferToImage)            \
+	X(vkCreateImage)                     \
+	X(vkDestroyImage)                    \
+	X(vkGetImageMemoryRequirements)      \
+	X(vkBindImageMemory)                 \
+	X(vkCreateImageView)                 \
+	X(vkDestroyImageView)                \
+	X(vkCreateSampler)                   \
+	X(vkDestroySampler)                  \
 	X(vkCmdFillBuffer)                   \
 	X(vkCmdWriteTimestamp)               \
 	X(vkCmdResetQueryPool)               \

@@ -275,6 +275,7 @@ static const struct named_id spec_ids[] = {
 	{ "SV_AZ_GROUP", SPEC_SV_AZ_GROUP }, { "ITER_FIRST", SPEC_ITER_FIRST },
 	{ "MOMENT_LOBE", SPEC_MOMENT_LOBE }, { "DELTA_LOBE", SPEC_DELTA_LOBE },
 	{ "PACK_MASK", SPEC_PACK_MASK }, { "MS_LANES", SPEC_MS_LANES },
+	{ "LOOKUP_IMAGES", SPEC_LOOKUP_IMAGES },
 	/* layout(local_size_x_id, local_size_y_id): glslang leaves the
 	 * workgroup size's constants without a name. */
 	{ "", SPEC_LOCAL_X }, { "", SPEC_LOCAL_Y },
@@ -294,7 +295,8 @@ static const struct named_id bindings[] = {
 	{ "MultiscatterTex", BINDING_MULTISCATTER_TEX }, { "ViewBuf", BINDING_VIEWS },
 	{ "ColumnBuf", BINDING_COLUMNS }, { "IterBuf", BINDING_ITERATE }, { "MomentBuf", BINDING_MOMENT },
 	{ "MomentTex", BINDING_MOMENT_TEX }, { "ColumnTex", BINDING_COLUMNS_TEX },
-	{ "AerialTex", BINDING_AERIAL_TEX },
+	{ "AerialTex", BINDING_AERIAL_TEX }, { "TransmittanceImg", BINDING_TRANSMITTANCE_IMG },
+	{ "MultiscatterImg", BINDING_MULTISCATTER_IMG },
 };
 
 static const struct named_id *find(const struct named_id *list, size_t n, const char *name)
