@@ -129,52 +129,20 @@ void cell_phases(vec3 sun[MS_SUN_GROUP], int lane)
 			phase_norm[i][j] = 1.0 / (4.0 * PI * MS_NORM * max(total[i][j], 1e-30));
 }
 
-// Marches cell k's direction from altitude h (r0 = Rb + h) and adds its
-// L2, moments, ground bounce and escape to the sums. scattering_of,
-// absorption_of: the constituents' coefficients as matrices, times the
-// step's densities the medium.
-void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_scaled, mat4x3 scattering_of,
-		mat4x3 absorption_of)
+// The cells marched together: a ring's MS_HALF_COLS cells share their
+// zenith angle, so their rays cross the same altitudes at the same
+// distances, and the medium along them (densities, steps' weights, the
+// lookups' rows) is evaluated once for both; only the lights' cosines
+// differ. The CPU grain marches a ring at a time; a lane of the wide
+// grain, and the 2-direction grid (two rings of one cell), one cell.
+const int MS_TOGETHER = MS_LANES == 1 && MS_DIRS != 2 ? MS_HALF_COLS : 1;
+
+// Adds cell k's L2 (l2, per sun), moments, ground bounce and escape to the
+// sums, from its march: the transmittance to its end (tr), what was
+// absorbed and scattered on the way, its direction and where it ends.
+void add_cell(int k, vec3 dir, float wk, vec3 l2[MS_SUN_GROUP], vec3 tr, vec3 absorbed, vec3 transfer,
+	      bool ground, float t_end, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_scaled)
 {
-	vec2 ring = cell_ring(k);
-	float wk = cell_weight(ring);
-	vec3 dir = cell_direction(k, ring);
-	float tg, t_end = distance_to_top(h, dir.z);
-	bool ground = hits_ground(h, dir.z, tg);
-	if (ground)
-		t_end = tg;
-	float dt = t_end / float(STEPS);
-	vec3 tr = vec3(1.0), absorbed = vec3(0.0), transfer = vec3(0.0);
-	// Per sun, the phase-weighted scattering per unit density of each
-	// constituent: a matrix times the step's densities (arrays of
-	// constituents indexed in loops leave the registers on lavapipe).
-	mat4x3 phased_of[MS_SUN_GROUP];
-	for (int j = 0; j < MS_SUN_GROUP; j++)
-		phased_of[j] = mat4x3(0.0);
-	for (int i = 0; i < N_CONST; i++) {
-		if (phase_kind(i) == 0)
-			continue;
-		for (int j = 0; j < MS_SUN_GROUP; j++)
-			phased_of[j][i] = P.c[i].scattering.rgb *
-					  (cell_sum[(cell_slot(k) * 4 + i) * MS_SUN_GROUP + j] * phase_norm[i][j]);
-	}
-	vec3 l2[MS_SUN_GROUP];
-	for (int j = 0; j < MS_SUN_GROUP; j++)
-		l2[j] = vec3(0.0);
-	for (int s = 0; s < STEPS; s++) {
-		float t = (float(s) + 0.5) * dt, rr;
-		float hs = altitude_along(h, dir.z, t, rr);
-		vec4 dens = densities(hs);
-		vec3 scattering = scattering_of * dens, absorption = absorption_of * dens;
-		vec3 step_t, w = tr * step_weight(scattering + absorption, dt, step_t);
-		TAlt a = t_alt(hs);
-		vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
-		for (int j = 0; j < MS_SUN_GROUP; j++)
-			l2[j] += w * (phased_of[j] * dens) * sunlight(a, dot(up, sun[j]), P.SUN_RADIUS_RAD, ext_scaled);
-		absorbed += w * absorption;
-		transfer += w * scattering;
-		tr *= step_t;
-	}
 	// The cell's solid angle over the mean cell's: every term below is
 	// linear in these four.
 	tr *= wk;
@@ -210,6 +178,66 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 	}
 	sum_escape += tr - returned + absorbed;
 	sum_returned += returned;
+}
+
+// Marches cells k0 .. k0 + MS_TOGETHER - 1 (one ring) from altitude h (r0 =
+// Rb + h) and adds them to the sums in cell order. scattering_of,
+// absorption_of: the constituents' coefficients as matrices, times the
+// step's densities the medium.
+void march_cells(int k0, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_scaled, mat4x3 scattering_of,
+		 mat4x3 absorption_of)
+{
+	vec2 ring = cell_ring(k0);
+	float wk = cell_weight(ring);
+	vec3 dir[MS_TOGETHER];
+	for (int c = 0; c < MS_TOGETHER; c++)
+		dir[c] = cell_direction(k0 + c, ring);
+	float tg, t_end = distance_to_top(h, dir[0].z);
+	bool ground = hits_ground(h, dir[0].z, tg);
+	if (ground)
+		t_end = tg;
+	float dt = t_end / float(STEPS);
+	vec3 tr = vec3(1.0), absorbed = vec3(0.0), transfer = vec3(0.0);
+	// Per cell and sun, the phase-weighted scattering per unit density of
+	// each constituent: a matrix times the step's densities (arrays of
+	// constituents indexed in loops leave the registers on lavapipe).
+	mat4x3 phased_of[MS_TOGETHER * MS_SUN_GROUP];
+	for (int j = 0; j < MS_TOGETHER * MS_SUN_GROUP; j++)
+		phased_of[j] = mat4x3(0.0);
+	for (int i = 0; i < N_CONST; i++) {
+		if (phase_kind(i) == 0)
+			continue;
+		for (int c = 0; c < MS_TOGETHER; c++)
+			for (int j = 0; j < MS_SUN_GROUP; j++)
+				phased_of[c * MS_SUN_GROUP + j][i] = P.c[i].scattering.rgb *
+					(cell_sum[(cell_slot(k0 + c) * 4 + i) * MS_SUN_GROUP + j] * phase_norm[i][j]);
+	}
+	vec3 l2[MS_TOGETHER * MS_SUN_GROUP];
+	for (int j = 0; j < MS_TOGETHER * MS_SUN_GROUP; j++)
+		l2[j] = vec3(0.0);
+	for (int s = 0; s < STEPS; s++) {
+		float t = (float(s) + 0.5) * dt, rr;
+		float hs = altitude_along(h, dir[0].z, t, rr);
+		vec4 dens = densities(hs);
+		vec3 scattering = scattering_of * dens, absorption = absorption_of * dens;
+		vec3 step_t, w = tr * step_weight(scattering + absorption, dt, step_t);
+		TAlt a = t_alt(hs);
+		for (int c = 0; c < MS_TOGETHER; c++) {
+			vec3 up = vec3(dir[c].xy * t, r0 + dir[c].z * t) / rr;
+			for (int j = 0; j < MS_SUN_GROUP; j++)
+				l2[c * MS_SUN_GROUP + j] += w * (phased_of[c * MS_SUN_GROUP + j] * dens) *
+							    sunlight(a, dot(up, sun[j]), P.SUN_RADIUS_RAD, ext_scaled);
+		}
+		absorbed += w * absorption;
+		transfer += w * scattering;
+		tr *= step_t;
+	}
+	for (int c = 0; c < MS_TOGETHER; c++) {
+		vec3 l2_cell[MS_SUN_GROUP];
+		for (int j = 0; j < MS_SUN_GROUP; j++)
+			l2_cell[j] = l2[c * MS_SUN_GROUP + j];
+		add_cell(k0 + c, dir[c], wk, l2_cell, tr, absorbed, transfer, ground, t_end, r0, sun, ext_scaled);
+	}
 }
 
 // The shape of the multiply scattered light for ms_source, texel i of sun
@@ -345,8 +373,8 @@ void main()
 	sum_escape = vec3(0.0);
 	sum_returned = vec3(0.0);
 	sum_transfer = mat3(0.0);
-	for (int k = lane; k < MS_MARCHED; k += MS_LANES)
-		march_cell(k, h, r0, sun, ext_scaled, scattering_of, absorption_of);
+	for (int k = lane; k < MS_MARCHED; k += MS_LANES * MS_TOGETHER)
+		march_cells(k, h, r0, sun, ext_scaled, scattering_of, absorption_of);
 	if (MS_LANES > 1) {
 		reduce_cells(lane);
 		if (lane != 0)
