@@ -29,6 +29,7 @@
 
 /* The tables later passes look up: transmittance and multi-scattering. */
 #define N_LOOKUPS 2
+#define ENG_LOOKUP_TABLES (STATE_BIT(STATE_TRANSMITTANCE) | STATE_BIT(STATE_MULTISCATTER))
 /* The bindings (sky_params.h): the tables in state_table order, then the
  * lookups, then the engine's internal buffers. */
 #define N_BINDINGS BINDING_COUNT

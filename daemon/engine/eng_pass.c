@@ -179,19 +179,16 @@ static void plan_pack(struct eng *e, const struct sky_state *s, const struct spe
 
 /* Sky-view and aerial perspective read the lookups through images at
  * that grain: copied after the tables were computed (or where the images
- * were remade since), before the passes that read them. */
+ * lack them since), before the passes that read them. eng_submit_to
+ * keeps images_valid. */
 static void plan_lookup_images(struct eng *e, const struct sky_state *s, const struct spec *base,
 			       struct plan *pl, struct pass_run *r)
 {
-	uint32_t lookups = STATE_BIT(STATE_TRANSMITTANCE) | STATE_BIT(STATE_MULTISCATTER);
 	uint32_t readers = STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
 	(void)s;
 	(void)base;
-	r->on = e->grain.lookup_images && (pl->mask & readers) && ((pl->mask & lookups) || !e->images_valid);
-	if (pl->mask & lookups)
-		e->images_valid = r->on;
-	else if (r->on)
-		e->images_valid = true;
+	r->on = e->grain.lookup_images && (pl->mask & readers) &&
+		((pl->mask & ENG_LOOKUP_TABLES) || !e->images_valid);
 }
 
 /* The copies of the lookup tables into their images, from and back to

@@ -97,6 +97,10 @@ int eng_submit_to(struct eng *e, const struct sky_state *s, const struct state_l
 		e->column_key = pl->key;
 		e->columns_valid = true;
 	}
+	if (pl->run[PASS_LOOKUP_IMAGES].on)
+		e->images_valid = true;
+	else if (mask & ENG_LOOKUP_TABLES)
+		e->images_valid = false;
 	e->pack_in_flight = s->quality.storage == STATE_F16;
 	pthread_mutex_lock(&e->lock);
 	e->has_target = target && target->base;
@@ -153,7 +157,7 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 	e->has_target = false;
 	pthread_mutex_unlock(&e->lock);
 	if (wr != VK_SUCCESS)
-		e->columns_valid = false;
+		e->columns_valid = e->images_valid = false;
 	VK_TRY(wr);
 	rc = invalidate(e, mask, err, err_size);
 	if (rc < 0)

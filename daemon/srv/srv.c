@@ -42,6 +42,7 @@ struct srv {
 	 * and skyd copies nothing. */
 	int pub_direct, next_direct;
 	int in_flight_direct;
+	int told_copy;			/* the log said why the copy */
 	struct drive *drive;		/* the clock, moving cur's lights */
 	struct srv_listener listeners[SRV_MAX_LISTENERS];
 	int n_listeners;
@@ -196,23 +197,23 @@ static void fail(struct srv *s, uint64_t generation, const char *message)
 }
 
 /* Lets the engine write r's slots itself where it can, unless
- * $SKYD_PUBLISH is "copy" (a diagnostic and test switch); 1 if it does. */
+ * $SKYD_PUBLISH is "copy" (a diagnostic and test switch); 1 if it does.
+ * Says why not once, in the log. */
 static int import_region(struct srv *s, struct pub *r)
 {
 	const char *force = getenv("SKYD_PUBLISH");
 	char err[128] = "";
 	int rc;
 
-	if (force && !strcmp(force, "copy")) {
-		snprintf(s->st.publish_why, sizeof(s->st.publish_why), "SKYD_PUBLISH=copy");
+	if (force && !strcmp(force, "copy"))
 		return 0;
-	}
 	rc = eng_host_import(s->eng, pub_map(r), (size_t)pub_bytes(r), err, sizeof(err));
-
-	snprintf(s->st.publish_why, sizeof(s->st.publish_why), "%s", rc < 0 ? err : "");
-	if (rc < 0 && rc != -EOPNOTSUPP)
+	if (rc == -EOPNOTSUPP && !s->told_copy)
+		log_info("publish: copy (%s)", err);
+	else if (rc < 0)
 		log_warning("the device cannot write the shared memory itself: %s; skyd copies the tables",
 			    err);
+	s->told_copy |= rc < 0;
 	return rc == 0;
 }
 

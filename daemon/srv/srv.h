@@ -68,7 +68,6 @@ struct srv_status {
 	char storage_warning[192];	/* float16 broke in the last computation; "" when not */
 	int publish_direct;		/* the device writes the current region's slots itself
 					 * (eng_host_import); 0: skyd copies the tables in */
-	char publish_why[128];		/* why not, when not */
 	uint64_t clock_ticks;		/* the clock drive's timer expirations */
 	uint64_t clock_changes;		/* the moves it made changes */
 	double clock_next_tick_s;	/* real seconds to its next tick; -1 none armed */
