@@ -586,26 +586,42 @@ uint64_t srv_state_generation(const struct srv *s)
 	return s->in_flight ? s->in_flight_generation : s->generation;
 }
 
+/* Places the cloud field of keys at the instant a change made now applies
+ * (drive_field): a controller and its followers, which switch together
+ * then, place it alike. Returns that instant for change (0: now). */
+static int64_t place_field(struct srv *s, struct sky_state *keys, double real_s, double mono_s,
+			   uint32_t *dirty)
+{
+	int64_t at_ns = s->next_apply_ns;
+
+	if (!at_ns && s->sync.apply_time_ns)
+		at_ns = s->sync.apply_time_ns(s->sync.ctx);
+	drive_field(keys, mono_s + (at_ns ? (double)at_ns / 1e9 - real_s : 0.0), dirty);
+	return at_ns;
+}
+
 int srv_apply(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	      uint64_t *ret_generation, uint32_t *ret_dirty, char *err, size_t err_size)
 {
 	struct served *c = malloc(sizeof(*c));
 	uint64_t generation;
+	double real_s, mono_s;
 	int64_t apply_ns;
 	int r = -ERANGE;
 
 	if (!c)
 		return -ENOMEM;
 	c->keys = *next;
+	simclock_read_clocks(&real_s, &mono_s);
 	if (memcmp(&c->keys.clock, &s->cur.keys.clock, sizeof(c->keys.clock)) != 0) {
-		double mono_s;
-		simclock_read_clocks(NULL, &mono_s);
 		state_clock_rebase(&c->keys, &s->cur.keys, mono_s);
 		if (drive_lights(&c->keys, mono_s, &dirty, err, err_size) < 0)
 			goto out;
 	}
+	int64_t at_ns = place_field(s, &c->keys, real_s, mono_s, &dirty);
 	if (prepare(s, c, NULL, err, err_size) < 0)
 		goto out;
+	s->next_apply_ns = at_ns;
 	r = change(s, c, dirty, &generation, &apply_ns, err, err_size);
 	if (r < 0)
 		goto out;
@@ -634,8 +650,15 @@ static void clock_moved(void *ctx, const struct sky_state *next, const struct st
 		return;
 	}
 	c->keys = *next;
-	if (prepare(s, c, lights, err, sizeof(err)) < 0 ||
-	    change(s, c, dirty, &generation, &apply_ns, err, sizeof(err)) < 0)
+	double real_s, mono_s;
+	simclock_read_clocks(&real_s, &mono_s);
+	int64_t at_ns = place_field(s, &c->keys, real_s, mono_s, &dirty);
+	int r = prepare(s, c, lights, err, sizeof(err));
+	if (r == 0) {
+		s->next_apply_ns = at_ns;
+		r = change(s, c, dirty, &generation, &apply_ns, err, sizeof(err));
+	}
+	if (r < 0)
 		log_warning("clock: computation did not start: %s", err);
 	else
 		tell_changed(s, generation, apply_ns);
