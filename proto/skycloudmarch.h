@@ -24,10 +24,12 @@
  *     2 extent / n (skycloud_table_uv);
  *   - a light's Beer shadow map: 2-D RGBA32F = (front depth km, mean
  *     extinction per km, max optical depth, opaque depth km of the terrain
- *     or huge), orthographic along the light; where a point p falls in it
- *     and its depth along the light are an affine map of p (struct
- *     skycloud_shadow_frame; skycloud_shadow_frame_init makes the one
- *     docs/clouds.md proposes). The optical depth at depth dp is
+ *     or huge; a texel whose ray meets no cloud is (0, 0, 0, terrain), so
+ *     that the filter blends a cloud's edge into the clear), orthographic
+ *     along the light; where a point p falls in it and its depth along the
+ *     light are an affine map of p (struct skycloud_shadow_frame;
+ *     skycloud_shadow_frame_init makes the one docs/clouds.md proposes).
+ *     The optical depth at depth dp is
  *     min(max_od, mean_ext max(0, dp - front)); beyond the terrain's depth
  *     the point is in the terrain's shadow.
  */
