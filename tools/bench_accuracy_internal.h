@@ -16,11 +16,23 @@
 
 #define MAX_DIRS 2048
 #define MAX_KEYS 8
+#define MAX_SCENE_KEYS 8
 
 /* day: sun >= 2 deg, views >= 3 deg; horizon: sun >= 2 deg, views 0 to 3 deg;
  * twilight: sun < 2 deg, all views; down: sun >= 2 deg, views below the
- * observer's horizontal plane (the limb and the planet under it). */
-enum category { CAT_DAY = 0, CAT_HORIZON = 1, CAT_TWILIGHT = 2, CAT_DOWN = 3, N_CAT = 4 };
+ * observer's horizontal plane (the limb and the planet under it). The
+ * scenes with clouds or terrain (shadowed) sort every view by the share of
+ * its single scattering that they shadow (pt_shadow_fraction): lit under
+ * SHADOW_LIT, in shadow from SHADOW_DARK (most of it), shafts between (the
+ * view ray crosses lit and shadowed air). The tables' view ray goes on
+ * through the clouds, so the air above a layer keeps most views up out of
+ * the shadow. */
+enum category {
+	CAT_DAY = 0, CAT_HORIZON = 1, CAT_TWILIGHT = 2, CAT_DOWN = 3,
+	CAT_LIT = 4, CAT_SHADOW = 5, CAT_SHAFTS = 6, N_CAT = 7
+};
+#define SHADOW_LIT 0.1
+#define SHADOW_DARK 0.5
 extern const char *const acc_cat_names[N_CAT];
 
 struct scene {
@@ -31,6 +43,11 @@ struct scene {
 	bool sweep;		/* also measured under the knob sweeps */
 	bool fisheye;		/* gets a side-by-side image */
 	bool down;		/* also views below the horizontal (acc_direction_set) */
+	/* Clouds and terrain: keys applied after the rest ("terrain=@ridge":
+	 * media_terrain_path's field); a scene with any is shadowed, its views
+	 * cover the whole circle, and few keeps them to the CI's nine. */
+	const char *keys[MAX_SCENE_KEYS];
+	bool few;
 };
 
 struct config {
@@ -47,7 +64,7 @@ extern const struct config acc_configs[];
 struct opts {
 	const char *out, *cache, *cache_ro, *device, *limits, *only, *scene_filter;
 	int runs, threads, fisheye_n, image_px;
-	double day_error, twilight_error, fisheye_error;
+	double day_error, twilight_error, fisheye_error, shadow_error;
 	uint64_t max_samples;
 	bool reduced, presets_only, no_images, list_truth;
 };
@@ -58,6 +75,7 @@ struct gt {
 	double weight[MAX_DIRS];
 	double lum[MAX_DIRS], lum_se[MAX_DIRS];
 	double rgb[MAX_DIRS][3], rgb_se[MAX_DIRS][3];
+	double shadow[MAX_DIRS];	/* shadowed scenes: pt_shadow_fraction; else 0 */
 };
 
 /* The error of one category of one scene. Luminance: mean_rel to gt_rel_se.
@@ -134,6 +152,12 @@ static inline int cmp_double(const void *a, const void *b)
 }
 
 /* ---- scenes and the ground truth (bench_accuracy_truth.c) ---- */
+
+/* Whether sc has clouds or terrain. */
+static inline bool acc_shadowed(const struct scene *sc)
+{
+	return sc->keys[0] != NULL;
+}
 
 /* Fills sc (at most max) with the matrix, or the CI's eight scenes when
  * reduced; returns how many. */

@@ -31,8 +31,11 @@ struct err_sample {
 	double rel, weight;
 };
 
-static enum category category(const struct scene *sc, double el_deg)
+static enum category category(const struct scene *sc, const struct gt *g, size_t i)
 {
+	double el_deg = g->dir[i].elevation_deg;
+	if (acc_shadowed(sc))
+		return g->shadow[i] < SHADOW_LIT ? CAT_LIT : g->shadow[i] >= SHADOW_DARK ? CAT_SHADOW : CAT_SHAFTS;
 	if (sc->sun_elevation_deg < 2.0)
 		return CAT_TWILIGHT;
 	return el_deg < 0.0 ? CAT_DOWN : el_deg < 3.0 ? CAT_HORIZON : CAT_DAY;
@@ -187,13 +190,13 @@ void acc_measure(const struct eng *e, const struct sky_state *s, const struct sc
 		double rgb[3];
 		acc_table_radiance(e, s, g->dir[i].elevation_deg, g->dir[i].azimuth_deg, rgb);
 		double y = luminance(rgb), rel = rel_error(y, g->lum[i]);
-		enum category c = category(sc, g->dir[i].elevation_deg);
+		enum category c = category(sc, g, i);
 		if (dirs)
-			fprintf(dirs, "%s,%s,%s,%g,%g,%g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
+			fprintf(dirs, "%s,%s,%s,%g,%g,%g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4f\n",
 				config, sc->name, acc_cat_names[c], g->dir[i].elevation_deg,
 				g->dir[i].azimuth_deg, g->weight[i], y, g->lum[i], g->lum_se[i], rel,
 				rgb[0], rgb[1], rgb[2], g->rgb[i][0], g->rgb[i][1], g->rgb[i][2],
-				isfinite(y) ? acc_duv(rgb, g->rgb[i]) : INFINITY);
+				isfinite(y) ? acc_duv(rgb, g->rgb[i]) : INFINITY, g->shadow[i]);
 		rel_lum[c][a[c].n] = rel;
 		add_direction(g, i, rgb, rel, &res->cat[c], &a[c]);
 	}

@@ -147,6 +147,13 @@ int pt_single_scatter_scene(const struct atmo *a, double altitude_km, const stru
 int pt_shadow_fraction(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
 		       const struct pt_scene *scene, const struct pt_dir *dir, double *ret_fraction);
 
+/* The two sums pt_shadow_fraction compares, per channel: the air's single
+ * scattering along the tables' view ray clear and under the scene (the
+ * sun's centre only). Returns 0 or -EINVAL. */
+int pt_shadow_pair(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+		   const struct pt_scene *scene, const struct pt_dir *dir, double ret_clear[3],
+		   double ret_shaded[3]);
+
 /* What the sky tables assume, traced otherwise exactly, to measure what
  * each assumption costs against PT_SKY (skytruth --isotropic, --delta-m). */
 struct pt_approx {

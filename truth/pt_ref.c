@@ -180,16 +180,26 @@ int pt_single_scatter_scene(const struct atmo *a, double altitude_km, const stru
 	return 0;
 }
 
+int pt_shadow_pair(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+		   const struct pt_scene *scene, const struct pt_dir *dir, double ret_clear[3],
+		   double ret_shaded[3])
+{
+	struct medium m;
+
+	if (!ret_clear || !ret_shaded || ref_medium(&m, a, altitude_km, sun, scene, dir) < 0)
+		return -EINVAL;
+	ss_integrate(&m, altitude_km, dir, 0, FRACTION_CLOUD_STEPS, ret_clear, ret_shaded);
+	return 0;
+}
+
 int pt_shadow_fraction(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
 		       const struct pt_scene *scene, const struct pt_dir *dir, double *ret_fraction)
 {
 	static const double y[3] = { 0.2126, 0.7152, 0.0722 };
-	struct medium m;
 	double clear[3], shaded[3], yc = 0.0, ys = 0.0;
 
-	if (!ret_fraction || ref_medium(&m, a, altitude_km, sun, scene, dir) < 0)
+	if (!ret_fraction || pt_shadow_pair(a, altitude_km, sun, scene, dir, clear, shaded) < 0)
 		return -EINVAL;
-	ss_integrate(&m, altitude_km, dir, 0, FRACTION_CLOUD_STEPS, clear, shaded);
 	for (int ch = 0; ch < 3; ch++) {
 		yc += y[ch] * clear[ch];
 		ys += y[ch] * shaded[ch];
