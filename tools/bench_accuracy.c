@@ -353,6 +353,11 @@ static int report(const struct run *r, const char *device_name, double total_s)
 	       s.n_scenes, 100 * s.mean[0], 100 * s.max_mean[0], 100 * s.mean[1],
 	       100 * s.max_mean[1], 100 * s.mean[2], 100 * s.max_mean[2], s.time_ms, r->gt_s,
 	       total_s);
+	if (s.n_cat[CAT_LIT] + s.n_cat[CAT_SHADOW] + s.n_cat[CAT_SHAFTS])
+		printf("shadowed scenes: lit %.2f %% (max %.2f), shadow %.2f %% (max %.2f), shafts %.2f %% "
+		       "(max %.2f)\n", 100 * s.mean[CAT_LIT], 100 * s.max_mean[CAT_LIT],
+		       100 * s.mean[CAT_SHADOW], 100 * s.max_mean[CAT_SHADOW], 100 * s.mean[CAT_SHAFTS],
+		       100 * s.max_mean[CAT_SHAFTS]);
 	printf("report: %s/accuracy.md, %s/accuracy.csv, %s/directions.csv\n", o->out, o->out, o->out);
 	if (o->limits) {
 		int bad = acc_check_limits(o->limits, r->sc, r->n_sc, r->res);

@@ -113,6 +113,14 @@ static void pct(FILE *f, double x)
 		fprintf(f, " - |");
 }
 
+static bool any_shadowed(const struct scene *sc, size_t n_sc)
+{
+	for (size_t i = 0; i < n_sc; i++)
+		if (acc_shadowed(&sc[i]))
+			return true;
+	return false;
+}
+
 int acc_write_md(const struct opts *o, const struct scene *sc, size_t n_sc,
 		 const struct result *r, const char *device, const char *cmdline, double gt_s,
 		 double total_s)
@@ -135,6 +143,18 @@ int acc_write_md(const struct opts *o, const struct scene *sc, size_t n_sc,
 		   "all views; down: sun >= 2 deg, views below the observer's horizontal (the "
 		   "limb and the planet beneath, for the observers above 1 km). Time: engine wall time of transmittance + multi-scattering + "
 		   "sky-view, mean over scenes of the median of %d runs.\n\n", o->runs);
+	if (any_shadowed(sc, n_sc))
+		fprintf(f, "Shadowed scenes (shadow-*): clouds or terrain, which shade the air "
+			   "(docs/truth.md, \"Clouds and terrain\"). Their views go round the whole "
+			   "circle (8 azimuths, elevations 2 to 70 deg and the zenith; the CI's: 4 "
+			   "azimuths, 5 and 30 deg and the zenith; from 12 km also 2 limb rings, 2 "
+			   "rings below the horizon and the nadir), the truth to %.3g of the radiance, "
+			   "and each view is sorted by the share of the single scattering along its "
+			   "ray (the tables' view ray, through the clouds) that the clouds and terrain "
+			   "shadow: lit under %g, shadow from %g, shafts between. The tables hold no "
+			   "cloud or terrain shadow yet: these rows measure what leaving them out "
+			   "costs, until the engine's cloud passes run them.\n\n",
+			o->shadow_error, SHADOW_LIT, SHADOW_DARK);
 	for (int pass = 0; pass < 2; pass++) {
 		struct summary sum[N_CONFIGS];
 		bool cat_in[N_CAT] = { false };
