@@ -99,8 +99,12 @@ struct stats {
 	int grad_ch;
 };
 
+/* unshadowed: a shadowed scene whose tables read the same with its clouds
+ * and terrain as without (acc_tables_unshadowed): the tables carry no
+ * shadow yet, so its categories measure what leaving the shadows out
+ * costs and --limits skips them. */
 struct result {
-	bool done;
+	bool done, unshadowed;
 	double time_ms;
 	struct stats cat[N_CAT];
 };
@@ -184,9 +188,20 @@ void acc_table_radiance(const struct eng *e, const struct sky_state *s, double e
  * in res; each direction's row goes to dirs (directions.csv) when open. */
 void acc_measure(const struct eng *e, const struct sky_state *s, const struct scene *sc,
 		 const char *config, const struct gt *g, struct result *res, FILE *dirs);
+/* The tables a client's sky reads through acc_table_radiance, and those
+ * they are computed from: the engine's cloud and shadow tables join them
+ * when its cloud passes exist. */
+#define ACC_SKY_TABLES (STATE_BIT(STATE_TRANSMITTANCE) | STATE_BIT(STATE_MULTISCATTER) | \
+			STATE_BIT(STATE_SKYVIEW))
 /* Computes the tables the sky needs once to warm up, then runs times; the
  * median wall time in ret_ms. Returns 0 or -EIO (said on stderr). */
 int acc_time_tables(struct eng *e, const struct sky_state *s, int runs, double *ret_ms);
+/* For a shadowed scene: whether e's tables read the same, bit for bit in
+ * every direction of g, with the scene's clouds and terrain as without
+ * (then the tables carry no shadow). Leaves e's tables those without.
+ * Returns 0 or -EINVAL / -EIO (said on stderr). */
+int acc_tables_unshadowed(struct eng *e, const struct scene *sc, const struct config *cf,
+			  const struct gt *g, bool *ret);
 
 /* ---- images (bench_accuracy_image.c) ---- */
 

@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "skysample.h"
 
@@ -225,8 +226,7 @@ void acc_measure(const struct eng *e, const struct sky_state *s, const struct sc
  * tables of the last run stay readable through eng_table. */
 int acc_time_tables(struct eng *e, const struct sky_state *s, int runs, double *ret_ms)
 {
-	const uint32_t mask = STATE_BIT(STATE_TRANSMITTANCE) | STATE_BIT(STATE_MULTISCATTER) |
-			      STATE_BIT(STATE_SKYVIEW);
+	const uint32_t mask = ACC_SKY_TABLES;
 	double ms[64];
 	char err[512];
 	struct eng_timing t;
@@ -248,4 +248,38 @@ int acc_time_tables(struct eng *e, const struct sky_state *s, int runs, double *
 	qsort(ms, runs, sizeof(ms[0]), cmp_double);
 	*ret_ms = runs % 2 ? ms[runs / 2] : 0.5 * (ms[runs / 2 - 1] + ms[runs / 2]);
 	return 0;
+}
+
+/* The radiance of every direction of g in the tables of sc's state under cf. */
+static int radiances(struct eng *e, const struct scene *sc, const struct config *cf,
+		     const struct gt *g, double (*ret)[3])
+{
+	struct sky_state s;
+	struct eng_timing t;
+	char err[512];
+
+	if (acc_scene_state(sc, cf, &s) < 0)
+		return -EINVAL;
+	if (eng_compute(e, &s, ACC_SKY_TABLES, &t, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skybench: %s\n", err);
+		return -EIO;
+	}
+	for (size_t i = 0; i < g->n; i++)
+		acc_table_radiance(e, &s, g->dir[i].elevation_deg, g->dir[i].azimuth_deg, ret[i]);
+	return 0;
+}
+
+int acc_tables_unshadowed(struct eng *e, const struct scene *sc, const struct config *cf,
+			  const struct gt *g, bool *ret)
+{
+	static double with[MAX_DIRS][3], without[MAX_DIRS][3];
+	struct scene clear = *sc;
+
+	memset(clear.keys, 0, sizeof(clear.keys));
+	int rc = radiances(e, sc, cf, g, with);
+	if (rc == 0)
+		rc = radiances(e, &clear, cf, g, without);
+	if (rc == 0)
+		*ret = memcmp(with, without, g->n * sizeof(with[0])) == 0;
+	return rc;
 }
