@@ -123,21 +123,12 @@ static int apply(struct sky_state *s, const char *pair)
 static int apply_scene_key(struct sky_state *s, const char *pair)
 {
 	char kv[512];
-	if (strncmp(pair, "terrain=@", 9) != 0)
-		return apply(s, pair);
-	for (int t = 0; t < MEDIA_N_TERRAINS; t++)
-		if (!strcmp(pair + 9, media_terrain_names[t])) {
-			const char *path = media_terrain_path((enum media_terrain)t);
-			if (!path) {
-				fprintf(stderr, "skybench: cannot write the %s field: %s\n", pair + 9,
-					strerror(errno));
-				return -EIO;
-			}
-			snprintf(kv, sizeof(kv), "terrain=%s", path);
-			return apply(s, kv);
-		}
-	fprintf(stderr, "skybench: %s: no such field\n", pair);
-	return -EINVAL;
+	const char *k = media_expand_key(pair, kv, sizeof(kv));
+	if (!k) {
+		fprintf(stderr, "skybench: %s: %s\n", pair, strerror(errno));
+		return -EINVAL;
+	}
+	return apply(s, k);
 }
 
 /* The state of a scene under a configuration (NULL: the default preset). */

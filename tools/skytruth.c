@@ -73,7 +73,8 @@ static void usage(FILE *f)
 		"                [--min-samples N] [--max-samples N] [--batch N] [--reference]\n"
 		"                [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]\n"
 		"                [--tables] [--model FACTOR] [--sos] [--view air|all]\n"
-		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...).\n"
+		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...);\n"
+		"terrain=@ridge and terrain=@cliff are truth/media.h's synthetic fields.\n"
 		"--dirs EL:AZ in degrees, or tKM:AZ: the view down that grazes the air at\n"
 		"KM of altitude (the limb; KM below altitude_km).\n"
 		"default --dirs %s\n", default_dirs);
@@ -247,9 +248,17 @@ static int parse_args(int argc, char **argv, struct args *g, struct pt_dir *dirs
 				fprintf(stderr, "skytruth: %s: bad value '%s'\n", a, v);
 				return 2;
 			}
-		} else if (state_set_pair(&g->s, a, NULL, err, sizeof(err)) < 0) {
-			fprintf(stderr, "skytruth: %s\n", err);
-			return 2;
+		} else {
+			char kv[512];
+			const char *k = media_expand_key(a, kv, sizeof(kv));
+			if (!k) {
+				fprintf(stderr, "skytruth: %s: %s\n", a, strerror(errno));
+				return 2;
+			}
+			if (state_set_pair(&g->s, k, NULL, err, sizeof(err)) < 0) {
+				fprintf(stderr, "skytruth: %s\n", err);
+				return 2;
+			}
 		}
 	}
 	if (state_validate(&g->s, 0, err, sizeof(err)) < 0) {

@@ -137,3 +137,22 @@ const char *media_terrain_path(enum media_terrain terrain)
 	}
 	return paths[terrain];
 }
+
+const char *media_expand_key(const char *kv, char *buf, size_t size)
+{
+	if (strncmp(kv, "terrain=@", 9) != 0)
+		return kv;
+	for (int t = 0; t < MEDIA_N_TERRAINS; t++)
+		if (!strcmp(kv + 9, media_terrain_names[t])) {
+			const char *path = media_terrain_path((enum media_terrain)t);
+			if (!path)
+				return NULL;
+			if (snprintf(buf, size, "terrain=%s", path) >= (int)size) {
+				errno = ENAMETOOLONG;
+				return NULL;
+			}
+			return buf;
+		}
+	errno = EINVAL;
+	return NULL;
+}

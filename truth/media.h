@@ -49,6 +49,12 @@ extern const char *const media_terrain_names[MEDIA_N_TERRAINS];
  * it cannot be written (errno says why). Not thread-safe. */
 const char *media_terrain_path(enum media_terrain terrain);
 
+/* The key=value pair kv with a synthetic field's name ("terrain=@ridge",
+ * "terrain=@cliff") made the path of its file in buf: kv itself when it
+ * names none; NULL when the name is unknown (errno EINVAL) or the file
+ * cannot be written (errno says why). */
+const char *media_expand_key(const char *kv, char *buf, size_t size);
+
 /* A SKYTERRAIN16 file of width x width texels at path. 0 or -errno. */
 int media_write_raw(const char *path, const uint16_t *texels, uint32_t width);
 

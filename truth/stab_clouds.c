@@ -55,18 +55,10 @@ int stab_cloud_state(const struct stab_cloud_case *c, struct sky_state *ret, cha
 
 	state_default(&s);
 	for (int k = 0; k < STAB_CLOUD_KEYS && c->keys[k]; k++) {
-		const char *kv = c->keys[k];
-		if (!strncmp(kv, "terrain=@", 9)) {
-			int t = 0;
-			while (t < MEDIA_N_TERRAINS && strcmp(kv + 9, media_terrain_names[t]))
-				t++;
-			const char *path = t < MEDIA_N_TERRAINS ? media_terrain_path((enum media_terrain)t) : NULL;
-			if (!path) {
-				snprintf(err, err_size, "%s: %s", kv, strerror(errno ? errno : EINVAL));
-				return -EIO;
-			}
-			snprintf(pair, sizeof(pair), "terrain=%s", path);
-			kv = pair;
+		const char *kv = media_expand_key(c->keys[k], pair, sizeof(pair));
+		if (!kv) {
+			snprintf(err, err_size, "%s: %s", c->keys[k], strerror(errno));
+			return -EIO;
 		}
 		int r = state_set_pair(&s, kv, NULL, err, err_size);
 		if (r < 0)
