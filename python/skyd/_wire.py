@@ -13,7 +13,7 @@ import math
 import numbers
 import re
 
-PROTOCOL_VERSION = "6"
+PROTOCOL_VERSION = "6.1"
 LINE_MAX = 4096          # bytes per request line, newline included
 ARGS_MAX = 128           # arguments per request line
 EVENT_KINDS = ("changed", "layout", "failed", "sensor")
@@ -388,7 +388,7 @@ def parse_greeting(text):
     m = re.match(r"OK skyd (\S+)\Z", text)
     if not m:
         raise ProtocolError("not skyd's greeting: %r" % text)
-    if m.group(1).split(".")[0] != PROTOCOL_VERSION:
+    if m.group(1).split(".")[0] != PROTOCOL_VERSION.split(".")[0]:
         raise ProtocolError("skyd speaks protocol %s; this package speaks %s"
                             % (m.group(1), PROTOCOL_VERSION))
     return m.group(1)

@@ -114,7 +114,7 @@ def test_batch_applies_as_one_change_or_not_at_all(client):
 
 def test_status_commands_help(client):
     st = client.status()
-    assert st["protocol"] == int(skyd.PROTOCOL_VERSION) and st["role"] == "controller"
+    assert str(st["protocol"]) == skyd.PROTOCOL_VERSION and st["role"] == "controller"
     assert isinstance(st["generation"], int) and st["device"]
     assert st["sync"] == "off"
     verbs = {"set", "get", "batch", "subscribe", "sample", "view", "sensor"}

@@ -81,7 +81,7 @@ def test_greeting():
     v = w.PROTOCOL_VERSION
     assert w.parse_greeting("OK skyd %s" % v) == v
     with pytest.raises(skyd.ProtocolError):
-        w.parse_greeting("OK skyd %d" % (int(v) - 1))
+        w.parse_greeting("OK skyd %d" % (int(v.split(".")[0]) - 1))
     with pytest.raises(skyd.ProtocolError):
         w.parse_greeting("SSH-2.0-OpenSSH")
     with pytest.raises(skyd.SkyError) as e:
