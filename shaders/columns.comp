@@ -5,10 +5,12 @@
 // Optical depth is linear in the coefficients, tau = sum_k ext_k L_k, so
 // transmittance.comp weighs these columns by the extinctions and a change of
 // coefficients alone (the weather) does not repeat this pass. Mirrors
-// optical_depth() and column_linear() in truth/model.c.
+// optical_depth() and column_linear() in truth/model.c. It writes the
+// transmittance of its texels too (transmittance.glsl).
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
+#include "transmittance.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -242,4 +244,7 @@ void main()
 	for (int k = 0; k < N_CONST; k++)
 		out_column[k] = column[k];
 	CB.d[px.y * OUT_W + px.x] = out_column;
+	// The column pass runs only with the transmittance table: the same
+	// dispatch writes it, saving a dispatch and a barrier.
+	store_transmittance(px.y * OUT_W + px.x, out_column);
 }
