@@ -3,10 +3,10 @@
 // atmosphere, geometry and profiles only (an internal buffer, not published).
 //
 // Optical depth is linear in the coefficients, tau = sum_k ext_k L_k, so
-// transmittance.comp weighs these columns by the extinctions and a change of
-// coefficients alone (the weather) does not repeat this pass. Mirrors
-// optical_depth() and column_linear() in truth/model.c. It writes the
-// transmittance of its texels too (transmittance.glsl).
+// transmittance.glsl weighs these columns by the extinctions: this pass
+// writes the transmittance of its texels too, and a change of coefficients
+// alone (the weather) runs transmittance.comp from the kept columns
+// instead. Mirrors optical_depth() and column_linear() in truth/model.c.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"

@@ -2,9 +2,11 @@
 // stored: exp(-sum_k ext_k L_k). Written by transmittance.comp (the columns
 // kept) and by columns.comp in the same dispatch as the columns.
 
-// The table again in 8-byte units, for the binary16 copy: texel i's halves
-// are unit 2 n + i after the n float32 texels (one store, one loop over the
-// lanes on lavapipe).
+// The table again a texel per element (one store, one loop over the lanes
+// on lavapipe, where STORE_TEXEL's four words take four), and in 8-byte
+// units for the binary16 copy: texel i's halves are unit 2 n + i after the
+// n float32 texels.
+layout(std430, binding = BINDING_TRANSMITTANCE) writeonly buffer TransmittanceTexels { uvec4 d[]; } TT;
 layout(std430, binding = BINDING_TRANSMITTANCE) writeonly buffer TransmittanceHalves { uvec2 d[]; } TH;
 
 // Texel i of the OUT_W x OUT_H table from its columns. Its values never
@@ -15,7 +17,7 @@ void store_transmittance(int i, vec4 column)
 	for (int k = 0; k < N_CONST; k++)
 		tau += (P.c[k].scattering.rgb + P.c[k].absorption.rgb) * column[k];
 	vec3 t = exp(-tau);
-	STORE_TEXEL(TB, i, vec4(t, 1.0));
+	TT.d[i] = floatBitsToUint(vec4(t, 1.0));
 	// storage=f16: the binary16 copy after the float32 texels, scaled by
 	// 2^15 (exactly: at most 32768, the largest power of two below 65504).
 	if (STORAGE_F16) {
