@@ -356,7 +356,8 @@ struct sky_view {
 	const struct sky_shm_header *header;
 	const struct sky_shm_slot *slot;	/* state, generation, valid tables */
 	uint32_t generation;			/* header generation when taken (a slot
-						 * published ahead: its own) */
+						 * published ahead, or a superseded
+						 * region's slot: its own) */
 	uint32_t valid_tables;			/* SKY_TABLE_BIT mask */
 	uint32_t slot_index;
 	uint32_t seq;				/* the even sequence read at the start */
@@ -416,8 +417,9 @@ SKY_EXPORT int sky_snapshot(sky_client *c, void *buf, size_t size, struct sky_vi
  * before sky_subscribe(). It reads the socket only when the region was
  * superseded (a layout change): then it waits there for the new region,
  * maps it (views into the old one end, as with sky_dispatch), returns its
- * generation even if that equals seen (a view of the superseded region
- * may hold the number, which its last wake-up took) and queues what else
+ * generation even if that equals seen (a number read from the superseded
+ * header, sky_header(), may hold it: its last wake-up took it; a view of
+ * that region holds its slot's own) and queues what else
  * arrives for sky_dispatch(), or, reconnecting by itself
  * (sky_set_reconnect), to hear of a hang-up. Since 0.1. */
 SKY_EXPORT int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generation);

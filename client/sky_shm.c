@@ -120,7 +120,11 @@ static int spare_ahead(const sky_client *c, uint32_t current, uint32_t *ret_seq,
  * the current slot, or the spare slot ahead of it once its apply time
  * (CLOCK_REALTIME) is reached; -EAGAIN while the current slot is odd.
  * ret_wake_ns (may be NULL) gets the apply time of a spare slot still
- * ahead, 0 when there is none. */
+ * ahead, 0 when there is none. The generation is the header's word, but
+ * in a superseded region the slot's own: skyd bumped that word once more
+ * to wake waiters, to the number the next region publishes, and a view
+ * holding that number would take the next region's first publication
+ * for one it has seen (sky_wait would sleep through it). */
 static int pick_slot(const sky_client *c, uint32_t *ret_index, uint32_t *ret_seq,
 		     uint32_t *ret_gen, int64_t *ret_wake_ns)
 {
@@ -147,6 +151,10 @@ static int pick_slot(const sky_client *c, uint32_t *ret_index, uint32_t *ret_seq
 	uint32_t s = __atomic_load_n(&slot_at(c, i)->seq, __ATOMIC_ACQUIRE);
 	if (s & 1u)
 		return -EAGAIN;
+	/* Read after the word: a bumped word comes with the flag. No writer
+	 * touches a superseded region's slots. */
+	if (__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE))
+		gen = (uint32_t)__atomic_load_n(&slot_at(c, i)->generation, __ATOMIC_RELAXED);
 	*ret_index = i;
 	*ret_seq = s;
 	*ret_gen = gen;
@@ -300,8 +308,9 @@ int sky_wait(sky_client *c, uint32_t seen, int timeout_ms, uint32_t *ret_generat
 		int64_t wake_ns;
 		uint32_t v = visible_generation(c, g, &wake_ns);
 		/* A new region is news whatever its number: the superseded
-		 * one's last increment took the number it publishes, so a view
-		 * taken in between holds it already. */
+		 * one's last increment took the number it publishes, and a
+		 * caller may have read that from its header (views hold their
+		 * slot's: pick_slot). */
 		if ((v != seen || replaced) && !__atomic_load_n(&c->map->superseded, __ATOMIC_ACQUIRE)) {
 			if (ret_generation)
 				*ret_generation = v;

@@ -241,9 +241,35 @@ static int cmd_sensor(const struct opts *o, int argc, char **argv)
 	return EXIT_USAGE;
 }
 
+/* help VERB: the daemon's usage of the verb. help alone: the daemon's verbs
+ * (its commands reply) on one line and where to read on, rather than the
+ * usage of help itself. */
 static int cmd_help(const struct opts *o, int argc, char **argv)
 {
-	return run_verb(o, "help", argc, argv);
+	if (argc)
+		return run_verb(o, "help", argc, argv);
+	sky_client *c;
+	sky_reply *rep = NULL;
+	int e = connect_or_complain(o, &c);
+	if (e)
+		return e;
+	int r = sky_request(c, "commands", &rep);
+	if (r == 0) {
+		printf("skyd's verbs:");
+		for (size_t i = 0; i < sky_reply_count(rep); i++)
+			printf(" %s", sky_reply_value(rep, i));
+		printf("\n\n"
+		       "skyctl help VERB   the usage of one, e.g. skyctl help set\n"
+		       "skyctl --help      skyctl's own commands and options\n"
+		       "Every verb and key is in skyctl(1) and proto/PROTOCOL.md.\n");
+	} else if (r < 0) {
+		fprintf(stderr, "skyctl: commands: %s\n", sky_strerror(r));
+	} else {
+		fprintf(stderr, "ACK [%d] %s\n", r, sky_reply_message(rep));
+	}
+	sky_reply_free(rep);
+	sky_disconnect(c);
+	return r ? EXIT_REFUSED : EXIT_OK;
 }
 
 /* batch: lines of key=value (or "set key=value ...") from stdin, sent
@@ -613,7 +639,7 @@ static const struct cmd cmds[] = {
 		  "                         lasts only while the connection that added it is open)", NULL },
 	{ "ping", "ping                     check that skyd answers", NULL },
 	{ "commands", "commands                 list the daemon's verbs", NULL },
-	{ "help", "help VERB                the daemon's help for a verb", cmd_help },
+	{ "help", "help [VERB]              the daemon's verbs, or the usage of one", cmd_help },
 	{ "watch", "watch [--count N]        print each new generation", cmd_watch },
 	{ "dump", "dump DIR                 write the current tables as EXR files", cmd_dump },
 	{ "render", "render --view fisheye|equirect|perspective [--size WxH] [--yaw D]\n"

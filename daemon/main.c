@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <systemd/sd-daemon.h>
 #include <unistd.h>
 
@@ -466,17 +467,53 @@ static int start_loop(struct daemon *d, const struct sky_state *initial)
 	return r;
 }
 
-/* The Vulkan device, and the initial state checked against it. */
+/* skyd's cache directory, made if missing: $CACHE_DIRECTORY (systemd's
+ * CacheDirectory=, the first of a list), else $XDG_CACHE_HOME/skyd, else
+ * ~/.cache/skyd. 0, or -errno with nothing to use. */
+static int cache_dir(char *buf, size_t size)
+{
+	const char *sd = getenv("CACHE_DIRECTORY"), *xdg = getenv("XDG_CACHE_HOME");
+	const char *home = getenv("HOME");
+	int n;
+
+	if (sd && *sd) {
+		n = snprintf(buf, size, "%.*s", (int)strcspn(sd, ":"), sd);
+	} else if (xdg && *xdg == '/') {
+		n = snprintf(buf, size, "%s/skyd", xdg);
+	} else if (home && *home == '/') {
+		n = snprintf(buf, size, "%s/.cache", home);
+		if (n > 0 && (size_t)n < size && mkdir(buf, 0700) < 0 && errno != EEXIST)
+			return -errno;
+		n = snprintf(buf, size, "%s/.cache/skyd", home);
+	} else {
+		return -ENOENT;
+	}
+	if (n <= 0 || (size_t)n >= size)
+		return -ENAMETOOLONG;
+	if (mkdir(buf, 0700) < 0 && errno != EEXIST)
+		return -errno;
+	return 0;
+}
+
+/* The Vulkan device with its pipelines' cache, and the initial state
+ * checked against it. */
 static int start_engine(struct daemon *d, const struct sky_state *initial)
 {
-	char err[512] = "";
+	char err[512] = "", dir[4096];
 	int r = eng_new(d->o->device, err, sizeof(err), &d->eng);
 
 	if (r < 0) {
 		log_error("no Vulkan device: %s (skyd --list-devices lists them; lavapipe comes with mesa-vulkan-drivers)", err);
 		return r;
 	}
-	log_info("device: %s (%s)", eng_device(d->eng)->name, eng_device(d->eng)->type_name);
+	log_info("device: %s (%s), grain %s", eng_device(d->eng)->name, eng_device(d->eng)->type_name,
+		 eng_grain_name(eng_grain(d->eng)));
+	r = cache_dir(dir, sizeof(dir));
+	if (r == 0)
+		r = eng_use_cache_dir(d->eng, dir, err, sizeof(err));
+	if (r < 0)
+		log_info("no pipeline cache (%s): every start compiles the shaders",
+			 err[0] ? err : strerror(-r));
 	err[0] = 0;
 	r = state_validate(initial, eng_max_table_bytes(d->eng), err, sizeof(err));
 	if (r < 0)

@@ -37,6 +37,31 @@ static int list_devices(void)
 	return 0;
 }
 
+/* How each table's PNG preview is drawn and what its axes are, for the
+ * manifest: a person expects the zenith up, so the sky-view table, whose
+ * v = 0 is the zenith, is drawn v downward; the EXR keeps v upward
+ * (dump.h). Rows follow proto/skymap.h's mappings. */
+static const struct preview {
+	enum dump_rows rows;
+	const char *x, *y;
+} previews[STATE_N_TABLES] = {
+	[STATE_TRANSMITTANCE] = { DUMP_ROWS_V_UP,
+		"view direction: straight up (mu = 1) at the left, the horizon at the right",
+		"altitude: the ground at the bottom, the top of the atmosphere at the top" },
+	[STATE_MULTISCATTER] = { DUMP_ROWS_V_UP,
+		"the sun's height: at the nadir at the left, at the zenith at the right, "
+		"texels packed around the horizon of each altitude",
+		"altitude: the ground at the bottom, the top of the atmosphere at the top" },
+	[STATE_SKYVIEW] = { DUMP_ROWS_V_DOWN,
+		"azimuth east of north: 0 deg at the left, 360 at the right",
+		"the zenith at the top, the horizon at the middle (texels packed around it), "
+		"the nadir at the bottom" },
+	[STATE_AERIAL] = { DUMP_ROWS_V_UP,
+		"the state's camera's screen, left to right",
+		"one band per slice, the nearest at the top; in each, the camera's screen "
+		"with its up at the top" },
+};
+
 static void emit_state(void *ctx, const char *key, const char *value)
 {
 	struct dump_json *j = ctx;
@@ -89,6 +114,13 @@ static int write_manifest(const char *dir, const struct sky_state *s, const stru
 		snprintf(file, sizeof(file), "%s.png", state_table_names[i]);
 		dump_json_key(j, "png");
 		dump_json_string(j, file);
+		/* The EXR as dump.h orders it; the preview for people. */
+		dump_json_key(j, "exr_rows");
+		dump_json_string(j, "v upward: table row 0 at the bottom of its slice's band, slice 0 on top");
+		dump_json_key(j, "png_x");
+		dump_json_string(j, previews[i].x);
+		dump_json_key(j, "png_y");
+		dump_json_string(j, previews[i].y);
 		dump_json_key(j, "compute_ms");
 		dump_json_number(j, t->table_ms[i]);
 		dump_json_end_object(j);
@@ -128,7 +160,9 @@ static int dump_tables(const char *dir, const struct sky_state *s, const struct 
 		int rc = dump_exr(path, &tab, err, err_size);
 		if (rc == 0) {
 			snprintf(path, sizeof(path), "%s/%s.png", dir, state_table_names[i]);
-			rc = dump_png(path, &tab, NULL, err, err_size);
+			struct dump_tonemap tm = { .exposure = 0.0, .curve = DUMP_CURVE_ACES,
+						   .rows = previews[i].rows };
+			rc = dump_png(path, &tab, &tm, err, err_size);
 		}
 		if (rc < 0)
 			return rc;

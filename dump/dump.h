@@ -7,7 +7,8 @@
  * where (err may be NULL). Nothing prints, exits or keeps global state, so
  * different tables may be dumped from different threads at once.
  *
- * Orientation, the same for the EXR and the PNG preview:
+ * Orientation, of the EXR and, unless asked otherwise (enum dump_rows), of
+ * the PNG preview:
  *   the image is W wide and H * D high; slice k of a 3-D table occupies the
  *   band of scanlines [k * H, (k + 1) * H), slice 0 at the top; inside a band
  *   scanline y = k * H + (H - 1 - j) holds table row j, so that v grows
@@ -69,9 +70,18 @@ enum dump_curve {
 	DUMP_CURVE_REINHARD = 1,	/* x / (1 + x) */
 };
 
+/* Which way v runs down a PNG preview's band (a slice); the EXR always
+ * has v upward. Previews are for people: a table whose v = 0 is what a
+ * person expects at the top (the sky-view table's zenith) takes V_DOWN. */
+enum dump_rows {
+	DUMP_ROWS_V_UP = 0,		/* as the EXR: table row 0 at the bottom of its band */
+	DUMP_ROWS_V_DOWN = 1,		/* table row 0 at the top of its band */
+};
+
 struct dump_tonemap {
 	double exposure;		/* linear scale before the curve; <= 0: automatic */
 	enum dump_curve curve;
+	enum dump_rows rows;		/* 0 (V_UP) unless set */
 };
 
 /* The automatic exposure: the scale that brings the 99th percentile of the
@@ -87,9 +97,10 @@ uint8_t dump_tonemap_srgb8(float x, double exposure, enum dump_curve curve);
 
 /* Write an 8-bit sRGB PNG preview of a table (with an sRGB chunk): exposure,
  * then the curve per channel, then the sRGB transfer function; negative and
- * NaN values show black, +inf white; alpha dropped; same orientation as the
- * EXR. opt NULL means automatic exposure and the ACES curve. The file is
- * written and renamed into place like dump_exr's. */
+ * NaN values show black, +inf white; alpha dropped; the orientation of the
+ * EXR, but for the rows of opt->rows. opt NULL means automatic exposure,
+ * the ACES curve and v upward. The file is written and renamed into place
+ * like dump_exr's. */
 int dump_png(const char *path, const struct dump_table *table, const struct dump_tonemap *opt,
 	     char *err, size_t err_size);
 

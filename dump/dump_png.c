@@ -80,10 +80,17 @@ static void png_on_warning(png_structp png, png_const_charp msg)
 {
 }
 
+/* Table row of image scanline y: dump.h's order, or with v downward each
+ * band's rows in storage order. */
+static size_t preview_row(const struct dump_table *t, uint32_t y, enum dump_rows rows)
+{
+	return rows == DUMP_ROWS_V_DOWN ? y : dump_scanline_row(t, y);
+}
+
 /* All the libpng calls that may longjmp, kept apart so that no local of the
  * caller lives across setjmp. */
 static int png_encode(png_structp png, png_infop info, FILE *f, const struct dump_table *t,
-		      double exposure, enum dump_curve curve, uint8_t *row)
+		      double exposure, enum dump_curve curve, enum dump_rows rows, uint8_t *row)
 {
 	uint32_t image_h = t->height * t->depth;
 	float rgba[4];
@@ -96,7 +103,7 @@ static int png_encode(png_structp png, png_infop info, FILE *f, const struct dum
 	png_set_sRGB_gAMA_and_cHRM(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
 	png_write_info(png, info);
 	for (uint32_t y = 0; y < image_h; y++) {
-		size_t base = dump_scanline_row(t, y) * t->width;
+		size_t base = preview_row(t, y, rows) * t->width;
 		for (uint32_t i = 0; i < t->width; i++) {
 			dump_texel_rgba(t, base + i, rgba);
 			for (int c = 0; c < 3; c++)
@@ -112,6 +119,7 @@ int dump_png(const char *path, const struct dump_table *t, const struct dump_ton
 	     char *err, size_t err_size)
 {
 	enum dump_curve curve = opt ? opt->curve : DUMP_CURVE_ACES;
+	enum dump_rows rows = opt ? opt->rows : DUMP_ROWS_V_UP;
 	double exposure = opt ? opt->exposure : 0.0;
 	struct png_err pe = { .msg = "" };
 	struct dump_out out;
@@ -123,7 +131,8 @@ int dump_png(const char *path, const struct dump_table *t, const struct dump_ton
 
 	if ((r = dump_table_check(t, err, err_size)) < 0)
 		return r;
-	if (!path || (curve != DUMP_CURVE_ACES && curve != DUMP_CURVE_REINHARD) || !isfinite(exposure))
+	if (!path || (curve != DUMP_CURVE_ACES && curve != DUMP_CURVE_REINHARD) || !isfinite(exposure) ||
+	    (rows != DUMP_ROWS_V_UP && rows != DUMP_ROWS_V_DOWN))
 		return dump_fail(err, err_size, -EINVAL, "dump: '%s': bad path or tone mapping", t->name);
 	if (!(exposure > 0.0) && (r = dump_auto_exposure(t, &exposure)) < 0)
 		return dump_fail(err, err_size, r, "'%s': exposure: %s", path, strerror(-r));
@@ -144,7 +153,7 @@ int dump_png(const char *path, const struct dump_table *t, const struct dump_ton
 		goto out;
 	}
 	errno = 0;	/* so that png_on_error sees only a write's errno */
-	if (png_encode(png, info, f, t, exposure, curve, row) < 0) {
+	if (png_encode(png, info, f, t, exposure, curve, rows, row) < 0) {
 		r = dump_fail(err, err_size, pe.saved_errno ? -pe.saved_errno : -EIO, "'%s': png: %s%s%s%s",
 			      path, pe.msg, pe.saved_errno ? " (" : "",
 			      pe.saved_errno ? strerror(pe.saved_errno) : "", pe.saved_errno ? ")" : "");

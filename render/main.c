@@ -39,7 +39,7 @@ struct opts {
 	const char *out;
 	struct rvk_options rvk;
 	double exposure;		/* <= 0: automatic, as skyctl render */
-	long frames;			/* 0: until SIGINT or SIGTERM (or the window closes) */
+	long frames;			/* 0 (--forever): until SIGINT or SIGTERM (or the window closes) */
 	enum aerial_form aerial;
 	bool window;			/* show the frames in an X11 window */
 	bool out_given;			/* --out: with --window, write PNGs too */
@@ -86,13 +86,14 @@ static void usage(FILE *f)
 		"                       eye point, which all tiles of a wall share (default);\n"
 		"                       volume: a volume of this camera (a dome: four)\n"
 		"  --exposure E         linear scale before the tone curve (default: automatic)\n"
-		"  --frames N           frames to draw, 0 until SIGINT/SIGTERM (default 1)\n"
-		"  --interval MS        between frames (default 100 when --frames 0, else 0)\n"
+		"  --frames N           frames to draw, at least 1 (default 1)\n"
+		"  --forever            draw until SIGINT or SIGTERM\n"
+		"  --interval MS        between frames (default 100 with --forever, else 0)\n"
 		"  --out PATH           a PNG per frame: a pattern with %%d (frame number), a\n"
 		"                       directory (DIR/frame-%%04d.png), or one file overwritten\n"
 		"                       (default frame-%%04d.png)\n"
 		"  --window             show the frames in a window on $DISPLAY (X11; Escape or q\n"
-		"                       closes it); PNGs then only with --out; --frames 0 by default\n"
+		"                       closes it); PNGs then only with --out; --forever by default\n"
 		"  --device SEL         Vulkan device, an index or a name substring\n"
 		"Prints one line per frame: frame N generation G PATH.\n");
 }
@@ -164,7 +165,14 @@ static int parse_args(int argc, char **argv, struct opts *o)
 		} else if (!strcmp(k, "--exposure")) {
 			bad = parse_number(v, 0.0, 1e12, &o->exposure) < 0;
 		} else if (!strcmp(k, "--frames")) {
-			bad = parse_number(v, 0.0, 1e9, &x) < 0 || x != floor(x);
+			/* 0 once meant forever: a script that asked for one picture
+			 * with it waited for ever. */
+			if (v && !strcmp(v, "0")) {
+				fprintf(stderr, "skyrender: --frames 0 draws nothing; --forever draws until "
+						"SIGINT or SIGTERM\n");
+				return EXIT_USAGE;
+			}
+			bad = parse_number(v, 1.0, 1e9, &x) < 0 || x != floor(x);
 			o->frames = (long)x;
 			o->frames_given = true;
 		} else if (!strcmp(k, "--interval")) {
@@ -172,16 +180,20 @@ static int parse_args(int argc, char **argv, struct opts *o)
 			interval = (int)x;
 		} else {
 			takes = false;
-			if (!strcmp(k, "--fisheye"))
+			if (!strcmp(k, "--fisheye")) {
 				cam->projection = RVK_FISHEYE;
-			else if (!strcmp(k, "--window"))
+			} else if (!strcmp(k, "--window")) {
 				o->window = true;
-			else if (!strcmp(k, "--no-terrain"))
+			} else if (!strcmp(k, "--forever")) {
+				o->frames = 0;
+				o->frames_given = true;
+			} else if (!strcmp(k, "--no-terrain")) {
 				o->rvk.terrain = false;
-			else if (!strcmp(k, "--no-disks"))
+			} else if (!strcmp(k, "--no-disks")) {
 				o->rvk.disk_flags = 0;
-			else
+			} else {
 				bad = true;
+			}
 		}
 		if (bad || (takes && !v)) {
 			fprintf(stderr, "skyrender: bad argument '%s%s%s' (see --help)\n", k,

@@ -53,10 +53,8 @@ void main()
 	int pw = int(pano_w), rows = panorama ? (pw * int(pano_h) + OUT_W - 1) / OUT_W : OUT_H;
 	if (px.x >= OUT_W || px.y >= rows)
 		return;
-	// Rows that look at the ground end early: interleave the volume's rows
-	// from both ends so that lavapipe's contiguous shares of workgroups
-	// carry the same work (as in skyview.comp).
-	px.y = (px.y & 1) == 0 ? px.y >> 1 : rows - 1 - (px.y >> 1);
+	// Rows that look at the ground end early (interleaved_row()).
+	px.y = interleaved_row(px.y, rows);
 
 	float h0 = VB.job[z].eye_km, range = P.AERIAL_RANGE_KM;
 	vec3 dir;

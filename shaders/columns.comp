@@ -133,6 +133,8 @@ void main()
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
 	if (px.x >= OUT_W || px.y >= OUT_H)
 		return;
+	// Rays from low altitudes cross more of the profiles' kinks.
+	px.y = interleaved_row(px.y, OUT_H);
 
 	float rb = P.BOTTOM_RADIUS_KM, shell = P.SHELL_KM;
 	float H = P.TOP_DISTANCE_KM;

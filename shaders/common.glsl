@@ -36,6 +36,7 @@ layout(constant_id = SPEC_MOMENT_LOBE) const int MOMENT_LOBE = 0;    // 1 + the 
 const int MOMENT_CONST = MOMENT_LOBE - 1;
 layout(constant_id = SPEC_DELTA_LOBE) const int DELTA_LOBE = 0;     // 1 + the constituent delta-M scaled for the higher orders (delta_source), 0 none
 const int DELTA_CONST = DELTA_LOBE - 1;
+layout(constant_id = SPEC_LOOKUP_IMAGES) const bool LOOKUP_IMAGES = false;	// the lookups through sampled images
 
 // struct Constituent and struct Params: sky_params.h.
 layout(std140, binding = BINDING_PARAMS) uniform ParamsBlock { Params params; };
@@ -77,6 +78,11 @@ layout(std430, binding = BINDING_AERIAL) buffer AerialBuf { uint d[]; } AB;
 // buffers (float32 RGBA): the gathers are vectorized.
 layout(binding = BINDING_TRANSMITTANCE_TEX) uniform samplerBuffer TransmittanceTex;
 layout(binding = BINDING_MULTISCATTER_TEX) uniform samplerBuffer MultiscatterTex;
+// And as sampled images, bilinear by the texture units at texel
+// coordinates (texel i's centre at i + 0.5), where LOOKUP_IMAGES: the
+// engine copies the tables into them (eng_pass.c).
+layout(binding = BINDING_TRANSMITTANCE_IMG) uniform sampler2D TransmittanceImg;
+layout(binding = BINDING_MULTISCATTER_IMG) uniform sampler2D MultiscatterImg;
 // Column densities of the transmittance texels, one per constituent
 // (columns.comp): internal, float32 whatever the tables' storage.
 layout(std430, binding = BINDING_COLUMNS) buffer ColumnBuf { vec4 d[]; } CB;
@@ -121,6 +127,18 @@ void flush_range(int table)
 {
 	if (STORAGE_F16 && range_bits != 0u)
 		atomicMax(PB.max_bits[table], range_bits);
+}
+
+// The table row that invocation row gy of n computes: rows from both ends
+// in turn. lavapipe hands each of its threads a contiguous share of the
+// workgroups, so where a row's cost grows from one end of the table to the
+// other (altitude, the horizon) each share gets half of each end and the
+// threads finish together; a GPU does not care. Rows past n stay past it.
+int interleaved_row(int gy, int n)
+{
+	if (gy >= n)
+		return gy;
+	return (gy & 1) == 0 ? gy >> 1 : n - 1 - (gy >> 1);
 }
 
 // skymap.glsl's, at this planet.
@@ -315,6 +333,10 @@ float transmittance_x(TAlt a, float mu)
 // planet is in the way.
 vec3 transmittance_lookup(TAlt a, float mu)
 {
+	if (LOOKUP_IMAGES) {
+		float x = clamp(transmittance_x(a, mu), 0.0, 1.0) * float(T_W - 1);
+		return textureLod(TransmittanceImg, vec2(x, float(a.t_rows.i0) + a.t_rows.f) + 0.5, 0.0).rgb;
+	}
 	return bilinear(TransmittanceTex, T_W, transmittance_x(a, mu), a.t_rows).rgb;
 }
 
@@ -381,6 +403,7 @@ float disk_visible_mean(float xa, float xb, float e, float half_inv_e)
 struct MsTaps {
 	ivec4 i;
 	vec3 f;
+	vec4 at;	// texel coordinates: the lower row's, the upper row's
 };
 
 // A row's u for mu_s: the row's horizon cosine mh and 1 / (1 + mh),
@@ -398,6 +421,7 @@ MsTaps ms_taps(TAlt a, float mu_s)
 	MsTaps t;
 	t.i = ivec4(r0 + c0.i0, r0 + c0.i1, r1 + c1.i0, r1 + c1.i1);
 	t.f = vec3(c0.f, c1.f, a.ms_rows.f);
+	t.at = vec4(float(c0.i0) + c0.f, float(a.ms_rows.i0), float(c1.i0) + c1.f, float(a.ms_rows.i1)) + 0.5;
 	return t;
 }
 
@@ -407,9 +431,18 @@ vec4 ms_read(samplerBuffer tex, MsTaps t)
 		   mix(texelFetch(tex, t.i.z), texelFetch(tex, t.i.w), t.f.y), t.f.z);
 }
 
+// ms_read of the multi-scattering table: by hand, or each row by the
+// texture units (a row's centre: no blend across rows) and then the rows.
+vec4 ms_read_table(MsTaps t)
+{
+	if (LOOKUP_IMAGES)
+		return mix(textureLod(MultiscatterImg, t.at.xy, 0.0), textureLod(MultiscatterImg, t.at.zw, 0.0), t.f.z);
+	return ms_read(MultiscatterTex, t);
+}
+
 vec4 multiscatter_at(TAlt a, float mu_s)
 {
-	return ms_read(MultiscatterTex, ms_taps(a, mu_s));
+	return ms_read_table(ms_taps(a, mu_s));
 }
 
 // The phase of every constituent for one light: constant along a view ray
@@ -494,7 +527,7 @@ vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_shape)
 {
 	MsTaps t = ms_taps(a, mu_s);
 	ret_shape = ms_read(MomentTex, t);
-	return ms_read(MultiscatterTex, t);
+	return ms_read_table(t);
 }
 
 // The higher orders at a point for one light: Hillaire's isotropic psi_ms

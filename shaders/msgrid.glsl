@@ -19,6 +19,14 @@ layout(constant_id = SPEC_MS_DIRS) const int MS_DIRS = 64;
 const int MS_RINGS = 16, MS_COLS = 4, MS_HALF_COLS = MS_COLS / 2;
 const float MS_RING_POW = 1.2;
 layout(constant_id = SPEC_MS_SUN_GROUP) const int MS_SUN_GROUP = 4;
+// The grain (daemon/engine/eng_grain.c): 1, each invocation marching every
+// cell in turn for MS_SUN_GROUP texels of a row (a CPU device, where a
+// barrier turns every invocation into a coroutine); or the cells marched,
+// one lane each, a workgroup per texel and MS_SUN_GROUP 1 (a GPU: 1024
+// workgroups at the default size, where the CPU grain made 4). The passes'
+// workgroup size is (SPEC_LOCAL_X, SPEC_LOCAL_Y): 8 x 8, or MS_LANES x 1.
+layout(constant_id = SPEC_MS_LANES) const int MS_LANES = 1;
+layout(local_size_x_id = SPEC_LOCAL_X, local_size_y_id = SPEC_LOCAL_Y) in;
 
 // The cosine of ring edge e (0: zenith, MS_RINGS: nadir).
 float ring_edge(int e)
@@ -87,8 +95,56 @@ void ms_row_suns(int x0, float h, out vec3 ret_sun[MS_SUN_GROUP])
 
 // The weight of a direction's cell in the mean over the sphere: 2 / 64
 // (the directions at -phi are not marched), or 1 / 2 for 2 directions.
-const int MS_MARCHED = MS_DIRS == 2 ? 2 : MS_RINGS * MS_HALF_COLS;
+const int MS_MARCHED = SKY_MS_MARCHED(MS_DIRS);	// MS_RINGS * MS_HALF_COLS, or 2
 const float MS_NORM = MS_DIRS == 2 ? 0.5 : 2.0 / float(MS_RINGS * MS_COLS);
+
+// The cells an invocation keeps a value of (cell_slot(): the CPU grain
+// every marched cell, a lane its own).
+const int MS_KEPT = MS_LANES > 1 ? 1 : 32;
+
+int cell_slot(int k)
+{
+	return MS_LANES > 1 ? 0 : k;
+}
+
+// The invocation's texels: the first of its row group (x), its row (y) and
+// its lane, which is the first cell it marches (z); it marches every
+// MS_LANES-th cell from there. The CPU grain's rows are interleaved
+// (interleaved_row()): a row's cost grows with its altitude.
+ivec3 ms_texels()
+{
+	if (MS_LANES > 1)
+		return ivec3(gl_WorkGroupID.xy, gl_LocalInvocationID.x);
+	return ivec3(int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, interleaved_row(int(gl_GlobalInvocationID.y), OUT_H), 0);
+}
+
+// The wide grain's sums over the cells: each lane puts the n parts it
+// summed over its own cell into shared memory, then for each part one lane
+// adds the cells' values in cell order, as the CPU grain's loop over the
+// cells does, and every lane reads the totals back into v. Bit for bit the
+// CPU grain's sums where the compiler fuses no multiply into them (a fused
+// multiply-add rounds once where a lane's part is rounded before the add;
+// tests/numerical/test_grain.c states the bound). Every lane must call it:
+// it holds two barriers.
+const int MS_PARTS = 26;
+shared float ms_parts[MS_PARTS * MS_LANES];
+shared float ms_totals[MS_PARTS];
+
+void ms_reduce(inout float v[MS_PARTS], int n, int lane)
+{
+	for (int q = 0; q < n; q++)
+		ms_parts[q * MS_LANES + lane] = v[q];
+	barrier();
+	for (int q = lane; q < n; q += MS_LANES) {
+		float sum = 0.0;
+		for (int k = 0; k < MS_MARCHED; k++)
+			sum += ms_parts[q * MS_LANES + k];
+		ms_totals[q] = sum;
+	}
+	barrier();
+	for (int q = 0; q < n; q++)
+		v[q] = ms_totals[q];
+}
 
 // A, the ground's first bounce's share of psi, weighs the channels by
 // luminance (Rec. 709): one grey share for the three.

@@ -15,14 +15,15 @@
 // Same directions (msgrid.glsl) and steps as multiscatter.comp, so that
 // L2 = psi (1 - f) is recovered exactly from the table on the first step
 // (ITER_FIRST), which keeps it for the later ones in the scratch buffer;
-// L2 here includes the ground's first bounce as the table has it.
+// L2 here includes the ground's first bounce as the table has it. The
+// grain is multiscatter.comp's: every cell in turn for MS_SUN_GROUP
+// texels, or a lane per cell of one texel (MS_LANES > 1).
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 #include "msgrid.glsl"
 
 layout(constant_id = SPEC_ITER_FIRST) const bool ITER_FIRST = true;
-layout(local_size_x = 8, local_size_y = 8) in;
 
 // The next psi as the table holds it, float32 RGBA (copied over the table
 // after the pass), then L2 as float32 RGBA per texel.
@@ -90,7 +91,8 @@ vec3 ground_sky(vec3 psi_g, vec3 sunlit)
 void main()
 {
 	load_params();
-	int x0 = int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, py = int(gl_GlobalInvocationID.y);
+	ivec3 at = ms_texels();
+	int x0 = at.x, py = at.y, lane = at.z;
 	if (x0 >= OUT_W || py >= OUT_H)
 		return;
 
@@ -117,7 +119,7 @@ void main()
 	for (int j = 0; j < MS_SUN_GROUP; j++)
 		first[j] = vec3(0.0);
 	TAlt ground_alt = t_alt(0.0);
-	for (int k = 0; k < n_dirs; k++) {
+	for (int k = lane; k < n_dirs; k += MS_LANES) {
 		vec2 ring = cell_ring(k);
 		float wk = cell_weight(ring);
 		vec3 dir = cell_direction(k, ring);
@@ -156,6 +158,23 @@ void main()
 		}
 		sum_escape += tr - returned + absorbed;
 		sum_returned += returned;
+	}
+	// The wide grain: the sums over every lane's cells.
+	if (MS_LANES > 1) {
+		float v[MS_PARTS];
+		for (int c = 0; c < 3; c++) {
+			v[c] = gathered[0][c];
+			v[3 + c] = first[0][c];
+			v[6 + c] = sum_escape[c];
+			v[9 + c] = sum_returned[c];
+		}
+		ms_reduce(v, 12, lane);
+		gathered[0] = vec3(v[0], v[1], v[2]);
+		first[0] = vec3(v[3], v[4], v[5]);
+		sum_escape = vec3(v[6], v[7], v[8]);
+		sum_returned = vec3(v[9], v[10], v[11]);
+		if (lane != 0)
+			return;
 	}
 	vec3 escape = sum_escape * norm;
 	int l2_base = 4 * OUT_W * OUT_H;

@@ -9,14 +9,15 @@
 // invocation marches them once for MS_SUN_GROUP texels of a row (sun angles)
 // and only the light lookups are per texel. The sun lies in the x-z plane,
 // so the grid's directions at azimuth phi and -phi contribute alike: half of
-// them are marched, counted twice. No shared memory and no barrier: on
-// lavapipe a barrier turns every invocation into a coroutine.
+// them are marched, counted twice. That is the CPU grain: no shared memory
+// and no barrier, since on lavapipe a barrier turns every invocation into a
+// coroutine. On a GPU (MS_LANES > 1, msgrid.glsl) a workgroup computes one
+// texel, a lane per cell, and the cells' sums meet in shared memory
+// (ms_reduce()).
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 #include "msgrid.glsl"
-
-layout(local_size_x = 8, local_size_y = 8) in;
 
 // The cosines of the 2 x 2 equal-area sub-samples of marched direction k's
 // cell (ring from cosine ring.x down to ring.y): ret_cp * sun.x + ret_ct *
@@ -60,9 +61,10 @@ vec3 sunlight(TAlt a, float mu, float radius_rad, mat4x3 ext_scaled)
 // constituent i and sun j: the cell's mean phase (cell_sum), the lobe
 // constituent's x^2 - y^2 across it (cell_xy2, delta-M only) and the
 // normalisation that makes the cells' phases integrate to 1 (phase_norm).
-// Module-scope, so that the functions below share them without copies.
-float cell_sum[32 * 4 * MS_SUN_GROUP];	// MS_MARCHED <= 32 cells
-float cell_xy2[32 * MS_SUN_GROUP];
+// Module-scope, so that the functions below share them without copies;
+// indexed by cell_slot(k) (msgrid.glsl).
+float cell_sum[MS_KEPT * 4 * MS_SUN_GROUP];	// MS_MARCHED <= 32 cells
+float cell_xy2[MS_KEPT * MS_SUN_GROUP];
 float phase_norm[4][MS_SUN_GROUP];
 
 // The sums over the marched cells: L2 and the ground's first bounce per sun,
@@ -85,14 +87,15 @@ mat3 sum_transfer;
 // undercounts. A point value is a poor quadrature of such a lobe over a
 // 0.2 sr cell, so each cell takes its 2 x 2 sub-samples' mean, normalised
 // so that the cells' phases sum to exactly 1 over the sphere and no energy
-// is made or lost. Fills cell_sum, cell_xy2 and phase_norm for the suns.
-void cell_phases(vec3 sun[MS_SUN_GROUP])
+// is made or lost. Fills cell_sum, cell_xy2 and phase_norm for the suns,
+// of the cells from lane on (ms_texels()).
+void cell_phases(vec3 sun[MS_SUN_GROUP], int lane)
 {
 	float total[4][MS_SUN_GROUP];
 	for (int i = 0; i < 4; i++)
 		for (int j = 0; j < MS_SUN_GROUP; j++)
 			total[i][j] = 0.0;
-	for (int k = 0; k < MS_MARCHED; k++) {
+	for (int k = lane; k < MS_MARCHED; k += MS_LANES) {
 		vec4 cp, ct, xy2;
 		vec2 ring = cell_ring(k);
 		float wk = cell_weight(ring);
@@ -107,63 +110,39 @@ void cell_phases(vec3 sun[MS_SUN_GROUP])
 						truncated ? P.c[i].DELTA_G : P.c[i].PHASE_G, mu);
 				float c = dot(p, vec4(0.25));
 				if (i == MOMENT_CONST)	// only delta-M uses it (store_shape())
-					cell_xy2[k * MS_SUN_GROUP + j] = truncated ? dot(p, xy2) / max(4.0 * c, 1e-30) : 0.0;
-				cell_sum[(k * 4 + i) * MS_SUN_GROUP + j] = c;
+					cell_xy2[cell_slot(k) * MS_SUN_GROUP + j] = truncated ? dot(p, xy2) / max(4.0 * c, 1e-30) : 0.0;
+				cell_sum[(cell_slot(k) * 4 + i) * MS_SUN_GROUP + j] = c;
 				total[i][j] += wk * c;
 			}
 		}
+	}
+	if (MS_LANES > 1) {
+		float v[MS_PARTS];
+		for (int i = 0; i < 4; i++)
+			v[i] = total[i][0];
+		ms_reduce(v, N_CONST, lane);
+		for (int i = 0; i < 4; i++)
+			total[i][0] = v[i];
 	}
 	for (int i = 0; i < N_CONST; i++)
 		for (int j = 0; j < MS_SUN_GROUP; j++)
 			phase_norm[i][j] = 1.0 / (4.0 * PI * MS_NORM * max(total[i][j], 1e-30));
 }
 
-// Marches cell k's direction from altitude h (r0 = Rb + h) and adds its
-// L2, moments, ground bounce and escape to the sums. scattering_of,
-// absorption_of: the constituents' coefficients as matrices, times the
-// step's densities the medium.
-void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_scaled, mat4x3 scattering_of,
-		mat4x3 absorption_of)
+// The cells marched together: a ring's MS_HALF_COLS cells share their
+// zenith angle, so their rays cross the same altitudes at the same
+// distances, and the medium along them (densities, steps' weights, the
+// lookups' rows) is evaluated once for both; only the lights' cosines
+// differ. The CPU grain marches a ring at a time; a lane of the wide
+// grain, and the 2-direction grid (two rings of one cell), one cell.
+const int MS_TOGETHER = MS_LANES == 1 && MS_DIRS != 2 ? MS_HALF_COLS : 1;
+
+// Adds cell k's L2 (l2, per sun), moments, ground bounce and escape to the
+// sums, from its march: the transmittance to its end (tr), what was
+// absorbed and scattered on the way, its direction and where it ends.
+void add_cell(int k, vec3 dir, float wk, vec3 l2[MS_SUN_GROUP], vec3 tr, vec3 absorbed, vec3 transfer,
+	      bool ground, float t_end, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_scaled)
 {
-	vec2 ring = cell_ring(k);
-	float wk = cell_weight(ring);
-	vec3 dir = cell_direction(k, ring);
-	float tg, t_end = distance_to_top(h, dir.z);
-	bool ground = hits_ground(h, dir.z, tg);
-	if (ground)
-		t_end = tg;
-	float dt = t_end / float(STEPS);
-	vec3 tr = vec3(1.0), absorbed = vec3(0.0), transfer = vec3(0.0);
-	// Per sun, the phase-weighted scattering per unit density of each
-	// constituent: a matrix times the step's densities (arrays of
-	// constituents indexed in loops leave the registers on lavapipe).
-	mat4x3 phased_of[MS_SUN_GROUP];
-	for (int j = 0; j < MS_SUN_GROUP; j++)
-		phased_of[j] = mat4x3(0.0);
-	for (int i = 0; i < N_CONST; i++) {
-		if (phase_kind(i) == 0)
-			continue;
-		for (int j = 0; j < MS_SUN_GROUP; j++)
-			phased_of[j][i] = P.c[i].scattering.rgb *
-					  (cell_sum[(k * 4 + i) * MS_SUN_GROUP + j] * phase_norm[i][j]);
-	}
-	vec3 l2[MS_SUN_GROUP];
-	for (int j = 0; j < MS_SUN_GROUP; j++)
-		l2[j] = vec3(0.0);
-	for (int s = 0; s < STEPS; s++) {
-		float t = (float(s) + 0.5) * dt, rr;
-		float hs = altitude_along(h, dir.z, t, rr);
-		vec4 dens = densities(hs);
-		vec3 scattering = scattering_of * dens, absorption = absorption_of * dens;
-		vec3 step_t, w = tr * step_weight(scattering + absorption, dt, step_t);
-		TAlt a = t_alt(hs);
-		vec3 up = vec3(dir.xy * t, r0 + dir.z * t) / rr;
-		for (int j = 0; j < MS_SUN_GROUP; j++)
-			l2[j] += w * (phased_of[j] * dens) * sunlight(a, dot(up, sun[j]), P.SUN_RADIUS_RAD, ext_scaled);
-		absorbed += w * absorption;
-		transfer += w * scattering;
-		tr *= step_t;
-	}
 	// The cell's solid angle over the mean cell's: every term below is
 	// linear in these four.
 	tr *= wk;
@@ -180,7 +159,7 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 		for (int j = 0; j < MS_SUN_GROUP; j++) {
 			float l = wk * dot(l2[j], MS_SHARE_LUM);
 			sum_moment[j] -= dir.xz * l;
-			sum_second[j] += vec3(dir.z * dir.z, dir.x * dir.z, cell_xy2[k * MS_SUN_GROUP + j]) * l;
+			sum_second[j] += vec3(dir.z * dir.z, dir.x * dir.z, cell_xy2[cell_slot(k) * MS_SUN_GROUP + j]) * l;
 		}
 	vec3 returned = vec3(0.0);
 	if (ground && !GROUND_BLACK) {
@@ -199,6 +178,66 @@ void march_cell(int k, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_sca
 	}
 	sum_escape += tr - returned + absorbed;
 	sum_returned += returned;
+}
+
+// Marches cells k0 .. k0 + MS_TOGETHER - 1 (one ring) from altitude h (r0 =
+// Rb + h) and adds them to the sums in cell order. scattering_of,
+// absorption_of: the constituents' coefficients as matrices, times the
+// step's densities the medium.
+void march_cells(int k0, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_scaled, mat4x3 scattering_of,
+		 mat4x3 absorption_of)
+{
+	vec2 ring = cell_ring(k0);
+	float wk = cell_weight(ring);
+	vec3 dir[MS_TOGETHER];
+	for (int c = 0; c < MS_TOGETHER; c++)
+		dir[c] = cell_direction(k0 + c, ring);
+	float tg, t_end = distance_to_top(h, dir[0].z);
+	bool ground = hits_ground(h, dir[0].z, tg);
+	if (ground)
+		t_end = tg;
+	float dt = t_end / float(STEPS);
+	vec3 tr = vec3(1.0), absorbed = vec3(0.0), transfer = vec3(0.0);
+	// Per cell and sun, the phase-weighted scattering per unit density of
+	// each constituent: a matrix times the step's densities (arrays of
+	// constituents indexed in loops leave the registers on lavapipe).
+	mat4x3 phased_of[MS_TOGETHER * MS_SUN_GROUP];
+	for (int j = 0; j < MS_TOGETHER * MS_SUN_GROUP; j++)
+		phased_of[j] = mat4x3(0.0);
+	for (int i = 0; i < N_CONST; i++) {
+		if (phase_kind(i) == 0)
+			continue;
+		for (int c = 0; c < MS_TOGETHER; c++)
+			for (int j = 0; j < MS_SUN_GROUP; j++)
+				phased_of[c * MS_SUN_GROUP + j][i] = P.c[i].scattering.rgb *
+					(cell_sum[(cell_slot(k0 + c) * 4 + i) * MS_SUN_GROUP + j] * phase_norm[i][j]);
+	}
+	vec3 l2[MS_TOGETHER * MS_SUN_GROUP];
+	for (int j = 0; j < MS_TOGETHER * MS_SUN_GROUP; j++)
+		l2[j] = vec3(0.0);
+	for (int s = 0; s < STEPS; s++) {
+		float t = (float(s) + 0.5) * dt, rr;
+		float hs = altitude_along(h, dir[0].z, t, rr);
+		vec4 dens = densities(hs);
+		vec3 scattering = scattering_of * dens, absorption = absorption_of * dens;
+		vec3 step_t, w = tr * step_weight(scattering + absorption, dt, step_t);
+		TAlt a = t_alt(hs);
+		for (int c = 0; c < MS_TOGETHER; c++) {
+			vec3 up = vec3(dir[c].xy * t, r0 + dir[c].z * t) / rr;
+			for (int j = 0; j < MS_SUN_GROUP; j++)
+				l2[c * MS_SUN_GROUP + j] += w * (phased_of[c * MS_SUN_GROUP + j] * dens) *
+							    sunlight(a, dot(up, sun[j]), P.SUN_RADIUS_RAD, ext_scaled);
+		}
+		absorbed += w * absorption;
+		transfer += w * scattering;
+		tr *= step_t;
+	}
+	for (int c = 0; c < MS_TOGETHER; c++) {
+		vec3 l2_cell[MS_SUN_GROUP];
+		for (int j = 0; j < MS_SUN_GROUP; j++)
+			l2_cell[j] = l2[c * MS_SUN_GROUP + j];
+		add_cell(k0 + c, dir[c], wk, l2_cell, tr, absorbed, transfer, ground, t_end, r0, sun, ext_scaled);
+	}
 }
 
 // The shape of the multiply scattered light for ms_source, texel i of sun
@@ -267,6 +306,35 @@ vec3 band2_transfer(int j, float h, vec3 psi, vec3 sun_j)
 	return 5.0 * s2 / max(s0, vec3(1e-30)) * p2 * fp2 * light_visible(t_alt(h), sun_j.z, P.SUN_RADIUS_RAD);
 }
 
+// The wide grain: the sums over every lane's cells (a texel's one sun);
+// the shape's moments only where there is a shape.
+void reduce_cells(int lane)
+{
+	float v[MS_PARTS];
+	for (int c = 0; c < 3; c++) {
+		v[c] = sum_l2[0][c];
+		v[3 + c] = sum_ground[0][c];
+		v[6 + c] = sum_escape[c];
+		v[9 + c] = sum_returned[c];
+		v[12 + c] = sum_second[0][c];
+		for (int m = 0; m < 3; m++)
+			v[15 + 3 * m + c] = sum_transfer[m][c];
+	}
+	v[24] = sum_moment[0].x;
+	v[25] = sum_moment[0].y;
+	ms_reduce(v, MOMENT_CONST >= 0 ? MS_PARTS : 12, lane);
+	for (int c = 0; c < 3; c++) {
+		sum_l2[0][c] = v[c];
+		sum_ground[0][c] = v[3 + c];
+		sum_escape[c] = v[6 + c];
+		sum_returned[c] = v[9 + c];
+		sum_second[0][c] = v[12 + c];
+		for (int m = 0; m < 3; m++)
+			sum_transfer[m][c] = v[15 + 3 * m + c];
+	}
+	sum_moment[0] = vec2(v[24], v[25]);
+}
+
 void main()
 {
 	load_params();
@@ -279,7 +347,8 @@ void main()
 	mat4x3 ext_scaled = mat4x3(0.0);
 	for (int i = 0; i < N_CONST; i++)
 		ext_scaled[i] = P.c[i].scattering.rgb + P.c[i].absorption.rgb;
-	int x0 = int(gl_GlobalInvocationID.x) * MS_SUN_GROUP, py = int(gl_GlobalInvocationID.y);
+	ivec3 at = ms_texels();
+	int x0 = at.x, py = at.y, lane = at.z;
 	if (x0 >= OUT_W || py >= OUT_H)
 		return;
 
@@ -289,7 +358,7 @@ void main()
 	float r0 = P.BOTTOM_RADIUS_KM + h;
 	// Only the scattering at x and beyond stays isotropic (Hillaire's
 	// assumption); the first scattering's phases are per cell and sun.
-	cell_phases(sun);
+	cell_phases(sun, lane);
 	mat4x3 scattering_of = mat4x3(0.0), absorption_of = mat4x3(0.0);
 	for (int i = 0; i < N_CONST; i++) {
 		scattering_of[i] = P.c[i].scattering.rgb;
@@ -304,8 +373,13 @@ void main()
 	sum_escape = vec3(0.0);
 	sum_returned = vec3(0.0);
 	sum_transfer = mat3(0.0);
-	for (int k = 0; k < MS_MARCHED; k++)
-		march_cell(k, h, r0, sun, ext_scaled, scattering_of, absorption_of);
+	for (int k = lane; k < MS_MARCHED; k += MS_LANES * MS_TOGETHER)
+		march_cells(k, h, r0, sun, ext_scaled, scattering_of, absorption_of);
+	if (MS_LANES > 1) {
+		reduce_cells(lane);
+		if (lane != 0)
+			return;
+	}
 	vec3 escape = sum_escape * MS_NORM;
 	// The ground's first bounce G travels up: its next order is only what
 	// the air scatters, never a reflection straight off the ground again,

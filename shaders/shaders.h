@@ -1,15 +1,16 @@
-/* shaders.h - the embedded SPIR-V, one entry per table in state_table order,
- * then the passes that produce no table (SHADER_COLUMNS, SHADER_MSITERATE,
- * SHADER_PACK) and the views' resampling of aerial perspective
- * (SHADER_AERIAL_RESAMPLE). */
+/* shaders.h - the embedded SPIR-V, one entry per shader: a table's pass
+ * each in state_table order, then the passes that produce no table
+ * (SHADER_COLUMNS, SHADER_MSITERATE, SHADER_PACK) and the views'
+ * resampling of aerial perspective (SHADER_AERIAL_RESAMPLE). The engine's
+ * passes name theirs (daemon/engine/eng_pass.c). */
 #ifndef SKYD_SHADERS_H
 #define SKYD_SHADERS_H
 
 #include <stddef.h>
 #include <stdint.h>
 
-enum { SHADER_COLUMNS = 4, SHADER_MSITERATE = 5, SHADER_PACK = 6, SHADER_AERIAL_RESAMPLE = 7,
-       SHADER_COUNT = 8 };
+enum { SHADER_TRANSMITTANCE, SHADER_MULTISCATTER, SHADER_SKYVIEW, SHADER_AERIAL, SHADER_COLUMNS,
+       SHADER_MSITERATE, SHADER_PACK, SHADER_AERIAL_RESAMPLE, SHADER_COUNT };
 
 struct shader_code {
 	const char *name;

@@ -35,7 +35,14 @@
 #define SPEC_MOMENT_LOBE 22	/* 1 + the constituent whose phase sees the lobe, 0 none */
 #define SPEC_DELTA_LOBE 23	/* 1 + the constituent delta-M scales, 0 none */
 #define SPEC_PACK_MASK 24	/* the tables pack.comp packs, STATE_BIT()s */
-#define SPEC_COUNT 25
+#define SPEC_MS_LANES 25	/* invocations sharing a multi-scattering texel's
+				 * directions: 1, or a lane per cell (the grain) */
+#define SPEC_LOCAL_X 26		/* the workgroup's size, where a pass takes it */
+#define SPEC_LOCAL_Y 27
+#define SPEC_LOOKUP_IMAGES 28	/* sky-view and aerial perspective read transmittance
+				 * and multi-scattering through sampled images (the
+				 * texture units' filtering), not texel buffers */
+#define SPEC_COUNT 29
 
 /* Bindings of the one descriptor set. The tables are storage buffers in
  * state_table order; transmittance and multi-scattering are read again
@@ -56,7 +63,9 @@
 #define BINDING_PACK 13			/* struct gpu_pack: pack.comp's counts, ranges, scales */
 #define BINDING_AERIAL_TEX 14		/* the aerial table's memory as a lookup: the
 					 * eye-point panoramas aerial_resample.comp reads */
-#define BINDING_COUNT 15
+#define BINDING_TRANSMITTANCE_IMG 15	/* transmittance and multi-scattering as */
+#define BINDING_MULTISCATTER_IMG 16	/* sampled images (SPEC_LOOKUP_IMAGES) */
+#define BINDING_COUNT 17
 
 /* The aerial jobs at BINDING_VIEWS (eng_fill_views, aerial.comp,
  * aerial_resample.comp): a head whose first word is the number of march
@@ -66,6 +75,10 @@
  * from a panorama. Offsets are in texels of the aerial buffer. */
 #define AERIAL_JOB_CAMERA 0u	/* march job kinds */
 #define AERIAL_JOB_PANORAMA 1u
+
+/* The multi-scattering directions marched for SPEC_MS_DIRS (msgrid.glsl's
+ * MS_MARCHED): half of the 64-direction grid, or both of 2. */
+#define SKY_MS_MARCHED(dirs) ((dirs) == 2 ? 2 : 32)
 
 #define SKY_MAX_CONSTITUENTS 4	/* ATMO_MAX_CONSTITUENTS */
 #define SKY_GROUND_FIT 8	/* PHASE_GROUND_FIT */

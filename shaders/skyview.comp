@@ -45,10 +45,8 @@ void main()
 	if (x0 >= OUT_W || gy >= OUT_H)
 		return;
 	// Rows below the horizon end on the ground after a few steps, rows above
-	// take all of them. lavapipe hands each thread a contiguous share of the
-	// workgroups, so invocation rows interleave the table's rows from both
-	// ends: every workgroup gets half of each, every thread the same work.
-	int py = (gy & 1) == 0 ? gy >> 1 : OUT_H - 1 - (gy >> 1);
+	// take all of them: every workgroup gets half of each.
+	int py = interleaved_row(gy, OUT_H);
 
 	float h0 = P.OBSERVER_KM;
 	// The row's direction from angles that keep their bits: the horizon's

@@ -33,8 +33,9 @@ static inline const char *state_compare_atmo(const struct atmo *a, const struct 
 }
 
 /* The first field in which a and b differ, NULL when none does. Left out:
- * the clock's anchors and the lights' time (instants on each machine's own
- * clocks), the views (they stay local) and the sensor's EV100 (not
+ * the clock's anchors, the lights' and the cloud field's times and the
+ * field's offset (instants on each machine's own clocks, and what follows
+ * from them), the views (they stay local) and the sensor's EV100 (not
  * replicated). */
 static inline const char *state_compare(const struct sky_state *a, const struct sky_state *b)
 {
@@ -62,6 +63,11 @@ static inline const char *state_compare(const struct sky_state *a, const struct 
 	STATE_COMPARE_SAME(clock.moon_mode);
 	STATE_COMPARE_SAME(night);
 	STATE_COMPARE_SAME(weather);
+	STATE_COMPARE_SAME(clouds.layer);
+	STATE_COMPARE_SAME(clouds.seed);
+	STATE_COMPARE_SAME(clouds.wind_dir_deg);
+	STATE_COMPARE_SAME(clouds.wind_speed_mps);
+	STATE_COMPARE_SAME(clouds.extent_km);
 	STATE_COMPARE_SAME(sensor);
 	return NULL;
 }

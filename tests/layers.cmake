@@ -14,7 +14,7 @@
 #               device. Labels integration and daemon (and numerical for
 #               those that also measure numbers).
 #   system/     needs a program or a service from outside the build: umockdev,
-#               mosquitto, systemd's tools, Xvfb, an install tree, strace.
+#               mosquitto, systemd's tools, Xvfb, an install tree, strace, socat.
 #               Labels integration and system.
 #   fuzz/       libFuzzer targets (LLVMFuzzerTestOneInput). Label fuzz.
 #

@@ -17,8 +17,8 @@
 static const struct ctl_cmd cmds[] = {
 	{ "set", "set key=value ...", "change the sky; all or nothing; names the generation that shows it",
 	  1, PROTO_MAX_ARGS, ctl_cmd_set, ROLE_CONTROLLER },
-	{ "get", "get [key ...] | get sun | get moon | get times [date=YYYY-MM-DD] [utc_offset_min=N] | get weather | get sensor",
-	  "the current state, every key or the named ones; the clock's sun, moon, or the day's rise, set and twilights; the weather keys and what they map to; the light sensor",
+	{ "get", "get [key ...] | get sun | get moon | get times [date=YYYY-MM-DD] [utc_offset_min=N] | get weather | get clouds | get sensor",
+	  "the current state, every key or the named ones; the clock's sun, moon, or the day's rise, set and twilights; the weather keys and what they map to; the cloud layers, the wind and the field's region; the light sensor",
 	  0, PROTO_MAX_ARGS, ctl_cmd_get, ROLE_READER },
 	{ "batch", "batch", "start a batch: set lines until end apply as one change (no reply until end)",
 	  0, 0, ctl_cmd_batch, ROLE_CONTROLLER },

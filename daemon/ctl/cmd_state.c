@@ -1,5 +1,6 @@
 /* cmd_state.c - the verbs that read and change the sky's state: set, get
- * (its key=value part; get weather is cmd_weather.c's), batch and end. */
+ * (its key=value part; get weather and get clouds are cmd_weather.c's),
+ * batch and end. */
 #include "ctl_internal.h"
 
 #include <errno.h>
@@ -112,6 +113,8 @@ int ctl_cmd_get(struct client *c, const struct proto_request *req, struct reply 
 			return ctl_get_times(c, req, r, msg, msg_size);
 		if (strcmp(req->args[0].key, "weather") == 0)
 			return ctl_get_weather(c, req, r, msg, msg_size);
+		if (strcmp(req->args[0].key, "clouds") == 0)
+			return ctl_get_clouds(c, req, r, msg, msg_size);
 		if (strcmp(req->args[0].key, "sensor") == 0)
 			return ctl_get_sensor(c, req, r, msg, msg_size);
 	}

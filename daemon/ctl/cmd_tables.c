@@ -54,6 +54,8 @@ int ctl_cmd_status(struct client *c, const struct proto_request *req, struct rep
 	ctl_reply_add(r, "last_error: %s\n", st.last_error[0] ? st.last_error : "none");
 	ctl_reply_add(r, "storage_warning: %s\n", st.storage_warning[0] ? st.storage_warning : "none");
 	ctl_reply_add(r, "device: %s\ndevice_type: %s\n", d->name, d->type_name);
+	ctl_reply_add(r, "grain: %s\npublish: %s\n", eng_grain_name(srv_grain(s)),
+		      st.publish_direct ? "direct" : "copy");
 	ctl_reply_add(r, "clients: %d\nsubscribers: %d\n", c->ctl->n_clients, subscribers);
 	ctl_reply_add(r, "role: %s\ncontroller_clients: %d\nmax_connections: %u\n",
 		      role_name(c->role), controllers, c->ctl->roles.max_connections);

@@ -1,5 +1,6 @@
-/* cmd_weather.c - the weather verbs: get weather (reached through get) and
- * the metar key of set and batch, whose reply says what the report gave. */
+/* cmd_weather.c - the weather verbs: get weather and get clouds (reached
+ * through get) and the metar key of set and batch, whose reply says what
+ * the report gave. */
 #include "ctl_internal.h"
 
 #include <math.h>
@@ -26,6 +27,26 @@ int ctl_get_weather(struct client *c, const struct proto_request *req, struct re
 	return 0;
 }
 
+int ctl_get_clouds(struct client *c, const struct proto_request *req, struct reply *r,
+		   char *msg, size_t msg_size)
+{
+	if (req->n_args > 1)
+		return CTL_ACK(SKY_ACK_SYNTAX, "get clouds takes no other arguments");
+	state_describe_clouds(srv_state(c->ctl->srv), emit_pair, r);
+	return 0;
+}
+
+/* Appends key=value of s to the note's applied list. */
+static void note_key(struct ctl_metar *note, size_t *o, const struct sky_state *s, const char *key)
+{
+	char value[64];
+
+	if (*o >= sizeof(note->applied) || state_get(s, key, value, sizeof(value)) < 0)
+		return;
+	*o += (size_t)snprintf(note->applied + *o, sizeof(note->applied) - *o, "%s%s=%s",
+			       *o ? " " : "", key, value);
+}
+
 int ctl_apply_metar(struct sky_state *s, const char *report, uint32_t *dirty,
 		    struct ctl_metar *note, char *err, size_t err_size)
 {
@@ -36,25 +57,34 @@ int ctl_apply_metar(struct sky_state *s, const char *report, uint32_t *dirty,
 	if (r < 0)
 		return r;
 	/* What the report sets, in this order; the site's pressure and
-	 * temperature only when it had them. */
+	 * temperature only when it had them; the layers it has, the wind
+	 * when it has one. */
 	const enum state_key_id applied[] = {
 		STATE_KEY_ID_VISIBILITY_KM, STATE_KEY_ID_RELATIVE_HUMIDITY, STATE_KEY_ID_AEROSOL,
 		STATE_KEY_ID_CLOUD_OKTAS,
 		isfinite(m->qnh_hpa) ? STATE_KEY_ID_PRESSURE_MBAR : STATE_KEY_ID_NONE,
 		isfinite(m->temperature_c) ? STATE_KEY_ID_TEMPERATURE_C : STATE_KEY_ID_NONE,
 	};
+	static const char *const layer_fields[] = { "oktas", "base_m", "type" };
 	size_t o = 0;
+	char key[32];
+	double dir_deg, speed_mps;
 
 	*dirty |= d;
 	note->given = 1;
 	note->applied[0] = 0;
-	for (size_t i = 0; i < sizeof(applied) / sizeof(applied[0]); i++) {
-		const char *key = applied[i] ? state_key_name(applied[i]) : NULL;
-		char value[64];
-		if (!key || o >= sizeof(note->applied) || state_get(s, key, value, sizeof(value)) < 0)
-			continue;
-		o += (size_t)snprintf(note->applied + o, sizeof(note->applied) - o, "%s%s=%s",
-				      o ? " " : "", key, value);
+	for (size_t i = 0; i < sizeof(applied) / sizeof(applied[0]); i++)
+		if (applied[i])
+			note_key(note, &o, s, state_key_name(applied[i]));
+	for (int i = 0; i < STATE_CLOUD_LAYERS && !isnan(s->clouds.layer[i].oktas); i++)
+		for (int f = 0; f < 3; f++) {
+			snprintf(key, sizeof(key), "cloud%d_%s", i + 1, layer_fields[f]);
+			note_key(note, &o, s, key);
+		}
+	if (metar_wind(m, &dir_deg, &speed_mps) == 0) {
+		if (!isnan(dir_deg))
+			note_key(note, &o, s, "wind_dir_deg");
+		note_key(note, &o, s, "wind_speed_mps");
 	}
 	return 0;
 }

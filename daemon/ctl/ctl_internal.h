@@ -29,7 +29,7 @@ struct loop_timer;
 struct ctl_metar {
 	int given;			/* a metar= key was applied */
 	struct metar report;
-	char applied[256];		/* the keys it set, key=value ... */
+	char applied[768];		/* the keys it set, key=value ... */
 };
 
 /* A batch: set lines applied to a copy of the state, committed by end. */
@@ -212,6 +212,9 @@ int ctl_get_times(struct client *c, const struct proto_request *req, struct repl
  * set and batch. */
 int ctl_get_weather(struct client *c, const struct proto_request *req, struct reply *r,
 		    char *msg, size_t msg_size);
+/* get clouds: the cloud layers, the wind and the field's region. */
+int ctl_get_clouds(struct client *c, const struct proto_request *req, struct reply *r,
+		   char *msg, size_t msg_size);
 /* Applies metar=report to s (state_set_metar), ORs the tables it
  * invalidates into *dirty and notes the report for the reply; 0 or
  * state_set's -errno with err. */

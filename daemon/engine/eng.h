@@ -66,6 +66,43 @@ int eng_new(const char *selector, char *err, size_t err_size, struct eng **ret);
 void eng_free(struct eng *e);
 
 const struct eng_device *eng_device(const struct eng *e);
+
+/* The grain the passes are dispatched at. ENG_GRAIN_CPU: each invocation
+ * computes several texels of a row, marching their shared rays once (the
+ * sun angles of multi-scattering, the azimuths of sky-view), eight by
+ * eight invocations a workgroup: few invocations, no shared memory, no
+ * barrier, what a CPU device's few threads want. ENG_GRAIN_WIDE: an
+ * invocation per texel, and a workgroup per multi-scattering texel whose
+ * lanes march its directions and add them in shared memory: the thousands
+ * of workgroups a GPU needs. eng_new picks it from the device (CPU devices
+ * the CPU grain, any other the wide one) unless $SKYD_GRAIN names one
+ * ("cpu" or "wide": a diagnostic and test switch). Both give the same
+ * tables within float rounding (tests/numerical/test_grain.c). */
+enum eng_grain { ENG_GRAIN_CPU, ENG_GRAIN_WIDE };
+enum eng_grain eng_grain(const struct eng *e);
+/* "cpu" or "wide". */
+const char *eng_grain_name(enum eng_grain g);
+/* Forces a grain from the next eng_submit on (tests, diagnostics). */
+void eng_set_grain(struct eng *e, enum eng_grain g);
+/* Whether sky-view and aerial perspective read the transmittance and
+ * multi-scattering tables through sampled images (the texture units'
+ * bilinear filtering) or through texel buffers filtered by hand, which the
+ * grain chose (buffers at both grains, docs/findings/engine.md) unless
+ * $SKYD_LOOKUPS says "images" or "buffers" (a diagnostic and test switch).
+ * The texture units may filter with fewer bits than float32: the tables
+ * then differ by their rounding (tests/numerical/test_grain.c). */
+int eng_lookup_images(const struct eng *e);
+/* Sets it from the next eng_submit on. */
+void eng_set_lookup_images(struct eng *e, int images);
+
+/* Keeps the compiled pipelines in dir (a VkPipelineCache in a file named
+ * after the device), so that a later skyd on the same device and driver
+ * builds them from it: reads it now (a file that is missing, unreadable or
+ * from another device or driver is left to be rewritten) and writes it
+ * whenever a computation made pipelines the file lacks, and at eng_free.
+ * dir must exist. Returns 0, or -errno when the cache cannot be created
+ * (the engine works on without it). */
+int eng_use_cache_dir(struct eng *e, const char *dir, char *err, size_t err_size);
 /* The largest table in bytes the device can hold in one storage buffer. */
 uint64_t eng_max_table_bytes(const struct eng *e);
 
@@ -80,6 +117,46 @@ uint64_t eng_max_table_bytes(const struct eng *e);
  * -EINVAL on a bad state, or -EIO on a device error (err says which). */
 int eng_submit(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
 	       uint32_t mask, char *err, size_t err_size);
+
+/* Where a computation's published tables go: into host memory that
+ * eng_host_import imported, which the device writes itself (the
+ * publisher's slot: no read-back, no copy by the host), or, with base
+ * NULL, into the engine's own host copies (eng_table). tables: the tables
+ * to write, those computed and those kept from earlier computations (they
+ * must be valid for the state), STATE_BIT()s. Offsets are from base, in
+ * the published format (float16 with storage=f16); aerial perspective's
+ * table_offset is the state's camera's volume, volume_offset[v] volume v
+ * of the plan (aplan.h, v >= 1: the views'), panorama_offset[k] its
+ * published panorama k; ENG_NOWHERE where there is none. */
+#define ENG_NOWHERE UINT64_MAX
+#define ENG_MAX_VOLUMES (1 + STATE_MAX_VIEWS)
+struct eng_target {
+	void *base;
+	uint32_t tables;
+	uint64_t table_offset[STATE_N_TABLES];
+	uint64_t volume_offset[ENG_MAX_VOLUMES];
+	uint64_t panorama_offset[ENG_MAX_VOLUMES];
+};
+/* eng_submit, the tables written where target says (NULL: the tables of
+ * mask into the engine's host copies, as eng_submit). With mask 0 the
+ * computation only writes the kept tables. */
+int eng_submit_to(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		  uint32_t mask, const struct eng_target *target, char *err, size_t err_size);
+
+/* Imports bytes of host memory at base (the publisher's mapping) for
+ * eng_target: the device then writes the tables there itself
+ * (VK_EXT_external_memory_host). base and bytes must be multiples of the
+ * device's minImportedHostPointerAlignment, and the memory must stay
+ * mapped until eng_host_release. Returns 0, or -EOPNOTSUPP (no extension,
+ * or the alignment does not hold: err says which) or -errno; at most two
+ * regions at a time (-ENOSPC). */
+int eng_host_import(struct eng *e, void *base, size_t bytes, char *err, size_t err_size);
+/* Whether the engine's host copies (eng_table) hold every table of tables
+ * as last computed. */
+int eng_host_fresh(const struct eng *e, uint32_t tables);
+/* Forgets the import of base, waiting first for a computation in flight
+ * that writes there; no-op for memory not imported. */
+void eng_host_release(struct eng *e, void *base);
 /* Where float16 storage breaks, in the tables of mask as last computed:
  * RGB values that are not finite (infinite or NaN: the scale keeps every
  * finite float32 value finite, so only a computation that produced them
@@ -128,7 +205,10 @@ int eng_compute(struct eng *e, const struct sky_state *s, uint32_t mask,
 
 /* The table as computed by the last completed computation, in host memory,
  * in the state's storage format. Valid until the next eng_submit or
- * eng_free. ret_bytes may be NULL. */
+ * eng_free. ret_bytes may be NULL. NULL when the engine holds no host copy
+ * of it: on a device whose memory the host cannot read cheaply, a table
+ * written only into imported memory (eng_target) has none, unless the
+ * storage is float16 (eng_f16_range reads it). */
 const void *eng_table(const struct eng *e, enum state_table t, size_t *ret_bytes);
 /* The published aerial panoramas of the last completed computation (those
  * views of form panorama read), one after the other in aplan_make's order

@@ -15,9 +15,6 @@
 
 #include "shaders.h"
 
-_Static_assert(N_PASSES == SHADER_COUNT && PASS_PACK == SHADER_PACK &&
-	       PASS_RESAMPLE == SHADER_AERIAL_RESAMPLE, "a pass per shader, in shaders.h's order");
-
 void eng_set_err(char *err, size_t n, const char *fmt, ...)
 {
 	va_list ap;
@@ -348,9 +345,27 @@ VkDescriptorType eng_binding_type(int binding)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
 	if (binding == BINDING_MOMENT_TEX || binding == BINDING_COLUMNS_TEX || binding == BINDING_AERIAL_TEX)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+	if (binding == BINDING_TRANSMITTANCE_IMG || binding == BINDING_MULTISCATTER_IMG)
+		return VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
 	return binding <= STATE_N_TABLES || binding >= BINDING_VIEWS
 		       ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER
 		       : VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+}
+
+/* Whether the device offers extension name. */
+static bool device_has(struct eng *e, const char *name)
+{
+	uint32_t n = 0;
+	bool found = false;
+
+	if (e->vk.vkEnumerateDeviceExtensionProperties(e->phys, NULL, &n, NULL) != VK_SUCCESS || !n)
+		return false;
+	VkExtensionProperties *p = calloc(n, sizeof(*p));
+	if (p && e->vk.vkEnumerateDeviceExtensionProperties(e->phys, NULL, &n, p) == VK_SUCCESS)
+		for (uint32_t i = 0; i < n && !found; i++)
+			found = !strcmp(p[i].extensionName, name);
+	free(p);
+	return found;
 }
 
 /* The device's limits and memory, and the queue family the engine uses:
@@ -363,6 +378,15 @@ static int choose_queue(struct eng *e, char *err, size_t err_size)
 
 	e->vk.vkGetPhysicalDeviceProperties(e->phys, &props);
 	e->limits = props.limits;
+	VkPhysicalDeviceExternalMemoryHostPropertiesEXT host = { .sType =
+		VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_EXTERNAL_MEMORY_HOST_PROPERTIES_EXT };
+	VkPhysicalDeviceSubgroupProperties sub = { .sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES,
+		.pNext = device_has(e, VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME) ? &host : NULL };
+	VkPhysicalDeviceProperties2 p2 = { .sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2,
+		.pNext = &sub };
+	e->vk.vkGetPhysicalDeviceProperties2(e->phys, &p2);
+	e->subgroup_size = sub.subgroupSize;
+	e->import_alignment = host.minImportedHostPointerAlignment;
 	e->timestamp_period_ns = props.limits.timestampPeriod;
 	e->vk.vkGetPhysicalDeviceMemoryProperties(e->phys, &e->mem_props);
 	e->vk.vkGetPhysicalDeviceQueueFamilyProperties(e->phys, &nq, NULL);
@@ -404,11 +428,12 @@ static int create_descriptors(struct eng *e, char *err, size_t err_size)
 	VkPipelineLayoutCreateInfo pli = { .sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
-	VkDescriptorPoolSize ps[3] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
+	VkDescriptorPoolSize ps[4] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
 		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 5 },
-		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 3 } };
+		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 3 },
+		{ VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, N_LOOKUPS } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
-		.maxSets = 1, .poolSizeCount = 3, .pPoolSizes = ps };
+		.maxSets = 1, .poolSizeCount = 4, .pPoolSizes = ps };
 	VK_TRY(e->vk.vkCreateDescriptorPool(e->dev, &dpi, NULL, &e->desc_pool));
 	VkDescriptorSetAllocateInfo dai = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO,
 		.descriptorPool = e->desc_pool, .descriptorSetCount = 1, .pSetLayouts = &e->set_layout };
@@ -447,8 +472,14 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	float prio = 1.0f;
 	VkDeviceQueueCreateInfo qi = { .sType = VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO,
 		.queueFamilyIndex = e->queue_family, .queueCount = 1, .pQueuePriorities = &prio };
+	/* Imported host memory lets the device write the published slot
+	 * itself (eng_host.c); its minImportedHostPointerAlignment was read
+	 * with the limits. */
+	const char *ext[] = { VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME };
+	e->host_import = e->import_alignment > 0;
 	VkDeviceCreateInfo di = { .sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO,
-		.queueCreateInfoCount = 1, .pQueueCreateInfos = &qi };
+		.queueCreateInfoCount = 1, .pQueueCreateInfos = &qi,
+		.enabledExtensionCount = e->host_import ? 1 : 0, .ppEnabledExtensionNames = ext };
 	VK_TRY(e->vk.vkCreateDevice(e->phys, &di, NULL, &e->dev));
 #define LOAD_DEVICE(name)                                                       \
 	e->vk.name = (PFN_##name)e->vk.vkGetDeviceProcAddr(e->dev, #name);      \
@@ -458,12 +489,16 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	}
 	VKFN_DEVICE(LOAD_DEVICE)
 #undef LOAD_DEVICE
+	if (e->host_import)
+		e->get_host_pointer_props = (PFN_vkGetMemoryHostPointerPropertiesEXT)e->vk.vkGetDeviceProcAddr(
+			e->dev, "vkGetMemoryHostPointerPropertiesEXT");
+	e->host_import = e->get_host_pointer_props != NULL;
 	e->vk.vkGetDeviceQueue(e->dev, e->queue_family, 0, &e->queue);
 	rc = create_descriptors(e, err, err_size);
 	if (rc < 0)
 		return rc;
 
-	for (int t = 0; t < N_PASSES; t++) {
+	for (int t = 0; t < SHADER_COUNT; t++) {
 		VkShaderModuleCreateInfo si = { .sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO,
 			.codeSize = shader_code[t].bytes, .pCode = shader_code[t].words };
 		VK_TRY(e->vk.vkCreateShaderModule(e->dev, &si, NULL, &e->modules[t]));
@@ -483,6 +518,15 @@ static int create_device(struct eng *e, char *err, size_t err_size)
 	}
 	VkFenceCreateInfo fi = { .sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO };
 	VK_TRY(e->vk.vkCreateFence(e->dev, &fi, NULL, &e->fence));
+	/* Texel coordinates (a table's texel i at i + 0.5), bilinear, clamped:
+	 * the hand-made bilinear() of common.glsl, by the texture units. */
+	VkSamplerCreateInfo sci = { .sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
+		.magFilter = VK_FILTER_LINEAR, .minFilter = VK_FILTER_LINEAR,
+		.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
+		.addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
+		.addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
+		.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE, .unnormalizedCoordinates = VK_TRUE };
+	VK_TRY(e->vk.vkCreateSampler(e->dev, &sci, NULL, &e->sampler));
 	rc = create_host_buffers(e, err, err_size);
 fail:
 	return rc;
@@ -506,6 +550,8 @@ int eng_new(const char *selector, char *err, size_t err_size, struct eng **ret)
 		rc = pick_device(e, selector, err, err_size);
 	if (rc == 0)
 		rc = create_device(e, err, err_size);
+	if (rc == 0)
+		eng_grain_choose(e);
 	if (rc == 0) {
 		e->event_fd = eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
 		if (e->event_fd < 0)
@@ -537,29 +583,22 @@ void eng_free(struct eng *e)
 	}
 	if (e->dev) {
 		e->vk.vkDeviceWaitIdle(e->dev);
-		for (int i = 0; i < N_LOOKUPS; i++)
-			if (e->lookup_view[i])
-				e->vk.vkDestroyBufferView(e->dev, e->lookup_view[i], NULL);
-		if (e->aerial_view)
-			e->vk.vkDestroyBufferView(e->dev, e->aerial_view, NULL);
-		for (int t = 0; t < N_PASSES; t++) {
-			if (t < STATE_N_TABLES) {
-				eng_buffer_free(e, &e->table[t]);
-				eng_buffer_free(e, &e->readback[t]);
-			}
-			for (int i = 0; i < e->n_pipes[t]; i++)
-				e->vk.vkDestroyPipeline(e->dev, e->pipes[t][i].pipe, NULL);
+		eng_save_cache(e);
+		if (e->pipeline_cache)
+			e->vk.vkDestroyPipelineCache(e->dev, e->pipeline_cache, NULL);
+		eng_host_free(e);
+		eng_free_tables(e);
+		eng_free_pipelines(e);
+		for (int t = 0; t < SHADER_COUNT; t++)
 			if (e->modules[t])
 				e->vk.vkDestroyShaderModule(e->dev, e->modules[t], NULL);
-		}
 		eng_buffer_free(e, &e->params);
 		eng_buffer_free(e, &e->views);
 		eng_buffer_free(e, &e->pack);
-		eng_vec4_buffer_free(e, &e->columns, &e->columns_view);
-		eng_buffer_free(e, &e->ms_iterate);
-		eng_vec4_buffer_free(e, &e->moment, &e->moment_view);
 		if (e->fence)
 			e->vk.vkDestroyFence(e->dev, e->fence, NULL);
+		if (e->sampler)
+			e->vk.vkDestroySampler(e->dev, e->sampler, NULL);
 		if (e->queries)
 			e->vk.vkDestroyQueryPool(e->dev, e->queries, NULL);
 		if (e->cmd_pool)
@@ -580,5 +619,6 @@ void eng_free(struct eng *e)
 		close(e->event_fd);
 	pthread_cond_destroy(&e->cond);
 	pthread_mutex_destroy(&e->lock);
+	free(e->cache_path);
 	free(e);
 }

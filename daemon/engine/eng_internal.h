@@ -16,15 +16,11 @@
 #include "vkcheck.h"
 #include "vkfn.h"
 
+#include "shaders.h"
 #include "sky_params.h"
 
-#define MAX_PIPELINES 32	/* cached variants per pass */
+#define MAX_PIPELINES 32	/* cached variants per shader */
 #define N_SPEC SPEC_COUNT
-/* Texels of a row one invocation shares its rays between: sun angles of
- * multi-scattering, azimuths of sky-view (more azimuths share more work
- * until the registers run out; docs/findings/engine.md). */
-#define MS_SUN_GROUP 4
-#define SV_AZ_GROUP 12
 /* The aerial jobs (sky_params.h): the head, then at most a march job per
  * volume and per panorama and a resample job per volume (the state's
  * camera and STATE_MAX_VIEWS views). */
@@ -33,6 +29,7 @@
 
 /* The tables later passes look up: transmittance and multi-scattering. */
 #define N_LOOKUPS 2
+#define ENG_LOOKUP_TABLES (STATE_BIT(STATE_TRANSMITTANCE) | STATE_BIT(STATE_MULTISCATTER))
 /* The bindings (sky_params.h): the tables in state_table order, then the
  * lookups, then the engine's internal buffers. */
 #define N_BINDINGS BINDING_COUNT
@@ -44,17 +41,39 @@ _Static_assert(BINDING_TRANSMITTANCE + STATE_TRANSMITTANCE == 1 &&
 	       "sky_params.h's bindings follow enum state_table");
 _Static_assert(SKY_MAX_CONSTITUENTS == ATMO_MAX_CONSTITUENTS && SKY_GROUND_FIT == PHASE_GROUND_FIT,
 	       "sky_params.h's array lengths");
-/* Compute passes: one per table, then the column densities (SHADER_COLUMNS),
- * the iteration of psi_ms (SHADER_MSITERATE), the binary16 copies of
- * storage=f16 (SHADER_PACK, timed with the last table's pass) and the
- * views' resampling of the aerial panoramas (SHADER_AERIAL_RESAMPLE, timed
- * with the aerial pass). */
-#define PASS_COLUMNS STATE_N_TABLES
-#define PASS_MSITERATE (STATE_N_TABLES + 1)
-#define PASS_PACK (STATE_N_TABLES + 2)
-#define PASS_RESAMPLE (STATE_N_TABLES + 3)
-#define N_PASSES (STATE_N_TABLES + 4)
+/* The compute passes in the order a computation records them; each is a
+ * row of eng_pass.c's table (what it reads and writes, when it runs, its
+ * workgroups), which says how to add one. */
+enum pass {
+	PASS_COLUMNS,		/* column densities of the transmittance texels */
+	PASS_TRANSMITTANCE,
+	PASS_MULTISCATTER,
+	PASS_MSITERATE,		/* the iteration of psi_ms, thick atmospheres */
+	PASS_LOOKUP_IMAGES,	/* transmittance and multi-scattering into images */
+	PASS_SKYVIEW,
+	PASS_AERIAL,		/* every march job: volumes and panoramas */
+	PASS_RESAMPLE,		/* the views' volumes from the panoramas */
+	PASS_PACK,		/* the binary16 copies of storage=f16 */
+	N_PASSES
+};
 _Static_assert(SKY_PACK_TABLES == STATE_N_TABLES, "pack.comp packs every table");
+
+/* The grain the passes are dispatched at (eng_grain.c): how many texels
+ * one invocation computes and how many invocations share one texel. */
+struct grain {
+	enum eng_grain kind;
+	/* Texels of a row one invocation shares its rays between: sun angles
+	 * of multi-scattering, azimuths of sky-view (more share more work
+	 * until the registers run out; docs/findings/engine.md). */
+	uint32_t ms_sun_group, sv_az_group;
+	/* A lane per marched cell of one multi-scattering texel (a workgroup
+	 * a texel), or 1: each invocation marches every cell in turn. */
+	bool ms_wide;
+	/* Sky-view and aerial perspective read transmittance and
+	 * multi-scattering through sampled images, filtered by the texture
+	 * units, instead of texel buffers filtered by hand. */
+	bool lookup_images;
+};
 
 /* phase_ground_excess of one constituent, kept while its phase stays: it
  * costs about 30000 phase evaluations, more than a sun change's tables. */
@@ -76,6 +95,7 @@ struct pipeline {
 	VkPipeline pipe;
 };
 
+
 struct gpu_buffer {
 	VkBuffer buf;
 	VkDeviceMemory mem;
@@ -91,6 +111,29 @@ struct column_key {
 	float h_top;		/* TOP_DISTANCE_KM */
 	float layers[ATMO_MAX_CONSTITUENTS][12];
 	struct spec spec;
+};
+
+/* One pass of one computation (eng_pass.c): whether it runs, its
+ * specialization and pipeline, its workgroups. */
+struct pass_run {
+	bool on;
+	struct spec key;
+	VkPipeline pipe;
+	uint32_t groups[3];
+};
+
+/* What one computation runs: a pass_run per pass, the key of the column
+ * densities it leaves, the iteration's later steps' pipeline and count,
+ * the aerial jobs (eng_fill_views) and the last table of mask, which the
+ * pack pass's time counts in. */
+struct plan {
+	uint32_t mask;
+	struct pass_run run[N_PASSES];
+	struct column_key key;
+	VkPipeline iterate_later;
+	uint32_t iterations;
+	uint32_t aerial_march, aerial_resample;
+	int last_table;
 };
 
 struct eng {
@@ -110,10 +153,17 @@ struct eng {
 	VkPipelineLayout pipe_layout;
 	VkDescriptorPool desc_pool;
 	VkDescriptorSet set;
-	VkShaderModule modules[N_PASSES];
-	struct pipeline pipes[N_PASSES][MAX_PIPELINES];
-	int n_pipes[N_PASSES];
+	VkShaderModule modules[SHADER_COUNT];
+	struct pipeline pipes[SHADER_COUNT][MAX_PIPELINES];
+	int n_pipes[SHADER_COUNT];
 	uint64_t pipelines_created;
+	/* eng_use_cache_dir: the pipelines' cache and its file, written when
+	 * pipelines_created passed pipelines_saved. */
+	VkPipelineCache pipeline_cache;
+	char *cache_path;
+	uint64_t pipelines_saved;
+	struct grain grain;
+	uint32_t subgroup_size;		/* the device's, for the grain's choice */
 	VkCommandPool cmd_pool;
 	VkCommandBuffer cmd;
 	VkQueryPool queries;
@@ -136,6 +186,10 @@ struct eng {
 	 * (pack.comp), and that copy is what reaches host memory. */
 	struct gpu_buffer table[STATE_N_TABLES];
 	struct gpu_buffer readback[STATE_N_TABLES];	/* host memory, the published format */
+	/* Whether the host copy (readback, or the table itself where direct)
+	 * holds the table as last computed: not where a computation wrote it
+	 * only into imported memory. */
+	bool host_fresh[STATE_N_TABLES];
 	/* Where the device's memory is the host's, cached (lavapipe, most
 	 * integrated GPUs), the tables are read where the passes wrote them,
 	 * from published_offset on: no copy, no readback buffer. */
@@ -151,6 +205,19 @@ struct eng {
 	 * vectorized, where a storage-buffer load with a varying index is a
 	 * loop over the lanes on lavapipe. */
 	VkBufferView lookup_view[N_LOOKUPS];
+	/* The same tables as sampled images (grain.lookup_images), copied
+	 * from the buffers after each computation of them; made whatever the
+	 * grain, since every pipeline's descriptors name them. images_valid:
+	 * they hold the tables as last computed; images_new: their layout is
+	 * still undefined. */
+	struct lookup_image {
+		VkImage img;
+		VkDeviceMemory mem;
+		VkImageView view;
+		uint32_t width, height;
+	} lookup_image[N_LOOKUPS];
+	VkSampler sampler;
+	bool images_valid, images_new;
 	/* struct gpu_pack, host-visible: the engine writes the texel counts
 	 * before a storage=f16 computation and reads the scales after it. */
 	struct gpu_buffer pack;
@@ -168,12 +235,26 @@ struct eng {
 	struct ground_cache delta;	/* fill_delta's: the truncated phase's fit, f and g' in legendre */
 	struct column_key column_key;
 	bool columns_valid;
-	bool columns_in_flight;
 	/* The iteration of psi_ms (shaders/msiterate.comp): its output as the
 	 * table holds it (float32 RGBA), copied over the table after each
 	 * step, then L2 as float32 RGBA per texel. */
 	struct gpu_buffer ms_iterate;
-	uint32_t iterations_in_flight;
+
+	/* Host memory the device writes published tables into
+	 * (eng_host_import, eng_host.c), and where the computation in flight
+	 * writes them (eng_target; has_target false: none). */
+	bool host_import;			/* VK_EXT_external_memory_host enabled */
+	VkDeviceSize import_alignment;
+	PFN_vkGetMemoryHostPointerPropertiesEXT get_host_pointer_props;
+	struct host_region {
+		void *base;
+		size_t bytes;
+		VkDeviceMemory mem;
+		VkBuffer buf;
+	} regions[2];
+	struct eng_target target;
+	bool has_target;
+	struct plan flight;			/* of the computation in flight */
 
 	/* Completion: a waiter thread waits on the fence, then writes the eventfd. */
 	int event_fd;
@@ -189,6 +270,56 @@ struct eng {
 
 void eng_set_err(char *err, size_t n, const char *fmt, ...)
 	__attribute__((format(printf, 3, 4)));
+
+/* eng_grain.c: the grain eng_new starts with, from the device's
+ * properties and $SKYD_GRAIN. */
+void eng_grain_choose(struct eng *e);
+
+/* eng_tables.c: the tables' buffers. */
+/* Texels of table t in s, every aerial volume of the engine's plan counted. */
+uint64_t eng_table_texels(const struct eng *e, const struct sky_state *s, int t);
+/* Bytes of table t's float32 texels on the device. */
+VkDeviceSize eng_float_bytes(const struct eng *e, const struct sky_state *s, int t);
+/* Whether the device can hold every table of s: 0, or -EINVAL with the
+ * table and the limit in err. */
+int eng_check_limits(const struct eng *e, const struct sky_state *s, char *err, size_t err_size);
+/* (Re)allocates the buffers whose size or storage changed; ret_lost gets
+ * the tables whose contents were lost. */
+int eng_ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret_lost, char *err,
+		      size_t err_size);
+void eng_free_tables(struct eng *e);
+
+/* Records the move of the lookup images from an undefined layout to the
+ * one the descriptors say, where they were just made. */
+void eng_record_image_layouts(struct eng *e);
+
+/* eng_pass.c: the passes. */
+/* Fills params and pl for s and mask, creating the pipelines it lacks;
+ * -EINVAL where a dispatch exceeds the device's limits. */
+int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		  uint32_t mask, struct gpu_params *params, struct plan *pl, char *err,
+		  size_t err_size);
+/* Records pl's passes into e->cmd (begun), with the barriers their reads
+ * and writes need; every shader write is pending after it. */
+void eng_record_passes(struct eng *e, const struct sky_state *s, const struct plan *pl);
+/* The GPU time of each pass of pl from the timestamps, into t. */
+int eng_pass_times(struct eng *e, const struct plan *pl, struct eng_timing *t, char *err,
+		   size_t err_size);
+/* Destroys the cached pipelines. */
+void eng_free_pipelines(struct eng *e);
+
+/* eng_host.c: imported host memory. */
+/* Records the copies of the published tables (after the passes) into
+ * target's memory, or with target NULL, into the host copies of the tables
+ * of copy; marks the host copies fresh or stale. */
+void eng_record_publish(struct eng *e, const struct sky_state *s, const struct eng_target *target,
+			uint32_t copy);
+void eng_host_free(struct eng *e);
+
+/* eng_cache.c: writes the pipelines' cache file (eng_use_cache_dir), if
+ * there is one and pipelines were made since; a failure leaves the old
+ * file. */
+void eng_save_cache(struct eng *e);
 
 /* eng_device.c: device memory. buffer_new maps host-visible memory; the
  * vec4 buffers are float32 RGBA storage with a texel view on them. */
@@ -215,7 +346,8 @@ void eng_fill_params(struct eng *e, const struct sky_state *s, const struct stat
  * counts (the dispatches' z). */
 void eng_fill_views(const struct sky_state *s, const struct aplan *p, uint64_t pano_base,
 		    void *out, uint32_t *ret_march, uint32_t *ret_resample);
-struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t);
+struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t,
+			  const struct grain *g);
 struct spec eng_column_spec(const struct spec *base, const struct sky_state *s);
 void eng_column_key(const struct gpu_params *p, const struct spec *column_spec,
 		    struct column_key *ret);

@@ -265,8 +265,11 @@ void eng_fill_views(const struct sky_state *s, const struct aplan *p, uint64_t p
 }
 
 /* The constants one pass is specialized on: the others are zeroed so that a
- * change that does not concern a pass reuses its cached pipeline. */
-struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t)
+ * change that does not concern a pass reuses its cached pipeline. The
+ * grain sets the texels an invocation shares its rays between and, for
+ * multi-scattering, the lanes sharing a texel and the workgroup's size. */
+struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, int t,
+			  const struct grain *g)
 {
 	struct spec k = *base;
 	const struct state_table_quality *q = &s->quality.t[t];
@@ -284,14 +287,21 @@ struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, in
 	}
 	if (t != STATE_MULTISCATTER)
 		k.v[SPEC_MS_DIRS] = 0;
-	k.v[SPEC_MS_SUN_GROUP] = t == STATE_MULTISCATTER ? MS_SUN_GROUP : 0;
-	k.v[SPEC_SV_AZ_GROUP] = t == STATE_SKYVIEW ? SV_AZ_GROUP : 0;
-	if (t == STATE_MULTISCATTER)
+	k.v[SPEC_SV_AZ_GROUP] = t == STATE_SKYVIEW ? (int32_t)g->sv_az_group : 0;
+	if (t == STATE_MULTISCATTER) {
+		int32_t cells = SKY_MS_MARCHED(k.v[SPEC_MS_DIRS]);
 		k.v[SPEC_MOON_LIT] = k.v[SPEC_MULTISCATTER_ON] = 0;	/* the table is the term itself */
+		k.v[SPEC_MS_SUN_GROUP] = (int32_t)g->ms_sun_group;
+		k.v[SPEC_MS_LANES] = g->ms_wide ? cells : 1;
+		k.v[SPEC_LOCAL_X] = g->ms_wide ? cells : 8;
+		k.v[SPEC_LOCAL_Y] = g->ms_wide ? 1 : 8;
+	}
 	if (t == STATE_TRANSMITTANCE)
 		k.v[SPEC_MULTISCATTER_ON] = k.v[SPEC_MOMENT_LOBE] = k.v[SPEC_DELTA_LOBE] = 0;
-	if (t == STATE_SKYVIEW || t == STATE_AERIAL)
+	if (t == STATE_SKYVIEW || t == STATE_AERIAL) {
 		k.v[SPEC_GROUND_BLACK] = 0;	/* the ground enters through the multiscatter table */
+		k.v[SPEC_LOOKUP_IMAGES] = g->lookup_images;
+	}
 	return k;
 }
 

@@ -21,6 +21,7 @@
 	X(vkGetPhysicalDeviceProperties2)            \
 	X(vkGetPhysicalDeviceQueueFamilyProperties)  \
 	X(vkGetPhysicalDeviceMemoryProperties)       \
+	X(vkEnumerateDeviceExtensionProperties)      \
 	X(vkCreateDevice)                            \
 	X(vkGetDeviceProcAddr)
 
@@ -46,6 +47,9 @@
 	X(vkDestroyPipelineLayout)           \
 	X(vkCreateComputePipelines)          \
 	X(vkDestroyPipeline)                 \
+	X(vkCreatePipelineCache)             \
+	X(vkDestroyPipelineCache)            \
+	X(vkGetPipelineCacheData)            \
 	X(vkCreateDescriptorPool)            \
 	X(vkDestroyDescriptorPool)           \
 	X(vkAllocateDescriptorSets)          \
@@ -60,6 +64,15 @@
 	X(vkCmdDispatch)                     \
 	X(vkCmdPipelineBarrier)              \
 	X(vkCmdCopyBuffer)                   \
+	X(vkCmdCopyBufferToImage)            \
+	X(vkCreateImage)                     \
+	X(vkDestroyImage)                    \
+	X(vkGetImageMemoryRequirements)      \
+	X(vkBindImageMemory)                 \
+	X(vkCreateImageView)                 \
+	X(vkDestroyImageView)                \
+	X(vkCreateSampler)                   \
+	X(vkDestroySampler)                  \
 	X(vkCmdFillBuffer)                   \
 	X(vkCmdWriteTimestamp)               \
 	X(vkCmdResetQueryPool)               \

@@ -1,6 +1,7 @@
 /* pub.c - sealed shared memory with seqlocked slots and a futex generation. */
 #include "pub.h"
 
+#include <assert.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
@@ -16,6 +17,7 @@
 #include <unistd.h>
 
 #include "aplan.h"
+#include "eng.h"
 #include "skymap.h"
 
 #define ALIGN_UP(x, a) (((x) + (a) - 1) / (a) * (a))
@@ -30,6 +32,9 @@ struct pub {
 	uint64_t bytes;
 	struct sky_shm_header *header;
 	uint32_t next_slot;
+	/* The next slot while the device writes its tables (pub_claim): its
+	 * sequence odd since then; -1 none. */
+	int32_t claimed;
 	struct state_table_quality shape[STATE_N_TABLES];
 	enum state_storage storage;
 	uint32_t max_views;
@@ -128,6 +133,7 @@ static int create(const struct sky_state *s, uint64_t generation, int seals, str
 		return -ENOMEM;
 	p->map = MAP_FAILED;
 	p->ro_fd = -1;
+	p->claimed = -1;
 	p->fd = memfd_create("skyd-tables", MFD_CLOEXEC | MFD_ALLOW_SEALING);
 	if (p->fd < 0)
 		goto fail_errno;
@@ -209,6 +215,11 @@ int pub_fd(const struct pub *p)
 uint64_t pub_bytes(const struct pub *p)
 {
 	return p->bytes;
+}
+
+void *pub_map(const struct pub *p)
+{
+	return p->map;
 }
 
 const struct sky_shm_header *pub_header(const struct pub *p)
@@ -298,16 +309,17 @@ static void futex_wake_all(uint32_t *word)
  * volume or panorama: the engine's aerial table holds the volumes of the
  * plan of s (the state's camera's first), panoramas its published
  * panoramas; a panorama goes into the region of the first view that reads
- * it, and every view reading it points there. */
+ * it, and every view reading it points there. in_place: the device wrote
+ * them there already (pub_claim), aerial and panoramas are not read. */
 static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *slot,
 			  uint8_t *base, const struct sky_state *s,
 			  const struct state_lights *lights, uint32_t valid,
-			  const void *aerial, const void *panoramas)
+			  const void *aerial, const void *panoramas, bool in_place)
 {
 	const double deg = SKYMAP_PI / 180.0;
 	uint32_t n = s->n_views < h->max_views ? s->n_views : h->max_views;
 	uint64_t bytes = h->tables[STATE_AERIAL].bytes;
-	bool computed = (valid & STATE_BIT(STATE_AERIAL)) && aerial;
+	bool computed = (valid & STATE_BIT(STATE_AERIAL)) && (aerial || in_place);
 	struct aplan ap;
 
 	memset(slot->views, 0, sizeof(slot->views));
@@ -333,23 +345,25 @@ static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *s
 		int32_t vol = ap.volume[i + 1], k = ap.panorama[i + 1];
 		if (vol >= 0) {
 			if (computed) {
-				memcpy(region, (const uint8_t *)aerial + vol * bytes, bytes);
+				if (!in_place)
+					memcpy(region, (const uint8_t *)aerial + vol * bytes, bytes);
 				slot->valid_views |= 1u << i;
 			}
 			continue;
 		}
 		aplan_describe(&ap, k, h->view_offset + (uint64_t)ap.pano[k].view * h->view_stride,
 			       &o->panorama);
-		if (!computed || !panoramas)
+		if (!computed || (!panoramas && !in_place))
 			continue;
-		if ((uint32_t)ap.pano[k].view == i)
+		if ((uint32_t)ap.pano[k].view == i && !in_place)
 			memcpy(region, (const uint8_t *)panoramas + k * o->panorama.bytes, o->panorama.bytes);
 		slot->valid_views |= 1u << i;
 	}
 }
 
 /* Writes one slot under its seqlock: s and the valid tables, as generation,
- * to become current at apply_time_ns (0: now). Touches no header word. */
+ * to become current at apply_time_ns (0: now); tables NULL: the device
+ * wrote them there (pub_claim). Touches no header word. */
 static void write_slot(struct pub *p, uint32_t i, const struct sky_state *s,
 		       const struct state_lights *lights, uint32_t valid,
 		       const void *const tables[STATE_N_TABLES], const void *panoramas,
@@ -361,28 +375,95 @@ static void write_slot(struct pub *p, uint32_t i, const struct sky_state *s,
 	uint8_t *base = slot_base(p, i);
 	struct sky_shm_slot *slot = (struct sky_shm_slot *)base;
 	_Atomic uint32_t *seq = (_Atomic uint32_t *)&slot->seq;
-	uint32_t s0 = atomic_load_explicit(seq, memory_order_relaxed);
+	uint32_t odd = atomic_load_explicit(seq, memory_order_relaxed) | 1u;
+	bool in_place = !tables;
 
 	if (!lights) {
 		state_lights_of(s, &own);
 		lights = &own;
 	}
-	/* Seqlock writer: odd, fence, data, even with release. */
-	atomic_store_explicit(seq, s0 + 1, memory_order_relaxed);
+	/* Seqlock writer: odd, fence, data, even with release. A claimed slot
+	 * is odd already, since before the device wrote its tables. */
+	atomic_store_explicit(seq, odd, memory_order_relaxed);
 	atomic_thread_fence(memory_order_release);
 	slot->generation = generation;
 	slot->apply_time_ns = apply_time_ns;
 	pub_shm_state(s, lights, &slot->state);
 	slot->valid_tables = 0;
 	for (int t = 0; t < STATE_N_TABLES; t++)
-		if ((valid & STATE_BIT(t)) && tables[t]) {
-			memcpy(base + h->tables[t].offset, tables[t], h->tables[t].bytes);
+		if ((valid & STATE_BIT(t)) && (in_place || tables[t])) {
+			if (!in_place)
+				memcpy(base + h->tables[t].offset, tables[t], h->tables[t].bytes);
 			slot->valid_tables |= STATE_BIT(t);
 			slot->state.rgb_scale_log2[t] = rgb_scale_log2 ? rgb_scale_log2[t] : 0;
 		}
-	publish_views(h, slot, base, s, lights, valid, tables[STATE_AERIAL], panoramas);
+	publish_views(h, slot, base, s, lights, valid, in_place ? NULL : tables[STATE_AERIAL], panoramas,
+		      in_place);
 	slot->checksum = pub_checksum(h, slot, base);
-	atomic_store_explicit(seq, s0 + 2, memory_order_release);
+	atomic_store_explicit(seq, odd + 1, memory_order_release);
+	if (p->claimed == (int32_t)i)
+		p->claimed = -1;
+}
+
+/* Where the views' volumes and panoramas of s go in slot i, from the
+ * region's first byte (publish_views' places). */
+static void view_targets(const struct pub *p, uint64_t slot_offset, const struct sky_state *s,
+			 const struct state_lights *lights, struct eng_target *ret)
+{
+	const struct sky_shm_header *h = p->header;
+	uint32_t n = s->n_views < h->max_views ? s->n_views : h->max_views;
+	struct aplan ap;
+
+	aplan_make_lit(s, lights, true, &ap);
+	for (uint32_t i = 0; i < n; i++) {
+		uint64_t region = slot_offset + h->view_offset + i * h->view_stride;
+		int32_t vol = ap.volume[i + 1], k = ap.panorama[i + 1];
+		if (vol > 0 && vol < ENG_MAX_VOLUMES)
+			ret->volume_offset[vol] = region;
+		else if (vol < 0 && k >= 0 && k < ENG_MAX_VOLUMES && (uint32_t)ap.pano[k].view == i)
+			ret->panorama_offset[k] = region;
+	}
+}
+
+int pub_claim(struct pub *p, const struct sky_state *s, const struct state_lights *lights,
+	      uint32_t tables, struct eng_target *ret)
+{
+	struct sky_shm_header *h = p->header;
+	uint32_t i = p->next_slot;
+	uint8_t *base = slot_base(p, i);
+	struct state_lights own;
+
+	if (!pub_same_layout(p, s))
+		return -EINVAL;
+	if (!lights) {
+		state_lights_of(s, &own);
+		lights = &own;
+	}
+	if (p->claimed != (int32_t)i) {
+		_Atomic uint32_t *seq = (_Atomic uint32_t *)&((struct sky_shm_slot *)base)->seq;
+		atomic_store_explicit(seq, atomic_load_explicit(seq, memory_order_relaxed) | 1u,
+				      memory_order_relaxed);
+		atomic_thread_fence(memory_order_release);
+		p->claimed = (int32_t)i;
+	}
+	memset(ret, 0, sizeof(*ret));
+	ret->base = p->map;
+	ret->tables = tables & STATE_ALL_TABLES;
+	uint64_t slot_offset = (uint64_t)(base - p->map);
+	for (int t = 0; t < STATE_N_TABLES; t++)
+		ret->table_offset[t] = slot_offset + h->tables[t].offset;
+	for (int v = 0; v < ENG_MAX_VOLUMES; v++)
+		ret->volume_offset[v] = ret->panorama_offset[v] = ENG_NOWHERE;
+	view_targets(p, slot_offset, s, lights, ret);
+	return 0;
+}
+
+void pub_publish_claimed(struct pub *p, const struct sky_state *s, const struct state_lights *lights,
+			 uint32_t valid, const int32_t rgb_scale_log2[STATE_N_TABLES],
+			 uint64_t generation, int64_t apply_time_ns)
+{
+	assert(p->claimed == (int32_t)p->next_slot);
+	pub_publish_at(p, s, lights, valid, NULL, NULL, rgb_scale_log2, generation, apply_time_ns);
 }
 
 void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
@@ -547,6 +628,7 @@ int pub_adopt(int fd, const struct sky_state *s, struct pub **ret, uint64_t *ret
 		return -ENOMEM;
 	p->ro_fd = -1;
 	p->fd = -1;
+	p->claimed = -1;
 	p->map = mmap(NULL, h.total_bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
 	if (p->map == MAP_FAILED) {
 		int r = -errno;

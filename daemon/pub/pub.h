@@ -21,6 +21,7 @@
 
 #include <stdint.h>
 
+#include "eng.h"
 #include "skyproto.h"
 #include "state.h"
 
@@ -43,8 +44,29 @@ void pub_free(struct pub *p);
  * it to keep it. */
 int pub_fd(const struct pub *p);
 uint64_t pub_bytes(const struct pub *p);
+/* The daemon's writable mapping, pub_bytes long, page-aligned: what the
+ * engine imports to write the tables itself (eng_host_import). Valid until
+ * pub_free. */
+void *pub_map(const struct pub *p);
 /* 1 if s has the layout of p (same table shapes and storage). */
 int pub_same_layout(const struct pub *p, const struct sky_state *s);
+
+/* Claims the next slot for the device to write the tables of s into
+ * itself: marks it being written (its sequence odd, so that a reader still
+ * in it from an earlier generation retries) and fills ret with where each
+ * table, view volume and panorama of s goes, from pub_map (eng_target;
+ * tables: those the slot will hold). The slot is not current and stays
+ * claimed until a publication writes it: pub_publish_claimed once the
+ * device has written it, or any other pub_publish_at, which writes the
+ * tables itself. -EINVAL when s has another layout. */
+int pub_claim(struct pub *p, const struct sky_state *s, const struct state_lights *lights,
+	      uint32_t tables, struct eng_target *ret);
+/* pub_publish_at for the claimed slot whose tables the device wrote where
+ * pub_claim said: the state, the views' directory and the checksum are
+ * written, nothing is copied. */
+void pub_publish_claimed(struct pub *p, const struct sky_state *s, const struct state_lights *lights,
+			 uint32_t valid, const int32_t rgb_scale_log2[STATE_N_TABLES],
+			 uint64_t generation, int64_t apply_time_ns);
 
 /* Writes s and the tables in valid (pointers per enum state_table, each of
  * the layout's size; the aerial table followed by the views' volumes, and

@@ -1,4 +1,5 @@
-/* drive.c - the clock's sun and moon, and the timer that moves them. */
+/* drive.c - the clock's sun, moon and cloud field, and the timer that
+ * moves them. */
 #include "drive.h"
 
 #include <errno.h>
@@ -12,6 +13,9 @@
 #include "simclock.h"
 
 #define LIGHTS (STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL))
+/* What a move of the cloud field invalidates: its tables and the sky
+ * tables its shadows reach (the cloud keys' mask). */
+#define FIELD (STATE_CLOUD_TABLES | LIGHTS)
 
 /* Ticks never come closer than this: beyond it the engine, not the clock,
  * bounds how often the sky changes, and srv coalesces anyway. */
@@ -28,11 +32,36 @@ struct drive {
 	struct loop_timer *timer;
 	struct state_lights ref;	/* directions as last submitted */
 	int ref_moon_lit;
+	double ref_field_utc_s;		/* the cloud field's time as last submitted */
 	double ref_mono_s;		/* when they were submitted */
 	double armed_mono_s;		/* when the timer fires; -1 disarmed */
 	int warned;			/* astro refused the clock: logged once */
 	uint64_t ticks, changes;
 };
+
+void drive_field(struct sky_state *s, double mono_s, uint32_t *ret_dirty)
+{
+	double utc_s = floor(state_clock_utc_s(s, mono_s));
+	double want = state_clouds_drawn(s) && s->clouds.wind_speed_mps > 0.0 ? utc_s : NAN;
+
+	if (memcmp(&want, &s->clouds.utc_s, sizeof(want)) == 0)
+		return;
+	s->clouds.utc_s = want;
+	if (ret_dirty)
+		*ret_dirty |= FIELD;
+}
+
+double drive_field_speed_km_s(const struct sky_state *s)
+{
+	if (!state_clouds_drawn(s) || isnan(s->clock.anchor_utc_s))
+		return 0.0;
+	return s->clouds.wind_speed_mps * 1e-3 * fabs(s->clock.rate);
+}
+
+double drive_field_threshold_km(const struct sky_state *s)
+{
+	return DRIVE_FIELD_TEXEL_SHARE * 2.0 * state_cloud_extent_km(s) / s->quality.shadow_width;
+}
 
 int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *err,
 		 size_t err_size)
@@ -75,6 +104,7 @@ int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *
 			  memcmp(&next.moon, &s->moon, sizeof(next.moon)) ||
 			  memcmp(&next.lights_utc_s, &s->lights_utc_s, sizeof(double))))
 		*ret_dirty |= LIGHTS;
+	drive_field(&next, mono_s, ret_dirty);
 	*s = next;
 	return 0;
 }
@@ -90,23 +120,28 @@ static void take_reference(struct drive *d, const struct sky_state *s,
 {
 	d->ref = *lights;
 	d->ref_moon_lit = s->moon.illuminance_lx > 0.0;
+	d->ref_field_utc_s = s->clouds.utc_s;
 	d->ref_mono_s = mono_s;
 }
 
 /* Half the real time in which the fastest light could cover the threshold,
- * so that no move overshoots it by more than half; within the cadence. */
+ * or the wind the cloud field's, so that no move overshoots it by more
+ * than half; within the cadence. */
 static void arm(struct drive *d, const struct sky_state *s, double mono_s)
 {
 	const struct state_clock *c = &s->clock;
 	double speed_deg_s = DRIVE_MAX_SPEED_DEG_PER_H / 3600.0 * fabs(c->rate);
+	int lights = c->sun_mode == STATE_CLOCK || c->moon_mode == STATE_CLOCK;
+	double field_km_s = drive_field_speed_km_s(s);
 
 	d->armed_mono_s = -1.0;
-	if ((c->sun_mode != STATE_CLOCK && c->moon_mode != STATE_CLOCK) || isnan(c->anchor_utc_s) ||
-	    c->rate == 0.0) {
+	if ((!lights && !(field_km_s > 0.0)) || isnan(c->anchor_utc_s) || c->rate == 0.0) {
 		loop_timer_arm(d->timer, 0);
 		return;
 	}
-	double delay_s = 0.5 * c->threshold_deg / speed_deg_s;
+	double delay_s = lights ? 0.5 * c->threshold_deg / speed_deg_s : DRIVE_MAX_TICK_S;
+	if (field_km_s > 0.0)
+		delay_s = fmin(delay_s, 0.5 * drive_field_threshold_km(s) / field_km_s);
 	if (c->cadence_s > 0.0)
 		delay_s = fmin(delay_s, fmax(c->cadence_s - (mono_s - d->ref_mono_s), 0.0));
 	delay_s = fmin(fmax(delay_s, DRIVE_MIN_TICK_S), DRIVE_MAX_TICK_S);
@@ -139,7 +174,12 @@ static void tick(void *ctx)
 			    next.moon.illuminance_lx > 0.0 ? angle_deg(lights.moon, d->ref.moon) : 0.0);
 	int lit_changed = (next.moon.illuminance_lx > 0.0) != d->ref_moon_lit;
 	int due = next.clock.cadence_s > 0.0 && mono_s - d->ref_mono_s >= next.clock.cadence_s;
-	if (dirty && (moved >= next.clock.threshold_deg || lit_changed || due)) {
+	/* The field's move since the reference, or a placement that began or
+	 * ended (the time became known, the wind rose or fell). */
+	double field_km = fabs(next.clouds.utc_s - d->ref_field_utc_s) * next.clouds.wind_speed_mps * 1e-3;
+	int field_moved = isnan(next.clouds.utc_s) != isnan(d->ref_field_utc_s) ||
+			  field_km >= drive_field_threshold_km(&next);
+	if (dirty && (moved >= next.clock.threshold_deg || lit_changed || due || field_moved)) {
 		d->move(d->ctx, &next, &lights, dirty);
 		d->changes++;
 		take_reference(d, &next, &lights, mono_s);

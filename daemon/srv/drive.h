@@ -1,7 +1,8 @@
-/* drive.h - the simulation clock driving the sun and the moon: it turns the
- * state's time and place into light directions, and a timer on the loop
- * hands on a move whenever a light moved past the threshold or the cadence
- * elapsed.
+/* drive.h - the simulation clock driving the sun, the moon and the cloud
+ * field: it turns the state's time and place into light directions and the
+ * wind's offset of the clouds, and a timer on the loop hands on a move
+ * whenever a light moved past the threshold, the wind carried the clouds
+ * past theirs, or the cadence elapsed.
  *
  * The tables are lit by the geometric (unrefracted) directions; astro's
  * refracted ones are only reported (ctl's get sun / get moon). srv owns
@@ -36,13 +37,34 @@ struct loop;
  * time mono_s: sun direction, illuminance (133.8 klx / R^2, clear sky: the
  * tables get it times the state's cloud factor, state_resolve) and angular
  * radius; moon direction, angular radius, colour and illuminance (0 while
- * it is below DRIVE_MOON_MIN_ELEVATION_DEG); lights_utc_s. Nothing when no
- * light is clock-driven or no time is set (lights_utc_s becomes NAN).
+ * it is below DRIVE_MOON_MIN_ELEVATION_DEG); lights_utc_s; and the cloud
+ * field (drive_field). Nothing when no light is clock-driven or no time
+ * is set (lights_utc_s becomes NAN).
  * ret_dirty, if not NULL, gets the tables this invalidated ORed in.
  * -EINVAL with err naming the key (utc, lat_deg, ...) when astro refuses
  * the time or place; s is untouched then. Pure apart from its arguments. */
 int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *err,
 		 size_t err_size);
+
+/* The cloud field is recomputed when the wind has carried it this share
+ * of a shadow map's texel (2 cloud_extent_km / shadow_width) since it was
+ * last placed: a quarter keeps a shadow's edge within a quarter texel of
+ * where the wind has it, and costs a move every 40 simulated seconds for
+ * a 7.7 m/s wind over the 160 km region of a layer at 2 km. */
+#define DRIVE_FIELD_TEXEL_SHARE 0.25
+
+/* Places the cloud field of s at the simulated time of monotonic time
+ * mono_s, in whole seconds (clouds.utc_s), while it moves: a layer drawn,
+ * a wind and a time; NAN else. Whole seconds, so that machines whose
+ * clocks agree to a fraction of a second place it alike. ret_dirty, if not
+ * NULL, gets the field's tables ORed in when the placement changed. */
+void drive_field(struct sky_state *s, double mono_s, uint32_t *ret_dirty);
+
+/* How far the wind moves the field of s in km per real second while the
+ * clock runs (0 while it stands still), and the distance that calls for a
+ * recomputation (DRIVE_FIELD_TEXEL_SHARE of a shadow map's texel). */
+double drive_field_speed_km_s(const struct sky_state *s);
+double drive_field_threshold_km(const struct sky_state *s);
 
 /* A move of the clock's lights: next is the served state with the lights
  * where the clock has them now, lights their directions (state_lights_of),

@@ -233,7 +233,7 @@ static int clear_sky(struct sense *s, int record, double *ret_lights_lx, double 
 	sensor_sky_horizontal(&trans, &sky, &slot->state, &lux);
 	*ret_night_lx = k->night.zenith_luminance_cd_m2 > 0.0 ? k->night.illuminance_lx : 0.0;
 	*ret_lights_lx = fmax(lux.total_lx - *ret_night_lx, 0.0) /
-			 fmax(k->weather.cloud_factor, SENSE_FACTOR_MIN);
+			 fmax(state_cloud_factor_applied(k), SENSE_FACTOR_MIN);
 	if (record)
 		record_point(s, k, *ret_lights_lx, k->moon.illuminance_lx > 0.0);
 	return 0;
@@ -299,6 +299,12 @@ static int eval_cloud(struct sense *s, enum cause cause)
 	const struct sky_state *cur = srv_state(s->srv);
 	double lights_lx, night_lx;
 
+	/* Drawn cloud layers dim the lights themselves: a factor on top
+	 * would count the clouds twice (docs/sensor.md, "cloud"). */
+	if (state_clouds_drawn(cur)) {
+		NOTE("cloud layers are drawn: they, not the reading, dim the sun and the moon");
+		return 0;
+	}
 	if (clear_sky(s, cause == CAUSE_PUBLISHED, &lights_lx, &night_lx) < 0) {
 		s->waiting = 1;
 		NOTE("waiting for the tables: the clear sky is read from them");

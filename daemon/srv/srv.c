@@ -34,6 +34,15 @@ struct srv {
 	struct eng *eng;
 	struct loop_io *eng_io;
 	struct pub *pub;
+	/* A region of a new layout, made when a computation for it starts
+	 * and current from its first publication. */
+	struct pub *next_pub;
+	/* Whether the engine imported pub's and next_pub's memory: it then
+	 * writes the tables into the claimed slot itself (in_flight_direct)
+	 * and skyd copies nothing. */
+	int pub_direct, next_direct;
+	int in_flight_direct;
+	int told_copy;			/* the log said why the copy */
 	struct drive *drive;		/* the clock, moving cur's lights */
 	struct srv_listener listeners[SRV_MAX_LISTENERS];
 	int n_listeners;
@@ -100,6 +109,11 @@ const struct eng_device *srv_device(const struct srv *s)
 	return eng_device(s->eng);
 }
 
+enum eng_grain srv_grain(const struct srv *s)
+{
+	return eng_grain(s->eng);
+}
+
 void srv_status(const struct srv *s, struct srv_status *ret)
 {
 	struct drive_stats ds;
@@ -113,6 +127,7 @@ void srv_status(const struct srv *s, struct srv_status *ret)
 	ret->computing = s->in_flight;
 	ret->pending = s->pending;
 	ret->published_valid = pub_current(s->pub, NULL)->valid_tables;
+	ret->publish_direct = s->pub_direct;
 	ret->demand = s->demand;
 	ret->needed = srv_tables_needed(s);
 }
@@ -181,6 +196,71 @@ static void fail(struct srv *s, uint64_t generation, const char *message)
 			s->listeners[i].failed(s->listeners[i].ctx, generation, message);
 }
 
+/* Lets the engine write r's slots itself where it can, unless
+ * $SKYD_PUBLISH is "copy" (a diagnostic and test switch); 1 if it does.
+ * Says why not once, in the log. */
+static int import_region(struct srv *s, struct pub *r)
+{
+	const char *force = getenv("SKYD_PUBLISH");
+	char err[128] = "";
+	int rc;
+
+	if (force && !strcmp(force, "copy"))
+		return 0;
+	rc = eng_host_import(s->eng, pub_map(r), (size_t)pub_bytes(r), err, sizeof(err));
+	if (rc == -EOPNOTSUPP && !s->told_copy)
+		log_info("publish: copy (%s)", err);
+	else if (rc < 0)
+		log_warning("the device cannot write the shared memory itself: %s; skyd copies the tables",
+			    err);
+	s->told_copy |= rc < 0;
+	return rc == 0;
+}
+
+static void drop_region(struct srv *s, struct pub *r)
+{
+	if (!r)
+		return;
+	eng_host_release(s->eng, pub_map(r));
+	pub_free(r);
+}
+
+/* The region the computation of computing.sky goes into: the current one,
+ * or for a new layout a new region (made once, kept until published).
+ * NULL, with err, when a new region cannot be made. */
+static struct pub *target_region(struct srv *s, int *ret_direct, char *err, size_t err_size)
+{
+	if (pub_same_layout(s->pub, &s->computing.sky)) {
+		*ret_direct = s->pub_direct;
+		return s->pub;
+	}
+	if (s->next_pub && !pub_same_layout(s->next_pub, &s->computing.sky)) {
+		drop_region(s, s->next_pub);
+		s->next_pub = NULL;
+	}
+	if (!s->next_pub) {
+		int r = pub_new_like(s->pub, &s->computing.sky, s->generation, &s->next_pub);
+		if (r < 0) {
+			snprintf(err, err_size, "new shared memory region: %s", strerror(-r));
+			s->next_pub = NULL;
+			return NULL;
+		}
+		s->next_direct = import_region(s, s->next_pub);
+	}
+	*ret_direct = s->next_direct;
+	return s->next_pub;
+}
+
+/* Makes the region made for the computation's new layout current. */
+static void switch_region(struct srv *s)
+{
+	pub_supersede(s->pub);
+	drop_region(s, s->pub);
+	s->pub = s->next_pub;
+	s->pub_direct = s->next_direct;
+	s->next_pub = NULL;
+}
+
 /* The engine's valid tables and their scales, as the publisher takes them. */
 static void engine_tables(const struct srv *s, const void *ret_tables[STATE_N_TABLES],
 			  int32_t ret_scales[STATE_N_TABLES])
@@ -203,7 +283,10 @@ static void publish(struct srv *s, uint32_t computed, int64_t apply_ns)
 	int new_region = 0;
 	uint64_t generation = s->in_flight_generation;
 
-	if (!pub_same_layout(s->pub, &s->computing.sky)) {
+	if (s->next_pub && pub_same_layout(s->next_pub, &s->computing.sky)) {
+		switch_region(s);
+		new_region = 1;
+	} else if (!pub_same_layout(s->pub, &s->computing.sky)) {
 		struct pub *p;
 		int r = pub_new_like(s->pub, &s->computing.sky, s->generation, &p);
 		if (r < 0) {
@@ -215,13 +298,19 @@ static void publish(struct srv *s, uint32_t computed, int64_t apply_ns)
 			return;
 		}
 		pub_supersede(s->pub);
-		pub_free(s->pub);
+		drop_region(s, s->pub);
 		s->pub = p;
+		s->pub_direct = import_region(s, p);
 		new_region = 1;
 	}
 	engine_tables(s, tables, scales);
-	pub_publish_at(s->pub, &s->computing.sky, &s->computing.lights, s->eng_valid, tables,
-		       eng_panoramas(s->eng, NULL), scales, generation, apply_ns);
+	if (s->in_flight_direct)
+		pub_publish_claimed(s->pub, &s->computing.sky, &s->computing.lights, s->eng_valid, scales,
+				    generation, apply_ns);
+	else
+		pub_publish_at(s->pub, &s->computing.sky, &s->computing.lights, s->eng_valid, tables,
+			       eng_panoramas(s->eng, NULL), scales, generation, apply_ns);
+	s->in_flight_direct = 0;
 	s->published_keys = s->computing.keys;
 	s->generation = generation;
 	s->st.published_computed = computed;
@@ -312,8 +401,29 @@ static void check_storage(struct srv *s, uint32_t computed)
 	log_warning("%s", s->st.storage_warning);
 }
 
+/* Where the computation's tables go: into the next slot of its region,
+ * which the device writes itself where the engine imported the region
+ * (*ret_direct), or into the engine's host copies, from which publish
+ * copies them. A computation with an apply time takes the copies: it may
+ * be published ahead into the spare slot; so does one whose new region
+ * cannot be made now (publish tries again, and says why it fails). */
+static void plan_target(struct srv *s, struct eng_target *target, int *ret_direct)
+{
+	char err[128];
+	int direct = 0;
+	struct pub *r;
+
+	*ret_direct = 0;
+	if (!target->tables || s->in_flight_apply_ns)
+		return;
+	r = target_region(s, &direct, err, sizeof(err));
+	if (r && direct && pub_claim(r, &s->computing.sky, &s->computing.lights, target->tables, target) == 0)
+		*ret_direct = 1;
+}
+
 /* Starts computing the newest state, as prepare resolved it, if nothing
- * is in flight. */
+ * is in flight; with nothing to compute, publishes at once unless the
+ * tables kept must reach the slot through the device. */
 static void kick(struct srv *s)
 {
 	char err[256] = "";
@@ -331,17 +441,23 @@ static void kick(struct srv *s)
 	s->in_flight_mask = mask;
 	s->in_flight_apply_ns = s->pending_apply_ns;
 	s->pending_apply_ns = 0;
-	if (!mask) {
+	/* The slot holds the tables kept and those computed now. */
+	struct eng_target target = { .base = NULL, .tables = s->eng_valid | mask };
+	int direct = 0;
+	plan_target(s, &target, &direct);
+	if (!mask && !direct && eng_host_fresh(s->eng, target.tables)) {
 		finish(s, 0);
 		return;
 	}
-	r = eng_submit(s->eng, &s->computing.sky, &s->computing.lights, mask, err, sizeof(err));
+	r = eng_submit_to(s->eng, &s->computing.sky, &s->computing.lights, mask, &target, err,
+			  sizeof(err));
 	if (r < 0) {
 		s->dirty |= mask;
 		fail(s, s->in_flight_generation, err[0] ? err : strerror(-r));
 		return;
 	}
 	s->in_flight = 1;
+	s->in_flight_direct = direct;
 }
 
 static void eng_ready(void *ctx, uint32_t events)
@@ -359,6 +475,7 @@ static void eng_ready(void *ctx, uint32_t events)
 	s->in_flight = 0;
 	s->st.computations++;
 	if (r < 0) {
+		s->in_flight_direct = 0;
 		s->dirty |= s->in_flight_mask;
 		s->eng_valid &= ~s->in_flight_mask;
 		fail(s, s->in_flight_generation, err[0] ? err : strerror(-r));
@@ -469,26 +586,42 @@ uint64_t srv_state_generation(const struct srv *s)
 	return s->in_flight ? s->in_flight_generation : s->generation;
 }
 
+/* Places the cloud field of keys at the instant a change made now applies
+ * (drive_field): a controller and its followers, which switch together
+ * then, place it alike. Returns that instant for change (0: now). */
+static int64_t place_field(struct srv *s, struct sky_state *keys, double real_s, double mono_s,
+			   uint32_t *dirty)
+{
+	int64_t at_ns = s->next_apply_ns;
+
+	if (!at_ns && s->sync.apply_time_ns)
+		at_ns = s->sync.apply_time_ns(s->sync.ctx);
+	drive_field(keys, mono_s + (at_ns ? (double)at_ns / 1e9 - real_s : 0.0), dirty);
+	return at_ns;
+}
+
 int srv_apply(struct srv *s, const struct sky_state *next, uint32_t dirty,
 	      uint64_t *ret_generation, uint32_t *ret_dirty, char *err, size_t err_size)
 {
 	struct served *c = malloc(sizeof(*c));
 	uint64_t generation;
+	double real_s, mono_s;
 	int64_t apply_ns;
 	int r = -ERANGE;
 
 	if (!c)
 		return -ENOMEM;
 	c->keys = *next;
+	simclock_read_clocks(&real_s, &mono_s);
 	if (memcmp(&c->keys.clock, &s->cur.keys.clock, sizeof(c->keys.clock)) != 0) {
-		double mono_s;
-		simclock_read_clocks(NULL, &mono_s);
 		state_clock_rebase(&c->keys, &s->cur.keys, mono_s);
 		if (drive_lights(&c->keys, mono_s, &dirty, err, err_size) < 0)
 			goto out;
 	}
+	int64_t at_ns = place_field(s, &c->keys, real_s, mono_s, &dirty);
 	if (prepare(s, c, NULL, err, err_size) < 0)
 		goto out;
+	s->next_apply_ns = at_ns;
 	r = change(s, c, dirty, &generation, &apply_ns, err, err_size);
 	if (r < 0)
 		goto out;
@@ -517,8 +650,15 @@ static void clock_moved(void *ctx, const struct sky_state *next, const struct st
 		return;
 	}
 	c->keys = *next;
-	if (prepare(s, c, lights, err, sizeof(err)) < 0 ||
-	    change(s, c, dirty, &generation, &apply_ns, err, sizeof(err)) < 0)
+	double real_s, mono_s;
+	simclock_read_clocks(&real_s, &mono_s);
+	int64_t at_ns = place_field(s, &c->keys, real_s, mono_s, &dirty);
+	int r = prepare(s, c, lights, err, sizeof(err));
+	if (r == 0) {
+		s->next_apply_ns = at_ns;
+		r = change(s, c, dirty, &generation, &apply_ns, err, sizeof(err));
+	}
+	if (r < 0)
 		log_warning("clock: computation did not start: %s", err);
 	else
 		tell_changed(s, generation, apply_ns);
@@ -613,6 +753,7 @@ int srv_new_from(struct loop *l, struct eng *e, const struct sky_state *initial,
 	r = region ? 0 : pub_new(initial, 0, &s->pub);
 	if (r < 0)
 		goto fail;
+	s->pub_direct = import_region(s, s->pub);
 	/* The initial state was validated by the caller, with the device. */
 	char err[256] = "";
 	r = state_resolve(initial, &s->cur.sky, NULL, err, sizeof(err));
@@ -648,6 +789,7 @@ void srv_free(struct srv *s)
 	drive_free(s->drive);
 	loop_io_del(s->eng_io);
 	loop_timer_del(s->hold_timer);
-	pub_free(s->pub);
+	drop_region(s, s->next_pub);
+	drop_region(s, s->pub);
 	free(s);
 }

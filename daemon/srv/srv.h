@@ -66,6 +66,8 @@ struct srv_status {
 	uint64_t column_passes;		/* computations that ran transmittance's column pass */
 	char last_error[256];		/* "" when the last computation succeeded */
 	char storage_warning[192];	/* float16 broke in the last computation; "" when not */
+	int publish_direct;		/* the device writes the current region's slots itself
+					 * (eng_host_import); 0: skyd copies the tables in */
 	uint64_t clock_ticks;		/* the clock drive's timer expirations */
 	uint64_t clock_changes;		/* the moves it made changes */
 	double clock_next_tick_s;	/* real seconds to its next tick; -1 none armed */
@@ -129,6 +131,8 @@ const struct sky_state *srv_published(const struct srv *s);
 /* The current region; valid until the next publication with a new layout. */
 struct pub *srv_pub(const struct srv *s);
 const struct eng_device *srv_device(const struct srv *s);
+/* The grain the engine dispatches its passes at. */
+enum eng_grain srv_grain(const struct srv *s);
 void srv_status(const struct srv *s, struct srv_status *ret);
 
 /* The generation that shows the served state as it is now: the published

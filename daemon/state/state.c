@@ -37,6 +37,7 @@ static const struct state_quality quality_presets[N_QUALITY_PRESETS] = {
 		       [STATE_AERIAL] = TABLE_Q(16, 16, 16, 1) },
 		.multiscatter_dirs = 2, .skyview_min_steps = 4, .aerial_range_km = 128.0,
 		.aerial_spacing = STATE_SQUARED, .storage = STATE_F16,
+		.cloud_width = 128, .shadow_width = 128,
 	},
 	[QUALITY_MEDIUM] = {
 		.t = { [STATE_TRANSMITTANCE] = TABLE_Q(256, 64, 1, 40),
@@ -45,6 +46,7 @@ static const struct state_quality quality_presets[N_QUALITY_PRESETS] = {
 		       [STATE_AERIAL] = TABLE_Q(32, 32, 32, 1) },
 		.multiscatter_dirs = 64, .skyview_min_steps = 4, .aerial_range_km = 128.0,
 		.aerial_spacing = STATE_SQUARED, .storage = STATE_F32,
+		.cloud_width = 256, .shadow_width = 256,
 	},
 	[QUALITY_HIGH] = {
 		.t = { [STATE_TRANSMITTANCE] = TABLE_Q(256, 64, 1, 60),
@@ -53,6 +55,7 @@ static const struct state_quality quality_presets[N_QUALITY_PRESETS] = {
 		       [STATE_AERIAL] = TABLE_Q(48, 48, 32, 2) },
 		.multiscatter_dirs = 64, .skyview_min_steps = 6, .aerial_range_km = 128.0,
 		.aerial_spacing = STATE_SQUARED, .storage = STATE_F32,
+		.cloud_width = 256, .shadow_width = 256,
 	},
 	[QUALITY_ULTRA] = {
 		.t = { [STATE_TRANSMITTANCE] = TABLE_Q(512, 128, 1, 80),
@@ -61,6 +64,7 @@ static const struct state_quality quality_presets[N_QUALITY_PRESETS] = {
 		       [STATE_AERIAL] = TABLE_Q(64, 64, 64, 2) },
 		.multiscatter_dirs = 64, .skyview_min_steps = 8, .aerial_range_km = 128.0,
 		.aerial_spacing = STATE_SQUARED, .storage = STATE_F32,
+		.cloud_width = 512, .shadow_width = 512,
 	},
 };
 
@@ -73,6 +77,9 @@ int state_set_quality(struct sky_state *s, const struct state_key *k, const char
 	if (r < 0)
 		return r;
 	s->quality = quality_presets[i];
+	/* The cloud tables' sizes change with it; no table while none is drawn. */
+	if (!state_clouds_drawn(s))
+		*ret_dirty &= ~(uint32_t)STATE_CLOUD_TABLES;
 	return 0;
 }
 
@@ -102,6 +109,7 @@ void state_default(struct sky_state *ret)
 	/* What no key sets: the clock's anchor on the monotonic clock (0),
 	 * the lights' time, the sensor's EV100, the weather's bookkeeping. */
 	s.lights_utc_s = NAN;
+	s.clouds.utc_s = NAN;
 	s.exposure_ev100 = NAN;
 	s.weather.cloud_factor = 1.0;
 	state_keys_default(&s);
@@ -167,6 +175,8 @@ int state_validate(const struct sky_state *s, uint64_t max_buffer_bytes,
 		if (r < 0 || (r = atmo_validate(&sky.atmo, err, err_size)) < 0)
 			return r;
 	}
+	if ((r = state_clouds_validate(s, err, err_size)) < 0)
+		return r;
 	if (s->night.zenith_luminance_cd_m2 > 0.0 &&
 	    s->night.illuminance_lx < M_PI * s->night.zenith_luminance_cd_m2)
 		return ERR_RANGE("night_illuminance_lx: %g is below pi * night_zenith_luminance_cd_m2 = %g (a night sky darker at the horizon than at the zenith)",
@@ -269,6 +279,21 @@ void state_format_tables(uint32_t mask, char *buf, size_t size)
 					      state_table_names[t]);
 	if (!o)
 		snprintf(buf, size, "none");
+}
+
+void state_format_all_tables(uint32_t mask, char *buf, size_t size)
+{
+	static const char *const cloud_names[] = { "cloud", "shadow" };
+	size_t o;
+
+	state_format_tables(mask & STATE_ALL_TABLES, buf, size);
+	if (!(mask & STATE_CLOUD_TABLES))
+		return;
+	o = mask & STATE_ALL_TABLES ? strlen(buf) : 0;
+	for (int t = STATE_N_TABLES; t < STATE_N_ALL_TABLES; t++)
+		if (mask & STATE_BIT(t))
+			o += (size_t)snprintf(buf + o, o < size ? size - o : 0, "%s%s", o ? "," : "",
+					      cloud_names[t - STATE_N_TABLES]);
 }
 
 uint32_t state_closure(uint32_t mask)

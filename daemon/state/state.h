@@ -28,6 +28,20 @@ enum state_table {
 #define STATE_BIT(t) (1u << (t))
 #define STATE_ALL_TABLES 0xfu
 
+/* The cloud field's tables (docs/clouds.md): the coverage table and the
+ * shadow maps. Their dirty bits follow the four's in a mask, but they are
+ * not tables of enum state_table: STATE_N_TABLES, the published layout,
+ * demand and the protocol's table names know the four only, so that a
+ * mask with these bits changes none of them. A key's row declares them
+ * (the key list names them); srv keeps them in its dirty mask and
+ * computes nothing for them until the cloud passes exist. */
+enum state_cloud_table {
+	STATE_CLOUD_COVERAGE = STATE_N_TABLES,
+	STATE_CLOUD_SHADOW = STATE_N_TABLES + 1,
+	STATE_N_ALL_TABLES = STATE_N_TABLES + 2,
+};
+#define STATE_CLOUD_TABLES (STATE_BIT(STATE_CLOUD_COVERAGE) | STATE_BIT(STATE_CLOUD_SHADOW))
+
 enum state_storage { STATE_F32 = 0, STATE_F16 = 1 };
 enum state_spacing { STATE_LINEAR = 0, STATE_SQUARED = 1 };
 /* The multiply scattered light's first moment (model_moment_wanted). */
@@ -92,6 +106,8 @@ struct state_quality {
 	/* Delta-M scaling of the forward peak for the higher orders
 	 * (phase_delta_constituent); auto, off, on as multiscatter_moment. */
 	enum state_moment multiscatter_delta;
+	uint32_t cloud_width;		/* texels of the cloud coverage table, square */
+	uint32_t shadow_width;		/* texels of a cloud shadow map, square */
 };
 
 /* Who drives a light: the key=value of its angles (manual) or the clock. */
@@ -170,6 +186,36 @@ struct state_sensor {
 	double report_interval_s, io_timeout_s, rescan_s;	/* the device */
 };
 
+/* ---- cloud layers (docs/clouds.md; state_clouds.c) ----
+ * Up to four layers over a region around the observer, the field of
+ * proto/skycloud.h, moved by the wind with the simulated time. A layer
+ * with a cover above 0 and a base is drawn; while one is, the weather's
+ * cloud factor (cloud_oktas, the light sensor) no longer dims the lights:
+ * the layers do (state_resolve). */
+#define STATE_CLOUD_LAYERS 4
+
+struct state_cloud_layer {
+	double oktas;			/* cloudN_oktas 0..8 (cloudN_fraction x 8); NAN: not given */
+	double base_m;			/* above the ground under the observer; NAN: not given */
+	double top_m;			/* NAN: the base plus the type's typical thickness */
+	int type;			/* enum skycloud_type */
+};
+
+struct state_clouds {
+	struct state_cloud_layer layer[STATE_CLOUD_LAYERS];
+	uint32_t seed;			/* cloud_seed */
+	double wind_dir_deg;		/* where the wind blows from, clockwise from north */
+	double wind_speed_mps;
+	double extent_km;		/* half-width of the field's region; NAN: auto */
+	/* Not keys. utc_s: the simulated time the field is placed for, whole
+	 * seconds (daemon/srv/drive.c); NAN while it stands still (no layer
+	 * drawn, no wind or no time). offset_km: where the wind has carried
+	 * it then, east and north in [0, SKYCLOUD_PERIOD_KM); state_resolve
+	 * writes it, 0 in the state as set. */
+	double utc_s;
+	double offset_km[2];
+};
+
 struct sky_state {
 	char preset[ATMO_NAME_MAX];
 	struct atmo atmo;		/* the user's: preset and raw keys, no weather */
@@ -185,6 +231,7 @@ struct sky_state {
 	uint32_t n_views;		/* views[0 .. n_views) in use, in the order added */
 	struct state_view views[STATE_MAX_VIEWS];
 	struct state_weather weather;
+	struct state_clouds clouds;
 	struct state_sensor sensor;
 	double exposure_ev100;		/* the sensor's suggested EV100 (exposure
 					 * mode); NAN when none. Not a key: set by
@@ -265,8 +312,12 @@ uint32_t state_multiscatter_iterations(const struct sky_state *s);
 extern const char *const state_table_names[STATE_N_TABLES];
 /* Table mask from a comma list ("skyview,aerial", "all"); -EINVAL if unknown. */
 int state_parse_tables(const char *list, uint32_t *ret_mask);
-/* The inverse: "transmittance,skyview", or "none" for 0. */
+/* The inverse: "transmittance,skyview", or "none" for 0; the tables of
+ * enum state_table only. */
 void state_format_tables(uint32_t mask, char *buf, size_t size);
+/* The same with the cloud tables' bits named too ("cloud", "shadow"): the
+ * key list's invalidates column. */
+void state_format_all_tables(uint32_t mask, char *buf, size_t size);
 /* The tables t depends on, t included. */
 uint32_t state_closure(uint32_t mask);
 
@@ -274,17 +325,20 @@ uint32_t state_closure(uint32_t mask);
 
 /* The state the tables are computed with: s with its weather mapped onto a
  * copy of its atmosphere (weather_map, weather_apply; coefficients of raw
- * keys set after the weather kept, enum state_override) and the sun's and
- * moon's illuminance times cloud_factor. ret's weather is cleared, so that
- * resolving it again changes nothing; ret may be s. Without weather ret is
- * s byte for byte. ret_map (NULL: not wanted) gets the map. Returns 0, or
+ * keys set after the weather kept, enum state_override), the sun's and
+ * moon's illuminance times the cloud factor applied (cloud_factor, or 1
+ * while a cloud layer is drawn: no double counting) and the cloud field's
+ * offset at clouds.utc_s (clouds.offset_km). ret's weather is cleared, so
+ * that resolving it again changes nothing; ret may be s. Without weather
+ * and drawn layers ret is s byte for byte. ret_map (NULL: not wanted) gets the map. Returns 0, or
  * -EINVAL / -ERANGE with err naming the key when the weather does not fit
  * the atmosphere (ozone_du without an ozone constituent). */
 int state_resolve(const struct sky_state *s, struct sky_state *ret, struct weather_map *ret_map,
 		  char *err, size_t err_size);
 
 /* `get weather`: the weather keys and what they map to (weather_map),
- * then `overridden:` (the raw keys that win, or none) and `cloud_factor:`.
+ * then `overridden:` (the raw keys that win, or none), `cloud_factor:`
+ * and `cloud_factor_applied:` (1 while a cloud layer is drawn).
  * 0, or the error of weather_map with err. */
 int state_describe_weather(const struct sky_state *s, state_emit_fn fn, void *ctx, char *err,
 			   size_t err_size);
@@ -293,7 +347,8 @@ struct metar;
 /* Applies one METAR or SPECI report: metar_weather's visibility_km,
  * relative_humidity, aerosol and cloud_oktas, the QNH reduced to
  * site_elevation_m as pressure_mbar and the temperature as temperature_c
- * (the refraction keys). ret_metar (NULL: not wanted) gets the decoded
+ * (the refraction keys), the cloud layers (every one replaced: metar_layers)
+ * and the wind (kept where the report has none). ret_metar (NULL: not wanted) gets the decoded
  * report. -EINVAL with err naming the group and its position for a
  * malformed report; s is unchanged then. */
 int state_set_metar(struct sky_state *s, const char *report, struct metar *ret_metar,
@@ -302,8 +357,37 @@ int state_set_metar(struct sky_state *s, const char *report, struct metar *ret_m
 /* Sets cloud_factor (0..1, -ERANGE outside) as a light sensor measures it
  * (illuminance over the clear-sky one), and cloud_oktas to the cover that
  * Kasten and Czeplak's law gives that factor (8 below 0.25), so that get
- * weather tells the same. ret_dirty as state_set's. */
+ * weather tells the same. ret_dirty as state_set's (no table while a
+ * cloud layer is drawn: the factor then applies to nothing). */
 int state_set_cloud_factor(struct sky_state *s, double factor, uint32_t *ret_dirty);
+
+/* ---- cloud layers (state_clouds.c) ---- */
+
+/* The number of drawn layers: cover above 0 and a base. */
+int state_clouds_drawn(const struct sky_state *s);
+/* The factor the sun's and moon's illuminance get in the tables: the
+ * weather's cloud_factor while no layer is drawn, else 1. */
+double state_cloud_factor_applied(const struct sky_state *s);
+/* The top of layer i (0..3) in m: cloudN_top_m, or auto's base plus the
+ * type's thickness, held under the key's range and the atmosphere's top;
+ * NAN without a base. */
+double state_cloud_top_m(const struct sky_state *s, int i);
+/* The half-width of the field's region: cloud_extent_km, or auto's
+ * sqrt(2 R top) for the highest drawn top, in [50, 400] km (50 without
+ * a layer): how far a layer's top stays above a ground observer's
+ * horizon. */
+double state_cloud_extent_km(const struct sky_state *s);
+/* The drawn layers as proto/skycloud.h takes them, in order, each with
+ * its own index (a layer keeps its pattern when another changes); returns
+ * how many (0..4). */
+struct skycloud_layer;
+int state_cloud_layers(const struct sky_state *s, struct skycloud_layer *ret);
+/* The wind's offset of the field placed at clouds.utc_s (0, 0 when it is
+ * NAN), east and north km. */
+void state_cloud_offset_km(const struct sky_state *s, double ret_km[2]);
+/* `get clouds`: each layer (cover, base, top, type, drawn), the wind,
+ * the seed, the region and the field's offset. */
+void state_describe_clouds(const struct sky_state *s, state_emit_fn fn, void *ctx);
 
 /* ---- the key list (state_keys.c) ---- */
 

@@ -3,8 +3,8 @@
  * key registry, set, get and the key list) and the rooms whose keys need
  * code, each with the hooks its rows name: state_clock.c (the clock),
  * state_atmo.c (the planet preset and the constituents), state_weather.c
- * (the weather keys, METAR, state_resolve) and state_sensor.c (the light
- * sensor). */
+ * (the weather keys, METAR, state_resolve), state_clouds.c (the cloud
+ * layers) and state_sensor.c (the light sensor). */
 #ifndef SKYD_STATE_INTERNAL_H
 #define SKYD_STATE_INTERNAL_H
 
@@ -20,6 +20,8 @@
 #define FROM_T (T_BIT | M_BIT | S_BIT | A_BIT)
 #define FROM_M (M_BIT | S_BIT | A_BIT)
 #define LIGHTS (S_BIT | A_BIT)
+/* The cloud field: its tables and the sky tables its shadows will reach. */
+#define CLOUDS (STATE_CLOUD_TABLES | S_BIT | A_BIT)
 
 /* The three refusals of a key: malformed, out of its range, unknown; each
  * writes the message to err (err_size in scope). */
@@ -79,6 +81,20 @@ state_key_set_fn state_set_metar_key;
 /* A raw constituent key was set: while the weather maps the coefficients
  * in bits (enum state_override), the raw key now wins for them. */
 void state_weather_pin(struct sky_state *s, uint32_t bits);
+
+/* ---- state_clouds.c ---- */
+extern const char *const state_cloud_type_names[];
+/* A cloud key into its field; no table while no layer is drawn. */
+state_key_set_fn state_set_cloud_key;
+state_key_set_fn state_set_cloud_layer_fraction;	/* stored as oktas */
+state_key_get_fn state_get_cloud_layer_fraction;
+/* The layers and the wind of a METAR (every layer replaced: none where
+ * the report has none; the wind kept where it has none). */
+struct metar;
+void state_clouds_from_metar(struct sky_state *s, const struct metar *m);
+/* The layers' cross-key rules (a top above its base and below the
+ * atmosphere's top): 0 or -ERANGE with err naming the key. */
+int state_clouds_validate(const struct sky_state *s, char *err, size_t err_size);
 
 /* ---- state_sensor.c ---- */
 extern const char *const state_sensor_mode_names[];

@@ -17,7 +17,7 @@
  *     macro holding what its members share, and one row per member with
  *     the member's literal name: CONSTITUENT below. Layered families such
  *     as cloudN_base_m take the index as an argument and address their
- *     field with it (.offset = OFF(clouds[N - 1].base_m)).
+ *     field with it (.offset = OFF(clouds.layer[N - 1].base_m): CL_BASE).
  *   - Code elsewhere that must name a key uses its row: state_key_find,
  *     or an id (enum state_key_id) in the row and state_key_of.
  * Then regenerate the key list of proto/PROTOCOL.md (tools/gen_keys_doc.sh);
@@ -32,6 +32,7 @@
 
 #include "proto.h"
 #include "simclock.h"
+#include "skycloud.h"
 
 static const char *const storage_names[] = { "f32", "f16", NULL };
 static const char *const spacing_names[] = { "linear", "squared", NULL };
@@ -95,6 +96,27 @@ static state_key_set_fn set_multiscatter_dirs;
 /* A weather input: auto (not given) by default, listed by get when given. */
 #define WEATHER(field, lo, hi) NUMBER_AUTO(weather.in.field, lo, hi), .listed = STATE_LISTED_GIVEN
 
+/* The cloud layer family (docs/clouds.md; state_clouds.c): cloudN_<field>
+ * for the layers N = 1..4, one row per key with its literal name, its
+ * field by the layer's index; what a field's keys share is written once,
+ * in its CL_<field> macro. The cloud keys are one block: get lists them
+ * while one is away from its default, so a state without clouds reads as
+ * before. A cloud key invalidates the cloud tables and what their shadows
+ * reach, but nothing while no layer is drawn (state_set_cloud_key). */
+#define CLOUD_BLOCK .listed = STATE_LISTED_BLOCK, .dirty = CLOUDS, .set = state_set_cloud_key
+#define CL_OKTAS(n) NUMBER_AUTO(clouds.layer[(n) - 1].oktas, 0.0, WEATHER_OKTAS_MAX), CLOUD_BLOCK, \
+	.unit = "oktas", .doc = "the layer's cover; with a base the layer is drawn"
+#define CL_BASE(n) NUMBER_AUTO(clouds.layer[(n) - 1].base_m, 0.0, 20000.0), CLOUD_BLOCK, \
+	.unit = "m", .doc = "the layer's base above the ground under the observer"
+#define CL_TOP(n) NUMBER_AUTO(clouds.layer[(n) - 1].top_m, 0.0, 20000.0), CLOUD_BLOCK, \
+	.unit = "m", .doc = "the layer's top, above its base; auto: the base plus the type's thickness"
+#define CL_TYPE(n) WORD(clouds.layer[(n) - 1].type, state_cloud_type_names), CLOUD_BLOCK, \
+	.def = SKYCLOUD_STRATOCUMULUS, .unit = "-", \
+	.doc = "the layer's type: its profile, extinction, phase and noise (docs/clouds.md)"
+#define CL_FRACTION(n) NUMBER_AUTO(clouds.layer[(n) - 1].oktas, 0.0, 1.0), .dirty = CLOUDS, \
+	.unit = "-", .listed = STATE_LISTED_NEVER, .set = state_set_cloud_layer_fraction, \
+	.get = state_get_cloud_layer_fraction, .doc = "the layer's cover as a fraction: its oktas / 8"
+
 /* A light sensor key: what its readings do and how they are taken; they
  * invalidate no table (the readings change the state, each a change of
  * its own). The ranges are sensor_config's (daemon/sensor/sensor.h). */
@@ -107,7 +129,7 @@ static const struct state_key keys[] = {
 	  .dirty = FROM_T, .unit = "-", .set = state_set_preset, .get = state_get_preset,
 	  .doc = "the atmosphere: planet, shell and constituents; resets every raw atmosphere key" },
 	{ .name = "quality", .kind = STATE_KIND_WORD, .words = state_quality_names,
-	  .def_text = "medium", .dirty = STATE_ALL_TABLES, .unit = "-",
+	  .def_text = "medium", .dirty = STATE_ALL_TABLES | STATE_CLOUD_TABLES, .unit = "-",
 	  .listed = STATE_LISTED_NEVER, .set = state_set_quality, .get = state_get_quality,
 	  .doc = "every size, step count, multiscatter_dirs and storage at once" },
 	{ .name = "utc", .kind = STATE_KIND_TIME, .offset = OFF(clock.anchor_utc_s), .def = NAN,
@@ -231,6 +253,13 @@ static const struct state_key keys[] = {
 	  .dirty = A_BIT, .unit = "-", .doc = "slice depths linear or squared in the slice index" },
 	{ .name = "storage", WORD(quality.storage, storage_names), FROM_PRESET, .dirty = STATE_ALL_TABLES,
 	  .unit = "-", .doc = "texels as float32 or float16" },
+	/* The cloud tables' sizes (docs/clouds.md): nothing while no layer is drawn. */
+	{ .name = "cloud_width", INTEGER(quality.cloud_width, 16, 2048), FROM_PRESET, .dirty = CLOUDS,
+	  .set = state_set_cloud_key, .unit = "texels",
+	  .doc = "size of the cloud coverage table over the field's region (square)" },
+	{ .name = "shadow_width", INTEGER(quality.shadow_width, 16, 2048), FROM_PRESET,
+	  .dirty = STATE_BIT(STATE_CLOUD_SHADOW) | LIGHTS, .set = state_set_cloud_key,
+	  .unit = "texels", .doc = "size of a cloud shadow map over the field's region (square)" },
 
 	/* ---- the site and the clock's settings: refraction only changes
 	 * the reported direction, never the tables ---- */
@@ -337,7 +366,39 @@ static const struct state_key keys[] = {
 	{ .name = "metar", .kind = STATE_KIND_TEXT, .dirty = FROM_T, .unit = "-",
 	  .range = "a METAR or SPECI report, quoted", .listed = STATE_LISTED_NEVER,
 	  .id = STATE_KEY_ID_METAR, .flags = STATE_KEY_WRITE_ONLY, .set = state_set_metar_key,
-	  .doc = "sets visibility_km, relative_humidity, aerosol, cloud_oktas, pressure_mbar, temperature_c; write-only" },
+	  .doc = "sets visibility_km, relative_humidity, aerosol, cloud_oktas, pressure_mbar, temperature_c, the cloud layers and the wind; write-only" },
+
+	/* ---- the cloud layers and the wind (docs/clouds.md; state_clouds.c) ---- */
+	{ .name = "cloud1_oktas", CL_OKTAS(1) },
+	{ .name = "cloud1_base_m", CL_BASE(1) },
+	{ .name = "cloud1_top_m", CL_TOP(1) },
+	{ .name = "cloud1_type", CL_TYPE(1) },
+	{ .name = "cloud2_oktas", CL_OKTAS(2) },
+	{ .name = "cloud2_base_m", CL_BASE(2) },
+	{ .name = "cloud2_top_m", CL_TOP(2) },
+	{ .name = "cloud2_type", CL_TYPE(2) },
+	{ .name = "cloud3_oktas", CL_OKTAS(3) },
+	{ .name = "cloud3_base_m", CL_BASE(3) },
+	{ .name = "cloud3_top_m", CL_TOP(3) },
+	{ .name = "cloud3_type", CL_TYPE(3) },
+	{ .name = "cloud4_oktas", CL_OKTAS(4) },
+	{ .name = "cloud4_base_m", CL_BASE(4) },
+	{ .name = "cloud4_top_m", CL_TOP(4) },
+	{ .name = "cloud4_type", CL_TYPE(4) },
+	{ .name = "cloud_seed", INTEGER(clouds.seed, 0, 4294967295.0), CLOUD_BLOCK, .unit = "-",
+	  .range = "0 to 4294967295",
+	  .doc = "the field's noise: the same seed and keys give the same clouds on every host" },
+	{ .name = "wind_dir_deg", NUMBER(clouds.wind_dir_deg, 0, 360), CLOUD_BLOCK, .unit = "deg",
+	  .doc = "where the wind that carries the clouds blows from, clockwise from north" },
+	{ .name = "wind_speed_mps", NUMBER(clouds.wind_speed_mps, 0, 150), CLOUD_BLOCK, .unit = "m/s",
+	  .doc = "the wind's speed: the field moves with the simulated time" },
+	{ .name = "cloud_extent_km", NUMBER_AUTO(clouds.extent_km, 1, 512), CLOUD_BLOCK, .unit = "km",
+	  .doc = "half-width of the field's square region; auto: sqrt(2 R top), 50 to 400 km" },
+	/* Aliases, listed never: they end the block before the sensor's. */
+	{ .name = "cloud1_fraction", CL_FRACTION(1) },
+	{ .name = "cloud2_fraction", CL_FRACTION(2) },
+	{ .name = "cloud3_fraction", CL_FRACTION(3) },
+	{ .name = "cloud4_fraction", CL_FRACTION(4) },
 
 	/* ---- the light sensor (docs/sensor.md; state_sensor.c) ---- */
 	{ .name = "sensor_mode", WORD(sensor.mode, state_sensor_mode_names), .def = STATE_SENSOR_OFF,
@@ -728,10 +789,10 @@ void state_print_keys(FILE *f, bool markdown)
 		if (key_get(&s, k, def, sizeof(def)) < 0)
 			snprintf(def, sizeof(def), "-");
 		key_range(k, range, sizeof(range));
-		if (k->dirty == STATE_ALL_TABLES)
+		if ((k->dirty & STATE_ALL_TABLES) == STATE_ALL_TABLES)
 			snprintf(tables, sizeof(tables), "all");
 		else
-			state_format_tables(k->dirty, tables, sizeof(tables));
+			state_format_all_tables(k->dirty, tables, sizeof(tables));
 		if (markdown)
 			fprintf(f, "| `%s` | %s | %s | `%s` | %s | %s |\n", k->name, k->unit, range, def,
 				tables, k->doc);

@@ -45,14 +45,23 @@ int state_set_weather(struct sky_state *s, const struct state_key *k, const char
 	return r;
 }
 
+/* While a layer is drawn the factor dims nothing: no table. */
+static void narrow_cloud(const struct sky_state *s, uint32_t *ret_dirty)
+{
+	if (state_clouds_drawn(s))
+		*ret_dirty = 0;
+}
+
 int state_set_cloud(struct sky_state *s, const struct state_key *k, const char *v,
 		    uint32_t *ret_dirty, char *err, size_t err_size)
 {
 	int r = state_key_parse(k, v, &s->weather.in.cloud_oktas, err, err_size);
 
-	if (r == 0)
-		s->weather.cloud_factor = weather_cloud_light_factor(s->weather.in.cloud_oktas);
-	return r;
+	if (r < 0)
+		return r;
+	s->weather.cloud_factor = weather_cloud_light_factor(s->weather.in.cloud_oktas);
+	narrow_cloud(s, ret_dirty);
+	return 0;
 }
 
 int state_set_cloud_fraction(struct sky_state *s, const struct state_key *k, const char *v,
@@ -65,6 +74,7 @@ int state_set_cloud_fraction(struct sky_state *s, const struct state_key *k, con
 		return r;
 	s->weather.in.cloud_oktas = isnan(fraction) ? NAN : fraction * WEATHER_OKTAS_MAX;
 	s->weather.cloud_factor = weather_cloud_light_factor(s->weather.in.cloud_oktas);
+	narrow_cloud(s, ret_dirty);
 	return 0;
 }
 
@@ -96,6 +106,9 @@ int state_set_metar(struct sky_state *s, const char *report, struct metar *ret_m
 {
 	struct metar m;
 	struct state_weather before = s->weather;
+	struct state_clouds clouds_before = s->clouds;
+	double factor_before = state_cloud_factor_applied(s);
+	int drawn_before = state_clouds_drawn(s);
 	char why[256];
 
 	if (metar_decode(report, &m, why, sizeof(why)) < 0)
@@ -111,14 +124,19 @@ int state_set_metar(struct sky_state *s, const char *report, struct metar *ret_m
 	/* The report writes every aerosol input: it wins over raw Mie keys. */
 	s->weather.overridden &= ~(uint32_t)STATE_OVERRIDE_MIE;
 	s->weather.cloud_factor = weather_cloud_light_factor(s->weather.in.cloud_oktas);
-	/* The tables of what changed: the aerosol inputs', the cloud cover's. */
+	state_clouds_from_metar(s, &m);
+	/* The tables of what changed: the aerosol inputs', the light factor
+	 * applied, the drawn layers'. */
 	uint32_t dirty = 0;
 	struct weather a = before.in, b = s->weather.in;
 	a.cloud_oktas = b.cloud_oktas = 0.0;
 	if (!weather_equal(&a, &b) || before.overridden != s->weather.overridden)
 		dirty |= state_key_of(STATE_KEY_ID_VISIBILITY_KM)->dirty;
-	if (before.cloud_factor != s->weather.cloud_factor)
+	if (factor_before != state_cloud_factor_applied(s))
 		dirty |= state_key_of(STATE_KEY_ID_CLOUD_OKTAS)->dirty;
+	if ((drawn_before || state_clouds_drawn(s)) &&
+	    memcmp(&clouds_before, &s->clouds, sizeof(clouds_before)) != 0)
+		dirty |= STATE_CLOUD_TABLES | LIGHTS;
 	if (ret_dirty)
 		*ret_dirty = dirty;
 	if (ret_metar)
@@ -135,7 +153,7 @@ int state_set_cloud_factor(struct sky_state *s, double factor, uint32_t *ret_dir
 	double n = 8.0 * pow(fmin((1.0 - factor) / 0.75, 1.0), 1.0 / 3.4);
 	s->weather.in.cloud_oktas = n;
 	s->weather.cloud_factor = factor;
-	if (ret_dirty && memcmp(&before, &s->weather, sizeof(before)) != 0)
+	if (ret_dirty && memcmp(&before, &s->weather, sizeof(before)) != 0 && !state_clouds_drawn(s))
 		*ret_dirty |= state_key_of(STATE_KEY_ID_CLOUD_OKTAS)->dirty;
 	return 0;
 }
@@ -167,13 +185,19 @@ int state_resolve(const struct sky_state *s, struct sky_state *ret, struct weath
 	struct state_weather w = s->weather;
 	struct weather_map map;
 	struct atmo a = s->atmo;
+	/* A drawn layer dims the lights itself (the cloud passes): the
+	 * weather's factor would count the clouds twice. */
+	int drawn = state_clouds_drawn(s);
+	double factor = drawn ? 1.0 : w.cloud_factor;
+	double offset_km[2];
 
-	if (weather_is_empty(&w.in) && w.cloud_factor == 1.0 && !ret_map) {
+	if (weather_is_empty(&w.in) && factor == 1.0 && !ret_map && !drawn) {
 		/* Nothing to apply: the state as it is, bytes and all. */
 		if (ret != s)
 			*ret = *s;
 		return 0;
 	}
+	state_cloud_offset_km(s, offset_km);
 	int r = weather_map(&w.in, &s->atmo, &map, err, err_size);
 	if (r < 0)
 		return r;
@@ -182,8 +206,10 @@ int state_resolve(const struct sky_state *s, struct sky_state *ret, struct weath
 	if (ret != s)
 		*ret = *s;
 	ret->atmo = a;
-	ret->sun.illuminance_lx *= w.cloud_factor;
-	ret->moon.illuminance_lx *= w.cloud_factor;
+	ret->sun.illuminance_lx *= factor;
+	ret->moon.illuminance_lx *= factor;
+	ret->clouds.offset_km[0] = offset_km[0];
+	ret->clouds.offset_km[1] = offset_km[1];
 	weather_init(&ret->weather.in);
 	ret->weather.overridden = 0;
 	ret->weather.cloud_factor = 1.0;
@@ -272,5 +298,6 @@ int state_describe_weather(const struct sky_state *s, state_emit_fn fn, void *ct
 	emit(fn, ctx, "cloud_light_factor", "%.9g", m.light_factor);
 	describe_overridden(s, fn, ctx);
 	emit(fn, ctx, "cloud_factor", "%.9g", s->weather.cloud_factor);
+	emit(fn, ctx, "cloud_factor_applied", "%.9g", state_cloud_factor_applied(s));
 	return 0;
 }

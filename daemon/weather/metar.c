@@ -11,6 +11,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "skycloud.h"
+
 #define MAX_TOKENS 128
 #define SM_TO_M 1609.344
 #define INHG_TO_HPA 33.8639	/* hPa per inch of mercury */
@@ -535,6 +537,75 @@ double metar_oktas(const struct metar *m)
 			oktas = o;
 	}
 	return oktas;
+}
+
+/* Where the layers' type changes with height: the middle and the high
+ * clouds' bases in the mid latitudes (WMO International Cloud Atlas:
+ * 2 and 6 km); stratus below 1000 ft where it is broken or overcast. */
+#define METAR_MIDDLE_M 2000.0
+#define METAR_HIGH_M 6000.0
+#define METAR_STRATUS_M 300.0
+#define FT_TO_M 0.3048
+#define KT_TO_MPS (1852.0 / 3600.0)
+
+/* v rounded to a step of 1 / per_unit (10, 100): the nearest double to a
+ * short decimal, whose text (%.9g) reads back as the same double. */
+static double round_to(double v, double per_unit)
+{
+	return round(v * per_unit) / per_unit;
+}
+
+static int layer_type(enum metar_cover cover, double base_m, const char *type)
+{
+	if (strcmp(type, "CB") == 0)
+		return SKYCLOUD_CUMULONIMBUS;
+	if (strcmp(type, "TCU") == 0)
+		return SKYCLOUD_CUMULUS;
+	if (base_m >= METAR_HIGH_M)
+		return SKYCLOUD_CIRRUS;
+	if (base_m >= METAR_MIDDLE_M)
+		return SKYCLOUD_ALTOSTRATUS;
+	if (cover >= METAR_BKN)
+		return base_m < METAR_STRATUS_M ? SKYCLOUD_STRATUS : SKYCLOUD_STRATOCUMULUS;
+	return SKYCLOUD_CUMULUS;
+}
+
+int metar_layers(const struct metar *m, struct metar_layer *ret, int max)
+{
+	int n = 0;
+
+	if (m->sky == METAR_SKY_OBSCURED && isfinite(m->vertical_visibility_ft) && n < max)
+		ret[n++] = (struct metar_layer){
+			.oktas = 8.0, .type = SKYCLOUD_STRATUS,
+			.base_m = round_to(m->vertical_visibility_ft * FT_TO_M, 10.0),
+		};
+	for (int i = 0; i < m->n_clouds && n < max; i++) {
+		const struct metar_cloud *c = &m->clouds[i];
+		if (c->cover == METAR_COVER_MISSING || !isfinite(c->height_ft))
+			continue;
+		double base_m = round_to(c->height_ft * FT_TO_M, 10.0);
+		ret[n++] = (struct metar_layer){ .oktas = metar_cover_oktas(c->cover), .base_m = base_m,
+						 .type = layer_type(c->cover, base_m, c->type) };
+	}
+	return n;
+}
+
+int metar_wind(const struct metar *m, double *ret_dir_deg, double *ret_speed_mps)
+{
+	double per;
+
+	if (!isfinite(m->wind_speed))
+		return -ENODATA;
+	if (strcmp(m->wind_unit, "KT") == 0)
+		per = KT_TO_MPS;
+	else if (strcmp(m->wind_unit, "KMH") == 0)
+		per = 1.0 / 3.6;
+	else
+		per = 1.0;
+	*ret_dir_deg = m->wind_variable || !isfinite(m->wind_dir_deg) ? NAN
+		       : fmod(m->wind_dir_deg, 360.0);
+	*ret_speed_mps = round_to(m->wind_speed * per, 100.0);
+	return 0;
 }
 
 /* Phenomena at the station (vicinity groups left out). */

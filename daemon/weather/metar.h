@@ -127,6 +127,28 @@ void metar_weather(const struct metar *m, struct weather *w);
 /* Calls fn with key: value pairs of what was decoded. */
 void metar_describe(const struct metar *m, weather_emit_fn fn, void *ctx);
 
+/* A cloud layer of a report as the sky's state takes it (its top is the
+ * type's typical thickness above the base): cover in oktas, base in m
+ * above the ground, an enum skycloud_type. */
+struct metar_layer {
+	double oktas;
+	double base_m;
+	int type;
+};
+
+/* The report's cloud layers, in its order, at most max: every FEW, SCT,
+ * BKN and OVC group with a height (its CB or TCU naming the type, else
+ * the height and the amount: docs/clouds.md, "METAR"), and VV with a
+ * height as an overcast stratus there. None for a clear sky (SKC, CLR,
+ * NSC, NCD, CAVOK), nor for a group whose amount or height is "///".
+ * Bases in m rounded to 0.1 m, so that their text travels exactly. */
+int metar_layers(const struct metar *m, struct metar_layer *ret, int max);
+
+/* The wind group: where it blows from (NAN when variable) and its speed
+ * in m/s rounded to 0.01; -ENODATA when the report has no wind or its
+ * speed is missing. */
+int metar_wind(const struct metar *m, double *ret_dir_deg, double *ret_speed_mps);
+
 /* Oktas of a layer amount (FEW 1.5, SCT 3.5, BKN 6, OVC 8: the middle of
  * each range) and of a whole report (the largest layer; 8 with vertical
  * visibility; 0 when clear; NAN when the report says nothing). */

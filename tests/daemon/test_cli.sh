@@ -32,6 +32,8 @@ for t in transmittance multiscatter skyview aerial; do
 done
 check "manifest is JSON with the state and times" \
 	"python3 -c 'import json,sys; m=json.load(open(sys.argv[1])); assert m[\"state\"][\"preset\"]==\"mars\"; assert m[\"tables\"][2][\"width\"]==64; assert all(t[\"compute_ms\"]>=0 for t in m[\"tables\"])' '$tmp/d/manifest.json'"
+check "manifest says each preview's axes, the sky-view's zenith at the top" \
+	"python3 -c 'import json,sys; t=json.load(open(sys.argv[1]))[\"tables\"]; assert all(x[\"png_x\"] and x[\"png_y\"] and x[\"exr_rows\"] for x in t); assert t[2][\"png_y\"].startswith(\"the zenith at the top\")' '$tmp/d/manifest.json'"
 
 # Float16 storage holds every sky: each table's scale keeps Mars' sky-view,
 # above the half's 65504 cd/m2, finite, and the night's radiance, below its

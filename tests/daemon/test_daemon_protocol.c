@@ -154,13 +154,25 @@ static void test_status(struct conn *c)
 	static const char *const keys[] = { "generation", "computing", "pending", "tables_computed",
 					    "tables_valid", "compute_ms", "transmittance_ms",
 					    "multiscatter_ms", "skyview_ms", "aerial_ms", "failures",
-					    "last_error", "device", "clients", "subscribers", "shm_bytes" };
+					    "last_error", "device", "clients", "subscribers", "shm_bytes",
+					    "grain", "publish" };
+	char device[256];
 
 	CHECK(conn_request(c, "status", reply, sizeof(reply)) == 0);
 	for (size_t i = 0; i < sizeof(keys) / sizeof(keys[0]); i++)
 		if (!reply_value(reply, keys[i], buf, sizeof(buf)))
 			FAIL("status lacks %s", keys[i]);
 	CHECK(strcmp(reply_value(reply, "last_error", buf, sizeof(buf)), "none") == 0);
+	/* A CPU device keeps the CPU grain; lavapipe imports the region, so
+	 * the device writes the slots itself. */
+	CHECK(reply_value(reply, "device_type", device, sizeof(device)));
+	if (!strcmp(device, "cpu"))
+		CHECK(strcmp(reply_value(reply, "grain", buf, sizeof(buf)), "cpu") == 0);
+	CHECK(reply_value(reply, "device", device, sizeof(device)));
+	reply_value(reply, "publish", buf, sizeof(buf));
+	if (strstr(device, "llvmpipe"))
+		CHECK(!strcmp(buf, "direct"));
+	CHECK(!strcmp(buf, "direct") || !strcmp(buf, "copy"));
 	CHECK(conn_request(c, "status now", reply, sizeof(reply)) == SKY_ACK_SYNTAX);
 }
 

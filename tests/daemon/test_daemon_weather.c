@@ -152,7 +152,8 @@ static void test_metar(struct conn *c, struct conn *ev)
 	CHECK(has("metar_used: 9999 FEW030 12/06 Q1018\n"));
 	CHECK(has("metar_ignored: EGLL 241250Z 27008KT\n"));
 	CHECK(has("metar_applied: visibility_km=auto relative_humidity=0.66"));
-	CHECK(has("cloud_oktas=1.5 pressure_mbar=1018 temperature_c=12\n"));
+	CHECK(has("cloud_oktas=1.5 pressure_mbar=1018 temperature_c=12 cloud1_oktas=1.5 "
+		  "cloud1_base_m=914.4 cloud1_type=cumulus wind_dir_deg=270 wind_speed_mps=4.12\n"));
 	CHECK(conn_request(c, "get weather", reply, sizeof(reply)) == 0);
 	CHECK(has("visibility_km: auto\n") && has("aerosol: auto\n") && has("cloud_oktas: 1.5\n"));
 	CHECK(fabs(num("relative_humidity") - weather_relative_humidity(12, 6)) < 1e-8);
@@ -197,7 +198,8 @@ static void test_auto(struct conn *c, struct conn *ev, const struct look *clear)
 {
 	struct look again;
 
-	change(c, ev, "set visibility_km=auto relative_humidity=auto aerosol=auto cloud_oktas=auto");
+	change(c, ev, "set visibility_km=auto relative_humidity=auto aerosol=auto cloud_oktas=auto "
+		      "cloud1_oktas=auto cloud1_base_m=auto");
 	CHECK(conn_request(c, "get mie_g", reply, sizeof(reply)) == 0 && num("mie_g") == 0.75);
 	change(c, ev, "set mie_g=0.8");
 	CHECK(conn_request(c, "get weather", reply, sizeof(reply)) == 0);

@@ -115,6 +115,10 @@ static void test_verbs(void)
 	expect(&r, 0, "command: sample", "commands");
 	RUN(&r, NULL, "help", "set");
 	expect(&r, 0, "usage: set", "help set");
+	/* help alone: the verbs and where to read on, not help's own usage */
+	RUN(&r, NULL, "help");
+	expect(&r, 0, "skyd's verbs: set get", "help");
+	expect(&r, 0, "skyctl help VERB", "help");
 	RUN(&r, NULL, "subscribe", "tables=skyview");
 	expect(&r, 0, "slot_bytes: ", "subscribe");
 	/* the daemon computes what subscribers want; sample needs the tables */

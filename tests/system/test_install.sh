@@ -6,18 +6,67 @@
 # the CMake package, against DESTDIR's libsky, run against the installed
 # skyd (served by test_units_notify's "with" scenario).
 #   usage: test_install.sh BUILD_DIR WITH_SKYD
-# The install directories come from the environment (tests/CMakeLists.txt):
-# PREFIX BINDIR LIBDIR INCLUDEDIR SYSCONFDIR MANDIR DOCDIR UNITDIR SYSUSERSDIR
-# TMPFILESDIR UDEVRULESDIR, all absolute.
+# The install directories come from BUILD_DIR/install-dirs.env (the
+# top-level CMakeLists.txt): PREFIX BINDIR LIBDIR INCLUDEDIR SYSCONFDIR
+# MANDIR DOCDIR UNITDIR SYSUSERSDIR TMPFILESDIR UDEVRULESDIR, all absolute,
+# as the build was configured (/usr: SYSCONFDIR /etc; /usr/local:
+# /usr/local/etc), and RUNPATH, the programs' (empty where libsky lands in
+# a directory of the system's own).
 set -u
 build=$1
 with_skyd=$2
+. "$build/install-dirs.env"
 fail=0
 check() { if eval "$2"; then echo "ok: $1"; else echo "FAIL: $1"; fail=1; fi; }
 
 for tool in cmake cc pkg-config readelf; do
 	command -v "$tool" >/dev/null || { echo "skipped: $tool is missing"; exit 77; }
 done
+# The man pages as a reader sees them (MANWIDTH wide).
+man_text() { MANWIDTH=$1 man -l "$dest$MANDIR/$2" 2>/dev/null; }
+man_names_paths() {
+	local p text
+	text=$(man_text 200 man8/skyd.8)
+	for p in "$SYSCONFDIR/skyd/skyd.conf" "$UNITDIR/skyd.service" "$SYSUSERSDIR/skyd.conf" \
+		"$TMPFILESDIR/skyd.conf" "$UDEVRULESDIR/70-skyd-sensor.rules" "$DOCDIR/PROTOCOL.md"; do
+		grep -qF -- "$p" <<<"$text" || { echo "skyd(8) lacks $p"; return 1; }
+	done
+}
+# Every path of skyd's files the pages name starts with its configured directory.
+man_no_other_prefix() {
+	local m p bad=0
+	for m in man8/skyd.8 man1/skyctl.1 man5/skyd.conf.5 man3/libsky.3; do man_text 200 "$m"; done |
+		grep -oE '/[a-z0-9/._-]*(doc/skyd|skyd/skyd\.conf|system/skyd\.|sysusers\.d|tmpfiles\.d|udev/rules\.d)' |
+		sort -u >"$tmp/paths"
+	while read -r p; do
+		case $p in
+		"$DOCDIR" | "$SYSCONFDIR/skyd/skyd.conf" | "$UNITDIR/skyd." | "$SYSUSERSDIR" | \
+			"$TMPFILESDIR" | "$UDEVRULESDIR") ;;
+		*) echo "a page names $p"; bad=1 ;;
+		esac
+	done <"$tmp/paths"
+	return $bad
+}
+# The lines of each EXAMPLES section start in one column.
+man_examples_even() {
+	local m n
+	for m in man8/skyd.8 man1/skyctl.1; do
+		n=$(man_text 80 "$m" | sed -n '/^EXAMPLES/,/^[A-Z]/p' | sed '1d;$d' | grep . |
+			sed 's/[^ ].*//' | sort -u | wc -l)
+		[ "$n" -eq 1 ] || { echo "$m: EXAMPLES in $n columns"; return 1; }
+	done
+}
+# The programs' RUNPATH leads to DESTDIR's libsky, without LD_LIBRARY_PATH.
+runpath_finds_libsky() {
+	local p found
+	for p in skyctl skyrender; do
+		readelf -d "$dest$BINDIR/$p" | grep -qF "[$RUNPATH]" || { echo "$p: no RUNPATH $RUNPATH"; return 1; }
+		found=$(env -u LD_LIBRARY_PATH ldd "$dest$BINDIR/$p" | sed -n 's/^\s*libsky.so.0 => \(\S*\).*/\1/p')
+		[ -n "$found" ] && [ "$(realpath "$found")" = "$(realpath "$dest$LIBDIR/libsky.so.0")" ] ||
+			{ echo "$p finds libsky.so.0 at '$found', not in $dest$LIBDIR"; return 1; }
+	done
+}
+
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/skyd-install.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
 dest=$tmp/dest
@@ -33,8 +82,8 @@ expected=$tmp/expected
 	echo "$LIBDIR/libsky.so"
 	echo "$LIBDIR/libsky.so.0"
 	echo "$LIBDIR/libsky.so.0.3.0"
-	for h in sky.h skyproto.h skymap.h skysample.h; do echo "$INCLUDEDIR/$h"; done
-	for g in sky.glsl skymap.glsl; do echo "$INCLUDEDIR/sky/glsl/$g"; done
+	for h in sky.h skyproto.h skymap.h skysample.h skycloud.h; do echo "$INCLUDEDIR/$h"; done
+	for g in sky.glsl skymap.glsl skycloud.glsl; do echo "$INCLUDEDIR/sky/glsl/$g"; done
 	echo "$LIBDIR/pkgconfig/libsky.pc"
 	for f in skyConfig.cmake skyConfigVersion.cmake skyTargets.cmake; do
 		echo "$LIBDIR/cmake/sky/$f"
@@ -45,9 +94,11 @@ expected=$tmp/expected
 	echo "$TMPFILESDIR/skyd.conf"
 	echo "$UDEVRULESDIR/70-skyd-sensor.rules"
 	echo "$SYSCONFDIR/skyd/skyd.conf"
-	for d in README.md PROTOCOL.md clock.md physics.md sensor.md sync.md weather.md render-clients.md render-client-example.md examples/skyd.conf; do
+	for d in README.md PROTOCOL.md clock.md physics.md sensor.md sync.md weather.md clouds.md render-clients.md render-client-example.md examples/skyd.conf; do
 		echo "$DOCDIR/$d"
 	done
+	# The Python package, where python/CMakeLists.txt put it.
+	[ -f "$build/python/install-files.txt" ] && cat "$build/python/install-files.txt"
 	if [ -f "$build/man/skyd.8" ]; then
 		echo "$MANDIR/man8/skyd.8"
 		echo "$MANDIR/man1/skyctl.1"
@@ -74,10 +125,18 @@ check "libsky exports only sky_ functions" \
 	   awk '\$5 == \"GLOBAL\" && \$7 != \"UND\" { print \$8 }' | grep -v '^sky_'"
 check "the units name the installed skyd" \
 	"grep -q '^ExecStart=$BINDIR/skyd --config $SYSCONFDIR/skyd/skyd.conf\$' '$dest$UNITDIR/skyd.service'"
+check "the example config names where it lies" \
+	"grep -q -- '--config $SYSCONFDIR/skyd/skyd.conf' '$dest$SYSCONFDIR/skyd/skyd.conf'"
+if [ -n "${RUNPATH:-}" ]; then
+	check "skyctl and skyrender find DESTDIR's libsky by their RUNPATH" runpath_finds_libsky
+else
+	check "skyctl and skyrender carry no RUNPATH (libsky in a system directory)" \
+		"! readelf -d '$dest$BINDIR/skyctl' '$dest$BINDIR/skyrender' | grep -q 'R.*PATH'"
+fi
 check "the installed skyd accepts the example config" \
 	"'$dest$BINDIR/skyd' -n --config '$dest$SYSCONFDIR/skyd/skyd.conf' >/dev/null"
 
-for h in sky.h skyproto.h skymap.h skysample.h; do
+for h in sky.h skyproto.h skymap.h skysample.h skycloud.h; do
 	echo "#include <$h>" >"$tmp/h.c"
 	check "$h compiles alone" \
 		"cc -std=c17 -Wall -Wextra -Werror -c -I'$dest$INCLUDEDIR' '$tmp/h.c' -o '$tmp/h.o'"
@@ -89,6 +148,11 @@ elif [ -f "$build/man/skyd.8" ]; then
 		check "$m renders without warnings" \
 			"[ -z \"\$(LC_ALL=C.UTF-8 MANWIDTH=80 man --warnings -l '$dest$MANDIR/$m' 2>&1 >/dev/null)\" ]"
 	done
+	check "skyd(8) names the configured paths" man_names_paths
+	check "the pages name no path of another prefix" man_no_other_prefix
+	check "the EXAMPLES of skyd(8) and skyctl(1) share one indentation" man_examples_even
+	check "skyctl(1) shows --size WxH, no scdoc markup in it" \
+		"man_text 200 man1/skyctl.1 | grep -qF -- '[--size WxH]'"
 	check "skyd.conf(5) lists every key of skyd --list-keys" \
 		"'$dest$BINDIR/skyd' --list-keys | cut -f1 | while read -r k; do
 		   MANWIDTH=200 man -l '$dest$MANDIR/man5/skyd.conf.5' 2>/dev/null | grep -qw -- \"\$k\" || exit 1; done"

@@ -196,6 +196,10 @@ static int case_sky(const char *dir)
 		"--yaw", "165", "--pitch", "8", "--fov", "50", NULL });
 	printf("perspective: skyctl generation %ld, skyrender generation %ld\n", ga, gb);
 	CHECK(ga > 0 && ga == gb);
+	/* --frames 0 is refused (it once meant --forever), with what to use. */
+	char said[512];
+	const char *zero[] = { SKYRENDER_BINARY, "--socket", d.sock, "--frames", "0", "--out", b, NULL };
+	CHECK(run(zero, true, said, sizeof(said)) == 2 && strstr(said, "--forever"));
 	if (image_read(a, &ia) == 0 && image_read(b, &ib) == 0) {
 		CHECK(ia.w == 256 && ib.w == 256 && ia.h == 144 && ib.h == 144);
 		compare("perspective", &ia, 0, 0, &ib);
@@ -339,7 +343,7 @@ static int stream_start_argv(struct stream *st, const char *const *argv)
 static int stream_start(struct stream *st, const char *out)
 {
 	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
-			       "--size", "64x36", "--frames", "0", "--interval", "20", "--out", out,
+			       "--size", "64x36", "--forever", "--interval", "20", "--out", out,
 			       NULL };
 	return stream_start_argv(st, argv);
 }
@@ -545,7 +549,7 @@ static void panorama_wall(const char *dir)
 		snprintf(tile[k], sizeof(tile[k]), "%d,0", k);
 		const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
 				       "--size", "96x128", "--yaw", "170", "--pitch", "4", "--fov",
-				       "40", "--grid", "3x1", "--tile", tile[k], "--frames", "0",
+				       "40", "--grid", "3x1", "--tile", tile[k], "--forever",
 				       "--interval", "20", "--out", out[k], NULL };
 		CHECK(stream_start_argv(&st[k], argv) == 0);
 	}
@@ -583,7 +587,7 @@ static void panorama_dome(const char *dir)
 	char out[256];
 	snprintf(out, sizeof(out), "%s/live-dome.png", dir);
 	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
-			       "--size", "96x96", "--fisheye", "--frames", "0", "--interval", "20",
+			       "--size", "96x96", "--fisheye", "--forever", "--interval", "20",
 			       "--out", out, NULL };
 	CHECK(stream_start_argv(&st, argv) == 0);
 	CHECK(stream_frame(&st) > 0);
@@ -638,7 +642,7 @@ static void view_refused(const char *dir)
 	for (uint32_t k = 0; k < SKY_SHM_MAX_VIEWS; k++) {
 		snprintf(out[k], sizeof(out[k]), "%s/live-%u.png", dir, k);
 		const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
-				       "--size", "32x18", "--frames", "0", "--interval", "50", "--out",
+				       "--size", "32x18", "--forever", "--interval", "50", "--out",
 				       out[k], NULL };
 		CHECK(stream_start_argv(&st[k], argv) == 0);
 	}

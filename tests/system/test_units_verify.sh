@@ -4,14 +4,16 @@
 # warnings, so any output fails), and `systemd-analyze security
 # --offline=true` rates skyd.service at or under 2.5.
 #   usage: test_units_verify.sh BUILD_DIR
-# PREFIX and UNITDIR (absolute) come from the environment.
+# PREFIX, UNITDIR and TMPFILESDIR come from BUILD_DIR/install-dirs.env.
 #
 # verify checks that each Exec path is executable and each man: page is
 # found, on the host: it runs in a private mount namespace where the DESTDIR
-# install is bind-mounted over PREFIX, so that it sees the installed files
-# at the paths the units name.
+# install lies over PREFIX (an overlay of the two, read-only), so that it
+# sees the installed files at the paths the units name and the host's own
+# beside them: with PREFIX /usr, systemd-analyze and man themselves.
 set -u
 build=$1
+. "$build/install-dirs.env"
 max_exposure=2.5
 fail=0
 check() { if eval "$2"; then echo "ok: $1"; else echo "FAIL: $1"; fail=1; fi; }
@@ -34,13 +36,24 @@ for try in "unshare -m --propagation private" "unshare -rm --propagation private
 done
 [ -n "$ns" ] || { echo "skipped: no mount namespace (unshare -m / -rm refused)"; exit 77; }
 [ -d "$PREFIX" ] || { echo "skipped: $PREFIX does not exist to mount over"; exit 77; }
+# The overlay where the kernel allows it (as root, or unprivileged since
+# Linux 5.11); else a bind mount, which hides what PREFIX held: only where
+# that is not systemd-analyze's and man's own directory.
+mount="mount -t overlay overlay -o lowerdir=\"\$1\":\"\$2\" \"\$2\""
+if ! $ns sh -c "$mount" sh "$dest$PREFIX" "$PREFIX" 2>/dev/null; then
+	case $(command -v systemd-analyze) in
+	"$PREFIX"/*) echo "skipped: no overlay mount, and a bind mount over $PREFIX would hide systemd-analyze"
+		exit 77 ;;
+	esac
+	mount='mount --bind "$1" "$2"'
+fi
 # The units' man: links need the man pages (scdoc) and man (man-db).
 man=yes
 if [ ! -f "$build/man/skyd.8" ] || ! command -v man >/dev/null; then
 	echo "note: no man pages or no man here: verify runs with --man=no"
 	man=no
 fi
-$ns sh -c 'mount --bind "$1" "$2" && MANPATH="$3" exec systemd-analyze verify --man="$4" "$5" "$6"' \
+$ns sh -c "$mount"' && MANPATH="$3" exec systemd-analyze verify --man="$4" "$5" "$6"' \
 	sh "$dest$PREFIX" "$PREFIX" "$PREFIX/share/man" "$man" "$UNITDIR/skyd.socket" \
 	"$UNITDIR/skyd.service" >"$tmp/verify.out" 2>&1
 rc=$?

@@ -268,6 +268,21 @@ static void test_png_orientation(void)
 	for (uint32_t k = 0; k < D3; k++)
 		if (pixel_sum(px, w, 0, k * H3) <= pixel_sum(px, w, 0, k * H3 + H3 - 1))
 			FAIL("band %u: top row (v = 1) not brighter than bottom row (v = 0)", k);
+	/* v downward (the sky-view table's zenith up): each band upside down,
+	 * the bands in the same order. */
+	const struct dump_tonemap down = { .exposure = 0.0, .curve = DUMP_CURVE_ACES,
+					   .rows = DUMP_ROWS_V_DOWN };
+	uint32_t w2 = 0, h2 = 0;
+	uint8_t *px2 = NULL;
+	CHECK_EQ(dump_png(in_dir("ramp-down.png"), &table, &down, err, sizeof(err)), 0);
+	px2 = read_png(in_dir("ramp-down.png"), &w2, &h2);
+	CHECK(px2 && w2 == w && h2 == h);
+	for (uint32_t y = 0; px2 && w2 == w && h2 == h && y < h; y++) {
+		uint32_t mirror = y / H3 * H3 + (H3 - 1 - y % H3);
+		if (memcmp(px2 + (size_t)y * w * 3, px + (size_t)mirror * w * 3, (size_t)w * 3) != 0)
+			FAIL("v downward: row %u is not v upward's row %u", y, mirror);
+	}
+	free(px2);
 	free(px);
 
 	/* Half input, Reinhard, a fixed exposure and values no curve likes. */
@@ -276,7 +291,7 @@ static void test_png_orientation(void)
 	for (size_t n = 0; n < sizeof(ht) / sizeof(ht[0]); n++)
 		ht[n] = odd[n % 6];
 	struct dump_table half = { "odd", 4, 3, 1, SKY_FORMAT_RGBA16F, ht, 0 };
-	struct dump_tonemap tm = { 2.0, DUMP_CURVE_REINHARD };
+	struct dump_tonemap tm = { .exposure = 2.0, .curve = DUMP_CURVE_REINHARD };
 	path = in_dir("odd.png");
 	CHECK_EQ(dump_png(path, &half, &tm, err, sizeof(err)), 0);
 	px = read_png(path, &w, &h);
@@ -452,7 +467,9 @@ static void test_errors(void)
 	bad.texels = NULL;
 	CHECK(dump_exr(in_dir("bad.exr"), &bad, NULL, 0) == -EINVAL);
 	CHECK(dump_exr(NULL, &table, NULL, 0) == -EINVAL);
-	struct dump_tonemap tm = { NAN, DUMP_CURVE_ACES };
+	struct dump_tonemap tm = { .exposure = NAN, .curve = DUMP_CURVE_ACES };
+	CHECK_EQ(dump_png(in_dir("bad.png"), &table, &tm, err, sizeof(err)), -EINVAL);
+	tm = (struct dump_tonemap){ .curve = DUMP_CURVE_ACES, .rows = (enum dump_rows)7 };
 	CHECK_EQ(dump_png(in_dir("bad.png"), &table, &tm, err, sizeof(err)), -EINVAL);
 }
 

@@ -134,6 +134,45 @@ static void test_layout_wait(sky_client *c)
 	close(fake.layout_go[1]);
 }
 
+/* The same layout change with the new region mapped by sky_dispatch()
+ * before the wait, as a loop does that drains its events and then waits
+ * from the view it took: the view of the superseded region names the
+ * generation its slot holds, not the bumped word (the number the new
+ * region publishes), so sky_wait() from it ends at once. Once, a view
+ * held the bumped number and the wait slept on the new region's word
+ * until its timeout. */
+static void test_layout_dispatched(sky_client *c)
+{
+	const struct sky_shm_header *old = sky_header(c);
+	size_t size = (sky_snapshot_size(c) + 63) / 64 * 64;
+	void *buf = aligned_alloc(64, size);
+	struct sky_view v;
+	struct sky_event ev = { 0 };
+	uint32_t g = 0;
+
+	CHECK_EQ(pipe2(fake.layout_go, O_CLOEXEC), 0);
+	CHECK(sky_request(c, "supersede", NULL) == 0);
+	CHECK(buf && sky_snapshot(c, buf, size, &v) == 0 && v.header == old && old->superseded);
+	CHECK_EQ(v.generation, (uint32_t)v.slot->generation);
+	CHECK(v.generation != fake.superseded_generation);
+	CHECK_EQ(write(fake.layout_go[1], "g", 1), 1);
+	for (int i = 0; i < 100 && ev.type != SKY_EVENT_LAYOUT; i++) {
+		int r = sky_dispatch(c, &ev);
+		if (r == 1)
+			continue;
+		struct pollfd p = { sky_get_fd(c), POLLIN, 0 };
+		if (r < 0 || p.fd < 0 || poll(&p, 1, 5000) <= 0)
+			break;
+	}
+	CHECK(ev.type == SKY_EVENT_LAYOUT && sky_header(c) != old);
+	/* Just look: the new region's generation differs from the view's. */
+	CHECK_EQ(sky_wait(c, v.generation, 0, &g), 0);
+	CHECK_EQ(g, fake.superseded_generation);
+	free(buf);
+	close(fake.layout_go[0]);
+	close(fake.layout_go[1]);
+}
+
 static void test_hangup_and_reconnect(sky_client *c)
 {
 	int before = atomic_load(&fake.connections);
@@ -177,6 +216,7 @@ int main(void)
 		/* read-only: the mapping refuses writes */
 		CHECK(mprotect((void *)sky_header(c), 4096, PROT_READ | PROT_WRITE) < 0);
 		test_layout_wait(c);
+		test_layout_dispatched(c);
 		test_hangup_and_reconnect(c);
 		sky_disconnect(c);
 	}

@@ -274,7 +274,11 @@ static const struct named_id spec_ids[] = {
 	{ "EXP_MASK", SPEC_EXP_MASK }, { "MS_SUN_GROUP", SPEC_MS_SUN_GROUP },
 	{ "SV_AZ_GROUP", SPEC_SV_AZ_GROUP }, { "ITER_FIRST", SPEC_ITER_FIRST },
 	{ "MOMENT_LOBE", SPEC_MOMENT_LOBE }, { "DELTA_LOBE", SPEC_DELTA_LOBE },
-	{ "PACK_MASK", SPEC_PACK_MASK },
+	{ "PACK_MASK", SPEC_PACK_MASK }, { "MS_LANES", SPEC_MS_LANES },
+	{ "LOOKUP_IMAGES", SPEC_LOOKUP_IMAGES },
+	/* layout(local_size_x_id, local_size_y_id): glslang leaves the
+	 * workgroup size's constants without a name. */
+	{ "", SPEC_LOCAL_X }, { "", SPEC_LOCAL_Y },
 };
 #define N_SPEC_IDS (sizeof(spec_ids) / sizeof(spec_ids[0]))
 
@@ -291,7 +295,8 @@ static const struct named_id bindings[] = {
 	{ "MultiscatterTex", BINDING_MULTISCATTER_TEX }, { "ViewBuf", BINDING_VIEWS },
 	{ "ColumnBuf", BINDING_COLUMNS }, { "IterBuf", BINDING_ITERATE }, { "MomentBuf", BINDING_MOMENT },
 	{ "MomentTex", BINDING_MOMENT_TEX }, { "ColumnTex", BINDING_COLUMNS_TEX },
-	{ "AerialTex", BINDING_AERIAL_TEX },
+	{ "AerialTex", BINDING_AERIAL_TEX }, { "TransmittanceImg", BINDING_TRANSMITTANCE_IMG },
+	{ "MultiscatterImg", BINDING_MULTISCATTER_IMG },
 };
 
 static const struct named_id *find(const struct named_id *list, size_t n, const char *name)
@@ -302,6 +307,16 @@ static const struct named_id *find(const struct named_id *list, size_t n, const 
 	return NULL;
 }
 
+/* The specialization constant of that name; an unnamed one (the
+ * workgroup size's) by its id among the unnamed. */
+static const struct named_id *find_spec(const char *name, int id)
+{
+	for (size_t i = 0; i < N_SPEC_IDS; i++)
+		if (!strcmp(spec_ids[i].name, name) && (*name || spec_ids[i].id == id))
+			return &spec_ids[i];
+	return NULL;
+}
+
 /* Checks one module; marks the specialization constants it declares in seen. */
 static void check_module(const struct spv *m, int seen[SPEC_COUNT])
 {
@@ -309,7 +324,7 @@ static void check_module(const struct spv *m, int seen[SPEC_COUNT])
 	for (uint32_t i = 0; i < m->bound; i++) {
 		const struct spv_id *id = &m->ids[i];
 		if (id->spec_id >= 0) {
-			const struct named_id *s = find(spec_ids, N_SPEC_IDS, id_name(m, i));
+			const struct named_id *s = find_spec(id_name(m, i), id->spec_id);
 			test_checks++;
 			if (!s || s->id != id->spec_id || id->spec_id >= SPEC_COUNT)
 				FAIL("%s: constant %s has constant_id %d, sky_params.h says %d (SPEC_COUNT %d)",

@@ -1,5 +1,6 @@
 /* test_sync_msg.c - the replication messages and settings (daemon/sync):
- * a state survives encoding and decoding bit for bit, the simulated clock
+ * a state survives encoding and decoding bit for bit (its cloud layers and
+ * wind among it, set as keys or by a METAR), the simulated clock
  * means the same instant on both sides, every kind of bad message is
  * refused with its reason, the broker URL and the checks of the settings. */
 #include <errno.h>
@@ -94,6 +95,34 @@ static void scene_weather(struct sky_state *s)
 	set(s, "sensor_time_constant_s=45");
 }
 
+/* The cloud layers and the wind travel as keys, every bit of them: the
+ * field is a function of these keys and the time (docs/clouds.md). */
+static void scene_clouds(struct sky_state *s)
+{
+	set(s, "cloud1_oktas=6.5");
+	set(s, "cloud1_base_m=914.4");
+	set(s, "cloud1_type=stratocumulus");
+	set(s, "cloud2_fraction=0.3");
+	set(s, "cloud2_base_m=7620");
+	set(s, "cloud2_top_m=9123.45");
+	set(s, "cloud2_type=cirrus");
+	set(s, "cloud4_oktas=1");		/* no base: kept, not drawn */
+	set(s, "cloud_seed=4294967295");
+	set(s, "wind_dir_deg=247.5");
+	set(s, "wind_speed_mps=12.34");
+	set(s, "cloud_extent_km=123.456");
+	set(s, "shadow_width=384");
+}
+
+/* What a METAR makes of the layers and the wind (computed: feet to
+ * metres, knots to m/s) reads back the same on the other side. Without a
+ * temperature group: the humidity Magnus's formula makes of it has more
+ * digits than the text carries, which is the weather's, not the clouds'. */
+static void scene_metar_clouds(struct sky_state *s)
+{
+	set(s, "metar=EGLL 241250Z 27015KT 9999 FEW012 SCT035TCU BKN080 OVC250 Q1018");
+}
+
 static void test_round_trip(const char *name, void (*scene)(struct sky_state *))
 {
 	struct sky_state a, b, c;
@@ -134,6 +163,22 @@ static void test_round_trip(const char *name, void (*scene)(struct sky_state *))
 }
 
 /* The time in the message is the one the clock shows at the apply time. */
+/* The message names the cloud keys of a state with clouds, and none of a
+ * state without. */
+static void test_cloud_lines(void)
+{
+	struct sky_state a;
+	int64_t apply = real_ns() + 300000000ll;
+
+	state_default(&a);
+	encode(&a, 9, apply);
+	CHECK(!strstr(msg, "\ncloud1_oktas=") && !strstr(msg, "\nwind_speed_mps="));
+	scene_clouds(&a);
+	encode(&a, 9, apply);
+	CHECK(strstr(msg, "\ncloud1_oktas=6.5\n") && strstr(msg, "\nwind_speed_mps=12.34\n") &&
+	      strstr(msg, "\ncloud2_top_m=9123.45\n") && strstr(msg, "\ncloud_seed=4294967295\n"));
+}
+
 static void test_utc_at_apply_time(void)
 {
 	struct sky_state a;
@@ -391,6 +436,9 @@ int main(void)
 	test_round_trip("mars", scene_mars);
 	test_round_trip("custom", scene_custom);
 	test_round_trip("weather", scene_weather);
+	test_round_trip("clouds", scene_clouds);
+	test_round_trip("metar clouds", scene_metar_clouds);
+	test_cloud_lines();
 	test_utc_at_apply_time();
 	test_refusals();
 	test_presence();
