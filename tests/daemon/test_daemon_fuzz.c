@@ -12,11 +12,14 @@
  *
  * A run is rounds, each a fresh skyd and one seed: --seed S is the first
  * round's, the next rounds take S+1, S+2, ... until --seconds have passed
- * or --rounds are done, each round at most --steps steps. The requests,
+ * or --rounds are done, each round at most --steps steps; the run stops
+ * at the first failed round, or goes on with --keep-going (a long run by
+ * hand, its failures counted at the end). The requests,
  * their order, the connections and where they close follow from the seed
  * alone; how much skyd has answered at each point is up to timing. A
  * failure prints the seed, the step, the last actions, skyd's log and the
  * command that runs that round again. */
+#include <dirent.h>
 #include <math.h>
 #include <stdarg.h>
 #include <sys/mman.h>
@@ -661,14 +664,78 @@ static int skyd_alive(struct fuzz *f, char *why, size_t size)
 	return 0;
 }
 
+/* A process's or thread's state letter, CPU seconds and nice value from
+ * its stat file; 0, or -1 when it is gone. */
+static int proc_stat(const char *path, char *state, double *cpu_s, long *nice)
+{
+	char buf[1024];
+	FILE *fp = fopen(path, "re");
+	size_t n = fp ? fread(buf, 1, sizeof(buf) - 1, fp) : 0;
+	unsigned long long ut, st;
+
+	if (fp)
+		fclose(fp);
+	buf[n] = 0;
+	char *p = strrchr(buf, ')');
+	if (!p || sscanf(p + 2, "%c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %llu %llu %*d %*d %*d %ld",
+			 state, &ut, &st, nice) != 4)
+		return -1;
+	*cpu_s = (double)(ut + st) / (double)sysconf(_SC_CLK_TCK);
+	return 0;
+}
+
+/* Why skyd did not answer: how much CPU it got while the ping waited,
+ * its nice value, and each thread's state and where it sleeps; a skyd that
+ * was runnable and got little CPU was starved by the machine's load, one
+ * asleep with its loop thread blocked hangs. */
+static void describe_stall(pid_t pid, double cpu0_s, char *why, size_t size)
+{
+	char path[128], state = '?';
+	double cpu_s = 0;
+	long nice = 0;
+	size_t n = strlen(why);
+
+	snprintf(path, sizeof(path), "/proc/%d/stat", (int)pid);
+	if (proc_stat(path, &state, &cpu_s, &nice) < 0)
+		return;
+	n += (size_t)snprintf(why + n, size - n, "; skyd %c, nice %ld, %.2f s of CPU while it waited;"
+			      " threads:", state, nice, cpu_s - cpu0_s);
+	snprintf(path, sizeof(path), "/proc/%d/task", (int)pid);
+	DIR *dir = opendir(path);
+	for (struct dirent *e; dir && (e = readdir(dir)) && n + 64 < size;) {
+		char wchan[64] = "", tstat[160];
+		if (e->d_name[0] == '.')
+			continue;
+		snprintf(tstat, sizeof(tstat), "/proc/%d/task/%.16s/wchan", (int)pid, e->d_name);
+		FILE *fp = fopen(tstat, "re");
+		if (fp) {
+			(void)!fgets(wchan, sizeof(wchan), fp);
+			fclose(fp);
+		}
+		snprintf(tstat, sizeof(tstat), "/proc/%d/task/%.16s/stat", (int)pid, e->d_name);
+		double t_cpu;
+		long t_nice;
+		if (proc_stat(tstat, &state, &t_cpu, &t_nice) == 0)
+			n += (size_t)snprintf(why + n, size - n, " %.16s %c %s", e->d_name, state,
+					      wchan[0] ? wchan : "-");
+	}
+	if (dir)
+		closedir(dir);
+}
+
 static int probe_ping(struct fuzz *f, char *why, size_t size)
 {
-	char reply[256];
+	char reply[256], path[64], state;
+	double cpu0_s = 0;
+	long nice;
 
 	f->stats[S_PINGS]++;
+	snprintf(path, sizeof(path), "/proc/%d/stat", (int)f->d.pid);
+	(void)proc_stat(path, &state, &cpu0_s, &nice);
 	if (conn_request(&f->probe, "ping", reply, sizeof(reply)) == 0)
 		return 0;
 	snprintf(why, size, "skyd did not answer ping within %d ms", HARNESS_TIMEOUT_MS);
+	describe_stall(f->d.pid, cpu0_s, why, size);
 	return -1;
 }
 
@@ -834,7 +901,7 @@ static int round_run(struct fuzz *f, uint64_t seed, int steps, double deadline_s
 		     const char *self)
 {
 	const char *argv[64];
-	char bufs[3][16], why[256] = "";
+	char bufs[3][16], why[1024] = "";
 	int r = -1;
 
 	f->seed = seed;
@@ -875,16 +942,21 @@ int main(int argc, char **argv)
 	unsigned long long seed = 1;
 	double seconds = 20;
 	long rounds = -1, steps = 3000;
+	int keep_going = 0;
 
-	for (int i = 1; i + 1 < argc; i += 2) {
-		if (!strcmp(argv[i], "--seed"))
-			seed = strtoull(argv[i + 1], NULL, 0);
+	for (int i = 1; i < argc; i++) {
+		if (!strcmp(argv[i], "--keep-going"))
+			keep_going = 1;
+		else if (i + 1 >= argc)
+			break;
+		else if (!strcmp(argv[i], "--seed"))
+			seed = strtoull(argv[++i], NULL, 0);
 		else if (!strcmp(argv[i], "--seconds"))
-			seconds = atof(argv[i + 1]);
+			seconds = atof(argv[++i]);
 		else if (!strcmp(argv[i], "--rounds"))
-			rounds = atol(argv[i + 1]);
+			rounds = atol(argv[++i]);
 		else if (!strcmp(argv[i], "--steps"))
-			steps = atol(argv[i + 1]);
+			steps = atol(argv[++i]);
 	}
 	harness_need_device();
 	if (load_keys(&f) < 0) {
@@ -898,14 +970,15 @@ int main(int argc, char **argv)
 			      argv[0]) < 0)
 			test_failures++;
 		total_steps += f.step;
-		if (test_failures) {
+		if (test_failures && !keep_going) {
 			done++;
 			break;
 		}
 	}
-	printf("test_daemon_fuzz: %ld rounds from seed %llu, %ld steps in %.0f s, %d keys, %d verbs: "
+	printf("test_daemon_fuzz: %ld rounds (%d failed) from seed %llu, %ld steps in %.0f s, %d keys, %d verbs: "
 	       "%lu requests (%lu mutated), %lu closes (%lu resets), %lu vanishes, %lu fds, "
-	       "%lu pings\n", done, seed, total_steps, fuzz_now_s() - start, f.n_keys, f.n_verbs,
+	       "%lu pings\n", done, (int)test_failures, seed, total_steps, fuzz_now_s() - start,
+	       f.n_keys, f.n_verbs,
 	       f.stats[S_REQUESTS], f.stats[S_MUTATED], f.stats[S_CLOSES], f.stats[S_RESETS],
 	       f.stats[S_VANISHES], f.stats[S_FDS], f.stats[S_PINGS]);
 	return test_report("test_daemon_fuzz");
