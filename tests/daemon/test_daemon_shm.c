@@ -373,9 +373,12 @@ int main(void)
 	test_readers(&d);
 	test_abuse(&d);
 	test_sigkill(&d);
-	if (test_failures)
+	if (test_failures) {
+		/* Stopped (it holds our stdout: ctest would wait for it), log kept. */
+		daemon_stop(&d, SIGTERM);
 		printf("skyd log kept: %s\n", d.log);
-	else
+	} else {
 		daemon_cleanup(&d);
+	}
 	return test_report("test_daemon_shm");
 }
