@@ -197,7 +197,7 @@ int proto_parse_event(const char *key, char *value, struct proto_event *ret)
 }
 
 static const char *const table_names[SKY_SHM_MAX_TABLES] = {
-	"transmittance", "multiscatter", "skyview", "aerial",
+	"transmittance", "multiscatter", "skyview", "aerial", "cloud", "shadow",
 };
 
 const char *proto_table_name(unsigned id)

@@ -80,7 +80,7 @@ static void test_published(void)
 	const struct sky_shm_slot *slot = pub_current(p, &base);
 	CHECK(h->layout_version == SKY_SHM_LAYOUT_VERSION && SKY_SHM_LAYOUT_VERSION >= 4); /* rgb_scale_log2 since 4 */
 	CHECK_EQ(skysample_slot_checksum(h, base), slot->checksum);
-	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
+	for (uint32_t id = 0; id < STATE_N_TABLES; id++) {
 		struct skysample_table t = { 0 };
 		CHECK_EQ(slot->state.rgb_scale_log2[id], scales[id]);
 		CHECK(skysample_table_from_slot(h, base, id, &t) == 0 && t.rgb_scale_log2 == scales[id]);
