@@ -34,23 +34,22 @@ float shadow_texel_tau(vec4 s, float d)
 // map (no cloud beyond the region).
 float cloud_tau(int light, vec3 q)
 {
-	const int w = SHADOW_W;
 	ShadowFrame f = CL.frame[light];
 	float x = (dot(q, f.u.xyz) - f.U_MIN_KM) * f.U_TEXELS_PER_KM - 0.5;
 	float y = (dot(q, f.v.xyz) - f.V_MIN_KM) * f.V_TEXELS_PER_KM - 0.5;
-	float top = float(w) - 0.5;
+	float top = float(SHADOW_W) - 0.5;
 	if (!(x > -0.5 && y > -0.5 && x < top && y < top))
 		return 0.0;
-	x = clamp(x, 0.0, float(w - 1));
-	y = clamp(y, 0.0, float(w - 1));
-	int i = min(int(x), w - 2), j = min(int(y), w - 2);
+	x = clamp(x, 0.0, float(SHADOW_W - 1));
+	y = clamp(y, 0.0, float(SHADOW_W - 1));
+	int i = min(int(x), SHADOW_W - 2), j = min(int(y), SHADOW_W - 2);
 	float fx = x - float(i), fy = y - float(j);
 	float d = f.PLANE_KM - dot(q, f.l.xyz);
-	int base = light * w * w + j * w + i;
+	int base = light * SHADOW_W * SHADOW_W + j * SHADOW_W + i;
 	float t00 = shadow_texel_tau(texelFetch(ShadowTex, base), d);
 	float t10 = shadow_texel_tau(texelFetch(ShadowTex, base + 1), d);
-	float t01 = shadow_texel_tau(texelFetch(ShadowTex, base + w), d);
-	float t11 = shadow_texel_tau(texelFetch(ShadowTex, base + w + 1), d);
+	float t01 = shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W), d);
+	float t11 = shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W + 1), d);
 	return mix(mix(t00, t10, fx), mix(t01, t11, fx), fy);
 }
 

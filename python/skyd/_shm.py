@@ -28,6 +28,9 @@ MIN_SLOTS = 3
 MAX_VIEWS = 8
 VIEW_NAME_MAX = 32
 TABLE_NAMES = ("transmittance", "multiscatter", "skyview", "aerial", "cloud", "shadow")
+# What "all" names: the sky's four tables; the cloud tables (layout 7)
+# exist only while a cloud layer is drawn and are asked for by name.
+SKY_TABLE_NAMES = TABLE_NAMES[:4]
 FORMAT_RGBA32F = 1
 FORMAT_RGBA16F = 2
 VIEW_VOLUME = 0

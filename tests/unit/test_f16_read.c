@@ -103,7 +103,7 @@ static void test_published(void)
 	}
 	struct sky_view v = { .header = h, .slot = slot, .valid_tables = 0xf, .slot_base = base };
 	double f;
-	CHECK(sky_table_scale(&v, 4, &f) == -EINVAL && sky_table_scale(&v, 0, NULL) == -EINVAL);
+	CHECK(sky_table_scale(&v, SKY_SHM_MAX_TABLES, &f) == -EINVAL && sky_table_scale(&v, 0, NULL) == -EINVAL);
 	/* The scale is part of the checksummed state: a reader that copied
 	 * a slot with another scale would see the copy fail. */
 	struct sky_shm_slot *copy = malloc(h->slot_bytes);
