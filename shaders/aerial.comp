@@ -43,6 +43,8 @@ vec3 panorama_dir(uint z, int i, int j)
 void main()
 {
 	load_params();
+	if (CLOUD_LAYERS > 0)
+		load_clouds();
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
 	uint z = gl_GlobalInvocationID.z;
 	vec3 sun_dir = VB.job[z].sun, moon_dir = VB.job[z].moon;

@@ -18,6 +18,24 @@ layout(binding = BINDING_SHADOW_TEX) uniform samplerBuffer ShadowTex;
 layout(constant_id = SPEC_SHADOW_W) const int SHADOW_W = 1;	// a shadow map's width
 layout(constant_id = SPEC_CLOUD_W) const int CLOUD_W = 1;	// the coverage table's
 
+// Private copies, made once per invocation by load_clouds() (as
+// load_params(): lavapipe reloads a buffer read inside a loop at every
+// use): the lights' frames, and per layer (top km, 1 / thickness, the
+// vertical optical depth at full cover, cover) for cloud_sky_open.
+ShadowFrame cloud_frame[2];
+vec4 cloud_column[SKYCLOUD_MAX_LAYERS];
+
+void load_clouds()
+{
+	cloud_frame[0] = CL.frame[0];
+	cloud_frame[1] = CL.frame[1];
+	for (int i = 0; i < CLOUD_LAYERS; i++)
+		cloud_column[i] = vec4(CL.layer[i].top_km, CL.layer[i].inv_thickness_per_km,
+				       CL.layer[i].extinction_per_km * (CL.layer[i].top_km - CL.layer[i].base_km) *
+					       CL.layer[i].profile_integral,
+				       CL.layer[i].cover);
+}
+
 // The optical depth of one map texel's column at depth d (km from the
 // map's plane): Beer's law in the cloud span, front depth, mean
 // extinction, capped at the column's whole (docs/clouds.md); beyond the
@@ -34,7 +52,7 @@ float shadow_texel_tau(vec4 s, float d)
 // map (no cloud beyond the region).
 float cloud_tau(int light, vec3 q)
 {
-	ShadowFrame f = CL.frame[light];
+	ShadowFrame f = cloud_frame[light];
 	float x = (dot(q, f.u.xyz) - f.U_MIN_KM) * f.U_TEXELS_PER_KM - 0.5;
 	float y = (dot(q, f.v.xyz) - f.V_MIN_KM) * f.V_TEXELS_PER_KM - 0.5;
 	float top = float(SHADOW_W) - 0.5;
@@ -59,16 +77,14 @@ float cloud_light(int light, vec3 q)
 	return exp(-cloud_tau(light, q));
 }
 
-// 1 - skycloud_sky_occlusion(h) for the block's layers: the same formula,
-// read from the buffer in place.
+// 1 - skycloud_sky_occlusion(h) for the block's layers: the same formula
+// from the private copy (load_clouds).
 float cloud_sky_open(float h)
 {
 	float open = 1.0;
 	for (int i = 0; i < CLOUD_LAYERS; i++) {
-		float above = skycloud_saturate((CL.layer[i].top_km - h) * CL.layer[i].inv_thickness_per_km);
-		float tau = CL.layer[i].extinction_per_km * (CL.layer[i].top_km - CL.layer[i].base_km) *
-			    above * CL.layer[i].profile_integral;
-		open *= 1.0 - CL.layer[i].cover * (1.0 - exp(-tau));
+		float above = skycloud_saturate((cloud_column[i].x - h) * cloud_column[i].y);
+		open *= 1.0 - cloud_column[i].w * (1.0 - exp(-cloud_column[i].z * above));
 	}
 	return 1.0 - skycloud_saturate(1.0 - open);
 }

@@ -42,6 +42,8 @@ float over_horizon(StepEnd e, float light_h, float light_z)
 void main()
 {
 	load_params();
+	if (CLOUD_LAYERS > 0)
+		load_clouds();
 	int x0 = int(gl_GlobalInvocationID.x) * SV_AZ_GROUP, gy = int(gl_GlobalInvocationID.y);
 	if (x0 >= OUT_W || gy >= OUT_H)
 		return;
