@@ -11,6 +11,7 @@
 #include "log.h"
 #include "loop.h"
 #include "simclock.h"
+#include "state_keys.h"
 
 #define LIGHTS (STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL))
 /* What a move of the cloud field invalidates: its tables and the sky
@@ -104,6 +105,10 @@ int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *
 			  memcmp(&next.moon, &s->moon, sizeof(next.moon)) ||
 			  memcmp(&next.lights_utc_s, &s->lights_utc_s, sizeof(double))))
 		*ret_dirty |= LIGHTS;
+	/* The sun's distance moves its disk, which the multiple-scattering
+	 * table sees too: the key's row says what that invalidates. */
+	if (ret_dirty && next.sun.angular_radius_deg != s->sun.angular_radius_deg)
+		*ret_dirty |= state_key_find("sun_angular_radius_deg")->dirty;
 	drive_field(&next, mono_s, ret_dirty);
 	*s = next;
 	return 0;

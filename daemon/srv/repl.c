@@ -35,15 +35,17 @@ static int64_t apply_time(void *ctx)
 	return sync_apply_time_ns(r->sync);
 }
 
-/* srv's listener: the active controller publishes every committed state. */
+/* srv's listener: a controller hands every committed state to the sync
+ * client, which names it by the next sequence and sends it while this
+ * instance holds the claim. A standby controller hands over the states it
+ * follows too, so that it claims with the sky it shows, not the one it
+ * started with. */
 static void committed(void *ctx, const struct sky_state *st, uint64_t generation,
 		      int64_t apply_time_ns)
 {
 	struct repl *r = ctx;
-	char who[SYNC_ID_MAX];
 
-	if (r->role != SYNC_CONTROLLER || !sync_may_change(r->sync, who, sizeof(who)) ||
-	    generation == 0)
+	if (r->role != SYNC_CONTROLLER || generation == 0)
 		return;
 	int e = sync_publish(r->sync, st, generation, apply_time_ns);
 	if (e < 0)
@@ -52,9 +54,8 @@ static void committed(void *ctx, const struct sky_state *st, uint64_t generation
 }
 
 /* The sync client's hook: the controller's state, committed as a local
- * set would be, with this machine's views, visible at apply_time_ns. */
-static void on_state(void *ctx, const struct sky_state *candidate, uint64_t generation,
-		     int64_t apply_time_ns)
+ * set would be, with this machine's views, visible at its apply time. */
+static void on_state(void *ctx, const struct sky_state *candidate, const struct sync_msg_header *h)
 {
 	struct repl *r = ctx;
 	const struct sky_state *cur = srv_state(r->srv);
@@ -64,24 +65,25 @@ static void on_state(void *ctx, const struct sky_state *candidate, uint64_t gene
 	char err[256] = "";
 
 	if (!next) {
-		log_error("sync: generation %" PRIu64 ": out of memory", generation);
+		log_error("sync: state %" PRIu64 ": out of memory", h->sequence);
 		return;
 	}
 	*next = *candidate;
 	next->n_views = cur->n_views;
 	memcpy(next->views, cur->views, sizeof(next->views));
 	dirty = state_diff(cur, next);
-	srv_set_next_apply_time(r->srv, apply_time_ns);
+	srv_set_next_apply_time(r->srv, h->apply_time_ns);
 	int e = srv_apply(r->srv, next, dirty, &shown, &dirty, err, sizeof(err));
 	srv_set_next_apply_time(r->srv, 0);
 	free(next);
 	if (e < 0) {
-		log_warning("sync: controller's generation %" PRIu64 " refused here: %s", generation,
+		log_warning("sync: controller's state %" PRIu64 " (generation %" PRIu64
+			    ") refused here: %s", h->sequence, h->generation,
 			    err[0] ? err : strerror(-e));
 		return;
 	}
-	log_debug("sync: controller's generation %" PRIu64 " is generation %" PRIu64 " here",
-		  generation, shown);
+	log_debug("sync: controller's state %" PRIu64 " (generation %" PRIu64
+		  ") is generation %" PRIu64 " here", h->sequence, h->generation, shown);
 }
 
 static int may_change(void *ctx, char *who, size_t who_size)
@@ -105,10 +107,11 @@ static void status(void *ctx, char *buf, size_t size)
 	n = (size_t)snprintf(buf, size,
 			     "sync: %s\nsync_role: %s\nsync_active: %d\nsync_standby: %d\n"
 			     "sync_controller: %s\nsync_controller_online: %d\n"
-			     "sync_generation: %" PRIu64 "\nsync_apply_time_ns: %" PRId64 "\n",
+			     "sync_sequence: %" PRIu64 "\nsync_generation: %" PRIu64
+			     "\nsync_apply_time_ns: %" PRId64 "\n",
 			     sync_state_name(st.state), sync_role_name(st.role), st.active,
 			     st.standby, st.controller[0] ? st.controller : "none",
-			     st.controller_online, st.generation, st.apply_time_ns);
+			     st.controller_online, st.sequence, st.generation, st.apply_time_ns);
 	if (n >= size)
 		return;
 	if (st.age_ns == UINT64_MAX)
@@ -156,7 +159,7 @@ int repl_new(struct loop *l, const struct sync_config *cfg, struct srv *srv, str
 		free(r);
 		return e;
 	}
-	srv_set_sync(srv, &(struct srv_sync){ apply_time, r });
+	srv_set_sync(srv, &(struct srv_sync){ apply_time, may_change, r });
 	if (ctl)
 		ctl_set_sync(ctl, &(struct ctl_sync){ may_change, status, r });
 	if (r->role == SYNC_CONTROLLER) {

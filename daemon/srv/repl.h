@@ -4,10 +4,11 @@
  *
  * A controller times every accepted change (the control socket's, the
  * clock's, the light sensor's) at sync_apply_time_ns and hands the
- * committed state to sync_publish. A follower commits every state the
- * broker brings through srv_apply, for its apply time, keeping its own
- * views, and its control socket refuses set and batch (SKY_ACK_PERMISSION)
- * naming the controller.
+ * committed state to sync_publish, which names each by its own sequence;
+ * standing by, it hands over the states it follows. A follower commits
+ * every state the broker brings through srv_apply, for its apply time,
+ * keeping its own views, and its control socket refuses set and batch
+ * (SKY_ACK_PERMISSION) naming the controller.
  */
 #ifndef SKYD_REPL_H
 #define SKYD_REPL_H

@@ -261,6 +261,14 @@ static int apply(struct sense *s, const struct sky_state *next, uint32_t dirty)
 	char err[256] = "";
 	uint64_t generation;
 	uint32_t all;
+
+	/* A follower's sky is its controller's: a reading of its own would
+	 * part it from the others until the next replicated change. */
+	if (!srv_may_change(s->srv, err, sizeof(err))) {
+		snprintf(s->st.not_applied, sizeof(s->st.not_applied),
+			 "this skyd follows controller %s: only its readings change the sky", err);
+		return 0;
+	}
 	int r = srv_apply(s->srv, next, dirty, &generation, &all, err, sizeof(err));
 
 	if (r < 0) {

@@ -13,7 +13,9 @@
  *   exposure: a suggested EV100 for clients; the state and the tables stay.
  *
  * A change goes through srv_apply like a set: it coalesces with the rest
- * and names the generation that shows it. The sense is one of srv's
+ * and names the generation that shows it. A follower of replication
+ * (srv_may_change) applies none: its sky is the controller's, and the
+ * output's not_applied says so. The sense is one of srv's
  * listeners: every accepted change (its sensor keys start, stop or
  * reconfigure the manager) and every publication (the cloud and elevation
  * modes read the new slot); and srv shows its status (srv_set_sensor). The pipeline's time constant,

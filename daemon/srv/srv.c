@@ -508,6 +508,11 @@ void srv_set_sync(struct srv *s, const struct srv_sync *sync)
 	s->sync = *sync;
 }
 
+int srv_may_change(const struct srv *s, char *who, size_t who_size)
+{
+	return !s->sync.may_change || s->sync.may_change(s->sync.ctx, who, who_size);
+}
+
 void srv_set_next_apply_time(struct srv *s, int64_t apply_time_ns)
 {
 	s->next_apply_ns = apply_time_ns;

@@ -163,13 +163,21 @@ size_t srv_sensor_devices(const struct srv *s, struct sensor_info *ret, size_t m
 
 /* Replication (docs/sync.md): when a change accepted now becomes
  * visible, as a CLOCK_REALTIME instant (0: as soon as it is computed).
- * NULL apply_time_ns: as soon as computed. Where changes go is a listener's
- * business (srv_listener.changed). */
+ * NULL apply_time_ns: as soon as computed. may_change: whether this skyd
+ * may change the sky of its own accord (a follower may not: its sky is
+ * the controller's), else 0 with the controller in charge in who; NULL:
+ * always. Where changes go is a listener's business
+ * (srv_listener.changed). */
 struct srv_sync {
 	int64_t (*apply_time_ns)(void *ctx);
+	int (*may_change)(void *ctx, char *who, size_t who_size);
 	void *ctx;
 };
 void srv_set_sync(struct srv *s, const struct srv_sync *sync);
+/* 1 when this skyd may change the sky of its own accord (srv_sync's
+ * may_change; always without replication), else 0 with who set. The
+ * light sensor asks before it applies a reading. */
+int srv_may_change(const struct srv *s, char *who, size_t who_size);
 
 /* The next change (srv_apply, or the clock's) becomes visible at
  * apply_time_ns (CLOCK_REALTIME) rather than the hook's: its tables are computed at once

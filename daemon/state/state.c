@@ -201,8 +201,11 @@ void state_night_floor(const struct sky_state *s, double *ret_zenith_cd_m2, doub
 	*ret_gain = lz > 0.0 ? fmax(3.0 * (s->night.illuminance_lx / (M_PI * lz) - 1.0), 0.0) : 0.0;
 }
 
-/* state_diff's walk: each key of one state whose text the other state
- * does not show, set on a scratch copy of the other to learn its mask. */
+/* state_diff's walk: each key of one state whose exact text (every bit of
+ * its numbers) the other state does not show, set on a scratch copy of
+ * the other to learn its mask. Get's nine digits would hide a difference
+ * in the last bits of a value the clock or a METAR computed, and leave
+ * tables of a state no longer served. */
 struct diff {
 	const struct sky_state *other;
 	struct sky_state scratch;
@@ -214,7 +217,7 @@ static void diff_key(void *ctx, const char *key, const char *value)
 	struct diff *d = ctx;
 	char other[512], err[256];
 
-	if (state_get(d->other, key, other, sizeof(other)) == 0 && strcmp(other, value) == 0)
+	if (state_get_exact(d->other, key, other, sizeof(other)) == 0 && strcmp(other, value) == 0)
 		return;
 	if (state_set(&d->scratch, key, value, &d->dirty, err, sizeof(err)) < 0)
 		d->dirty = STATE_ALL_TABLES;
@@ -229,12 +232,21 @@ uint32_t state_diff(const struct sky_state *a, const struct sky_state *b)
 		return STATE_ALL_TABLES;
 	/* Both ways: `get` lists some keys only away from their defaults. */
 	*d = (struct diff){ .other = a, .scratch = *a };
-	state_foreach(b, diff_key, d);
+	state_foreach_exact(b, diff_key, d);
 	dirty = d->dirty;
 	*d = (struct diff){ .other = b, .scratch = *b };
-	state_foreach(a, diff_key, d);
+	state_foreach_exact(a, diff_key, d);
 	dirty |= d->dirty;
 	free(d);
+	/* What no key shows: the raw keys that win over the weather, and a
+	 * cloud factor a light sensor set. */
+	for (uint32_t bit = 1; bit <= STATE_OVERRIDE_OZONE_ABSORPTION; bit <<= 1)
+		if ((a->weather.overridden ^ b->weather.overridden) & bit) {
+			const struct state_key *k = state_key_pinning(bit);
+			dirty |= k ? k->dirty : STATE_ALL_TABLES;
+		}
+	if (memcmp(&a->weather.cloud_factor, &b->weather.cloud_factor, sizeof(double)) != 0)
+		dirty |= state_key_of(STATE_KEY_ID_CLOUD_OKTAS)->dirty;
 	return dirty;
 }
 

@@ -273,6 +273,15 @@ void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx);
 /* Formats one key's value; -ENOENT if unknown (or write-only). */
 int state_get(const struct sky_state *s, const char *key, char *buf, size_t size);
 
+/* As state_foreach and state_get, with every number written so that it
+ * reads back to the same double: as get writes it (nine significant
+ * digits) where that does, with up to seventeen where it does not (a
+ * light's direction the clock computed, a humidity a METAR gave). What a
+ * replica must read back bit for bit (the sync message) and what tells
+ * two states apart (state_diff) use these. */
+void state_foreach_exact(const struct sky_state *s, state_emit_fn fn, void *ctx);
+int state_get_exact(const struct sky_state *s, const char *key, char *buf, size_t size);
+
 /* The simulated time at monotonic time mono_s (seconds); NAN if no time was
  * ever set. */
 double state_clock_utc_s(const struct sky_state *s, double mono_s);
@@ -292,7 +301,9 @@ void state_night_floor(const struct sky_state *s, double *ret_zenith_cd_m2, doub
 const char *state_sensor_mode_name(enum state_sensor_mode m);
 
 /* The tables to recompute going from a to b: the masks state_set gives
- * for each key whose text differs (every table for one it cannot set). */
+ * for each key whose exact text differs (state_get_exact: a difference in
+ * the last bit counts), every table for one it cannot set, and those of
+ * the weather's overrides and cloud factor where they differ. */
 uint32_t state_diff(const struct sky_state *a, const struct sky_state *b);
 
 /* Bytes of one texel in the given storage (4 channels). */

@@ -134,7 +134,7 @@ int state_get_constituent(const struct sky_state *s, const struct state_key *k, 
 	case STATE_C_SCALE_HEIGHT:
 		/* Defined only for a pure exponential profile. */
 		if (upper->exp_scale_per_km < 0 && c->density.layers[0].width_km == 0)
-			snprintf(buf, n, "%.9g", -1.0 / upper->exp_scale_per_km);
+			state_format_number(-1.0 / upper->exp_scale_per_km, buf, n);
 		else
 			snprintf(buf, n, "none");
 		break;

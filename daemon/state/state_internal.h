@@ -32,6 +32,11 @@
 /* Longest value text state_get writes (sensor_select's 127 bytes). */
 #define STATE_VALUE_MAX 160
 
+/* A number as get writes it (nine significant digits); while
+ * state_foreach_exact or state_get_exact runs, with as many more (up to
+ * seventeen) as it takes to read back to the same double. */
+void state_format_number(double v, char *buf, size_t n);
+
 /* Index of v in a NULL-terminated list, or -1. */
 int state_enum_index(const char *const *names, const char *v);
 

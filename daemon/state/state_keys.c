@@ -176,8 +176,10 @@ static const struct state_key keys[] = {
 	  .doc = "the sun's illuminance at the top of the atmosphere (the tables get it times the cloud factor)" },
 	{ .name = "sun_color", TRIPLE(sun.color, 0, 1e3), .def = 1.0, .dirty = LIGHTS, .unit = "-",
 	  .doc = "the sun's linear RGB tint, luminance 1; never the clock's" },
+	/* The multiple-scattering table sees the disk set at the horizon
+	 * (multiscatter.comp's sunlight, light_visible): not the lights alone. */
 	{ .name = "sun_angular_radius_deg", NUMBER(sun.angular_radius_deg, 1e-4, 20),
-	  .def = 0.004675 * 180.0 / M_PI, .dirty = LIGHTS, .unit = "deg",
+	  .def = 0.004675 * 180.0 / M_PI, .dirty = FROM_M, .unit = "deg",
 	  .hands = STATE_HANDS_SUN_TO_USER, .doc = "the sun disk's angular radius" },
 	{ .name = "moon_elevation_deg", NUMBER(moon.elevation_deg, -90, 90), .def = -30.0,
 	  .dirty = LIGHTS, .unit = "deg", .hands = STATE_HANDS_MOON_TO_USER,
@@ -574,9 +576,27 @@ int state_key_parse(const struct state_key *k, const char *v, void *field, char 
 	return ERR("%s: internal error: no parser", k->name);
 }
 
+/* Set while state_foreach_exact or state_get_exact runs: numbers are then
+ * written so that they read back to the same double. */
+static _Thread_local int format_exact;
+
+static int reads_back(const char *text, double v)
+{
+	double r = strtod(text, NULL);
+	return memcmp(&r, &v, sizeof(v)) == 0;
+}
+
+void state_format_number(double v, char *buf, size_t n)
+{
+	snprintf(buf, n, "%.9g", v);
+	for (int digits = 10; format_exact && digits <= 17 && !reads_back(buf, v); digits++)
+		snprintf(buf, n, "%.*g", digits, v);
+}
+
 void state_key_format(const struct state_key *k, const void *field, char *buf, size_t n)
 {
 	const double *d = field;
+	char c[3][32];
 	int i = 0, w = 0;
 
 	switch (k->kind) {
@@ -584,14 +604,16 @@ void state_key_format(const struct state_key *k, const void *field, char *buf, s
 		if (isnan(*d))
 			snprintf(buf, n, "auto");
 		else
-			snprintf(buf, n, "%.9g", *d);
+			state_format_number(*d, buf, n);
 		break;
 	case STATE_KIND_NUMBER:
 	case STATE_KIND_TIME:
-		snprintf(buf, n, "%.9g", *d);
+		state_format_number(*d, buf, n);
 		break;
 	case STATE_KIND_TRIPLE:
-		snprintf(buf, n, "%.9g,%.9g,%.9g", d[0], d[1], d[2]);
+		for (int j = 0; j < 3; j++)
+			state_format_number(d[j], c[j], sizeof(c[j]));
+		snprintf(buf, n, "%s,%s,%s", c[0], c[1], c[2]);
 		break;
 	case STATE_KIND_INTEGER:
 		snprintf(buf, n, "%u", *(const uint32_t *)field);
@@ -739,6 +761,25 @@ void state_foreach(const struct sky_state *s, state_emit_fn fn, void *ctx)
 			continue;
 		fn(ctx, k->name, buf);
 	}
+}
+
+void state_foreach_exact(const struct sky_state *s, state_emit_fn fn, void *ctx)
+{
+	int was = format_exact;
+
+	format_exact = 1;
+	state_foreach(s, fn, ctx);
+	format_exact = was;
+}
+
+int state_get_exact(const struct sky_state *s, const char *key, char *buf, size_t size)
+{
+	int was = format_exact;
+
+	format_exact = 1;
+	int r = state_get(s, key, buf, size);
+	format_exact = was;
+	return r;
 }
 
 void state_foreach_given(const struct sky_state *s, state_emit_fn fn, void *ctx)

@@ -65,16 +65,21 @@ struct sync {
 	struct sync_presence presence;
 	int presence_known;
 
-	/* controller: the latest state to send */
+	/* controller: the latest state to send, named by its sequence (the
+	 * last one given); sent_seq: the last one handed to the broker on
+	 * this connection, 0 none; inflight_*: the one it has not
+	 * acknowledged yet */
 	struct sky_state *pending;
-	uint64_t pending_gen, sent_gen, inflight_gen;
+	uint64_t seq, pending_gen, sent_seq;
 	int64_t pending_apply;
+	uint64_t inflight_gen;
+	int64_t inflight_apply;
 	int inflight_mid;		/* 0: nothing in flight */
 	char *buf;			/* SYNC_MSG_MAX + 1 */
 
 	/* follower: what was handed on last */
 	char applied_from[SYNC_ID_MAX];
-	uint64_t applied_gen;
+	uint64_t applied_seq;
 	struct sky_state *candidate;
 
 	struct sync_status st;
@@ -376,31 +381,32 @@ static void settle(struct sync *s)
 /* Sends the latest state if this instance may and nothing is in flight. */
 static void send_pending(struct sync *s)
 {
-	struct sync_msg_header h = { .generation = s->pending_gen,
+	struct sync_msg_header h = { .sequence = s->seq, .generation = s->pending_gen,
 				     .apply_time_ns = s->pending_apply };
 	size_t len;
 	int mid = 0;
 
 	if (s->cfg.role != SYNC_CONTROLLER || !s->active || s->state != SYNC_CONNECTED ||
-	    !s->pending || s->inflight_mid || s->pending_gen == s->sent_gen)
+	    !s->pending || s->inflight_mid || s->seq == s->sent_seq)
 		return;
 	snprintf(h.controller, sizeof(h.controller), "%s", s->id);
 	int r = sync_msg_encode(s->pending, &h, s->buf, SYNC_MSG_MAX + 1, &len);
 	if (r < 0) {
-		log_error("sync: cannot write generation %" PRIu64 ": %s", s->pending_gen,
-			  strerror(-r));
-		s->sent_gen = s->pending_gen;
+		log_error("sync: cannot write state %" PRIu64 " (generation %" PRIu64 "): %s",
+			  s->seq, s->pending_gen, strerror(-r));
+		s->sent_seq = s->seq;
 		return;
 	}
 	int rc = mosquitto_publish(s->m, &mid, s->topic_state, (int)len, s->buf, 1, true);
 	if (rc != MOSQ_ERR_SUCCESS) {
-		log_warning("sync: publishing generation %" PRIu64 ": %s", s->pending_gen,
-			    mosq_error(rc));
+		log_warning("sync: publishing state %" PRIu64 " (generation %" PRIu64 "): %s",
+			    s->seq, s->pending_gen, mosq_error(rc));
 		return;
 	}
 	s->inflight_mid = mid ? mid : -1;
 	s->inflight_gen = s->pending_gen;
-	s->sent_gen = s->pending_gen;
+	s->inflight_apply = s->pending_apply;
+	s->sent_seq = s->seq;
 }
 
 static void publish_presence(struct sync *s, int online)
@@ -489,9 +495,9 @@ static enum sync_drop accept_state(struct sync *s, const struct sync_msg_header 
 			 s->presence.controller[0] ? s->presence.controller : "none");
 		return SYNC_DROP_CONTROLLER;
 	}
-	if (strcmp(h->controller, s->applied_from) == 0 && h->generation < s->applied_gen) {
-		snprintf(why, why_size, "generation %" PRIu64 " after %" PRIu64, h->generation,
-			 s->applied_gen);
+	if (strcmp(h->controller, s->applied_from) == 0 && h->sequence < s->applied_seq) {
+		snprintf(why, why_size, "state %" PRIu64 " after %" PRIu64, h->sequence,
+			 s->applied_seq);
 		return SYNC_DROP_STALE;
 	}
 	return SYNC_DROP_NONE;
@@ -514,19 +520,23 @@ static void on_state_msg(struct sync *s, const struct mosquitto_message *msg)
 		count_drop(s, d, "a state", why);
 		return;
 	}
-	if (strcmp(h.controller, s->applied_from) == 0 && h.generation == s->applied_gen) {
+	/* Only the sequence tells states apart: the same one again is a
+	 * repeat (QoS 1, the retained message after a reconnection). */
+	if (strcmp(h.controller, s->applied_from) == 0 && h.sequence == s->applied_seq) {
 		s->st.duplicates++;
 		return;
 	}
 	snprintf(s->applied_from, sizeof(s->applied_from), "%s", h.controller);
-	s->applied_gen = h.generation;
+	s->applied_seq = h.sequence;
+	s->st.sequence = h.sequence;
 	s->st.generation = h.generation;
 	s->st.apply_time_ns = h.apply_time_ns;
 	s->st.applied++;
 	s->last_mono_ns = loop_now_ns();
-	log_debug("sync: generation %" PRIu64 " from %s", h.generation, h.controller);
+	log_debug("sync: state %" PRIu64 " (generation %" PRIu64 ") from %s", h.sequence,
+		  h.generation, h.controller);
 	if (s->cb.on_state)
-		s->cb.on_state(s->cb.ctx, s->candidate, h.generation, h.apply_time_ns);
+		s->cb.on_state(s->cb.ctx, s->candidate, &h);
 }
 
 static void on_message(struct mosquitto *m, void *ctx, const struct mosquitto_message *msg)
@@ -577,7 +587,7 @@ static void on_connect(struct mosquitto *m, void *ctx, int rc)
 	s->st.why[0] = 0;
 	s->st.backoff_ms = 0;
 	s->backoff_ms = s->cfg.backoff_min_ms;
-	s->sent_gen = 0;
+	s->sent_seq = 0;
 	s->inflight_mid = 0;
 	/* Only what this connection brings counts: a restarted broker may
 	 * have lost the retained presence that the last one showed. */
@@ -613,7 +623,7 @@ static void on_publish(struct mosquitto *m, void *ctx, int mid)
 	s->inflight_mid = 0;
 	s->st.published++;
 	s->st.generation = s->inflight_gen;
-	s->st.apply_time_ns = s->pending_apply;
+	s->st.apply_time_ns = s->inflight_apply;
 	s->last_mono_ns = loop_now_ns();
 	mark(s);
 	send_pending(s);
@@ -781,10 +791,10 @@ int sync_publish(struct sync *s, const struct sky_state *st, uint64_t generation
 	if (!s->pending && !(s->pending = malloc(sizeof(*s->pending))))
 		return -ENOMEM;
 	*s->pending = *st;
+	s->seq++;
 	s->pending_gen = generation;
 	s->pending_apply = apply_time_ns;
-	if (generation == s->sent_gen)
-		s->sent_gen = 0;	/* the same generation changed: send it again */
+	mark(s);
 	send_pending(s);
 	if (!s->depth)
 		settle(s);	/* else the loop callback under way settles */
@@ -823,6 +833,8 @@ void sync_get_status(const struct sync *s, struct sync_status *ret)
 	snprintf(ret->self, sizeof(ret->self), "%s", s->id);
 	snprintf(ret->controller, sizeof(ret->controller), "%s", s->presence.controller);
 	ret->controller_online = s->presence.online;
+	if (s->cfg.role == SYNC_CONTROLLER && s->active)
+		ret->sequence = s->seq;
 	ret->age_ns = s->last_mono_ns ? loop_now_ns() - s->last_mono_ns : UINT64_MAX;
 	if (s->state != SYNC_LOST)
 		ret->backoff_ms = 0;

@@ -29,8 +29,10 @@ struct loop;
 struct sky_state;
 struct sync;
 
-/* The message format this code writes and the only one it reads. */
-#define SYNC_FORMAT_VERSION 1
+/* The message format this code writes and the only one it reads. Version
+ * 2 names each state by its sequence (docs/sync.md): a version 1 reader,
+ * which told states apart by their generation alone, refuses it. */
+#define SYNC_FORMAT_VERSION 2
 /* Largest message read or written; a whole state is about 5 KiB. */
 #define SYNC_MSG_MAX (64 * 1024)
 /* A controller id: "HOST/PID/NONCE". */
@@ -56,7 +58,7 @@ enum sync_drop {
 	SYNC_DROP_RANGE,	/* a value the vocabulary refuses (malformed, out of range,
 				 * cross-key rules), or an apply time too far ahead */
 	SYNC_DROP_CONTROLLER,	/* from a controller other than the one the topic names */
-	SYNC_DROP_STALE,	/* an older generation than the one applied */
+	SYNC_DROP_STALE,	/* an older sequence than the one applied */
 	SYNC_DROP_N
 };
 /* A short lower-case name ("malformed", "controller", ...). */
@@ -64,11 +66,16 @@ const char *sync_drop_name(enum sync_drop d);
 
 /* ---- the messages (no I/O) ---- */
 
-/* The header of a state message. */
+/* The header of a state message. The sequence names the state: every
+ * state a controller hands to sync_publish gets the next one, so two
+ * different states never share it. The generation is the controller's
+ * generation that shows the state: skyd coalesces changes that come while
+ * a computation is in flight, so several states may name one generation. */
 struct sync_msg_header {
 	uint32_t version;		/* SYNC_FORMAT_VERSION */
 	char controller[SYNC_ID_MAX];	/* who sent it */
-	uint64_t generation;		/* the controller's generation of this state, >= 1 */
+	uint64_t sequence;		/* this controller's number of the state, >= 1, increasing */
+	uint64_t generation;		/* the controller's generation that shows it, >= 1 */
 	int64_t apply_time_ns;		/* CLOCK_REALTIME at which every machine switches */
 };
 
@@ -78,7 +85,7 @@ struct sync_msg_header {
  * the clock shows at h->apply_time_ns, so that any receiver with a
  * synchronised real-time clock shows the same time at the same instant.
  * Views are not part of it: they belong to the connections that made them.
- * 0, -EINVAL for a bad id or generation 0, -ENOSPC. */
+ * 0, -EINVAL for a bad id, sequence or generation 0, -ENOSPC. */
 int sync_msg_encode(const struct sky_state *st, const struct sync_msg_header *h, char *buf,
 		    size_t size, size_t *ret_len);
 
@@ -169,13 +176,16 @@ struct sync_status {
 	char self[SYNC_ID_MAX];		/* this instance's controller id */
 	char controller[SYNC_ID_MAX];	/* the controller the topic names, "" none known */
 	int controller_online;
+	uint64_t sequence;		/* of the state this instance shows: an active
+					 * controller's newest (sent, or waiting for the
+					 * broker), a follower's or a standby's last applied */
 	uint64_t generation;		/* last applied (follower) or published (controller) */
 	int64_t apply_time_ns;		/* its apply time */
 	uint64_t age_ns;		/* since it was applied or published; UINT64_MAX none */
 	uint64_t received;		/* state messages that arrived */
 	uint64_t applied;		/* handed to on_state */
 	uint64_t published;		/* sent (controller) */
-	uint64_t duplicates;		/* the generation already applied again (after a
+	uint64_t duplicates;		/* the sequence already applied again (after a
 					 * reconnection, a QoS 1 repeat): ignored quietly */
 	uint64_t dropped[SYNC_DROP_N];	/* ignored, by reason ([SYNC_DROP_NONE] stays 0) */
 	enum sync_drop last_drop;
@@ -187,12 +197,13 @@ struct sync_status {
 };
 
 /* A follower's (or a standby controller's) new sky: candidate is complete
- * and validated; commit it exactly as a local set would be, switching at
- * apply_time_ns (CLOCK_REALTIME; in the past: at once). Views are not in
- * it: keep the local ones. From the loop; it may call sync_get_status,
- * not sync_free. */
-typedef void (*sync_state_fn)(void *ctx, const struct sky_state *candidate, uint64_t generation,
-			      int64_t apply_time_ns);
+ * and validated, h its message's header; commit it exactly as a local set
+ * would be, switching at h->apply_time_ns (CLOCK_REALTIME; in the past: at
+ * once). Each call brings a state of a higher sequence than the last (a
+ * new controller starts its own). Views are not in it: keep the local
+ * ones. From the loop; it may call sync_get_status, not sync_free. */
+typedef void (*sync_state_fn)(void *ctx, const struct sky_state *candidate,
+			      const struct sync_msg_header *h);
 /* Something in sync_get_status changed (state, claim, counters). */
 typedef void (*sync_status_fn)(void *ctx);
 
@@ -216,11 +227,15 @@ int sync_new(struct loop *l, const struct sync_config *cfg, const struct sync_ca
 void sync_free(struct sync *s);
 
 /* The controller's state: once after sync_new (the state it starts
- * with), then after every accepted change, with its generation
- * (increasing) and apply time. The latest is kept and sent when this
- * instance holds the claim and is connected, at once or after a
- * reconnection; at most one is in flight, a newer one replaces one still
- * waiting. 0, -EPERM on a follower, -EINVAL for generation 0. */
+ * with), then after every accepted change, with the generation that shows
+ * it (never decreasing: changes coalesced into one computation share it)
+ * and its apply time. Each call gives the state the next sequence, so a
+ * follower tells it from the one before even under the same generation. A
+ * standby controller keeps handing over the state it follows. The latest
+ * is kept and sent when this instance holds the claim and is connected, at
+ * once or after a reconnection; at most one is in flight, a newer one
+ * replaces one still waiting. 0, -EPERM on a follower, -EINVAL for
+ * generation 0, a generation below the last one or an apply time <= 0. */
 int sync_publish(struct sync *s, const struct sky_state *st, uint64_t generation,
 		 int64_t apply_time_ns);
 

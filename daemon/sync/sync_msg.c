@@ -117,27 +117,54 @@ static void emit_body(void *ctx, const char *key, const char *value)
 	put(w, "%s=%s\n", key, value);
 }
 
+/* The raw coefficients that win over the weather (struct state_weather's
+ * overridden bits), by the names `get weather` shows them with, in the
+ * order of their bits (enum state_override). */
+static const char *const override_names[] = {
+	"mie_scattering_per_km", "mie_absorption_per_km", "mie_g", "mie_profile",
+	"ozone_absorption_per_km",
+};
+#define N_OVERRIDES (sizeof(override_names) / sizeof(override_names[0]))
+_Static_assert(1u << (N_OVERRIDES - 1) == STATE_OVERRIDE_OZONE_ABSORPTION &&
+	       STATE_OVERRIDE_MIE_PROFILE == 1u << 3, "one name per override bit");
+
+static void format_overrides(uint32_t bits, char *buf, size_t size)
+{
+	size_t o = 0;
+
+	buf[0] = 0;
+	for (unsigned i = 0; i < N_OVERRIDES; i++)
+		if (bits & (1u << i) && o < size)
+			o += (size_t)snprintf(buf + o, size - o, "%s%s", o ? "," : "", override_names[i]);
+	if (!o)
+		snprintf(buf, size, "none");
+}
+
 int sync_msg_encode(const struct sky_state *st, const struct sync_msg_header *h, char *buf,
 		    size_t size, size_t *ret_len)
 {
 	struct writer w = { .buf = NULL };
+	char overrides[160];
 	double real_s, mono_s;
 
-	if (!sync_id_valid(h->controller) || h->generation == 0 || h->apply_time_ns <= 0)
+	if (!sync_id_valid(h->controller) || h->sequence == 0 || h->generation == 0 ||
+	    h->apply_time_ns <= 0)
 		return -EINVAL;
 	simclock_read_clocks(&real_s, &mono_s);
 	w.utc_s = state_clock_utc_s(st, mono_s + ((double)h->apply_time_ns / 1e9 - real_s));
-	state_foreach(st, emit_body, &w);
+	state_foreach_exact(st, emit_body, &w);
 	uint32_t lines = w.lines;
 
 	w = (struct writer){ .buf = buf, .size = size, .utc_s = w.utc_s };
 	if (size == 0)
 		return -ENOSPC;
 	buf[0] = 0;
-	put(&w, "skysync=%d\ncontroller=%s\ngeneration=%" PRIu64 "\napply_time_ns=%" PRId64
-		"\nlines=%" PRIu32 "\n\n", SYNC_FORMAT_VERSION, h->controller, h->generation,
-	    h->apply_time_ns, lines);
-	state_foreach(st, emit_body, &w);
+	format_overrides(st->weather.overridden, overrides, sizeof(overrides));
+	put(&w, "skysync=%d\ncontroller=%s\nsequence=%" PRIu64 "\ngeneration=%" PRIu64
+		"\napply_time_ns=%" PRId64 "\nlines=%" PRIu32 "\noverridden=%s\ncloud_factor=%.17g\n\n",
+	    SYNC_FORMAT_VERSION, h->controller, h->sequence, h->generation, h->apply_time_ns, lines,
+	    overrides, st->weather.cloud_factor);
+	state_foreach_exact(st, emit_body, &w);
 	if (w.bad_utc)
 		return -ERANGE;		/* a simulated date outside years 0..9999 */
 	if (w.overflow || w.len > SYNC_MSG_MAX)
@@ -273,17 +300,64 @@ static enum sync_drop read_version(struct cursor *c, uint32_t *ret, char *why, s
 	return SYNC_DROP_NONE;
 }
 
-enum { H_CONTROLLER, H_GENERATION, H_APPLY, H_LINES, H_ONLINE, H_N };
-static const char *const header_keys[H_N] = { "controller", "generation", "apply_time_ns",
-					      "lines", "online" };
+enum {
+	H_CONTROLLER, H_SEQUENCE, H_GENERATION, H_APPLY, H_LINES, H_OVERRIDDEN, H_CLOUD_FACTOR,
+	H_ONLINE, H_N
+};
+static const char *const header_keys[H_N] = { "controller", "sequence", "generation",
+					      "apply_time_ns", "lines", "overridden",
+					      "cloud_factor", "online" };
 
 /* Header lines up to a blank line or the end: the fields in want (a mask
  * of 1 << H_*) must all be there, once. Unknown fields are skipped: a
- * later version 1 may add some. */
+ * later revision of this version may add some. */
 struct header {
 	char controller[SYNC_ID_MAX];
 	uint64_t v[H_N];
+	uint32_t overridden;
+	double cloud_factor;
 };
+
+/* "none" or a comma list of override_names, each once. */
+static int parse_overrides(const char *v, uint32_t *ret)
+{
+	uint32_t bits = 0;
+
+	if (strcmp(v, "none") == 0) {
+		*ret = 0;
+		return 0;
+	}
+	while (*v) {
+		size_t n = strcspn(v, ",");
+		unsigned i = 0;
+		while (i < N_OVERRIDES && (strlen(override_names[i]) != n ||
+					   strncmp(override_names[i], v, n) != 0))
+			i++;
+		if (i == N_OVERRIDES || bits & (1u << i))
+			return -EINVAL;
+		bits |= 1u << i;
+		v += n;
+		if (*v == ',' && *++v == 0)
+			return -EINVAL;
+	}
+	*ret = bits;
+	return bits ? 0 : -EINVAL;
+}
+
+/* A factor in [0, 1], as %.17g wrote it. */
+static int parse_factor(const char *v, double *ret)
+{
+	char *end;
+	double f;
+
+	if (!*v || strlen(v) > 32 || !((*v >= '0' && *v <= '9') || *v == '.'))
+		return -EINVAL;
+	f = strtod(v, &end);
+	if (*end || !(f >= 0.0 && f <= 1.0))
+		return -EINVAL;
+	*ret = f;
+	return 0;
+}
 
 static enum sync_drop read_field(struct header *h, unsigned idx, const char *v, char *why,
 				 size_t why_size)
@@ -294,6 +368,13 @@ static enum sync_drop read_field(struct header *h, unsigned idx, const char *v, 
 		snprintf(h->controller, sizeof(h->controller), "%s", v);
 		return SYNC_DROP_NONE;
 	}
+	if (idx == H_OVERRIDDEN && parse_overrides(v, &h->overridden) < 0)
+		return drop(SYNC_DROP_MALFORMED, why, why_size,
+			    "overridden: not none or a list of raw coefficient keys");
+	if (idx == H_CLOUD_FACTOR && parse_factor(v, &h->cloud_factor) < 0)
+		return drop(SYNC_DROP_RANGE, why, why_size, "cloud_factor: not a number in [0, 1]");
+	if (idx == H_OVERRIDDEN || idx == H_CLOUD_FACTOR)
+		return SYNC_DROP_NONE;
 	if (parse_u64(v, &h->v[idx]) < 0)
 		return drop(SYNC_DROP_MALFORMED, why, why_size, "%s=%s is not a number",
 			    header_keys[idx], v);
@@ -396,11 +477,10 @@ static enum sync_drop body_line(struct sky_state *st, char *line, struct keyset 
 	if ((flags & STATE_KEY_NOW) && simclock_parse_utc(v, utc_s) < 0)
 		return drop(SYNC_DROP_RANGE, why, why_size, "%s: '%s' is not an ISO 8601 UTC time",
 			    line, v);
-	/* A value the candidate already shows is not parsed again: what the
-	 * preset or a shorter key (a scale height) gave keeps every bit, where
-	 * the text has nine digits. */
+	/* A value the candidate already shows, bit for bit, is not set again:
+	 * setting a raw constituent key pins it against the weather. */
 	char cur[256];
-	if (!(flags & STATE_KEY_NOW) && state_get(st, line, cur, sizeof(cur)) == 0 &&
+	if (!(flags & STATE_KEY_NOW) && state_get_exact(st, line, cur, sizeof(cur)) == 0 &&
 	    strcmp(cur, v) == 0)
 		return SYNC_DROP_NONE;
 	int r = state_set_pair(st, pair, NULL, err, sizeof(err));
@@ -466,23 +546,31 @@ enum sync_drop sync_msg_decode(const void *payload, size_t len, struct sync_msg_
 	memset(ret_header, 0, sizeof(*ret_header));
 	if ((d = check_text(payload, len, why, why_size)) ||
 	    (d = read_version(&c, &ret_header->version, why, why_size)) ||
-	    (d = read_header(&c, 1u << H_CONTROLLER | 1u << H_GENERATION | 1u << H_APPLY |
-				     1u << H_LINES, &h, why, why_size)))
+	    (d = read_header(&c, 1u << H_CONTROLLER | 1u << H_SEQUENCE | 1u << H_GENERATION |
+				     1u << H_APPLY | 1u << H_LINES | 1u << H_OVERRIDDEN |
+				     1u << H_CLOUD_FACTOR, &h, why, why_size)))
 		return d;
-	if (h.v[H_GENERATION] == 0 || h.v[H_APPLY] == 0 || h.v[H_APPLY] > INT64_MAX)
+	if (h.v[H_SEQUENCE] == 0 || h.v[H_GENERATION] == 0 || h.v[H_APPLY] == 0 ||
+	    h.v[H_APPLY] > INT64_MAX)
 		return drop(SYNC_DROP_MALFORMED, why, why_size,
-			    "generation and apply_time_ns must be positive");
+			    "sequence, generation and apply_time_ns must be positive");
 	snprintf(ret_header->controller, sizeof(ret_header->controller), "%s", h.controller);
+	ret_header->sequence = h.v[H_SEQUENCE];
 	ret_header->generation = h.v[H_GENERATION];
 	ret_header->apply_time_ns = (int64_t)h.v[H_APPLY];
 
 	if ((d = read_body(&c, h.v[H_LINES], ret_state, &ks, why, why_size)))
 		return d;
+	/* What no key says: which raw keys win over the weather (the order in
+	 * which they were set), and a cloud factor a light sensor set, which
+	 * cloud_oktas gives back only to within its last bits. */
+	ret_state->weather.overridden = h.overridden;
+	ret_state->weather.cloud_factor = h.cloud_factor;
 	simclock_read_clocks(&real_s, &mono_s);
 	anchor_clock(ret_state, ks.utc_s, ret_header->apply_time_ns, real_s, mono_s);
 	/* Every key the state has, nothing else: a message that leaves one
 	 * out would leave that key at its default here and not there. */
-	state_foreach(ret_state, keyset_expect, &ks);
+	state_foreach_exact(ret_state, keyset_expect, &ks);
 	if (ks.missing)
 		return drop(SYNC_DROP_MALFORMED, why, why_size, "no %s", ks.missing);
 	if (ks.expected != ks.n)

@@ -13,7 +13,10 @@
  *   garbage    refused readings are counted by reason, the sky stays;
  *   vanish     the device stops answering: the value goes stale and stays,
  *              get sensor says why (started with sensor_mode=cloud);
- *   list       skyd --list-sensors lists both families and the keyboard.
+ *   list       skyd --list-sensors lists both families and the keyboard;
+ *   follower   a follower of replication (through a mosquitto of the
+ *              test's) reads its sensor but changes nothing: its sky is
+ *              the controller's.
  * Started outside umockdev, it runs itself under umockdev-run with the
  * scenario's files; 77 without umockdev-run or a Vulkan device. Every wait
  * is on a line from skyd: a sensor: event, a changed: generation. */
@@ -21,6 +24,7 @@
 
 #include "daemon_harness.h"
 #include "sky.h"
+#include "sync_harness.h"
 #include "test.h"
 #include "umockdev_exec.h"
 
@@ -523,6 +527,41 @@ static void run_list(void)
 	CHECK(strstr(out, "1-4 hid-sensor 1209:0003 serial=KBD-1 state=unsupported") != NULL);
 }
 
+/* A follower's readings change nothing, each output saying why; the
+ * follower has no controller here, so none of them is the controller's. */
+static void run_follower(void)
+{
+	static struct sync_rig rig;
+	struct conn c;
+
+	if (!sync_have_mosquitto()) {
+		printf("skipped: no %s\n", SYNC_MOSQUITTO_BIN);
+		exit(77);
+	}
+	if (sync_broker_setup(&rig) < 0) {
+		FAIL("mosquitto did not start");
+		return;
+	}
+	const char *const args[] = { "--sync", rig.url, "--sync-role", "follower", HARNESS_SMALL,
+				     FAST, "sun_elevation_deg=60", "sensor_mode=cloud", NULL };
+	if (start(&c, args) == 0) {
+		for (int k = 0, from = 0; k < 2; k++) {
+			int i = wait_event(&c, from, is_reading);
+			if (i < 0) {
+				FAIL("no reading %d", k);
+				break;
+			}
+			printf("follower: %.3f lx: %s\n", evs[i].lux, evs[i].not_applied);
+			CHECK(strstr(evs[i].not_applied, "follows_controller") != NULL);	/* spaces as _ */
+			CHECK(evs[i].changes == 0 && evs[i].cloud_factor == 1.0);
+			from = i + 1;
+		}
+		CHECK(num(&c, "status", "sensor_cloud_factor") == 1.0);
+		conn_close(&c);
+	}
+	sync_rig_finish(&rig);
+}
+
 /* ---- running ---- */
 
 struct scenario {
@@ -539,6 +578,7 @@ static const struct scenario scenarios[] = {
 	{ "garbage", { "als" }, { "2=als-junk" }, run_garbage },
 	{ "vanish", { "als" }, { "2=als" }, run_vanish },
 	{ "list", { "als", "mcp", "keyboard" }, { "2=als", "3=mcp" }, run_list },
+	{ "follower", { "mcp" }, { "3=mcp-cloud" }, run_follower },
 };
 
 int main(int argc, char **argv)
@@ -549,7 +589,8 @@ int main(int argc, char **argv)
 		if (!strcmp(argv[1], scenarios[i].name))
 			sc = &scenarios[i];
 	if (!sc) {
-		fprintf(stderr, "usage: test_daemon_sensor cloud|elevation|exposure|garbage|vanish|list\n");
+		fprintf(stderr, "usage: test_daemon_sensor cloud|elevation|exposure|garbage|vanish|list|"
+				"follower\n");
 		return 2;
 	}
 	if (!getenv("UMOCKDEV_DIR"))

@@ -82,8 +82,8 @@ expected=$tmp/expected
 	echo "$LIBDIR/libsky.so"
 	echo "$LIBDIR/libsky.so.0"
 	echo "$LIBDIR/libsky.so.0.3.0"
-	for h in sky.h skyproto.h skymap.h skysample.h skycloud.h; do echo "$INCLUDEDIR/$h"; done
-	for g in sky.glsl skymap.glsl skycloud.glsl; do echo "$INCLUDEDIR/sky/glsl/$g"; done
+	for h in sky.h skyproto.h skymap.h skysample.h skycloud.h skycloudmarch.h; do echo "$INCLUDEDIR/$h"; done
+	for g in sky.glsl skymap.glsl skycloud.glsl skycloud_march.glsl; do echo "$INCLUDEDIR/sky/glsl/$g"; done
 	echo "$LIBDIR/pkgconfig/libsky.pc"
 	for f in skyConfig.cmake skyConfigVersion.cmake skyTargets.cmake; do
 		echo "$LIBDIR/cmake/sky/$f"
@@ -136,7 +136,7 @@ fi
 check "the installed skyd accepts the example config" \
 	"'$dest$BINDIR/skyd' -n --config '$dest$SYSCONFDIR/skyd/skyd.conf' >/dev/null"
 
-for h in sky.h skyproto.h skymap.h skysample.h skycloud.h; do
+for h in sky.h skyproto.h skymap.h skysample.h skycloud.h skycloudmarch.h; do
 	echo "#include <$h>" >"$tmp/h.c"
 	check "$h compiles alone" \
 		"cc -std=c17 -Wall -Wextra -Werror -c -I'$dest$INCLUDEDIR' '$tmp/h.c' -o '$tmp/h.o'"

@@ -4,14 +4,15 @@
  *
  * One scenario per run, named by the first argument:
  *   replicate  followers reach the controller's state, bit for bit, with
- *              its generation and apply time, through a burst of changes;
+ *              its sequence, generation and apply time, through a burst of
+ *              changes; two states under one generation both arrive;
  *   latejoin   a follower started later, and one restarted, get the
  *              retained state at once, with no new publication;
  *   restart    the broker killed: everyone goes lost, attempts back off,
  *              the broker back: connected again, and the next change
  *              arrives;
  *   hostile    garbage, an unknown version, out-of-range values, an
- *              unknown key, a second controller and a stale generation are
+ *              unknown key, a second controller and a stale sequence are
  *              ignored and counted, the followers' state untouched;
  *   secrets    username and password reach the broker (a wrong one is
  *              refused), and no password appears in the log (captured);
@@ -159,8 +160,9 @@ struct node {
 	const char *name;
 	struct sync *s;
 	struct sky_state state;		/* the last one on_state handed over */
-	uint64_t gen;
+	uint64_t seq, gen;
 	int64_t apply_ns;
+	char from[SYNC_ID_MAX];		/* the controller of seq */
 	unsigned n_states;
 	enum sync_state seen;
 	char trail[64];			/* the states seen, one letter each: c C L */
@@ -205,13 +207,18 @@ static int wait_for(int (*pred)(void), const char *what)
 	return 1;
 }
 
-static void node_state(void *ctx, const struct sky_state *c, uint64_t gen, int64_t apply_ns)
+static void node_state(void *ctx, const struct sky_state *c, const struct sync_msg_header *h)
 {
 	struct node *n = ctx;
 
+	if (h->sequence <= n->seq && strcmp(h->controller, n->from) == 0)
+		FAIL("%s: state %llu after %llu", n->name, (unsigned long long)h->sequence,
+		     (unsigned long long)n->seq);
+	snprintf(n->from, sizeof(n->from), "%s", h->controller);
 	n->state = *c;
-	n->gen = gen;
-	n->apply_ns = apply_ns;
+	n->seq = h->sequence;
+	n->gen = h->generation;
+	n->apply_ns = h->apply_time_ns;
 	n->n_states++;
 	poke();
 }
@@ -321,6 +328,13 @@ static int f12_have_gen(void)
 	return f1.gen == want_gen && f2.gen == want_gen;
 }
 
+static uint64_t want_seq;
+
+static int f12_have_seq(void)
+{
+	return f1.seq == want_seq && f2.seq == want_seq;
+}
+
 static int ctl_published_gen(void)
 {
 	return status(&ctl).generation == want_gen;
@@ -387,10 +401,26 @@ static void scenario_replicate(void)
 	for (int d = 1; d < SYNC_DROP_N; d++)
 		CHECK(s1.dropped[d] == 0 && sc.dropped[d] == 0);
 	CHECK(sc.published >= 2 && sc.published <= 20 && sc.active && s1.active == 0);
+	CHECK_EQ(s1.sequence, sc.sequence);
 	char who[SYNC_ID_MAX] = "";
 	CHECK(sync_may_change(ctl.s, who, sizeof(who)) == 1);
 	CHECK(sync_may_change(f1.s, who, sizeof(who)) == 0 && strcmp(who, sc.self) == 0);
 	CHECK(sync_publish(f1.s, &a, 21, apply) == -EPERM);
+
+	/* Two states under one generation, each sent (changes that come
+	 * while a computation is in flight share the next one): each is a
+	 * new state, none a duplicate; a generation never goes back. */
+	for (int k = 1; k <= 2; k++) {
+		b = scene(40.0 + k);
+		CHECK(sync_publish(ctl.s, &b, 20, sync_apply_time_ns(ctl.s)) == 0);
+		want_seq = sc.sequence + (uint64_t)k;
+		if (!wait_for(f12_have_seq, "a new state under generation 20"))
+			return;
+		check_same(&f1, &b);
+		check_same(&f2, &b);
+	}
+	CHECK(status(&f1).duplicates == s1.duplicates && f1.gen == 20 && f2.gen == 20);
+	CHECK(sync_publish(ctl.s, &b, 19, sync_apply_time_ns(ctl.s)) == -EINVAL);
 }
 
 static int f3_has_gen(void)
@@ -535,12 +565,12 @@ static void raw_publish(const char *const *topics, const char *const *payloads,
 	mosquitto_destroy(r.m);
 }
 
-/* A valid message of s under id and gen, with the line of key replaced
- * by repl (NULL: as it is). */
-static size_t forge(char *buf, const struct sky_state *s, const char *id, uint64_t gen,
+/* A valid message of s under id and sequence seq (its generation the
+ * same), with the line of key replaced by repl (NULL: as it is). */
+static size_t forge(char *buf, const struct sky_state *s, const char *id, uint64_t seq,
 		    const char *key, const char *repl)
 {
-	struct sync_msg_header h = { .generation = gen,
+	struct sync_msg_header h = { .sequence = seq, .generation = seq,
 				     .apply_time_ns = sync_apply_time_ns(ctl.s) };
 	char tmp[SYNC_MSG_MAX + 1], pat[80];
 	size_t len = 0;
@@ -597,12 +627,18 @@ static void scenario_hostile(void)
 	node_start(&f2, "follower 2", SYNC_FOLLOWER);
 	if (!wait_for(ready_all3, "the controller and two followers"))
 		return;
+	/* Two states: the second's sequence is 2, so that 1 is stale. */
 	struct sky_state a = scene(20.0);
+	publish(&ctl, &a, 1);
+	want_gen = 1;
+	if (!wait_for(f12_have_gen, "generation 1"))
+		return;
 	publish(&ctl, &a, 2);
 	want_gen = 2;
 	if (!wait_for(f12_have_gen, "generation 2") ||
 	    !wait_for(ctl_published_gen, "the controller's acknowledgement"))
 		return;
+	CHECK(f1.seq == 2 && f2.seq == 2);
 	const char *id = status(&ctl).self, *intruder = "intruder/1/00000000000000ff";
 	char state_topic[] = PREFIX "/state", presence_topic[] = PREFIX "/controller";
 	const char *topics[] = { state_topic, state_topic, state_topic, state_topic,
@@ -612,7 +648,7 @@ static void scenario_hostile(void)
 				    "who knows\n" };
 	lens[0] = 11;
 	lens[1] = forge(m[0], &a, id, 3, NULL, NULL);
-	m[0][8] = '2';						/* version 2 */
+	m[0][8] = '3';						/* version 3 */
 	lens[2] = forge(m[1], &a, id, 3, "sun_elevation_deg", "sun_elevation_deg=95");
 	lens[3] = forge(m[2], &a, id, 3, "mie_g", "mie_gee=0.7");	/* unknown key */
 	lens[4] = forge(m[3], &a, intruder, 99, NULL, NULL);	/* a second controller */
@@ -621,7 +657,7 @@ static void scenario_hostile(void)
 	raw_publish(topics, payloads, lens, 7, 0);
 	if (!wait_for(all_counted, "everyone to count every bad message"))
 		return;
-	CHECK(f1.n_states == 1 && f1.gen == 2 && f2.n_states == 1 && f2.gen == 2);
+	CHECK(f1.n_states == 2 && f1.gen == 2 && f2.n_states == 2 && f2.gen == 2);
 	check_same(&f1, &a);
 	check_same(&f2, &a);
 	struct sync_status s1 = status(&f1), sc = status(&ctl);

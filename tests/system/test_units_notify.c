@@ -169,6 +169,32 @@ static int log_has(const char *path, const char *needle)
 	return strstr(buf, needle) != NULL;
 }
 
+/* A value the file gives that get shows alike but that differs in its
+ * last bits is a change, its tables computed: the clock placed the sun
+ * (its illuminance to every bit), the user took it over, and the file
+ * names the illuminance with get's nine digits. */
+static void reload_last_bits(struct conn *c, const char *conf, pid_t pid)
+{
+	char reply[8192], text[256];
+
+	REQUIRE(conn_request(c, "set utc=2026-06-21T12:00:00Z lat_deg=48.2 lon_deg=16.4 time_rate=0",
+			     reply, sizeof(reply)) == 0);
+	REQUIRE(conn_request(c, "set sun_elevation_deg=14", reply, sizeof(reply)) == 0);
+	uint64_t gen = reply_u64(reply, "generation");
+	REQUIRE(conn_wait_generation(c, gen) == 0);
+	REQUIRE(conn_request(c, "get sun_illuminance_lx", reply, sizeof(reply)) == 0);
+	snprintf(text, sizeof(text), "sun_elevation_deg = 14\nground_albedo = 0.2\n"
+		 "max_connections = 77\nsun_illuminance_lx = %s\n", value_of(reply, "sun_illuminance_lx"));
+	write_config(conf, text);
+	reload(pid);
+	REQUIRE(conn_request(c, "status", reply, sizeof(reply)) == 0);
+	if (reply_u64(reply, "computing") != 1 && reply_u64(reply, "generation") != gen + 1)
+		FAIL("sun_illuminance_lx from the file computed nothing: generation %llu",
+		     (unsigned long long)reply_u64(reply, "generation"));
+	else
+		REQUIRE(conn_wait_generation(c, gen + 1) == 0);
+}
+
 static void reload_scenario(void)
 {
 	char sock[192], conf[192], logp[192], reply[8192];
@@ -239,6 +265,8 @@ static void reload_scenario(void)
 	REQUIRE(reply_u64(reply, "generation") == gen + 1);
 	if (strcmp(value_of(reply, "tables_computed"), "skyview,aerial") != 0)
 		FAIL("tables_computed: %s", value_of(reply, "tables_computed"));
+
+	reload_last_bits(&c, conf, pid);
 
 	/* An unreadable file too; skyd keeps serving. */
 	REQUIRE(unlink(conf) == 0);

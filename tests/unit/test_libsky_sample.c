@@ -1,12 +1,14 @@
 /* test_libsky_sample.c - libsky's sampling of the stand-in's tables
  * (testkit/fake_skyd.h) against their known values at texel centres, and
- * the ambient light and sun disk of skysample.h against their integrals. */
+ * the ambient light and sun disk of skysample.h against their integrals,
+ * and sky_sample_clouds() against skycloudmarch.h on the same tables. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
 
 #include "fake_skyd.h"
 #include "sky.h"
+#include "skycloudmarch.h"
 #include "skysample.h"
 #include "test.h"
 
@@ -144,6 +146,60 @@ static void test_ambient_and_disk(void)
 	CHECK(lx[0] == 0.0 && lx[1] == 0.0);
 }
 
+/* sky_sample_clouds() is skycloud_march() on the view's tables and lights,
+ * bit for bit, and its composite is skycloud_composite() of the view's sky
+ * and aerial perspective; bad arguments are refused. */
+static void test_sample_clouds(sky_client *c)
+{
+	struct sky_view v;
+	struct skycloud_layer L;
+	struct skycloud_scene sc;
+	struct skysample_table tr, ms;
+	const float off[2] = { 10.0f, 20.0f };
+	CHECK_EQ(sky_view_begin(c, &v), 0);
+	skycloud_layer_init(&L, SKYCLOUD_STRATOCUMULUS, 0.8, 1.0, 1.4, 5u, 0u);
+	skycloud_scene_init(&sc, &L, 1, off);
+	struct sky_cloud_params p = { .scene = &sc, .steps = 32, .light_steps = 4, .jitter = 0.5 };
+	CHECK_EQ(skysample_table_from_slot(v.header, v.slot_base, SKY_TABLE_TRANSMITTANCE, &tr), 0);
+	CHECK_EQ(skysample_table_from_slot(v.header, v.slot_base, SKY_TABLE_MULTISCATTER, &ms), 0);
+	const struct sky_shm_state *st = &v.slot->state;
+	const struct skycloud_sky sky = { &tr, &ms, st->bottom_radius_km, st->top_radius_km };
+	struct skycloud_light sun = { .shadow = NULL };
+	for (int k = 0; k < 3; k++) {
+		sun.dir[k] = st->sun_direction[k];
+		sun.illuminance_lx[k] = st->sun_illuminance_lx[k];
+	}
+	int cloudy = 0;
+	for (int i = 0; i < 24; i++) {
+		double el = 5.0 + 3.5 * i, az = 15.0 * i, d[3], rgb[3], t, depth, sky_rgb[3], air[3], air_t, want[3];
+		struct skycloud_sample m;
+		skysample_direction(el * DEG, az * DEG, d);
+		const double o[3] = { 0.0, 0.0, st->altitude_km };
+		skycloud_march(&sc, &sun, &sky, o, d, 1e30, 32, 4, 0.5, &m);
+		if (st->moon_illuminance_lx[0] > 0.0)
+			continue;	/* the stand-in's moon is dark: the sun alone */
+		CHECK_EQ(sky_sample_clouds(&v, &p, el, az, INFINITY, 0, rgb, &t, &depth), 0);
+		CHECK_EQ(rgb[1], m.radiance[1]);
+		CHECK_EQ(t, m.transmittance);
+		CHECK_EQ(depth, m.depth_km);
+		cloudy += t < 1.0;
+		CHECK_EQ(sky_sample_clouds(&v, &p, el, az, INFINITY, SKY_SAMPLE_CLOUD_COMPOSITE, rgb, NULL, NULL), 0);
+		CHECK_EQ(sky_sample_sky(&v, el, az, 0, sky_rgb), 0);
+		CHECK_EQ(sky_sample_view_aerial_dir(&v, NULL, d, m.depth_km, air, &air_t), 0);
+		skycloud_composite(sky_rgb, &m, air, air_t, want);
+		CHECK_NEAR(rgb[2], want[2], 1e-12 * fabs(want[2]));
+	}
+	CHECK(cloudy > 4);
+	double rgb[3];
+	CHECK_EQ(sky_sample_clouds(&v, NULL, 10.0, 0.0, INFINITY, 0, rgb, NULL, NULL), -EINVAL);
+	CHECK_EQ(sky_sample_clouds(&v, &p, NAN, 0.0, INFINITY, 0, rgb, NULL, NULL), -EINVAL);
+	CHECK_EQ(sky_sample_clouds(&v, &p, 10.0, 0.0, -1.0, 0, rgb, NULL, NULL), -EINVAL);
+	CHECK_EQ(sky_sample_clouds(&v, &p, 10.0, 0.0, INFINITY, 64, rgb, NULL, NULL), -EINVAL);
+	p.jitter = 1.0;
+	CHECK_EQ(sky_sample_clouds(&v, &p, 10.0, 0.0, INFINITY, 0, rgb, NULL, NULL), -EINVAL);
+	CHECK(sky_view_end(c, &v));
+}
+
 int main(void)
 {
 	fake_skyd_start(&fake);
@@ -151,6 +207,7 @@ int main(void)
 	if (c) {
 		test_sampling_at_texel_centres(c);
 		test_ambient_and_disk();
+		test_sample_clouds(c);
 		sky_disconnect(c);
 	}
 	fake_skyd_stop(&fake);

@@ -68,6 +68,43 @@ static void test_invalidation(void)
 	dirty = 0;
 	CHECK(state_set_pair(&s, "ground_albedo=0.1", &dirty, err, sizeof(err)) == 0);
 	CHECK(dirty == (STATE_ALL_TABLES & ~STATE_BIT(STATE_TRANSMITTANCE)));
+	/* The sun's disk setting at the horizon is in the multiple scattering. */
+	dirty = 0;
+	CHECK(state_set_pair(&s, "sun_angular_radius_deg=0.3", &dirty, err, sizeof(err)) == 0);
+	CHECK(dirty == (STATE_ALL_TABLES & ~STATE_BIT(STATE_TRANSMITTANCE)));
+}
+
+/* state_diff sees every bit: a value the clock computed that get's nine
+ * digits show alike, the raw keys that win over the weather, a cloud
+ * factor a light sensor set; and state_get_exact reads back exactly. */
+static void test_diff_exact(void)
+{
+	const uint32_t lights = STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
+	struct sky_state a, b;
+	char ta[64], tb[64], err[256];
+
+	state_default(&a);
+	b = a;
+	CHECK_EQ(state_diff(&a, &b), 0);
+	b.sun.illuminance_lx = 123716.78708808632;
+	a.sun.illuminance_lx = 123716.78738820556;
+	CHECK(state_get(&a, "sun_illuminance_lx", ta, sizeof(ta)) == 0 &&
+	      state_get(&b, "sun_illuminance_lx", tb, sizeof(tb)) == 0 && strcmp(ta, tb) == 0);
+	CHECK_EQ(state_diff(&a, &b), lights);
+	CHECK(state_get_exact(&b, "sun_illuminance_lx", tb, sizeof(tb)) == 0);
+	CHECK(state_set(&a, "sun_illuminance_lx", tb, NULL, err, sizeof(err)) == 0);
+	CHECK(memcmp(&a.sun.illuminance_lx, &b.sun.illuminance_lx, sizeof(double)) == 0);
+	CHECK_EQ(state_diff(&a, &b), 0);
+	/* The same keys, in the order weather then raw key: mie_g wins. */
+	CHECK(state_set_pair(&a, "visibility_km=20", NULL, err, sizeof(err)) == 0);
+	b = a;
+	CHECK(state_set_pair(&b, "mie_g=0.8", NULL, err, sizeof(err)) == 0);
+	CHECK(b.weather.overridden == STATE_OVERRIDE_MIE_G);
+	CHECK_EQ(state_diff(&a, &b), STATE_ALL_TABLES);
+	b = a;
+	CHECK(state_set_cloud_factor(&b, 0.5, NULL) == 0);
+	a.weather.in.cloud_oktas = b.weather.in.cloud_oktas;
+	CHECK_EQ(state_diff(&a, &b), lights);
 }
 
 static void test_roundtrip(void)
@@ -192,6 +229,7 @@ int main(void)
 	test_refusals_name_the_key();
 	test_cross_key_rules();
 	test_invalidation();
+	test_diff_exact();
 	test_roundtrip();
 	test_clock_keys();
 	test_quality_presets();

@@ -36,9 +36,13 @@ static void set(struct sky_state *s, const char *pair)
 		FAIL("%s: %s", pair, err);
 }
 
+/* The message of s under generation gen, its sequence SEQ_OF(gen): the
+ * two travel apart. */
+#define SEQ_OF(gen) ((gen) + 40)
 static size_t encode(const struct sky_state *s, uint64_t gen, int64_t apply_ns)
 {
-	struct sync_msg_header h = { .generation = gen, .apply_time_ns = apply_ns };
+	struct sync_msg_header h = { .sequence = SEQ_OF(gen), .generation = gen,
+				     .apply_time_ns = apply_ns };
 	size_t len = 0;
 	snprintf(h.controller, sizeof(h.controller), "%s", ID);
 	int r = sync_msg_encode(s, &h, msg, sizeof(msg), &len);
@@ -95,6 +99,23 @@ static void scene_weather(struct sky_state *s)
 	set(s, "sensor_time_constant_s=45");
 }
 
+/* What nine digits and the keys alone do not carry: values the clock, a
+ * METAR or a light sensor computed to every bit, raw keys that win over
+ * the weather because they were set after it, a cloud factor a light
+ * sensor set (cloud_oktas gives it back only to within its last bits). */
+static void scene_exact(struct sky_state *s)
+{
+	set(s, "visibility_km=20");
+	set(s, "mie_g=0.7");				/* after the weather: pinned */
+	set(s, "ozone_du=300");
+	set(s, "ozone_absorption_per_km=7e-4,1.9e-3,9e-5");	/* pinned */
+	s->sun.illuminance_lx = 123716.78708808632;	/* as the clock left it */
+	s->sun.elevation_deg = 12.345678912345678;
+	s->weather.in.relative_humidity = 0.93141530512345;	/* as a METAR gave it */
+	CHECK(state_set_cloud_factor(s, 0.12345678912345678, NULL) == 0);
+	CHECK(s->weather.overridden == (STATE_OVERRIDE_MIE_G | STATE_OVERRIDE_OZONE_ABSORPTION));
+}
+
 /* The cloud layers and the wind travel as keys, every bit of them: the
  * field is a function of these keys and the time (docs/clouds.md). */
 static void scene_clouds(struct sky_state *s)
@@ -141,10 +162,18 @@ static void test_round_trip(const char *name, void (*scene)(struct sky_state *))
 		return;
 	}
 	CHECK(h.version == SYNC_FORMAT_VERSION && h.generation == 7 && h.apply_time_ns == apply);
+	CHECK_EQ(h.sequence, SEQ_OF(7));
 	CHECK(strcmp(h.controller, ID) == 0);
 	const char *f = state_compare(&a, &b);
 	if (f)
 		FAIL("%s: %s differs after the round trip", name, f);
+	/* And so does the sky the tables are computed with: the weather
+	 * applied, the raw keys that win kept. */
+	struct sky_state ra, rb;
+	CHECK(state_resolve(&a, &ra, NULL, why, sizeof(why)) == 0 &&
+	      state_resolve(&b, &rb, NULL, why, sizeof(why)) == 0);
+	if ((f = state_compare(&ra, &rb)))
+		FAIL("%s: %s differs in the resolved state", name, f);
 	CHECK(b.n_views == 0);
 	/* The same instant on the simulated clock on both sides. */
 	double real_s, mono_s;
@@ -262,8 +291,14 @@ static void test_refusals(void)
 	FRESH();
 	expect_drop("no final newline", len - 1, SYNC_DROP_MALFORMED, "newline");
 	FRESH();
-	msg[8] = '2';
-	expect_drop("version 2", len, SYNC_DROP_VERSION, "version 2");
+	msg[8] = '3';
+	expect_drop("version 3", len, SYNC_DROP_VERSION, "version 3 (this skyd reads 2)");
+	/* A version 1 message, as a controller before sequences wrote it:
+	 * refused whole, the reason naming both versions. */
+	FRESH();
+	msg[8] = '1';
+	expect_drop("version 1", edit(len, "sequence", NULL, 0), SYNC_DROP_VERSION,
+		    "version 1 (this skyd reads 2)");
 	FRESH();
 	expect_drop("unknown key", edit(len, "sun_azimuth_deg", "sun_bogus_deg=1", 0), SYNC_DROP_KEY,
 		    "sun_bogus_deg");
@@ -312,7 +347,7 @@ static void test_refusals(void)
 	memcpy(longline, "storage=", 8);
 	longline[sizeof(longline) - 1] = 0;
 	expect_drop("long line", edit(len, "storage", longline, 0), SYNC_DROP_MALFORMED, "long");
-	/* A field a later version 1 adds is skipped. */
+	/* A field a later revision of version 2 adds is skipped. */
 	FRESH();
 	expect_drop("no line count", edit(len, "lines", NULL, 0), SYNC_DROP_MALFORMED, "lines");
 	FRESH();
@@ -321,6 +356,46 @@ static void test_refusals(void)
 	snprintf(rest, sizeof(rest), "%s", l);
 	snprintf(l, sizeof(msg) - (size_t)(l - msg), "\nfuture_field=yes%s", rest);
 	expect_drop("unknown header field", strlen(msg), SYNC_DROP_NONE, NULL);
+#undef FRESH
+}
+
+/* The header fields of version 2: the sequence, the weather's overrides
+ * and the cloud factor. */
+static void test_header_fields(void)
+{
+	struct sky_state a;
+	int64_t now = real_ns();
+	size_t len;
+
+	state_default(&a);
+	scene_clock(&a);
+#define FRESH() (len = encode(&a, 3, now))
+	FRESH();
+	expect_drop("no sequence", edit(len, "sequence", NULL, 0), SYNC_DROP_MALFORMED, "sequence");
+	FRESH();
+	expect_drop("sequence 0", edit(len, "sequence", "sequence=0", 0), SYNC_DROP_MALFORMED,
+		    "sequence");
+	FRESH();
+	expect_drop("no overridden", edit(len, "overridden", NULL, 0), SYNC_DROP_MALFORMED,
+		    "overridden");
+	FRESH();
+	expect_drop("overridden unknown", edit(len, "overridden", "overridden=mie_q", 0),
+		    SYNC_DROP_MALFORMED, "overridden");
+	FRESH();
+	expect_drop("overridden twice", edit(len, "overridden", "overridden=mie_g,mie_g", 0),
+		    SYNC_DROP_MALFORMED, "overridden");
+	FRESH();
+	expect_drop("overridden list", edit(len, "overridden", "overridden=mie_g,ozone_absorption_per_km", 0),
+		    SYNC_DROP_NONE, NULL);
+	FRESH();
+	expect_drop("no cloud factor", edit(len, "cloud_factor", NULL, 0), SYNC_DROP_MALFORMED,
+		    "cloud_factor");
+	FRESH();
+	expect_drop("cloud factor 2", edit(len, "cloud_factor", "cloud_factor=2", 0), SYNC_DROP_RANGE,
+		    "cloud_factor");
+	FRESH();
+	expect_drop("cloud factor nan", edit(len, "cloud_factor", "cloud_factor=nan", 0),
+		    SYNC_DROP_RANGE, "cloud_factor");
 #undef FRESH
 }
 
@@ -337,11 +412,14 @@ static void test_presence(void)
 	CHECK(sync_presence_decode("", 0, &q, why, sizeof(why)) == SYNC_DROP_NONE);
 	CHECK(q.controller[0] == 0 && q.online == 0);
 	CHECK(sync_presence_decode("junk", 4, &q, why, sizeof(why)) == SYNC_DROP_MALFORMED);
-	const char *v2 = "skysync=2\ncontroller=" ID "\nonline=1\n";
-	CHECK(sync_presence_decode(v2, strlen(v2), &q, why, sizeof(why)) == SYNC_DROP_VERSION);
-	const char *bad = "skysync=1\ncontroller=" ID "\nonline=2\n";
+	CHECK(strncmp(buf, "skysync=2\n", 10) == 0);
+	const char *v1 = "skysync=1\ncontroller=" ID "\nonline=1\n";
+	CHECK(sync_presence_decode(v1, strlen(v1), &q, why, sizeof(why)) == SYNC_DROP_VERSION);
+	const char *v3 = "skysync=3\ncontroller=" ID "\nonline=1\n";
+	CHECK(sync_presence_decode(v3, strlen(v3), &q, why, sizeof(why)) == SYNC_DROP_VERSION);
+	const char *bad = "skysync=2\ncontroller=" ID "\nonline=2\n";
 	CHECK(sync_presence_decode(bad, strlen(bad), &q, why, sizeof(why)) == SYNC_DROP_MALFORMED);
-	const char *noid = "skysync=1\nonline=1\n";
+	const char *noid = "skysync=2\nonline=1\n";
 	CHECK(sync_presence_decode(noid, strlen(noid), &q, why, sizeof(why)) ==
 	      SYNC_DROP_MALFORMED);
 	CHECK(sync_id_valid(ID) && !sync_id_valid("a/b") && !sync_id_valid("a//b") &&
@@ -436,11 +514,13 @@ int main(void)
 	test_round_trip("mars", scene_mars);
 	test_round_trip("custom", scene_custom);
 	test_round_trip("weather", scene_weather);
+	test_round_trip("exact", scene_exact);
 	test_round_trip("clouds", scene_clouds);
 	test_round_trip("metar clouds", scene_metar_clouds);
 	test_cloud_lines();
 	test_utc_at_apply_time();
 	test_refusals();
+	test_header_fields();
 	test_presence();
 	test_url();
 	test_check();
