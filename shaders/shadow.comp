@@ -28,9 +28,14 @@ float envelope_at(int l, vec3 q)
 	int i = min(int(x), CLOUD_W - 2), j = min(int(y), CLOUD_W - 2);
 	float fx = x - float(i), fy = y - float(j);
 	int b = j * CLOUD_W + i;
-	float v = mix(mix(texelFetch(CloudTex, b)[l], texelFetch(CloudTex, b + 1)[l], fx),
-		      mix(texelFetch(CloudTex, b + CLOUD_W)[l], texelFetch(CloudTex, b + CLOUD_W + 1)[l], fx), fy);
-	float c = skycloud_saturate(v + CL.layer[l].anvil * hf * hf);
+	uint ch = CL.layer[l].index & 3u;
+	float c0 = mix(mix(texelFetch(CloudTex, b)[ch], texelFetch(CloudTex, b + 1)[ch], fx),
+		       mix(texelFetch(CloudTex, b + CLOUD_W)[ch], texelFetch(CloudTex, b + CLOUD_W + 1)[ch], fx), fy);
+	// skycloudmarch.h's skycloud_density_cov: the anvil widens only
+	// where the table has cover.
+	if (!(c0 > 0.0))
+		return 0.0;
+	float c = skycloud_saturate(c0 + CL.layer[l].anvil * hf * hf);
 	return CL.layer[l].extinction_per_km * c * skycloud_profile(CL.layer[l], hf);
 }
 
@@ -91,7 +96,9 @@ void main()
 			}
 		}
 	}
-	vec4 texel = vec4(1e30, 0.0, 0.0, SKY_SHADOW_NO_TERRAIN_KM);
+	// No cloud: (0, 0, 0), which a bilinear filter of the texels blends
+	// into a cloud's edge as the clear it is.
+	vec4 texel = vec4(0.0, 0.0, 0.0, SKY_SHADOW_NO_TERRAIN_KM);
 	if (tau > 0.0)
 		texel.xyz = vec3(front, tau / (back - front), tau);
 	ST.d[(px.z * SHADOW_W + px.y) * SHADOW_W + px.x] = texel;
