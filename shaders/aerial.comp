@@ -8,6 +8,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
+#include "clouds.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -42,6 +43,7 @@ vec3 panorama_dir(uint z, int i, int j)
 void main()
 {
 	load_params();
+	load_clouds();
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
 	uint z = gl_GlobalInvocationID.z;
 	vec3 sun_dir = VB.job[z].sun, moon_dir = VB.job[z].moon;
@@ -98,12 +100,19 @@ void main()
 				Scaled ds = scaled_step(sc, m, view_up, dt, tau_view);
 				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
 				float mu_l = dot(up, sun_dir);
-				march_source(ta, mu_l, light_visible(ta, mu_l, P.SUN_RADIUS_RAD), P.sun_illum.rgb, sc, ph_sun, m,
-					     ground, forward, ds, view_up, sun_v, s, s_scaled);
+				float vis = light_visible(ta, mu_l, P.SUN_RADIUS_RAD);
+				// The clouds (clouds.glsl), the eye over the observer's ground point.
+				vec3 q = vec3(dir.xy * t, h0 + dir.z * t);
+				if (CLOUD_LAYERS > 0)
+					vis *= cloud_step(q, hs);
+				march_source(ta, mu_l, vis, P.sun_illum.rgb, sc, ph_sun, m, ground, forward, ds, view_up,
+					     sun_v, s, s_scaled);
 				if (MOON_LIT) {
 					mu_l = dot(up, moon_dir);
-					march_source(ta, mu_l, light_visible(ta, mu_l, P.MOON_RADIUS_RAD), P.moon_illum.rgb, sc,
-						     ph_moon, m, ground, forward, ds, view_up, moon_v, s, s_scaled);
+					vis = light_visible(ta, mu_l, P.MOON_RADIUS_RAD) *
+					      (CLOUD_LAYERS > 0 ? cloud_light(1, q) : 1.0);
+					march_source(ta, mu_l, vis, P.moon_illum.rgb, sc, ph_moon, m, ground, forward, ds,
+						     view_up, moon_v, s, s_scaled);
 				}
 				vec3 step_t;
 				radiance += tr * s * step_weight(m.extinction, dt, step_t);
