@@ -340,7 +340,7 @@ static void test_sync(void)
 {
 	static char msg[SYNC_MSG_MAX + 1];
 	struct sky_state s, got;
-	struct sync_msg_header h = { .generation = 3, .apply_time_ns = 1 }, hr;
+	struct sync_msg_header h = { .sequence = 3, .generation = 3, .apply_time_ns = 1 }, hr;
 	char err[256], why[320], pair[400];
 	size_t len;
 	uint16_t *p = pattern(24, 24, 6), *q = pattern(24, 24, 7);
