@@ -234,7 +234,8 @@ int sky_gpu_state(const struct sky_view *v, const char *view_name, struct sky_gp
 	double horizon[3] = { hc, st->bottom_radius_km / (st->bottom_radius_km + fmax(st->altitude_km, 0.0)),
 			      acos(hc) };
 	put4(g.horizon, horizon, 0.0);
-	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
+	/* The sky's four tables: the cloud tables are float32, never scaled. */
+	for (uint32_t id = 0; id <= SKY_TABLE_AERIAL; id++) {
 		struct skysample_table t;
 		bool half = skysample_table_from_slot(v->header, v->slot_base, id, &t) == 0 &&
 			    t.format == SKY_FORMAT_RGBA16F;

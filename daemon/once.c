@@ -140,6 +140,29 @@ static int write_manifest(const char *dir, const struct sky_state *s, const stru
 	return rc;
 }
 
+/* The cloud tables where a layer is drawn (EXR only: their channels are
+ * a layer's coverage margin or a shadow map's depths, not colours). */
+static int dump_clouds(const char *dir, const struct sky_state *s, const struct eng *e, char *err,
+		       size_t err_size)
+{
+	static const char *const names[2] = { "cloud", "shadow" };
+
+	for (int k = 0; k < 2; k++) {
+		const void *texels = eng_cloud_table(e, STATE_CLOUD_COVERAGE + k, NULL);
+		uint32_t w = k == 0 ? s->quality.cloud_width : s->quality.shadow_width;
+		if (!texels)
+			continue;
+		struct dump_table tab = { .name = names[k], .width = w, .height = w, .depth = k == 0 ? 1 : 2,
+			.format = SKY_FORMAT_RGBA32F, .texels = texels };
+		char path[4096];
+		snprintf(path, sizeof(path), "%s/%s.exr", dir, names[k]);
+		int rc = dump_exr(path, &tab, err, err_size);
+		if (rc < 0)
+			return rc;
+	}
+	return 0;
+}
+
 static int dump_tables(const char *dir, const struct sky_state *s, const struct eng *e,
 		       const struct eng_timing *t, char *err, size_t err_size)
 {
@@ -167,7 +190,8 @@ static int dump_tables(const char *dir, const struct sky_state *s, const struct 
 		if (rc < 0)
 			return rc;
 	}
-	return write_manifest(dir, s, e, t, err, err_size);
+	int rc = dump_clouds(dir, s, e, err, err_size);
+	return rc < 0 ? rc : write_manifest(dir, s, e, t, err, err_size);
 }
 
 static void usage(FILE *f)

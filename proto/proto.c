@@ -197,7 +197,7 @@ int proto_parse_event(const char *key, char *value, struct proto_event *ret)
 }
 
 static const char *const table_names[SKY_SHM_MAX_TABLES] = {
-	"transmittance", "multiscatter", "skyview", "aerial",
+	"transmittance", "multiscatter", "skyview", "aerial", "cloud", "shadow",
 };
 
 const char *proto_table_name(unsigned id)
@@ -212,7 +212,7 @@ uint32_t proto_table_mask(const char *list)
 	while (*list) {
 		size_t n = strcspn(list, ",");
 		if (n == 3 && strncmp(list, "all", 3) == 0)
-			mask |= (1u << SKY_SHM_MAX_TABLES) - 1;
+			mask |= (1u << (SKY_TABLE_AERIAL + 1)) - 1;	/* the sky's four, as skyd's "all" */
 		for (unsigned i = 0; i < SKY_SHM_MAX_TABLES; i++)
 			if (strlen(table_names[i]) == n && strncmp(list, table_names[i], n) == 0)
 				mask |= 1u << i;

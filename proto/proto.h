@@ -92,7 +92,8 @@ int proto_parse_event(const char *key, char *value, struct proto_event *ret);
  * last. */
 const char *proto_table_name(unsigned id);
 
-/* The bits (1 << id) of the tables a comma list names, "all" for every one.
+/* The bits (1 << id) of the tables a comma list names, "all" for the sky's
+ * four (the cloud tables, "cloud" and "shadow", by name only).
  * Names it does not know add nothing: in an event they may be a later
  * protocol's tables. */
 uint32_t proto_table_mask(const char *list);

@@ -11,7 +11,7 @@
 #include <stdint.h>
 
 /* Text protocol: greeting "OK skyd <SKY_PROTO_VERSION>". */
-#define SKY_PROTO_VERSION "6.1"
+#define SKY_PROTO_VERSION "7"
 #define SKY_PROTO_LINE_MAX 4096		/* bytes per request line, newline included */
 
 /* ACK codes: "ACK [code] {verb} message". */
@@ -52,8 +52,8 @@ enum sky_ack {
  * control socket with a "layout:" line (PROTOCOL.md).
  */
 #define SKY_SHM_MAGIC 0x31594b53u	/* "SKY1" little-endian */
-#define SKY_SHM_LAYOUT_VERSION 6u
-#define SKY_SHM_MAX_TABLES 4u
+#define SKY_SHM_LAYOUT_VERSION 7u
+#define SKY_SHM_MAX_TABLES 6u
 #define SKY_SHM_MIN_SLOTS 3u
 /* Views (`view add`): at most this many, each with its aerial perspective
  * (a volume or its eye point's panorama: enum sky_view_form). */
@@ -65,6 +65,11 @@ enum sky_shm_table_id {
 	SKY_TABLE_MULTISCATTER = 1,
 	SKY_TABLE_SKYVIEW = 2,
 	SKY_TABLE_AERIAL = 3,
+	/* The cloud tables (layout 7), in the directory only while a cloud
+	 * layer is drawn (n_tables 6), always RGBA32F, never scaled
+	 * (docs/clouds.md, "Published"). */
+	SKY_TABLE_CLOUD = 4,		/* coverage: cloud_width^2, RGBA = layers 1-4's margin + 1/2 */
+	SKY_TABLE_SHADOW = 5,		/* shadow maps: shadow_width^2 x depth 2 (sun, moon) */
 };
 
 /* RGB of an RGBA16F table is stored scaled: the value is the stored RGB
@@ -113,7 +118,58 @@ struct sky_shm_state {
 	/* The light sensor's suggested EV100 (sensor_mode=exposure, as of the
 	 * slot's publication); NaN when none. */
 	double exposure_ev100;
-	double reserved[13];
+	double reserved[12];
+};
+
+/* One drawn cloud layer (layout 7): the first 18 fields are
+ * proto/skycloud.h's struct skycloud_layer (float build) field for field,
+ * 72 bytes that a client copies into a GLSL SkycloudLayer array (std430)
+ * as they are; then the layer's phase and albedo. */
+struct sky_shm_cloud_layer {
+	int32_t type;			/* enum skycloud_type */
+	uint32_t seed, index;		/* cloud_seed; the layer's own noise, 0..3 */
+	float cover;			/* [0, 1] */
+	float base_km, top_km;		/* above the ground under the observer */
+	float inv_thickness_per_km;
+	float threshold, inv_edge;	/* the coverage fBm's threshold, 1 / soft edge */
+	float inv_bottom_fade, inv_top_fade, anvil;
+	float extinction_per_km;	/* at density 1, 550 nm, grey */
+	float erosion, inv_keep;
+	float coverage_scale;		/* cells per km of the coverage's coarsest octave */
+	float detail_scale;		/* and of the detail noise's */
+	float profile_integral;
+	float phase_g;			/* Henyey-Greenstein asymmetry */
+	float albedo;			/* single-scattering albedo */
+};
+
+/* The cloud field of a slot (layout 7; docs/clouds.md): the layers as
+ * skyd draws them, where the wind has put the field, and the frames of
+ * the shadow maps (SKY_TABLE_SHADOW). n_layers 0: a clear sky, every
+ * other field 0 but the transmittances (1). */
+struct sky_shm_clouds {
+	uint32_t n_layers;		/* layers[0 .. n_layers) */
+	uint32_t shadow_lights;		/* bit 0: the sun's map is valid, bit 1: the moon's */
+	double extent_km;		/* half-width of the square region around the observer */
+	double offset_km[2];		/* the wind's offset (east, north), subtracted from
+					 * field coordinates before the noise */
+	double period_km;		/* the field repeats every period_km (SKYCLOUD_PERIOD_KM) */
+	double placed_utc_s;		/* the simulated second it was placed for; NaN: still */
+	/* The cloud's transmittance from the observer toward the sun and the
+	 * moon (a march of skycloud_optical_depth): multiply the slot's
+	 * illuminance by it for the light that reaches the observer. */
+	double sun_transmittance, moon_transmittance;
+	struct sky_shm_cloud_layer layers[4];
+	/* Per light (sun, moon), 4 vec4s: u (xyz, w = u_min km), v (xyz, w =
+	 * v_min km), l toward the light (xyz, w = the map's plane, km), scale
+	 * (texels per km along u and v). Texel (i, j) of the light's map is
+	 * the ray along -l through u u_min + (i + 0.5) / scale[0] along u, the
+	 * same along v, from depth 0 at the plane; a point q has depth
+	 * plane - dot(q, l) and texel coordinates ((dot(q, u) - u_min) scale[0],
+	 * (dot(q, v) - v_min) scale[1]). A texel's RGBA: front depth km, mean
+	 * extinction per km, maximum optical depth, the terrain's opaque depth
+	 * km (1e30: none); the optical depth at depth d is
+	 * min(B, G max(0, d - R)), and beyond A the light is gone. */
+	float shadow_frame[2][16];
 };
 
 /* How a view's aerial perspective is published (`view add form=`). */
@@ -172,6 +228,7 @@ struct sky_shm_slot {
 	uint32_t n_views;		/* views[0 .. n_views) describe this slot's views */
 	uint32_t valid_views;		/* bit i: view i's volume or panorama is valid */
 	struct sky_shm_view views[SKY_SHM_MAX_VIEWS];
+	struct sky_shm_clouds clouds;	/* layout 7 */
 };
 
 struct sky_shm_header {
@@ -198,9 +255,9 @@ struct sky_shm_header {
 };
 
 /* The slot checksum (PROTOCOL.md, "Checksum"): FNV-1a 64 over 64-bit
- * native-endian words, first the slot's state, then every valid table in id
- * order, then, when n_views > 0, views[0 .. n_views) and each valid view's
- * volume (form volume) or panorama (form panorama: its panorama.bytes at
+ * native-endian words, first the slot's state, then its clouds (layout 7),
+ * then every valid table in id order, then, when n_views > 0,
+ * views[0 .. n_views) and each valid view's volume (form volume) or panorama (form panorama: its panorama.bytes at
  * panorama.offset, once per view even where views share it) in index
  * order. words counts 8-byte words; start a checksum with SKY_SHM_CHECKSUM_SEED. */
 #define SKY_SHM_CHECKSUM_SEED 0xcbf29ce484222325ull

@@ -270,6 +270,7 @@ static inline uint64_t skysample_slot_checksum(const struct sky_shm_header *hdr,
 	const unsigned char *base = (const unsigned char *)slot_base;
 	uint64_t c = sky_shm_checksum_words(SKY_SHM_CHECKSUM_SEED, &slot->state,
 					    sizeof(slot->state) / 8);
+	c = sky_shm_checksum_words(c, &slot->clouds, sizeof(slot->clouds) / 8);
 	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
 		if (!(slot->valid_tables & (1u << id)))
 			continue;

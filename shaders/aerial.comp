@@ -8,6 +8,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
+#include "clouds.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -42,6 +43,8 @@ vec3 panorama_dir(uint z, int i, int j)
 void main()
 {
 	load_params();
+	if (CLOUD_LAYERS > 0)
+		load_clouds();
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
 	uint z = gl_GlobalInvocationID.z;
 	vec3 sun_dir = VB.job[z].sun, moon_dir = VB.job[z].moon;
@@ -98,11 +101,22 @@ void main()
 				Scaled ds = scaled_step(sc, m, view_up, dt, tau_view);
 				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
 				float mu_l = dot(up, sun_dir);
-				march_source(ta, mu_l, light_visible(ta, mu_l, P.SUN_RADIUS_RAD), P.sun_illum.rgb, sc, ph_sun, m,
+				float vis = light_visible(ta, mu_l, P.SUN_RADIUS_RAD);
+				// The cloud's shadow and the sky the layers leave open
+				// (clouds.glsl), the eye above the ground under the observer.
+				vec3 q = vec3(dir.xy * t, h0 + dir.z * t);
+				if (CLOUD_LAYERS > 0) {
+					cloud_ms_open = cloud_sky_open(hs);
+					vis *= cloud_light(0, q);
+				}
+				march_source(ta, mu_l, vis, P.sun_illum.rgb, sc, ph_sun, m,
 					     ground, forward, ds, view_up, sun_v, s, s_scaled);
 				if (MOON_LIT) {
 					mu_l = dot(up, moon_dir);
-					march_source(ta, mu_l, light_visible(ta, mu_l, P.MOON_RADIUS_RAD), P.moon_illum.rgb, sc,
+					vis = light_visible(ta, mu_l, P.MOON_RADIUS_RAD);
+					if (CLOUD_LAYERS > 0)
+						vis *= cloud_light(1, q);
+					march_source(ta, mu_l, vis, P.moon_illum.rgb, sc,
 						     ph_moon, m, ground, forward, ds, view_up, moon_v, s, s_scaled);
 				}
 				vec3 step_t;

@@ -37,6 +37,12 @@ const int MOMENT_CONST = MOMENT_LOBE - 1;
 layout(constant_id = SPEC_DELTA_LOBE) const int DELTA_LOBE = 0;     // 1 + the constituent delta-M scaled for the higher orders (delta_source), 0 none
 const int DELTA_CONST = DELTA_LOBE - 1;
 layout(constant_id = SPEC_LOOKUP_IMAGES) const bool LOOKUP_IMAGES = false;	// the lookups through sampled images
+layout(constant_id = SPEC_CLOUD_LAYERS) const int CLOUD_LAYERS = 0;	// cloud layers drawn (clouds.glsl); 0: no cloud term
+
+// The share of the sky's multiply scattered light that the cloud layers
+// above the marched point let through (cloud_sky_open in clouds.glsl):
+// sky-view and aerial set it at each step where CLOUD_LAYERS > 0.
+float cloud_ms_open = 1.0;
 
 // struct Constituent and struct Params: sky_params.h.
 layout(std140, binding = BINDING_PARAMS) uniform ParamsBlock { Params params; };
@@ -584,8 +590,12 @@ vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased
 		      vec3 forward, float view_up, float view_light)
 {
 	vec3 s = visible > 0.0 ? phased * (visible * transmittance_lookup(a, mu_l)) : vec3(0.0);
-	if (MULTISCATTER_ON)
-		s += ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
+	if (MULTISCATTER_ON) {
+		vec3 ms = ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
+		if (CLOUD_LAYERS > 0)
+			ms *= cloud_ms_open;
+		s += ms;
+	}
 	return s * illum;
 }
 
@@ -747,8 +757,12 @@ void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Pha
 	vec3 phased_s = phased + sc.s[k] * (delta_peak_phase(mu_l, tau, ph) - ph.p[k]);
 	ret_real = (phased - phased_s) * t * illum;
 	ret_scaled = phased_s * t * exp(min(depth, vec3(80.0)));
-	if (MULTISCATTER_ON)
-		ret_scaled += ms_source(a, mu_l, ds.sigma_s, ds.ground, ds.forward, view_up, view_light);
+	if (MULTISCATTER_ON) {
+		vec3 ms = ms_source(a, mu_l, ds.sigma_s, ds.ground, ds.forward, view_up, view_light);
+		if (CLOUD_LAYERS > 0)
+			ms *= cloud_ms_open;
+		ret_scaled += ms;
+	}
 	ret_scaled *= illum;
 }
 

@@ -9,6 +9,8 @@
 #include "msiterate.spv.h"
 #include "pack.spv.h"
 #include "aerial_resample.spv.h"
+#include "cloud.spv.h"
+#include "shadow.spv.h"
 
 const struct shader_code shader_code[SHADER_COUNT] = {
 	{ "transmittance", shader_transmittance_spv, sizeof(shader_transmittance_spv) },
@@ -19,4 +21,6 @@ const struct shader_code shader_code[SHADER_COUNT] = {
 	{ "msiterate", shader_msiterate_spv, sizeof(shader_msiterate_spv) },
 	{ "pack", shader_pack_spv, sizeof(shader_pack_spv) },
 	{ "aerial_resample", shader_aerial_resample_spv, sizeof(shader_aerial_resample_spv) },
+	{ "cloud", shader_cloud_spv, sizeof(shader_cloud_spv) },
+	{ "shadow", shader_shadow_spv, sizeof(shader_shadow_spv) },
 };

@@ -42,7 +42,12 @@
 #define SPEC_LOOKUP_IMAGES 28	/* sky-view and aerial perspective read transmittance
 				 * and multi-scattering through sampled images (the
 				 * texture units' filtering), not texel buffers */
-#define SPEC_COUNT 29
+#define SPEC_CLOUD_LAYERS 29	/* cloud layers drawn (docs/clouds.md): 0 compiles
+				 * every cloud term out, so a clear sky is
+				 * computed as it was before clouds existed */
+#define SPEC_SHADOW_W 30	/* a shadow map's width (shadow_width), 0 without clouds */
+#define SPEC_CLOUD_W 31		/* the coverage table's (cloud_width), 0 without clouds */
+#define SPEC_COUNT 32
 
 /* Bindings of the one descriptor set. The tables are storage buffers in
  * state_table order; transmittance and multi-scattering are read again
@@ -65,7 +70,13 @@
 					 * eye-point panoramas aerial_resample.comp reads */
 #define BINDING_TRANSMITTANCE_IMG 15	/* transmittance and multi-scattering as */
 #define BINDING_MULTISCATTER_IMG 16	/* sampled images (SPEC_LOOKUP_IMAGES) */
-#define BINDING_COUNT 17
+#define BINDING_CLOUDS 17		/* struct gpu_clouds: the layers, the field's
+					 * place and the shadow maps' frames */
+#define BINDING_CLOUD 18		/* the coverage table (cloud.comp writes it) */
+#define BINDING_CLOUD_TEX 19		/* the same memory as a lookup */
+#define BINDING_SHADOW 20		/* the shadow maps, a slice per light (shadow.comp) */
+#define BINDING_SHADOW_TEX 21		/* the same memory as a lookup */
+#define BINDING_COUNT 22
 
 /* The aerial jobs at BINDING_VIEWS (eng_fill_views, aerial.comp,
  * aerial_resample.comp): a head whose first word is the number of march
@@ -172,6 +183,34 @@
 					 * fraction f */
 #define DELTA_G layer1c[3]		/* and the truncated phase's g' */
 
+/* The cloud passes' block at BINDING_CLOUDS (std430): the drawn layers
+ * (proto/skycloud.h's struct skycloud_layer, float build, 72 bytes each;
+ * SPEC_CLOUD_LAYERS of them are read), the field's place, then a shadow
+ * map's frame per light, sun then moon (eng_clouds.c, docs/clouds.md,
+ * "Shadow maps"). A map's texel (i, j) is the light's ray through
+ * u U_MIN_KM + (i + 0.5) / U_TEXELS_PER_KM along u, likewise along v,
+ * and PLANE_KM along l: depths are counted from there toward -l. */
+#define SKY_SHADOW_FRAME_MEMBERS(V)                                              \
+	V(u)		/* horizontal axis of the map, w = U_MIN_KM */           \
+	V(v)		/* the other axis, up the light's plane, w = V_MIN_KM */ \
+	V(l)		/* toward the light, w = PLANE_KM */                     \
+	V(scale)	/* U_TEXELS_PER_KM, V_TEXELS_PER_KM, 0, 0 */
+#define U_MIN_KM u[3]
+#define V_MIN_KM v[3]
+#define PLANE_KM l[3]
+#define U_TEXELS_PER_KM scale[0]
+#define V_TEXELS_PER_KM scale[1]
+/* The field's place (the block's vec4 field). */
+#define FIELD_OFFSET_EAST_KM field[0]	/* the wind's offset (clouds.offset_km) */
+#define FIELD_OFFSET_NORTH_KM field[1]
+#define FIELD_EXTENT_KM field[2]	/* the region's half-width */
+#define FIELD_TEXELS_PER_KM field[3]	/* the coverage table's: cloud_width / (2 extent) */
+/* A coverage texel of an absent layer, and the bound of every texel: far
+ * below any anvil's reach (6 edges), so bilinear filtering stays finite. */
+#define SKY_CLOUD_NONE (-8.0)
+/* The opaque depth of a texel where no terrain stands (a shadow map's A). */
+#define SKY_SHADOW_NO_TERRAIN_KM 1e30
+
 /* The pack pass (storage=f16, pack.comp), per table in state_table order:
  * the texels to pack (0: not computed this time; the aerial table counts
  * every view's volume), the float bits of the largest |RGB| (the passes'
@@ -204,6 +243,9 @@ struct gpu_params {
 struct gpu_aerial_job {
 	SKY_AERIAL_JOB_MEMBERS(SKY_C_VEC3, SKY_C_FLOAT, SKY_C_UINT)
 };
+struct gpu_shadow_frame {
+	SKY_SHADOW_FRAME_MEMBERS(SKY_C_VEC4)
+};
 /* The buffer at BINDING_VIEWS: this head, then the jobs. */
 struct gpu_aerial_head {
 	uint32_t n_march;
@@ -230,6 +272,9 @@ struct Params {
 };
 struct AerialJob {
 	SKY_AERIAL_JOB_MEMBERS(SKY_GLSL_VEC3, SKY_GLSL_FLOAT, SKY_GLSL_UINT)
+};
+struct ShadowFrame {
+	SKY_SHADOW_FRAME_MEMBERS(SKY_GLSL_VEC4)
 };
 #undef SKY_GLSL_VEC4
 #undef SKY_GLSL_VEC3

@@ -9,6 +9,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
+#include "clouds.glsl"
 
 layout(constant_id = SPEC_SV_AZ_GROUP) const int SV_AZ_GROUP = 12;
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -41,6 +42,8 @@ float over_horizon(StepEnd e, float light_h, float light_z)
 void main()
 {
 	load_params();
+	if (CLOUD_LAYERS > 0)
+		load_clouds();
 	int x0 = int(gl_GlobalInvocationID.x) * SV_AZ_GROUP, gy = int(gl_GlobalInvocationID.y);
 	if (x0 >= OUT_W || gy >= OUT_H)
 		return;
@@ -117,6 +120,8 @@ void main()
 			StepEnd eb = step_end(en, sin_z, cos_z, next);
 			Scatter sc;
 			Medium m = medium_parts(hs, sc);
+			if (CLOUD_LAYERS > 0)
+				cloud_ms_open = cloud_sky_open(hs);
 			// The view's cos-zenith at the point is the same in every column.
 			float view_up = sin_z * up_h + cos_z * up_z;
 			vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);
@@ -132,11 +137,17 @@ void main()
 				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
 				float vis = disk_visible_mean(over_horizon(ea, sun_h[j], P.sun_dir.z),
 							      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
+				// The cloud's shadow at the step's middle (clouds.glsl).
+				vec3 q = vec3(dir[j].xy * (en.t0 + t), h0 + dir[j].z * (en.t0 + t));
+				if (CLOUD_LAYERS > 0)
+					vis *= cloud_light(0, q);
 				march_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, sc, ph_sun[j], m, ground,
 					     forward, ds, view_up, dot(dir[j], P.sun_dir.xyz), s, s_scaled);
 				if (MOON_LIT) {
 					vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
 								over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
+					if (CLOUD_LAYERS > 0)
+						vis *= cloud_light(1, q);
 					march_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, sc, ph_moon[j], m,
 						     ground, forward, ds, view_up, dot(dir[j], P.moon_dir.xyz), s, s_scaled);
 				}

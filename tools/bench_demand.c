@@ -235,6 +235,9 @@ static const char *const time_of_day[2] = { "sun_elevation_deg=20", "sun_elevati
 static const char *const weather[2] = { "mie_scattering_per_km=0.004", "mie_scattering_per_km=0.0041" };
 static const char *const atmosphere[2] = { "mie_scale_height_km=1.2", "mie_scale_height_km=1.2001" };
 static const char *const camera[2] = { "camera_yaw_deg=170", "camera_yaw_deg=171" };
+/* A new field in place: what a wind step recomputes (the coverage table,
+ * the shadow maps, sky-view and aerial perspective). */
+static const char *const field[2] = { "cloud_seed=1", "cloud_seed=2" };
 
 /* The scenes without views, against a full recompute. */
 static int other_rows(struct bench *b)
@@ -255,6 +258,9 @@ static int other_rows(struct bench *b)
 		rc = row(b, "sky-view-only dome, weather change", weather, S, REF_FULL, "");
 	if (rc == 0)
 		rc = row(b, "sky-view-only dome, time of day", time_of_day, S, REF_FULL, "");
+	if (rc == 0 && state_clouds_drawn(&b->s))
+		rc = row(b, "wind step (cloud, shadow, sky-view, aerial)", field, ALL | STATE_CLOUD_TABLES,
+			 REF_FRAME, "<= 20 % of a frame");
 	return rc;
 }
 

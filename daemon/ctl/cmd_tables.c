@@ -95,7 +95,7 @@ int ctl_cmd_subscribe(struct client *c, const struct proto_request *req, struct 
 			return CTL_ACK(SKY_ACK_SYNTAX, "'%s': key=value expected", a->key);
 		if (strcmp(a->key, "tables") == 0) {
 			if (state_parse_tables(a->value, &tables) < 0)
-				return CTL_ACK(SKY_ACK_NO_EXIST, "tables: '%s' is not a list of transmittance, multiscatter, skyview, aerial or all", a->value);
+				return CTL_ACK(SKY_ACK_NO_EXIST, "tables: '%s' is not a list of transmittance, multiscatter, skyview, aerial, cloud, shadow or all", a->value);
 		} else if (strcmp(a->key, "events") == 0) {
 			if (strcmp(a->value, "0") && strcmp(a->value, "1"))
 				return CTL_ACK(SKY_ACK_ARG, "events: '%s' is not 0 or 1", a->value);
@@ -137,7 +137,7 @@ int ctl_cmd_subscribe(struct client *c, const struct proto_request *req, struct 
 	for (uint32_t t = 0; t < h->n_tables; t++) {
 		const struct sky_shm_table *d = &h->tables[t];
 		ctl_reply_add(r, "table: name=%s format=%s width=%u height=%u depth=%u texel_bytes=%u offset=%llu bytes=%llu\n",
-			  state_table_names[t], format_name(d->format), d->width, d->height, d->depth,
+			  proto_table_name(d->id), format_name(d->format), d->width, d->height, d->depth,
 			  d->texel_bytes, (unsigned long long)d->offset,
 			  (unsigned long long)d->bytes);
 	}

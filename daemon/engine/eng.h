@@ -217,6 +217,20 @@ const void *eng_table(const struct eng *e, enum state_table t, size_t *ret_bytes
  * radiance, A the transmittance (struct sky_shm_panorama). NULL when the
  * plan publishes none. Valid as eng_table's. */
 const void *eng_panoramas(const struct eng *e, size_t *ret_bytes);
+/* The cloud tables as the last computation that made them left them
+ * (docs/clouds.md, "In the tables"): t STATE_CLOUD_COVERAGE, the coverage
+ * table (cloud_width^2 float32 RGBA, a layer a channel), or
+ * STATE_CLOUD_SHADOW, the shadow maps (two of shadow_width^2 float32 RGBA,
+ * the sun's then the moon's). NULL while none holds the state's field (a
+ * clear sky). Valid until the next eng_submit or eng_free. */
+const void *eng_cloud_table(const struct eng *e, int t, size_t *ret_bytes);
+/* A shadow map's frame as the passes use it (sky_params.h's
+ * SKY_SHADOW_FRAME_MEMBERS: u, v, l and scale, 4 floats each), for the
+ * sun (0) and the moon (1, zero while it lights nothing) of s lit by
+ * lights; returns the layers drawn (0: all zero). */
+int eng_cloud_frames(const struct sky_state *s, const struct state_lights *lights,
+		     float ret[2][16]);
+
 /* k such that the table's RGB values are its stored RGB times 2^k: 0 for
  * float32 storage; for float16, the pack pass's choice, the smallest k
  * with the table's largest |RGB| times 2^-k at most 65504 (transmittance,

@@ -343,7 +343,8 @@ VkDescriptorType eng_binding_type(int binding)
 {
 	if (binding == 0)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-	if (binding == BINDING_MOMENT_TEX || binding == BINDING_COLUMNS_TEX || binding == BINDING_AERIAL_TEX)
+	if (binding == BINDING_MOMENT_TEX || binding == BINDING_COLUMNS_TEX || binding == BINDING_AERIAL_TEX ||
+	    binding == BINDING_CLOUD_TEX || binding == BINDING_SHADOW_TEX)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
 	if (binding == BINDING_TRANSMITTANCE_IMG || binding == BINDING_MULTISCATTER_IMG)
 		return VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
@@ -429,8 +430,8 @@ static int create_descriptors(struct eng *e, char *err, size_t err_size)
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
 	VkDescriptorPoolSize ps[4] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
-		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 5 },
-		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 3 },
+		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 8 },
+		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 5 },
 		{ VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, N_LOOKUPS } };
 	VkDescriptorPoolCreateInfo dpi = { .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
 		.maxSets = 1, .poolSizeCount = 4, .pPoolSizes = ps };

@@ -18,6 +18,7 @@
 
 #include "shaders.h"
 #include "sky_params.h"
+#include "skycloud.h"
 
 #define MAX_PIPELINES 32	/* cached variants per shader */
 #define N_SPEC SPEC_COUNT
@@ -50,6 +51,8 @@ enum pass {
 	PASS_MULTISCATTER,
 	PASS_MSITERATE,		/* the iteration of psi_ms, thick atmospheres */
 	PASS_LOOKUP_IMAGES,	/* transmittance and multi-scattering into images */
+	PASS_CLOUD,		/* the cloud coverage table */
+	PASS_SHADOW,		/* the lights' shadow maps of the layers */
 	PASS_SKYVIEW,
 	PASS_AERIAL,		/* every march job: volumes and panoramas */
 	PASS_RESAMPLE,		/* the views' volumes from the panoramas */
@@ -83,6 +86,13 @@ struct ground_cache {
 	double g;
 	double fit[PHASE_GROUND_FIT];	/* phase_ground_fit of phase_ground_excess */
 	double legendre[2];	/* phase_legendre, l = 1 and 2: a quadrature too */
+};
+
+/* The block at BINDING_CLOUDS (clouds.glsl's CloudBlock, std430). */
+struct gpu_clouds {
+	struct skycloud_layer layer[SKYCLOUD_MAX_LAYERS];
+	float field[4];				/* FIELD_* lanes */
+	struct gpu_shadow_frame frame[2];	/* sun, moon */
 };
 
 /* Specialization constants, by constant_id (SPEC_* in sky_params.h). */
@@ -134,6 +144,8 @@ struct plan {
 	uint32_t iterations;
 	uint32_t aerial_march, aerial_resample;
 	int last_table;
+	int n_clouds;			/* layers drawn: SPEC_CLOUD_LAYERS */
+	struct gpu_clouds clouds;	/* the block, as eng_fill_clouds made it */
 };
 
 struct eng {
@@ -240,6 +252,15 @@ struct eng {
 	 * step, then L2 as float32 RGBA per texel. */
 	struct gpu_buffer ms_iterate;
 
+	/* The cloud passes (eng_clouds.c): the block, the coverage table and
+	 * the shadow maps (sun then moon) with their lookups, one texel each
+	 * while no layer is drawn. clouds_valid: the tables hold what
+	 * clouds_key gives. */
+	struct gpu_buffer clouds, cloud, shadow;
+	VkBufferView cloud_view, shadow_view;
+	bool clouds_valid;
+	struct gpu_clouds clouds_key;
+
 	/* Host memory the device writes published tables into
 	 * (eng_host_import, eng_host.c), and where the computation in flight
 	 * writes them (eng_target; has_target false: none). */
@@ -307,6 +328,22 @@ int eng_pass_times(struct eng *e, const struct plan *pl, struct eng_timing *t, c
 		   size_t err_size);
 /* Destroys the cached pipelines. */
 void eng_free_pipelines(struct eng *e);
+
+/* eng_clouds.c: the cloud passes' inputs and buffers. */
+/* The block for s lit by lights; returns the layers drawn (0: a clear
+ * sky, ret zeroed). */
+int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights,
+		    struct gpu_clouds *ret);
+/* mask with the cloud tables a computation of it needs for c (n layers):
+ * none for a clear sky; both where sky-view or aerial perspective would
+ * read maps made for another block. */
+uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct gpu_clouds *c, int n,
+			uint32_t mask);
+/* (Re)allocates the cloud buffers for s (one texel each without a drawn
+ * layer); *rebind when one changed. */
+int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
+		      size_t err_size);
+void eng_free_clouds(struct eng *e);
 
 /* eng_host.c: imported host memory. */
 /* Records the copies of the published tables (after the passes) into

@@ -35,6 +35,8 @@ enum {
 	RES_ITERATE = 1 << 6,		/* the iteration's scratch */
 	RES_PACK = 1 << 7,		/* struct gpu_pack: the ranges and scales */
 	RES_IMAGES = 1 << 8,		/* the lookups as sampled images */
+	RES_CLOUD = 1 << 9,		/* the cloud coverage table */
+	RES_SHADOW = 1 << 10,		/* the shadow maps */
 };
 #define RES_TABLES (RES_TRANSMITTANCE | RES_MULTISCATTER | RES_SKYVIEW | RES_AERIAL)
 /* What the passes that look the lower tables up read. */
@@ -166,7 +168,7 @@ static void plan_pack(struct eng *e, const struct sky_state *s, const struct spe
 	uint64_t most = 0;
 	(void)base;
 	memset(&r->key, 0, sizeof(r->key));
-	r->key.v[SPEC_PACK_MASK] = (int32_t)(pl->mask & ~STATE_BIT(STATE_TRANSMITTANCE));
+	r->key.v[SPEC_PACK_MASK] = (int32_t)(pl->mask & STATE_ALL_TABLES & ~STATE_BIT(STATE_TRANSMITTANCE));
 	r->on = s->quality.storage == STATE_F16 && r->key.v[SPEC_PACK_MASK];
 	for (int t = 0; t < STATE_N_TABLES; t++)
 		if (r->key.v[SPEC_PACK_MASK] & STATE_BIT(t) && eng_table_texels(e, s, t) > most)
@@ -269,6 +271,48 @@ static void record_iteration(struct eng *e, const struct sky_state *s, const str
 	}
 }
 
+/* March steps of a shadow map's ray through the layers' band: a low
+ * light's chord through a thin layer is long, and each step reads the
+ * coverage table, not the noise (shadow.comp). */
+#define SHADOW_STEPS 48
+
+/* The cloud passes' constants: the layers and the tables' sizes, nothing
+ * of the atmosphere (shadow.comp reads the planet's radius from the
+ * uniform block), so that a change of the sky alone reuses them. */
+static struct spec cloud_spec(const struct sky_state *s, const struct plan *pl)
+{
+	struct spec k;
+	memset(&k, 0, sizeof(k));
+	k.v[SPEC_CLOUD_LAYERS] = pl->n_clouds;
+	k.v[SPEC_CLOUD_W] = (int32_t)s->quality.cloud_width;
+	k.v[SPEC_SHADOW_W] = (int32_t)s->quality.shadow_width;
+	k.v[SPEC_STEPS] = SHADOW_STEPS;
+	return k;
+}
+
+static void plan_cloud(struct eng *e, const struct sky_state *s, const struct spec *base,
+		       struct plan *pl, struct pass_run *r)
+{
+	(void)e;
+	(void)base;
+	r->on = pl->n_clouds > 0 && (pl->mask & STATE_BIT(STATE_CLOUD_COVERAGE));
+	r->key = cloud_spec(s, pl);
+	r->groups[0] = r->groups[1] = div_up(s->quality.cloud_width, 8);
+	r->groups[2] = 1;
+}
+
+/* A map per light that lights: the moon's where it does. */
+static void plan_shadow(struct eng *e, const struct sky_state *s, const struct spec *base,
+			struct plan *pl, struct pass_run *r)
+{
+	(void)e;
+	(void)base;
+	r->on = pl->n_clouds > 0 && (pl->mask & STATE_BIT(STATE_CLOUD_SHADOW));
+	r->key = cloud_spec(s, pl);
+	r->groups[0] = r->groups[1] = div_up(s->quality.shadow_width, 8);
+	r->groups[2] = s->moon.illuminance_lx > 0.0 ? 2 : 1;
+}
+
 /* The passes in recording order (enum pass). */
 static const struct pass_row pass_rows[N_PASSES] = {
 	[PASS_COLUMNS] = { "columns", SHADER_COLUMNS, STATE_TRANSMITTANCE, 0, RES_COLUMNS,
@@ -285,10 +329,14 @@ static const struct pass_row pass_rows[N_PASSES] = {
 	/* Counted with the last table, as the pack pass. */
 	[PASS_LOOKUP_IMAGES] = { "lookup_images", -1, -1, RES_TRANSMITTANCE | RES_MULTISCATTER,
 				 RES_IMAGES, plan_lookup_images, record_lookup_images },
-	[PASS_SKYVIEW] = { "skyview", SHADER_SKYVIEW, STATE_SKYVIEW, RES_LOOKUPS,
+	/* Counted with sky-view, whose change made them. */
+	[PASS_CLOUD] = { "cloud", SHADER_CLOUD, STATE_SKYVIEW, 0, RES_CLOUD, plan_cloud, NULL },
+	[PASS_SHADOW] = { "shadow", SHADER_SHADOW, STATE_SKYVIEW, RES_CLOUD, RES_SHADOW, plan_shadow,
+			  NULL },
+	[PASS_SKYVIEW] = { "skyview", SHADER_SKYVIEW, STATE_SKYVIEW, RES_LOOKUPS | RES_SHADOW,
 			   RES_SKYVIEW | RES_PACK, plan_skyview, NULL },
-	[PASS_AERIAL] = { "aerial", SHADER_AERIAL, STATE_AERIAL, RES_LOOKUPS, RES_AERIAL | RES_PACK,
-			  plan_aerial, NULL },
+	[PASS_AERIAL] = { "aerial", SHADER_AERIAL, STATE_AERIAL, RES_LOOKUPS | RES_SHADOW,
+			  RES_AERIAL | RES_PACK, plan_aerial, NULL },
 	[PASS_RESAMPLE] = { "aerial_resample", SHADER_AERIAL_RESAMPLE, STATE_AERIAL, RES_AERIAL,
 			    RES_AERIAL | RES_PACK, plan_resample, NULL },
 	[PASS_PACK] = { "pack", SHADER_PACK, -1, RES_TABLES | RES_PACK, RES_TABLES | RES_PACK,
@@ -369,6 +417,12 @@ int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_l
 		if (mask & STATE_BIT(t))
 			pl->last_table = t;
 	eng_fill_params(e, s, lights, params, &base);
+	pl->n_clouds = eng_fill_clouds(s, lights, &pl->clouds);
+	pl->mask = mask = eng_cloud_mask(e, s, &pl->clouds, pl->n_clouds, mask);
+	base.v[SPEC_CLOUD_LAYERS] = pl->n_clouds;
+	base.v[SPEC_SHADOW_W] = pl->n_clouds ? (int32_t)s->quality.shadow_width : 0;
+	base.v[SPEC_CLOUD_W] = pl->n_clouds ? (int32_t)s->quality.cloud_width : 0;
+	memcpy(e->clouds.map, &pl->clouds, sizeof(pl->clouds));
 	/* The column pass's key compares the uniform block as uploaded. */
 	memcpy(e->params.map, params, sizeof(*params));
 	eng_fill_views(s, &e->aplan, e->panorama_offset / 16, e->views.map, &pl->aerial_march,

@@ -76,6 +76,7 @@ int eng_submit_to(struct eng *e, const struct sky_state *s, const struct state_l
 	rc = eng_make_plan(e, s, lights, mask, &params, pl, err, err_size);
 	if (rc < 0)
 		return rc;
+	mask = pl->mask;	/* with the cloud tables its reads need */
 	if (s->quality.storage == STATE_F16) {
 		struct gpu_pack pack;
 		memset(&pack, 0, sizeof(pack));
@@ -96,6 +97,11 @@ int eng_submit_to(struct eng *e, const struct sky_state *s, const struct state_l
 		/* Invalidated again if the computation fails (eng_complete). */
 		e->column_key = pl->key;
 		e->columns_valid = true;
+	}
+	if (pl->run[PASS_SHADOW].on) {
+		/* Invalidated again if the computation fails (eng_complete). */
+		e->clouds_key = pl->clouds;
+		e->clouds_valid = true;
 	}
 	if (pl->run[PASS_LOOKUP_IMAGES].on)
 		e->images_valid = true;
@@ -157,7 +163,7 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 	e->has_target = false;
 	pthread_mutex_unlock(&e->lock);
 	if (wr != VK_SUCCESS)
-		e->columns_valid = e->images_valid = false;
+		e->columns_valid = e->images_valid = e->clouds_valid = false;
 	VK_TRY(wr);
 	rc = invalidate(e, mask, err, err_size);
 	if (rc < 0)

@@ -31,6 +31,10 @@ static void bind_buffers(struct eng *e)
 			w[i].pTexelBufferView = &e->aerial_view;
 			continue;
 		}
+		if (i == BINDING_CLOUD_TEX || i == BINDING_SHADOW_TEX) {
+			w[i].pTexelBufferView = i == BINDING_CLOUD_TEX ? &e->cloud_view : &e->shadow_view;
+			continue;
+		}
 		if (i == BINDING_TRANSMITTANCE_IMG || i == BINDING_MULTISCATTER_IMG) {
 			const struct lookup_image *li = &e->lookup_image[i - BINDING_TRANSMITTANCE_IMG];
 			ii[i - BINDING_TRANSMITTANCE_IMG] = (VkDescriptorImageInfo){ e->sampler, li->view,
@@ -48,6 +52,12 @@ static void bind_buffers(struct eng *e)
 			bi[i] = (VkDescriptorBufferInfo){ e->ms_iterate.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_MOMENT)
 			bi[i] = (VkDescriptorBufferInfo){ e->moment.buf, 0, VK_WHOLE_SIZE };
+		else if (i == BINDING_CLOUDS)
+			bi[i] = (VkDescriptorBufferInfo){ e->clouds.buf, 0, VK_WHOLE_SIZE };
+		else if (i == BINDING_CLOUD)
+			bi[i] = (VkDescriptorBufferInfo){ e->cloud.buf, 0, VK_WHOLE_SIZE };
+		else if (i == BINDING_SHADOW)
+			bi[i] = (VkDescriptorBufferInfo){ e->shadow.buf, 0, VK_WHOLE_SIZE };
 		else if (i > 0)
 			bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
 		w[i].pBufferInfo = &bi[i];
@@ -292,6 +302,8 @@ int eng_ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret_lo
 	rc = ensure_internal(e, s, &rebind, err, err_size);
 	if (rc == 0)
 		rc = ensure_images(e, s, &rebind, err, err_size);
+	if (rc == 0)
+		rc = eng_ensure_clouds(e, s, &rebind, err, err_size);
 	if (rc < 0)
 		return rc;
 	if (rebind)
@@ -348,4 +360,5 @@ void eng_free_tables(struct eng *e)
 	eng_vec4_buffer_free(e, &e->moment, &e->moment_view);
 	for (int t = 0; t < N_LOOKUPS; t++)
 		image_free(e, &e->lookup_image[t]);
+	eng_free_clouds(e);
 }

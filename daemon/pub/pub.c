@@ -7,6 +7,7 @@
 #include <limits.h>
 #include <linux/futex.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -18,6 +19,7 @@
 
 #include "aplan.h"
 #include "eng.h"
+#include "skycloud.h"
 #include "skymap.h"
 
 #define ALIGN_UP(x, a) (((x) + (a) - 1) / (a) * (a))
@@ -39,7 +41,16 @@ struct pub {
 	enum state_storage storage;
 	uint32_t max_views;
 	int seals;
+	/* The cloud tables' sizes, 0 when the layout has none (no layer
+	 * drawn), and where the next publication copies them from. */
+	uint32_t cloud_width, shadow_width;
+	const void *cloud_src[2];
 };
+
+_Static_assert(offsetof(struct sky_shm_cloud_layer, phase_g) == sizeof(struct skycloud_layer),
+	       "a published layer starts with struct skycloud_layer");
+_Static_assert((int)SKY_TABLE_CLOUD == (int)STATE_CLOUD_COVERAGE && (int)SKY_TABLE_SHADOW == (int)STATE_CLOUD_SHADOW,
+	       "the cloud tables' ids are their dirty bits");
 
 _Static_assert(STATE_MAX_VIEWS == SKY_SHM_MAX_VIEWS, "one bound on views");
 _Static_assert(STATE_VIEW_NAME_MAX == SKY_SHM_VIEW_NAME_MAX, "one bound on view names");
@@ -49,6 +60,32 @@ _Static_assert(STATE_VIEW_NAME_MAX == SKY_SHM_VIEW_NAME_MAX, "one bound on view 
 static uint32_t views_capacity(const struct sky_state *s)
 {
 	return s->n_views ? SKY_SHM_MAX_VIEWS : 0;
+}
+
+/* The cloud tables are in a layout only while a layer is drawn: a clear
+ * sky's region is what it was before clouds. */
+static uint32_t cloud_width(const struct sky_state *s)
+{
+	return state_clouds_drawn(s) ? s->quality.cloud_width : 0;
+}
+
+static uint32_t shadow_width(const struct sky_state *s)
+{
+	return state_clouds_drawn(s) ? s->quality.shadow_width : 0;
+}
+
+/* A cloud table's directory entry: float32 RGBA, never scaled. */
+static uint64_t cloud_entry(struct sky_shm_table *d, uint32_t id, uint32_t width, uint32_t depth,
+			    uint64_t offset)
+{
+	d->id = id;
+	d->format = SKY_FORMAT_RGBA32F;
+	d->width = d->height = width;
+	d->depth = depth;
+	d->texel_bytes = 16;
+	d->offset = offset;
+	d->bytes = (uint64_t)width * width * depth * 16;
+	return ALIGN_UP(offset + d->bytes, 64);
 }
 
 static uint8_t *slot_base(const struct pub *p, uint32_t i)
@@ -64,7 +101,8 @@ int pub_same_layout(const struct pub *p, const struct sky_state *s)
 		if (a->width != b->width || a->height != b->height || da != db)
 			return 0;
 	}
-	return p->storage == s->quality.storage && p->max_views >= s->n_views;
+	return p->storage == s->quality.storage && p->max_views >= s->n_views &&
+	       p->cloud_width == cloud_width(s) && p->shadow_width == shadow_width(s);
 }
 
 /* The geometry of a region for the tables of s with room for max_views
@@ -91,6 +129,11 @@ static void fill_header(struct sky_shm_header *h, const struct sky_state *s, uin
 		d->offset = off;
 		d->bytes = state_table_bytes(s, (enum state_table)t);
 		off = ALIGN_UP(off + d->bytes, 64);
+	}
+	if (cloud_width(s)) {
+		h->n_tables = STATE_N_ALL_TABLES;
+		off = cloud_entry(&h->tables[SKY_TABLE_CLOUD], SKY_TABLE_CLOUD, cloud_width(s), 1, off);
+		off = cloud_entry(&h->tables[SKY_TABLE_SHADOW], SKY_TABLE_SHADOW, shadow_width(s), 2, off);
 	}
 	h->max_views = max_views;
 	h->view_offset = off;
@@ -158,6 +201,8 @@ static int create(const struct sky_state *s, uint64_t generation, int seals, str
 		p->shape[t] = s->quality.t[t];
 	p->storage = s->quality.storage;
 	p->max_views = h.max_views;
+	p->cloud_width = cloud_width(s);
+	p->shadow_width = shadow_width(s);
 	/* Even an empty slot checks out: seq even means checksum valid. */
 	for (uint32_t i = 0; i < PUB_SLOTS; i++) {
 		struct sky_shm_slot *slot = (struct sky_shm_slot *)slot_base(p, i);
@@ -278,6 +323,7 @@ uint64_t pub_checksum(const struct sky_shm_header *h, const struct sky_shm_slot 
 {
 	uint64_t c = sky_shm_checksum_words(SKY_SHM_CHECKSUM_SEED, &slot->state,
 					    sizeof(slot->state) / 8);
+	c = sky_shm_checksum_words(c, &slot->clouds, sizeof(slot->clouds) / 8);
 
 	for (uint32_t t = 0; t < h->n_tables && t < SKY_SHM_MAX_TABLES; t++)
 		if (slot->valid_tables & (1u << t))
@@ -361,6 +407,70 @@ static void publish_views(const struct sky_shm_header *h, struct sky_shm_slot *s
 	}
 }
 
+void pub_set_cloud_tables(struct pub *p, const void *coverage, const void *shadow)
+{
+	p->cloud_src[0] = coverage;
+	p->cloud_src[1] = shadow;
+}
+
+/* The slot's cloud block of s (struct sky_shm_clouds): the drawn layers,
+ * the field's place, the shadow maps' frames and the cloud's
+ * transmittance toward each light from the observer. */
+static void cloud_block(const struct sky_state *s, const struct state_lights *lights,
+			struct sky_shm_clouds *ret)
+{
+	struct skycloud_layer layers[SKYCLOUD_MAX_LAYERS];
+	int n = state_cloud_layers(s, layers);
+	float offset[2] = { (float)s->clouds.offset_km[0], (float)s->clouds.offset_km[1] };
+	float o[3] = { 0.0f, 0.0f, (float)s->altitude_km }, rb = (float)s->atmo.bottom_radius_km;
+
+	memset(ret, 0, sizeof(*ret));
+	ret->sun_transmittance = ret->moon_transmittance = 1.0;
+	if (n == 0)
+		return;
+	ret->n_layers = (uint32_t)n;
+	ret->extent_km = state_cloud_extent_km(s);
+	ret->offset_km[0] = s->clouds.offset_km[0];
+	ret->offset_km[1] = s->clouds.offset_km[1];
+	ret->period_km = SKYCLOUD_PERIOD_KM;
+	ret->placed_utc_s = s->clouds.utc_s;
+	for (int i = 0; i < n; i++) {
+		memcpy(&ret->layers[i], &layers[i], sizeof(layers[i]));
+		ret->layers[i].phase_g = skycloud_types[layers[i].type].phase_g;
+		ret->layers[i].albedo = skycloud_types[layers[i].type].albedo;
+	}
+	for (int k = 0; k < 2; k++) {
+		const double *l = k == 0 ? lights->sun : lights->moon;
+		float d[3] = { (float)l[0], (float)l[1], (float)l[2] };
+		double tau = skycloud_optical_depth(layers, n, offset, rb, o, d, 2.0e3f, 256);
+		*(k == 0 ? &ret->sun_transmittance : &ret->moon_transmittance) = exp(-tau);
+	}
+	eng_cloud_frames(s, lights, ret->shadow_frame);
+}
+
+/* The slot's cloud block and, where valid and the engine gave them
+ * (pub_set_cloud_tables), the cloud tables, copied: the device writes
+ * only the four tables into the slot itself. */
+static void publish_clouds(struct pub *p, struct sky_shm_slot *slot, uint8_t *base,
+			   const struct sky_state *s, const struct state_lights *lights,
+			   uint32_t valid)
+{
+	const struct sky_shm_header *h = p->header;
+
+	cloud_block(s, lights, &slot->clouds);
+	if (h->n_tables < STATE_N_ALL_TABLES)
+		return;
+	for (int k = 0; k < 2; k++) {
+		int t = STATE_CLOUD_COVERAGE + k;
+		if (!(valid & STATE_BIT(t)) || !p->cloud_src[k])
+			continue;
+		memcpy(base + h->tables[t].offset, p->cloud_src[k], h->tables[t].bytes);
+		slot->valid_tables |= STATE_BIT(t);
+	}
+	if (slot->valid_tables & STATE_BIT(STATE_CLOUD_SHADOW))
+		slot->clouds.shadow_lights = 1u | (s->moon.illuminance_lx > 0.0 ? 2u : 0u);
+}
+
 /* Writes one slot under its seqlock: s and the valid tables, as generation,
  * to become current at apply_time_ns (0: now); tables NULL: the device
  * wrote them there (pub_claim). Touches no header word. */
@@ -397,6 +507,7 @@ static void write_slot(struct pub *p, uint32_t i, const struct sky_state *s,
 			slot->valid_tables |= STATE_BIT(t);
 			slot->state.rgb_scale_log2[t] = rgb_scale_log2 ? rgb_scale_log2[t] : 0;
 		}
+	publish_clouds(p, slot, base, s, lights, valid);
 	publish_views(h, slot, base, s, lights, valid, in_place ? NULL : tables[STATE_AERIAL], panoramas,
 		      in_place);
 	slot->checksum = pub_checksum(h, slot, base);
@@ -643,6 +754,8 @@ int pub_adopt(int fd, const struct sky_state *s, struct pub **ret, uint64_t *ret
 		p->shape[t] = s->quality.t[t];
 	p->storage = s->quality.storage;
 	p->max_views = h.max_views;
+	p->cloud_width = cloud_width(s);
+	p->shadow_width = shadow_width(s);
 	open_readonly(p);
 	*ret_generation = take_over(p);
 	*ret = p;

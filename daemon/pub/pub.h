@@ -102,6 +102,12 @@ void pub_publish_ahead(struct pub *p, const struct sky_state *s,
 		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		       int64_t apply_time_ns);
 
+/* The cloud tables (eng_cloud_table: the coverage table and the shadow
+ * maps, each the layout's size) that the next publications copy into
+ * their slots where the state draws a layer and valid names them; NULL:
+ * none. The pointers must stay valid until the next call. */
+void pub_set_cloud_tables(struct pub *p, const void *coverage, const void *shadow);
+
 /* Marks the region superseded (a new layout replaces it) and wakes waiters. */
 void pub_supersede(struct pub *p);
 

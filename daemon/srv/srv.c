@@ -141,6 +141,10 @@ static uint32_t demand_closure(const struct sky_state *st, uint32_t demand)
 
 	if (st->quality.multiscatter_dirs == 0 && !(demand & STATE_BIT(STATE_MULTISCATTER)))
 		c &= ~STATE_BIT(STATE_MULTISCATTER);
+	/* Drawn layers shadow sky-view and aerial perspective: their maps,
+	 * made from the coverage table, come along. */
+	if (state_clouds_drawn(st) && (c & (STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL))))
+		c |= STATE_CLOUD_TABLES;
 	return c;
 }
 
@@ -304,6 +308,8 @@ static void publish(struct srv *s, uint32_t computed, int64_t apply_ns)
 		new_region = 1;
 	}
 	engine_tables(s, tables, scales);
+	pub_set_cloud_tables(s->pub, eng_cloud_table(s->eng, STATE_CLOUD_COVERAGE, NULL),
+			     eng_cloud_table(s->eng, STATE_CLOUD_SHADOW, NULL));
 	if (s->in_flight_direct)
 		pub_publish_claimed(s->pub, &s->computing.sky, &s->computing.lights, s->eng_valid, scales,
 				    generation, apply_ns);
@@ -333,6 +339,8 @@ static void publish_ahead(struct srv *s)
 	if (!pub_same_layout(s->pub, &s->computing.sky))
 		return;
 	engine_tables(s, tables, scales);
+	pub_set_cloud_tables(s->pub, eng_cloud_table(s->eng, STATE_CLOUD_COVERAGE, NULL),
+			     eng_cloud_table(s->eng, STATE_CLOUD_SHADOW, NULL));
 	pub_publish_ahead(s->pub, &s->computing.sky, &s->computing.lights, s->eng_valid, tables,
 			  eng_panoramas(s->eng, NULL), scales, s->in_flight_generation,
 			  s->in_flight_apply_ns);
@@ -480,7 +488,8 @@ static void eng_ready(void *ctx, uint32_t events)
 		s->eng_valid &= ~s->in_flight_mask;
 		fail(s, s->in_flight_generation, err[0] ? err : strerror(-r));
 	} else {
-		s->eng_valid |= s->in_flight_mask;
+		/* The engine adds the cloud tables its reads need. */
+		s->eng_valid |= s->in_flight_mask | timing.computed;
 		s->st.last_computed = timing.computed ? timing.computed : s->in_flight_mask;
 		s->st.last_total_ms = timing.total_ms;
 		s->st.column_passes += (uint64_t)timing.columns;
@@ -572,7 +581,7 @@ static int change(struct srv *s, const struct served *c, uint32_t dirty,
 		 * it holds is recomputed before it is published again; the last
 		 * good tables stay published meanwhile. */
 		s->cur = *prev;
-		s->dirty = prev_dirty | STATE_ALL_TABLES;
+		s->dirty = prev_dirty | STATE_ALL_TABLES | STATE_CLOUD_TABLES;
 		s->eng_valid = 0;
 		s->pending = prev_pending;
 		free(prev);
@@ -682,13 +691,13 @@ static void demand_changed(struct srv *s)
 
 void srv_set_demand(struct srv *s, uint32_t tables)
 {
-	s->demand = tables & STATE_ALL_TABLES;
+	s->demand = tables & (STATE_ALL_TABLES | STATE_CLOUD_TABLES);
 	demand_changed(s);
 }
 
 void srv_set_own_demand(struct srv *s, uint32_t tables)
 {
-	s->own_demand = tables & STATE_ALL_TABLES;
+	s->own_demand = tables & (STATE_ALL_TABLES | STATE_CLOUD_TABLES);
 	demand_changed(s);
 }
 
@@ -777,7 +786,7 @@ int srv_new_from(struct loop *l, struct eng *e, const struct sky_state *initial,
 	r = loop_timer_add(l, hold_expired, s, &s->hold_timer);
 	if (r < 0)
 		goto fail;
-	s->dirty = STATE_ALL_TABLES;
+	s->dirty = STATE_ALL_TABLES | STATE_CLOUD_TABLES;
 	s->pending = 1;
 	kick(s);
 	*ret = s;

@@ -250,6 +250,9 @@ uint32_t state_diff(const struct sky_state *a, const struct sky_state *b)
 	return dirty;
 }
 
+/* The cloud tables' names (enum state_cloud_table), as the protocol's. */
+static const char *const cloud_table_names[] = { "cloud", "shadow" };
+
 int state_parse_tables(const char *list, uint32_t *ret_mask)
 {
 	uint32_t mask = 0;
@@ -265,6 +268,12 @@ int state_parse_tables(const char *list, uint32_t *ret_mask)
 		for (int t = 0; t < STATE_N_TABLES && !found; t++)
 			if (strlen(state_table_names[t]) == n &&
 			    strncmp(p, state_table_names[t], n) == 0) {
+				mask |= STATE_BIT(t);
+				found = 1;
+			}
+		for (int t = STATE_N_TABLES; t < STATE_N_ALL_TABLES && !found; t++)
+			if (strlen(cloud_table_names[t - STATE_N_TABLES]) == n &&
+			    strncmp(p, cloud_table_names[t - STATE_N_TABLES], n) == 0) {
 				mask |= STATE_BIT(t);
 				found = 1;
 			}
@@ -295,7 +304,6 @@ void state_format_tables(uint32_t mask, char *buf, size_t size)
 
 void state_format_all_tables(uint32_t mask, char *buf, size_t size)
 {
-	static const char *const cloud_names[] = { "cloud", "shadow" };
 	size_t o;
 
 	state_format_tables(mask & STATE_ALL_TABLES, buf, size);
@@ -305,7 +313,7 @@ void state_format_all_tables(uint32_t mask, char *buf, size_t size)
 	for (int t = STATE_N_TABLES; t < STATE_N_ALL_TABLES; t++)
 		if (mask & STATE_BIT(t))
 			o += (size_t)snprintf(buf + o, o < size ? size - o : 0, "%s%s", o ? "," : "",
-					      cloud_names[t - STATE_N_TABLES]);
+					      cloud_table_names[t - STATE_N_TABLES]);
 }
 
 uint32_t state_closure(uint32_t mask)

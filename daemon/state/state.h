@@ -321,7 +321,8 @@ size_t state_table_bytes(const struct sky_state *s, enum state_table t);
 uint32_t state_multiscatter_iterations(const struct sky_state *s);
 
 extern const char *const state_table_names[STATE_N_TABLES];
-/* Table mask from a comma list ("skyview,aerial", "all"); -EINVAL if unknown. */
+/* Table mask from a comma list ("skyview,aerial", "all": the four;
+ * "cloud" and "shadow" name the cloud tables); -EINVAL if unknown. */
 int state_parse_tables(const char *list, uint32_t *ret_mask);
 /* The inverse: "transmittance,skyview", or "none" for 0; the tables of
  * enum state_table only. */

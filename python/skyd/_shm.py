@@ -1,7 +1,7 @@
 """The shared memory: the sealed memfd mapped read-only, its header checked,
 seqlock snapshots of the newest slot, and the futex wait on its generation.
 
-The layout is proto/skyproto.h's (layout 6, uv mapping 4): the offsets below
+The layout is proto/skyproto.h's (layout 7, uv mapping 4): the offsets below
 are those of its structs on every Linux ABI skyd runs on (natural alignment,
 no packing); the tests compare them with the C compiler's offsetof.
 """
@@ -21,13 +21,16 @@ import numpy as np
 from ._wire import ProtocolError
 
 MAGIC = 0x31594B53            # "SKY1" little-endian
-LAYOUT_VERSION = 6
+LAYOUT_VERSION = 7
 UV_MAPPING_VERSION = 4        # SKYMAP_VERSION
-MAX_TABLES = 4
+MAX_TABLES = 6
 MIN_SLOTS = 3
 MAX_VIEWS = 8
 VIEW_NAME_MAX = 32
-TABLE_NAMES = ("transmittance", "multiscatter", "skyview", "aerial")
+TABLE_NAMES = ("transmittance", "multiscatter", "skyview", "aerial", "cloud", "shadow")
+# What "all" names: the sky's four tables; the cloud tables (layout 7)
+# exist only while a cloud layer is drawn and are asked for by name.
+SKY_TABLE_NAMES = TABLE_NAMES[:4]
 FORMAT_RGBA32F = 1
 FORMAT_RGBA16F = 2
 VIEW_VOLUME = 0
@@ -41,7 +44,7 @@ HDR_GENERATION = 40
 HDR_CURRENT_SLOT = 44
 HDR_SUPERSEDED = 48
 HDR_TABLES = 56
-HDR_BYTES = 240
+HDR_BYTES = 320
 # struct sky_shm_slot.
 SLOT_SEQ = 0
 SLOT_VALID_TABLES = 4
@@ -52,7 +55,9 @@ SLOT_STATE = 32
 SLOT_N_VIEWS = 448
 SLOT_VALID_VIEWS = 452
 SLOT_VIEWS = 456
-SLOT_BYTES = 2120
+SLOT_CLOUDS = 2120
+SLOT_BYTES = 2632
+CLOUDS_BYTES = 512
 STATE_BYTES = 416
 VIEW_BYTES = 208
 
@@ -73,7 +78,7 @@ STATE_DTYPE = _dtype([
     ("camera_forward", V3, 184), ("camera_right", V3, 208), ("camera_up", V3, 232),
     ("camera_vfov_rad", "=f8", 256), ("camera_aspect", "=f8", 264),
     ("aerial_range_km", "=f8", 272), ("aerial_squared", "=u4", 280),
-    ("rgb_scale_log2", ("=i4", (MAX_TABLES,)), 288), ("exposure_ev100", "=f8", 304)],
+    ("rgb_scale_log2", ("=i4", (MAX_TABLES,)), 288), ("exposure_ev100", "=f8", 312)],
     STATE_BYTES)
 PANORAMA_DTYPE = _dtype([
     ("offset", "=u8", 0), ("bytes", "=u8", 8), ("width", "=u4", 16), ("height", "=u4", 20),
@@ -94,8 +99,8 @@ HEADER_DTYPE = _dtype([
     ("header_bytes", "=u4", 12), ("n_slots", "=u4", 16), ("n_tables", "=u4", 20),
     ("slot_bytes", "=u8", 24), ("total_bytes", "=u8", 32), ("generation", "=u4", 40),
     ("current_slot", "=u4", 44), ("superseded", "=u4", 48),
-    ("tables", (TABLE_DTYPE, (MAX_TABLES,)), 56), ("max_views", "=u4", 216),
-    ("view_offset", "=u8", 224), ("view_stride", "=u8", 232)], HDR_BYTES)
+    ("tables", (TABLE_DTYPE, (MAX_TABLES,)), 56), ("max_views", "=u4", 296),
+    ("view_offset", "=u8", 304), ("view_stride", "=u8", 312)], HDR_BYTES)
 
 
 class LayoutError(ProtocolError):
@@ -127,7 +132,7 @@ class TableInfo:
 
     @property
     def shape(self):
-        if self.id == 3:
+        if self.id == 3 or self.depth > 1:
             return (self.depth, self.height, self.width, 4)
         return (self.height, self.width, 4)
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from . import _sample as smp
-from ._shm import (FORMAT_RGBA16F, MAX_VIEWS, SLOT_APPLY_TIME_NS, SLOT_BYTES, SLOT_CHECKSUM,
+from ._shm import (CLOUDS_BYTES, FORMAT_RGBA16F, MAX_VIEWS, SLOT_CLOUDS, SLOT_APPLY_TIME_NS, SLOT_BYTES, SLOT_CHECKSUM,
                    SLOT_N_VIEWS, SLOT_STATE, SLOT_VALID_TABLES, SLOT_VALID_VIEWS, SLOT_VIEWS,
                    STATE_BYTES, STATE_DTYPE, TABLE_NAMES, VIEW_BYTES, VIEW_DTYPE, VIEW_PANORAMA,
                    VIEW_VOLUME, CHECKSUM_SEED, checksum_words)
@@ -230,6 +230,7 @@ class Snapshot:
         tables and the views, PROTOCOL.md "Checksum") matches the copy. A
         pass over every byte in Python: about 50 ms per MB."""
         h = checksum_words(CHECKSUM_SEED, self.raw, SLOT_STATE, STATE_BYTES)
+        h = checksum_words(h, self.raw, SLOT_CLOUDS, CLOUDS_BYTES)
         for tid, name in enumerate(TABLE_NAMES):
             if self._valid_bits & (1 << tid) and name in self.layout:
                 info = self.layout[name]

@@ -9,7 +9,7 @@ import socket
 import time
 
 from . import _wire as w
-from .client import RECONNECT_INTERVAL_S, TABLE_NAMES, Batch, Client, Sample, _Core, \
+from .client import RECONNECT_INTERVAL_S, SKY_TABLE_NAMES, TABLE_NAMES, Batch, Client, Sample, _Core, \
     table_names
 
 
@@ -343,7 +343,7 @@ class AsyncClient(_Core):
                 return
 
     async def _need_region(self, names):
-        names = table_names(names) if names else TABLE_NAMES
+        names = table_names(names) if names else SKY_TABLE_NAMES
         if self.region is None or not set(names) <= set(self._sub_tables):
             await self.subscribe(*sorted(set(names) | set(self._sub_tables),
                                          key=TABLE_NAMES.index))

@@ -7,7 +7,7 @@ import socket
 import time
 
 from . import _wire as w
-from ._shm import TABLE_NAMES, Region
+from ._shm import SKY_TABLE_NAMES, TABLE_NAMES, Region
 
 TOPICS = ("sun", "moon", "times", "weather", "sensor")
 CHANGES = (b"set", b"batch", b"end", b"view", b"sensor")
@@ -33,7 +33,7 @@ def table_names(names):
     for n in names:
         for part in str(n).split(","):
             if part == "all":
-                out.update(TABLE_NAMES)
+                out.update(SKY_TABLE_NAMES)
             elif part in TABLE_NAMES:
                 out.add(part)
             else:
@@ -551,7 +551,7 @@ class Client(_Core):
     # Shared memory -----------------------------------------------------
 
     def _need_region(self, names):
-        names = table_names(names) if names else TABLE_NAMES
+        names = table_names(names) if names else SKY_TABLE_NAMES
         if self.region is None or not set(names) <= set(self._sub_tables):
             self.subscribe(*sorted(set(names) | set(self._sub_tables),
                                    key=TABLE_NAMES.index))

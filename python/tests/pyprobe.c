@@ -46,6 +46,7 @@ static void print_layout(void)
 	OFF(sky_shm_slot, n_views);
 	OFF(sky_shm_slot, valid_views);
 	OFF(sky_shm_slot, views);
+	OFF(sky_shm_slot, clouds);
 	SIZE(sky_shm_state);
 	OFF(sky_shm_state, ground_albedo);
 	OFF(sky_shm_state, sun_direction);

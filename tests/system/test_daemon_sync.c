@@ -2,10 +2,12 @@
  * through a real mosquitto on a free loopback port (docs/sync.md): they
  * show the same sky, switch together at the apply time as their libsky
  * clients see it, survive the broker's restart, a restarted follower
- * catches up from the retained message, and garbage on the topic changes
- * nothing. Exits 77 without mosquitto or a Vulkan device.
+ * catches up from the retained message, garbage on the topic changes
+ * nothing, and after a METAR and a wind step the three hold the same cloud
+ * and shadow tables bit for bit (keys travel, never textures). Exits 77
+ * without mosquitto or a Vulkan device.
  *
- * Usage: test_daemon_sync switch|restart|garbage */
+ * Usage: test_daemon_sync switch|restart|garbage|clouds */
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
@@ -20,6 +22,7 @@
 
 #include "daemon_harness.h"
 #include "sky.h"
+#include "skysample.h"
 #include "sync_harness.h"
 
 #define N_SKYD SYNC_N_SKYD
@@ -467,6 +470,95 @@ static void scenario_garbage(void)
 	reload_follower();
 }
 
+/* ---- the cloud field: the same tables on every host ---- */
+
+#define CLOUD_BITS (SKY_TABLE_BIT(SKY_TABLE_CLOUD) | SKY_TABLE_BIT(SKY_TABLE_SHADOW))
+
+/* Client i's slot with the cloud tables: its checksum and the cloud
+ * block's offset east; 0 and NAN while they are not there. */
+static uint64_t cloud_slot(int i, double *ret_offset_km)
+{
+	struct sky_view v;
+
+	*ret_offset_km = NAN;
+	for (int k = 0; k < 100; k++) {
+		if (sky_view_begin(client[i], &v) < 0)
+			continue;
+		uint64_t sum = v.slot->checksum;
+		uint32_t valid = v.valid_tables;
+		double off = v.slot->clouds.offset_km[0];
+		if (sky_view_end(client[i], &v)) {
+			if ((valid & CLOUD_BITS) != CLOUD_BITS)
+				return 0;
+			*ret_offset_km = off;
+			return sum;
+		}
+	}
+	return 0;
+}
+
+static uint64_t want_sum;
+static double want_offset;
+
+/* Client i shows the cloud tables, placed away from want_offset (the
+ * controller, the step taken), or with the controller's checksum. */
+static int moved(int i)
+{
+	double off;
+	return cloud_slot(i, &off) && off != want_offset;
+}
+
+static int caught_up(int i)
+{
+	double off;
+	return cloud_slot(i, &off) == want_sum;
+}
+
+/* The cloud and shadow tables of the followers against the controller's,
+ * byte for byte. */
+static void same_cloud_tables(void)
+{
+	struct sky_view v[N_SKYD];
+	int ok[N_SKYD];
+
+	for (int i = 0; i < N_SKYD; i++)
+		ok[i] = sky_view_begin(client[i], &v[i]) == 0;
+	for (int i = 1; i < N_SKYD; i++)
+		for (uint32_t id = SKY_TABLE_CLOUD; id <= SKY_TABLE_SHADOW && ok[0] && ok[i]; id++) {
+			struct skysample_table a = { 0 }, b = { 0 };
+			int found = skysample_table_from_slot(v[0].header, v[0].slot_base, id, &a) == 0 &&
+				    skysample_table_from_slot(v[i].header, v[i].slot_base, id, &b) == 0;
+			CHECK(found);
+			size_t bytes = (size_t)a.width * a.height * a.depth * 16;
+			CHECK(found && a.width == b.width && a.depth == b.depth &&
+			      memcmp(a.texels, b.texels, bytes) == 0);
+		}
+	for (int i = 0; i < N_SKYD; i++)
+		if (ok[i])
+			CHECK(sky_view_end(client[i], &v[i]));
+}
+
+/* A METAR with a broken layer, then a wind step, on the controller. */
+static void scenario_clouds(void)
+{
+	const char *steps[2] = { "set utc=2026-06-21T10:00:00Z time_rate=0 "
+				 "metar=\"EGLL 241250Z 27015KT 9999 BKN030 12/06 Q1018\"",
+				 "set wind_speed_mps=20" };
+	char buf[2048];
+
+	want_offset = NAN;
+	for (int n = 0; n < 2; n++) {
+		CHECK(request(0, steps[n], buf, sizeof(buf)) == 0);
+		CHECK(wait_until(0, moved, 0) == 0);
+		want_sum = cloud_slot(0, &want_offset);
+		for (int i = 1; i < N_SKYD; i++)
+			CHECK(wait_until(i, caught_up, i) == 0);
+		same_cloud_tables();
+		printf("%s: the three hold checksum %016llx, the field at %.6f km east\n", steps[n],
+		       (unsigned long long)want_sum, want_offset);
+	}
+}
+
 int main(int argc, char **argv)
 {
 	const char *scenario = argc > 1 ? argv[1] : "switch";
@@ -485,6 +577,8 @@ int main(int argc, char **argv)
 		scenario_restart();
 	else if (strcmp(scenario, "garbage") == 0)
 		scenario_garbage();
+	else if (strcmp(scenario, "clouds") == 0)
+		scenario_clouds();
 	else
 		fprintf(stderr, "unknown scenario %s\n", scenario), failures++;
 	sync_rig_finish(&rig);

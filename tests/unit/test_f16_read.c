@@ -80,7 +80,7 @@ static void test_published(void)
 	const struct sky_shm_slot *slot = pub_current(p, &base);
 	CHECK(h->layout_version == SKY_SHM_LAYOUT_VERSION && SKY_SHM_LAYOUT_VERSION >= 4); /* rgb_scale_log2 since 4 */
 	CHECK_EQ(skysample_slot_checksum(h, base), slot->checksum);
-	for (uint32_t id = 0; id < SKY_SHM_MAX_TABLES; id++) {
+	for (uint32_t id = 0; id < STATE_N_TABLES; id++) {
 		struct skysample_table t = { 0 };
 		CHECK_EQ(slot->state.rgb_scale_log2[id], scales[id]);
 		CHECK(skysample_table_from_slot(h, base, id, &t) == 0 && t.rgb_scale_log2 == scales[id]);
@@ -103,7 +103,7 @@ static void test_published(void)
 	}
 	struct sky_view v = { .header = h, .slot = slot, .valid_tables = 0xf, .slot_base = base };
 	double f;
-	CHECK(sky_table_scale(&v, 4, &f) == -EINVAL && sky_table_scale(&v, 0, NULL) == -EINVAL);
+	CHECK(sky_table_scale(&v, SKY_SHM_MAX_TABLES, &f) == -EINVAL && sky_table_scale(&v, 0, NULL) == -EINVAL);
 	/* The scale is part of the checksummed state: a reader that copied
 	 * a slot with another scale would see the copy fail. */
 	struct sky_shm_slot *copy = malloc(h->slot_bytes);

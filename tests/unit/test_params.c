@@ -276,6 +276,7 @@ static const struct named_id spec_ids[] = {
 	{ "MOMENT_LOBE", SPEC_MOMENT_LOBE }, { "DELTA_LOBE", SPEC_DELTA_LOBE },
 	{ "PACK_MASK", SPEC_PACK_MASK }, { "MS_LANES", SPEC_MS_LANES },
 	{ "LOOKUP_IMAGES", SPEC_LOOKUP_IMAGES },
+	{ "CLOUD_LAYERS", SPEC_CLOUD_LAYERS }, { "SHADOW_W", SPEC_SHADOW_W }, { "CLOUD_W", SPEC_CLOUD_W },
 	/* layout(local_size_x_id, local_size_y_id): glslang leaves the
 	 * workgroup size's constants without a name. */
 	{ "", SPEC_LOCAL_X }, { "", SPEC_LOCAL_Y },
@@ -297,6 +298,8 @@ static const struct named_id bindings[] = {
 	{ "MomentTex", BINDING_MOMENT_TEX }, { "ColumnTex", BINDING_COLUMNS_TEX },
 	{ "AerialTex", BINDING_AERIAL_TEX }, { "TransmittanceImg", BINDING_TRANSMITTANCE_IMG },
 	{ "MultiscatterImg", BINDING_MULTISCATTER_IMG },
+	{ "CloudBlock", BINDING_CLOUDS }, { "CloudTexels", BINDING_CLOUD }, { "CloudTex", BINDING_CLOUD_TEX },
+	{ "ShadowTexels", BINDING_SHADOW }, { "ShadowTex", BINDING_SHADOW_TEX },
 };
 
 static const struct named_id *find(const struct named_id *list, size_t n, const char *name)
@@ -359,10 +362,12 @@ static void check_module(const struct spv *m, int seen[SPEC_COUNT])
 	if (views != reads_jobs)
 		FAIL("%s: %d job buffers at BINDING_VIEWS", m->shader, views);
 	/* Every pass reads the uniform block (load_params()), but the pack
-	 * pass, which reads only the tables and struct gpu_pack, and the
-	 * views' resampling, which reads only the aerial jobs and texels. */
+	 * pass, which reads only the tables and struct gpu_pack, the views'
+	 * resampling, which reads only the aerial jobs and texels, and the
+	 * coverage table's, which reads only the cloud block. */
 	test_checks++;
-	if (blocks != (strcmp(m->shader, "pack") && strcmp(m->shader, "aerial_resample") ? 1 : 0))
+	if (blocks != (strcmp(m->shader, "pack") && strcmp(m->shader, "aerial_resample") &&
+				       strcmp(m->shader, "cloud") ? 1 : 0))
 		FAIL("%s: %d uniform blocks at BINDING_PARAMS", m->shader, blocks);
 }
 

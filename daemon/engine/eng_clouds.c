@@ -1,0 +1,186 @@
+/* eng_clouds.c - the cloud passes' side of the engine: the block the
+ * shaders read (struct gpu_clouds: the drawn layers, the field's place,
+ * a shadow map's frame per light), the coverage table and the shadow maps
+ * on the device, and whether a computation must redo them. A clear sky
+ * (no layer drawn) keeps one texel of each and runs neither pass. */
+#include "eng_internal.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+_Static_assert(sizeof(struct skycloud_layer) == 72 &&
+	       offsetof(struct gpu_clouds, field) == 288 && offsetof(struct gpu_clouds, frame) == 304,
+	       "struct gpu_clouds is clouds.glsl's CloudBlock in std430");
+
+/* The frame of a light's map: u horizontal and across the light, v = u x l
+ * (up the light's vertical plane), and the ranges that hold the region
+ * (half-width e, altitudes from the curvature's drop at its corners,
+ * -e^2 / R, to top): the map's plane along l passes beyond every point
+ * of it, so that depths from it are positive. */
+static void shadow_frame(const double l[3], double e, double top_km, double rb_km, uint32_t width,
+			 struct gpu_shadow_frame *ret)
+{
+	double u[3] = { l[1], -l[0], 0.0 }, v[3];
+	double n = hypot(u[0], u[1]), z_lo = -e * e / rb_km, z_hi = top_km;
+
+	if (n < 1e-6) {
+		u[0] = 1.0;
+		u[1] = 0.0;
+	} else {
+		u[0] /= n;
+		u[1] /= n;
+	}
+	v[0] = u[1] * l[2] - u[2] * l[1];
+	v[1] = u[2] * l[0] - u[0] * l[2];
+	v[2] = u[0] * l[1] - u[1] * l[0];
+	double u_half = (fabs(u[0]) + fabs(u[1])) * e;
+	double v_half = (fabs(v[0]) + fabs(v[1])) * e;
+	double v_lo = -v_half + fmin(v[2] * z_lo, v[2] * z_hi), v_hi = v_half + fmax(v[2] * z_lo, v[2] * z_hi);
+	double plane = (fabs(l[0]) + fabs(l[1])) * e + fmax(l[2] * z_lo, l[2] * z_hi) + 1.0;
+	memset(ret, 0, sizeof(*ret));
+	for (int i = 0; i < 3; i++) {
+		ret->u[i] = (float)u[i];
+		ret->v[i] = (float)v[i];
+		ret->l[i] = (float)l[i];
+	}
+	ret->U_MIN_KM = (float)-u_half;
+	ret->V_MIN_KM = (float)v_lo;
+	ret->PLANE_KM = (float)plane;
+	ret->U_TEXELS_PER_KM = (float)(width / (2.0 * u_half));
+	ret->V_TEXELS_PER_KM = (float)(width / fmax(v_hi - v_lo, 1e-3));
+}
+
+int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights,
+		    struct gpu_clouds *ret)
+{
+	double e = state_cloud_extent_km(s), top = 0.0;
+
+	memset(ret, 0, sizeof(*ret));
+	int n = state_cloud_layers(s, ret->layer);
+	if (n == 0)
+		return 0;
+	for (int i = 0; i < n; i++)
+		top = fmax(top, ret->layer[i].top_km);
+	ret->FIELD_OFFSET_EAST_KM = (float)s->clouds.offset_km[0];
+	ret->FIELD_OFFSET_NORTH_KM = (float)s->clouds.offset_km[1];
+	ret->FIELD_EXTENT_KM = (float)e;
+	ret->FIELD_TEXELS_PER_KM = (float)(s->quality.cloud_width / (2.0 * e));
+	shadow_frame(lights->sun, e, top, s->atmo.bottom_radius_km, s->quality.shadow_width, &ret->frame[0]);
+	if (s->moon.illuminance_lx > 0.0)
+		shadow_frame(lights->moon, e, top, s->atmo.bottom_radius_km, s->quality.shadow_width,
+			     &ret->frame[1]);
+	return n;
+}
+
+uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct gpu_clouds *c, int n,
+			uint32_t mask)
+{
+	uint32_t readers = STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
+
+	if (n == 0)
+		return mask & ~(uint32_t)STATE_CLOUD_TABLES;
+	(void)s;
+	/* Sky-view and aerial read the maps: what they were made from must
+	 * be this state's, whatever the caller asked. The coverage table
+	 * depends on the layers and the field's place, the maps on it and
+	 * the lights' frames too. */
+	bool field = !e->clouds_valid || memcmp(c, &e->clouds_key, offsetof(struct gpu_clouds, frame));
+	bool frames = field || memcmp(c->frame, e->clouds_key.frame, sizeof(c->frame));
+	if ((mask & readers) && field)
+		mask |= STATE_CLOUD_TABLES;
+	if ((mask & readers) && frames)
+		mask |= STATE_BIT(STATE_CLOUD_SHADOW);
+	if (mask & STATE_BIT(STATE_CLOUD_COVERAGE))
+		mask |= STATE_BIT(STATE_CLOUD_SHADOW);
+	return mask;
+}
+
+/* A float32 RGBA buffer of texels texels (at least one) with a texel view,
+ * mapped where the host can read it: what the publisher copies. */
+static int cloud_buffer_new(struct eng *e, uint64_t texels, struct gpu_buffer *b, VkBufferView *view,
+			    char *err, size_t err_size)
+{
+	int rc = eng_buffer_new(e, texels * 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+					VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+				VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT,
+				VK_MEMORY_PROPERTY_HOST_CACHED_BIT, b, err, err_size);
+	if (rc < 0)
+		return rc;
+	VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO, .buffer = b->buf,
+		.format = VK_FORMAT_R32G32B32A32_SFLOAT, .range = texels * 16 };
+	VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, view));
+	memset(b->map, 0, texels * 16);
+fail:
+	return rc;
+}
+
+static void cloud_buffer_free(struct eng *e, struct gpu_buffer *b, VkBufferView *view)
+{
+	if (*view)
+		e->vk.vkDestroyBufferView(e->dev, *view, NULL);
+	*view = VK_NULL_HANDLE;
+	eng_buffer_free(e, b);
+}
+
+int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
+		      size_t err_size)
+{
+	bool drawn = state_clouds_drawn(s) > 0;
+	uint64_t cw = drawn ? s->quality.cloud_width : 1, sw = drawn ? s->quality.shadow_width : 1;
+	uint64_t cloud_texels = cw * cw, shadow_texels = 2 * sw * sw;
+	int rc = 0;
+
+	if (!e->clouds.buf) {
+		rc = eng_buffer_new(e, sizeof(struct gpu_clouds), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+				    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT, 0,
+				    &e->clouds, err, err_size);
+		if (rc < 0)
+			return rc;
+		memset(e->clouds.map, 0, sizeof(struct gpu_clouds));
+		*rebind = true;
+	}
+	if (!e->cloud.buf || e->cloud.bytes != cloud_texels * 16) {
+		cloud_buffer_free(e, &e->cloud, &e->cloud_view);
+		rc = cloud_buffer_new(e, cloud_texels, &e->cloud, &e->cloud_view, err, err_size);
+		e->clouds_valid = false;
+		*rebind = true;
+	}
+	if (rc == 0 && (!e->shadow.buf || e->shadow.bytes != shadow_texels * 16)) {
+		cloud_buffer_free(e, &e->shadow, &e->shadow_view);
+		rc = cloud_buffer_new(e, shadow_texels, &e->shadow, &e->shadow_view, err, err_size);
+		e->clouds_valid = false;
+		*rebind = true;
+	}
+	return rc;
+}
+
+void eng_free_clouds(struct eng *e)
+{
+	cloud_buffer_free(e, &e->cloud, &e->cloud_view);
+	cloud_buffer_free(e, &e->shadow, &e->shadow_view);
+	eng_buffer_free(e, &e->clouds);
+}
+
+const void *eng_cloud_table(const struct eng *e, int t, size_t *ret_bytes)
+{
+	const struct gpu_buffer *b = t == STATE_CLOUD_COVERAGE ? &e->cloud
+				     : t == STATE_CLOUD_SHADOW ? &e->shadow : NULL;
+
+	if (!b || !b->map || !e->clouds_valid)
+		return NULL;
+	if (ret_bytes)
+		*ret_bytes = (size_t)b->bytes;
+	return b->map;
+}
+
+int eng_cloud_frames(const struct sky_state *s, const struct state_lights *lights,
+		     float ret[2][16])
+{
+	struct gpu_clouds c;
+	int n = eng_fill_clouds(s, lights, &c);
+
+	_Static_assert(sizeof(c.frame[0]) == sizeof(ret[0]), "a frame is 16 floats");
+	memcpy(ret, c.frame, sizeof(c.frame));
+	return n;
+}

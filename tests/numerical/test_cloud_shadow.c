@@ -1,0 +1,189 @@
+/* test_cloud_shadow.c - the cloud layers' shadows in the tables
+ * (docs/clouds.md, "In the tables"), on the device:
+ *  - under an 8/8 stratocumulus at 1.0-1.4 km with the sun at 40 degrees,
+ *    the aerial perspective's in-scattered light at 10 km is well below
+ *    the clear sky's: the sun's single scattering under the layer passes
+ *    a column of optical depth ~9 (exp(-9) ~ 1e-4) and the multiply
+ *    scattered light is dimmed by the sky the layer leaves open (1 - 1 x
+ *    (1 - exp(-9.3)) ~ 1e-4), so what is left is the air above the layer
+ *    along the slanted views, which the camera looks through only where it
+ *    looks up; the bound says at most half of the clear sky's.
+ *  - shadowed is never brighter than unshadowed: every texel of sky-view
+ *    and aerial perspective with layers is at most the same sky's without
+ *    them (each term is the clear one times a factor in [0, 1]; a rounded
+ *    product of non-negative floats is monotonic in each factor), for an
+ *    overcast, a broken layer at low sun and a layer below an observer in
+ *    flight.
+ *  - a clear sky runs no cloud pass: no cloud table, no shadow map.
+ *  - the cloud and shadow tables are the same bits from a second engine. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "eng.h"
+#include "skymap.h"
+#include "test.h"
+#include "vk_or_skip.h"
+
+static struct eng *eng;
+
+/* The resolved state of the space-separated pairs, or -1 (failed). */
+static int state_of(const char *pairs, struct sky_state *ret)
+{
+	struct sky_state s;
+	char err[256], copy[512];
+
+	state_default(&s);
+	snprintf(copy, sizeof(copy), "%s", pairs);
+	for (char *save, *p = strtok_r(copy, " ", &save); p; p = strtok_r(NULL, " ", &save))
+		if (state_set_pair(&s, p, NULL, err, sizeof(err)) < 0) {
+			FAIL("%s: %s", pairs, err);
+			return -1;
+		}
+	if (state_resolve(&s, ret, NULL, err, sizeof(err)) < 0) {
+		FAIL("%s: %s", pairs, err);
+		return -1;
+	}
+	return 0;
+}
+
+/* Sky-view and aerial perspective of pairs as floats (malloc'd). */
+static int tables_of(const char *pairs, float *ret[2], size_t ret_n[2])
+{
+	struct sky_state s;
+	struct eng_timing t;
+	char err[512];
+
+	if (state_of(pairs, &s) < 0)
+		return -1;
+	if (eng_compute(eng, &s, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
+		FAIL("%s: %s", pairs, err);
+		return -1;
+	}
+	for (int k = 0; k < 2; k++) {
+		size_t bytes;
+		const void *p = eng_table(eng, k == 0 ? STATE_SKYVIEW : STATE_AERIAL, &bytes);
+		ret[k] = malloc(bytes);
+		if (!ret[k] || !p)
+			return -1;
+		memcpy(ret[k], p, bytes);
+		ret_n[k] = bytes / sizeof(float);
+	}
+	return 0;
+}
+
+/* Every radiance value of the cloudy tables at most the clear ones'. */
+static void never_brighter(const char *clear, const char *cloudy)
+{
+	float *a[2] = { 0 }, *b[2] = { 0 };
+	size_t n[2], m[2];
+
+	if (tables_of(clear, a, n) == 0 && tables_of(cloudy, b, m) == 0)
+		for (int k = 0; k < 2; k++) {
+			size_t darker = 0;
+			CHECK_EQ(n[k], m[k]);
+			for (size_t i = 0; i < n[k] && n[k] == m[k]; i++) {
+				if (i % 4 == 3)
+					continue;
+				darker += b[k][i] < a[k][i];
+				if (!(b[k][i] <= a[k][i]))
+					FAIL("%s: %s value %zu: %.9g above the clear %.9g", cloudy,
+					     k ? "aerial" : "skyview", i, b[k][i], a[k][i]);
+			}
+			printf("%-60s %-8s %zu of %zu values darker\n", cloudy, k ? "aerial" : "skyview", darker,
+			       n[k] / 4 * 3);
+		}
+	for (int k = 0; k < 2; k++) {
+		free(a[k]);
+		free(b[k]);
+	}
+}
+
+/* The mean in-scattered luminance-ish (mean RGB) of the aerial slice
+ * nearest depth_km. */
+static double aerial_mean_at(const struct sky_state *s, const float *aerial, double depth_km)
+{
+	const struct state_table_quality *q = &s->quality.t[STATE_AERIAL];
+	unsigned best = 0;
+	for (unsigned k = 0; k < q->depth; k++)
+		if (fabs(skymap_aerial_depth_km(k, q->depth, s->quality.aerial_range_km,
+						s->quality.aerial_spacing == STATE_SQUARED) - depth_km) <
+		    fabs(skymap_aerial_depth_km(best, q->depth, s->quality.aerial_range_km,
+						s->quality.aerial_spacing == STATE_SQUARED) - depth_km))
+			best = k;
+	double sum = 0;
+	size_t texels = (size_t)q->width * q->height;
+	for (size_t i = 0; i < texels; i++)
+		for (int c = 0; c < 3; c++)
+			sum += aerial[(best * texels + i) * 4 + c];
+	return sum / (3.0 * texels);
+}
+
+static void overcast_at_ten_km(void)
+{
+	const char *clear = "sun_elevation_deg=40", *cloudy =
+		"sun_elevation_deg=40 cloud1_oktas=8 cloud1_base_m=1000";
+	float *a[2] = { 0 }, *b[2] = { 0 };
+	size_t n[2], m[2];
+	struct sky_state s;
+
+	if (state_of(clear, &s) == 0 && tables_of(clear, a, n) == 0 && tables_of(cloudy, b, m) == 0) {
+		double lit = aerial_mean_at(&s, a[1], 10.0), shadowed = aerial_mean_at(&s, b[1], 10.0);
+		printf("aerial in-scatter at 10 km, sun 40 deg: clear %.6g, under 8/8 at 1 km %.6g, ratio %.4f\n",
+		       lit, shadowed, shadowed / lit);
+		CHECK(lit > 0.0 && shadowed / lit < 0.5);
+	}
+	for (int k = 0; k < 2; k++) {
+		free(a[k]);
+		free(b[k]);
+	}
+}
+
+/* A clear sky makes no cloud table; a cloudy one makes both, the same
+ * bits on a second engine. */
+static void demand_and_bits(void)
+{
+	struct sky_state clear, cloudy;
+	struct eng_timing t;
+	char err[512];
+
+	if (state_of("sun_elevation_deg=10", &clear) < 0 ||
+	    state_of("sun_elevation_deg=10 cloud1_oktas=5 cloud1_base_m=1500 cloud1_type=cumulus "
+		     "wind_speed_mps=10 cloud_seed=7", &cloudy) < 0)
+		return;
+	CHECK(eng_compute(eng, &clear, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_cloud_table(eng, STATE_CLOUD_COVERAGE, NULL) == NULL);
+	CHECK(eng_cloud_table(eng, STATE_CLOUD_SHADOW, NULL) == NULL);
+	CHECK_EQ(t.computed & STATE_CLOUD_TABLES, 0u);
+	CHECK(eng_compute(eng, &cloudy, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(t.computed & STATE_CLOUD_TABLES, (uint32_t)STATE_CLOUD_TABLES);
+	struct eng *other = vk_or_skip();
+	CHECK(eng_compute(other, &cloudy, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	for (int k = STATE_CLOUD_COVERAGE; k <= STATE_CLOUD_SHADOW; k++) {
+		size_t a_bytes = 0, b_bytes = 0;
+		const void *a = eng_cloud_table(eng, k, &a_bytes), *b = eng_cloud_table(other, k, &b_bytes);
+		CHECK(a && b && a_bytes == b_bytes && a_bytes > 16);
+		if (a && b && a_bytes == b_bytes)
+			CHECK(memcmp(a, b, a_bytes) == 0);
+	}
+	eng_free(other);
+	/* Back to clear: the tables go. */
+	CHECK(eng_compute(eng, &clear, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_cloud_table(eng, STATE_CLOUD_COVERAGE, NULL) == NULL);
+}
+
+int main(void)
+{
+	eng = vk_or_skip();
+	overcast_at_ten_km();
+	never_brighter("sun_elevation_deg=40", "sun_elevation_deg=40 cloud1_oktas=8 cloud1_base_m=1000");
+	never_brighter("sun_elevation_deg=4 sun_azimuth_deg=250",
+		       "sun_elevation_deg=4 sun_azimuth_deg=250 cloud1_oktas=4 cloud1_base_m=1200 "
+		       "cloud1_type=cumulus");
+	never_brighter("altitude_km=6 sun_elevation_deg=20",
+		       "altitude_km=6 sun_elevation_deg=20 cloud1_oktas=6 cloud1_base_m=1000");
+	demand_and_bits();
+	eng_free(eng);
+	return test_report("test_cloud_shadow");
+}
