@@ -169,9 +169,18 @@ typedef struct sky_client sky_client;
 typedef struct sky_reply sky_reply;
 
 /* Table bits for sky_subscribe() and struct sky_view (bit = 1 << id of
- * enum sky_shm_table_id). */
+ * enum sky_shm_table_id). SKY_TABLES_ALL is the sky's four tables; the
+ * cloud tables (layout 7: SKY_TABLE_CLOUD, the coverage table, and
+ * SKY_TABLE_SHADOW, the shadow maps) are in a region only while skyd
+ * draws a cloud layer, and come with sky-view or aerial perspective, or by
+ * their own bits (SKY_TABLES_CLOUDS). The slot's clouds (struct
+ * sky_shm_clouds: the layers, the wind's offset, the maps' frames, the
+ * cloud's transmittance toward the lights) are in every slot:
+ * v->slot->clouds, n_layers 0 under a clear sky; docs/clouds.md,
+ * "Published". */
 #define SKY_TABLE_BIT(id) (1u << (id))
 #define SKY_TABLES_ALL 0xfu
+#define SKY_TABLES_CLOUDS (SKY_TABLE_BIT(SKY_TABLE_CLOUD) | SKY_TABLE_BIT(SKY_TABLE_SHADOW))
 
 /* ---- Library ---------------------------------------------------------- */
 
@@ -679,7 +688,10 @@ struct sky_gpu_table {
  * when the slot of a zero-copy view was rewritten while it was hashed
  * (nothing is recorded: begin a new view). Takes the client (it keeps what
  * it has seen): not thread-safe on one client, like every call that takes
- * one (see THREADS). Since 0.2. */
+ * one (see THREADS). The cloud tables (ids 4 and 5, layout 7) are listed
+ * like the others where the slot holds them: RGBA32F, never scaled, the
+ * shadow table of depth 2 (the sun's map, the moon's). Since 0.2; the
+ * cloud tables with layout 7. */
 SKY_EXPORT int sky_gpu_tables(sky_client *c, const struct sky_view *v,
 			      struct sky_gpu_table ret_tables[SKY_SHM_MAX_TABLES]);
 

@@ -68,7 +68,7 @@ enum sky_shm_table_id {
 	/* The cloud tables (layout 7), in the directory only while a cloud
 	 * layer is drawn (n_tables 6), always RGBA32F, never scaled
 	 * (docs/clouds.md, "Published"). */
-	SKY_TABLE_CLOUD = 4,		/* coverage: cloud_width^2, RGBA = layers 1-4's margin + 1/2 */
+	SKY_TABLE_CLOUD = 4,		/* coverage: cloud_width^2, RGBA = layers 1-4's coverage */
 	SKY_TABLE_SHADOW = 5,		/* shadow maps: shadow_width^2 x depth 2 (sun, moon) */
 };
 
@@ -159,17 +159,17 @@ struct sky_shm_clouds {
 	 * illuminance by it for the light that reaches the observer. */
 	double sun_transmittance, moon_transmittance;
 	struct sky_shm_cloud_layer layers[4];
-	/* Per light (sun, moon), 4 vec4s: u (xyz, w = u_min km), v (xyz, w =
-	 * v_min km), l toward the light (xyz, w = the map's plane, km), scale
-	 * (texels per km along u and v). Texel (i, j) of the light's map is
-	 * the ray along -l through u u_min + (i + 0.5) / scale[0] along u, the
-	 * same along v, from depth 0 at the plane; a point q has depth
-	 * plane - dot(q, l) and texel coordinates ((dot(q, u) - u_min) scale[0],
-	 * (dot(q, v) - v_min) scale[1]). A texel's RGBA: front depth km, mean
-	 * extinction per km, maximum optical depth, the terrain's opaque depth
-	 * km (1e30: none); the optical depth at depth d is
+	/* Per light (sun, moon), where a point p (east, north, up km from the
+	 * ground under the observer) falls in its shadow map, as
+	 * proto/skycloudmarch.h's struct skycloud_shadow_frame takes it: the
+	 * map's texture coordinates u = row_u . (p, 1), v = row_v . (p, 1)
+	 * (outside [0, 1]: no cloud), and the depth from the map's plane,
+	 * growing away from the light, row_depth . (p, 1). A texel's RGBA:
+	 * front depth km R, mean extinction per km G, maximum optical depth
+	 * B, the terrain's opaque depth km A (1e30: none); (0, 0, 0, A) where
+	 * the ray meets no cloud. The optical depth at depth d is
 	 * min(B, G max(0, d - R)), and beyond A the light is gone. */
-	float shadow_frame[2][16];
+	double shadow_row_u[2][4], shadow_row_v[2][4], shadow_row_depth[2][4];
 };
 
 /* How a view's aerial perspective is published (`view add form=`). */

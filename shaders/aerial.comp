@@ -43,8 +43,7 @@ vec3 panorama_dir(uint z, int i, int j)
 void main()
 {
 	load_params();
-	if (CLOUD_LAYERS > 0)
-		load_clouds();
+	load_clouds();
 	ivec2 px = ivec2(gl_GlobalInvocationID.xy);
 	uint z = gl_GlobalInvocationID.z;
 	vec3 sun_dir = VB.job[z].sun, moon_dir = VB.job[z].moon;
@@ -102,22 +101,18 @@ void main()
 				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
 				float mu_l = dot(up, sun_dir);
 				float vis = light_visible(ta, mu_l, P.SUN_RADIUS_RAD);
-				// The cloud's shadow and the sky the layers leave open
-				// (clouds.glsl), the eye above the ground under the observer.
+				// The clouds (clouds.glsl), the eye over the observer's ground point.
 				vec3 q = vec3(dir.xy * t, h0 + dir.z * t);
-				if (CLOUD_LAYERS > 0) {
-					cloud_ms_open = cloud_sky_open(hs);
-					vis *= cloud_light(0, q);
-				}
-				march_source(ta, mu_l, vis, P.sun_illum.rgb, sc, ph_sun, m,
-					     ground, forward, ds, view_up, sun_v, s, s_scaled);
+				if (CLOUD_LAYERS > 0)
+					vis *= cloud_step(q, hs);
+				march_source(ta, mu_l, vis, P.sun_illum.rgb, sc, ph_sun, m, ground, forward, ds, view_up,
+					     sun_v, s, s_scaled);
 				if (MOON_LIT) {
 					mu_l = dot(up, moon_dir);
-					vis = light_visible(ta, mu_l, P.MOON_RADIUS_RAD);
-					if (CLOUD_LAYERS > 0)
-						vis *= cloud_light(1, q);
-					march_source(ta, mu_l, vis, P.moon_illum.rgb, sc,
-						     ph_moon, m, ground, forward, ds, view_up, moon_v, s, s_scaled);
+					vis = light_visible(ta, mu_l, P.MOON_RADIUS_RAD) *
+					      (CLOUD_LAYERS > 0 ? cloud_light(1, q) : 1.0);
+					march_source(ta, mu_l, vis, P.moon_illum.rgb, sc, ph_moon, m, ground, forward, ds,
+						     view_up, moon_v, s, s_scaled);
 				}
 				vec3 step_t;
 				radiance += tr * s * step_weight(m.extinction, dt, step_t);

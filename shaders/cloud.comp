@@ -1,10 +1,8 @@
 // cloud.comp - the coverage table: texel (i, j) of the square region of
 // half-width FIELD_EXTENT_KM around the observer, east along i, north along
-// j, holds per layer (RGBA: layers 1 to 4) the coverage margin plus a half,
-// skycloud_coverage_margin(...) + 0.5 at the texel's centre with the wind's
-// offset: its saturate is the coverage, and below 0 it says how far a
-// cumulonimbus' anvil reaches (c = saturate(v + anvil hf^2)). Clamped to
-// [SKY_CLOUD_NONE, -SKY_CLOUD_NONE]; absent layers SKY_CLOUD_NONE.
+// j, holds in channel k the coverage of layer k + 1 (cloudN, N = k + 1:
+// the layer's own index), skycloud_coverage at the texel's centre with the
+// wind's offset; 0 where no layer k + 1 is drawn.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
@@ -21,9 +19,8 @@ void main()
 	float e = CL.FIELD_EXTENT_KM, step_km = 2.0 * e / float(CLOUD_W);
 	float x = -e + (float(px.x) + 0.5) * step_km, y = -e + (float(px.y) + 0.5) * step_km;
 	vec2 offset = vec2(CL.FIELD_OFFSET_EAST_KM, CL.FIELD_OFFSET_NORTH_KM);
-	vec4 v = vec4(SKY_CLOUD_NONE);
+	vec4 v = vec4(0.0);
 	for (int i = 0; i < CLOUD_LAYERS; i++)
-		v[i] = clamp(skycloud_coverage_margin(CL.layer[i], x, y, offset) + 0.5, SKY_CLOUD_NONE,
-			     -SKY_CLOUD_NONE);
+		v[CL.layer[i].index & 3u] = skycloud_coverage(CL.layer[i], x, y, offset);
 	CT.d[px.y * CLOUD_W + px.x] = v;
 }

@@ -27,6 +27,8 @@ vec4 cloud_column[SKYCLOUD_MAX_LAYERS];
 
 void load_clouds()
 {
+	if (CLOUD_LAYERS == 0)
+		return;
 	cloud_frame[0] = CL.frame[0];
 	cloud_frame[1] = CL.frame[1];
 	for (int i = 0; i < CLOUD_LAYERS; i++)
@@ -81,10 +83,21 @@ float cloud_light(int light, vec3 q)
 // from the private copy (load_clouds).
 float cloud_sky_open(float h)
 {
+	if (CLOUD_LAYERS == 0)
+		return 1.0;
 	float open = 1.0;
 	for (int i = 0; i < CLOUD_LAYERS; i++) {
 		float above = skycloud_saturate((cloud_column[i].x - h) * cloud_column[i].y);
 		open *= 1.0 - cloud_column[i].w * (1.0 - exp(-cloud_column[i].z * above));
 	}
 	return 1.0 - skycloud_saturate(1.0 - open);
+}
+
+// At a march step at q, altitude h: sets the sky the layers leave open
+// for the multiply scattered light (cloud_ms_open) and returns the share
+// of the sun's light the cloud lets through.
+float cloud_step(vec3 q, float h)
+{
+	cloud_ms_open = cloud_sky_open(h);
+	return exp(-cloud_tau(0, q));
 }

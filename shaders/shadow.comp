@@ -1,11 +1,11 @@
 // shadow.comp - the Beer shadow maps (Hillaire, SIGGRAPH 2020 course): per
-// texel of a light's map (z: 0 sun, 1 moon), the light's ray through the
-// layers, marched in STEPS steps over its piece between the lowest base
-// and the highest top inside the region, the density the layers' envelope
-// (coverage table x profile x extinction: the detail noise's cells are
-// below a texel) gives. RGBA32F = (front depth km from the map's plane,
-// mean extinction per km over the cloud span, the column's optical depth,
-// the terrain's opaque depth or SKY_SHADOW_NO_TERRAIN_KM).
+// texel of a light's map (z: 0 sun, 1 moon), the light's ray through each
+// layer's shell inside the region, marched in the steps its piece needs,
+// the density the layer's envelope gives (coverage table x profile x
+// extinction: the detail noise's cells are below a texel). RGBA32F =
+// (front depth km from the map's plane, mean extinction per km over the
+// cloud span, the column's optical depth, the terrain's opaque depth or
+// SKY_SHADOW_NO_TERRAIN_KM).
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
@@ -14,26 +14,29 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = BINDING_SHADOW) writeonly buffer ShadowTexels { vec4 d[]; } ST;
 
-// The layers' extinction per km at q from the coverage table, bilinear.
-float envelope_at(vec3 q)
+// Layer l's extinction per km at q: its envelope from the coverage
+// table, bilinear.
+float envelope_at(int l, vec3 q)
 {
 	float e = CL.FIELD_EXTENT_KM, k = CL.FIELD_TEXELS_PER_KM;
+	float h = skycloud_altitude(P.BOTTOM_RADIUS_KM, q);
+	float hf = (h - CL.layer[l].base_km) * CL.layer[l].inv_thickness_per_km;
+	if (!(hf > 0.0 && hf < 1.0))
+		return 0.0;
 	float x = clamp((q.x + e) * k - 0.5, 0.0, float(CLOUD_W - 1));
 	float y = clamp((q.y + e) * k - 0.5, 0.0, float(CLOUD_W - 1));
 	int i = min(int(x), CLOUD_W - 2), j = min(int(y), CLOUD_W - 2);
 	float fx = x - float(i), fy = y - float(j);
 	int b = j * CLOUD_W + i;
-	vec4 v = mix(mix(texelFetch(CloudTex, b), texelFetch(CloudTex, b + 1), fx),
-		     mix(texelFetch(CloudTex, b + CLOUD_W), texelFetch(CloudTex, b + CLOUD_W + 1), fx), fy);
-	float h = skycloud_altitude(P.BOTTOM_RADIUS_KM, q), sum = 0.0;
-	for (int l = 0; l < CLOUD_LAYERS; l++) {
-		float hf = (h - CL.layer[l].base_km) * CL.layer[l].inv_thickness_per_km;
-		if (!(hf > 0.0 && hf < 1.0))
-			continue;
-		float c = skycloud_saturate(v[l] + CL.layer[l].anvil * hf * hf);
-		sum += CL.layer[l].extinction_per_km * c * skycloud_profile(CL.layer[l], hf);
-	}
-	return sum;
+	uint ch = CL.layer[l].index & 3u;
+	float c0 = mix(mix(texelFetch(CloudTex, b)[ch], texelFetch(CloudTex, b + 1)[ch], fx),
+		       mix(texelFetch(CloudTex, b + CLOUD_W)[ch], texelFetch(CloudTex, b + CLOUD_W + 1)[ch], fx), fy);
+	// skycloudmarch.h's skycloud_density_cov: the anvil widens only
+	// where the table has cover.
+	if (!(c0 > 0.0))
+		return 0.0;
+	float c = skycloud_saturate(c0 + CL.layer[l].anvil * hf * hf);
+	return CL.layer[l].extinction_per_km * c * skycloud_profile(CL.layer[l], hf);
 }
 
 // The ray o - t l's piece [t0, t1] inside the region's square (its east
@@ -62,35 +65,41 @@ void main()
 	vec3 d = -f.l.xyz;
 	vec3 o = (f.U_MIN_KM + (float(px.x) + 0.5) / f.U_TEXELS_PER_KM) * f.u.xyz +
 		 (f.V_MIN_KM + (float(px.y) + 0.5) / f.V_TEXELS_PER_KM) * f.v.xyz + f.PLANE_KM * f.l.xyz;
-	float lo = 1e30, hi = -1e30;
+	// Each layer's shell on its own, in as many steps as its piece
+	// crosses coverage texels (two a texel, at least four for the
+	// profile, at most STEPS): a high light crosses a thin layer in a
+	// few, and the gaps between layers cost nothing.
+	float rb = P.BOTTOM_RADIUS_KM, tau = 0.0, front = 1e30, back = 0.0;
+	float across = length(d.xy) * CL.FIELD_TEXELS_PER_KM;
 	for (int l = 0; l < CLOUD_LAYERS; l++) {
-		lo = min(lo, CL.layer[l].base_km);
-		hi = max(hi, CL.layer[l].top_km);
-	}
-	float rb = P.BOTTOM_RADIUS_KM, a0, a1, b0, b1, t0 = 0.0, t1 = 0.0;
-	if (skycloud_sphere(rb, hi, o, d, a0, a1)) {
-		t0 = max(a0, 0.0);
-		t1 = a1;
-		// Down to the base shell where the ray meets it; a ray that
-		// grazes it crosses the band once, along its whole chord.
-		if (skycloud_sphere(rb, lo, o, d, b0, b1) && b0 > t0)
-			t1 = min(t1, b0);
-		clip_region(o, d, CL.FIELD_EXTENT_KM, t0, t1);
-	}
-	vec4 texel = vec4(1e30, 0.0, 0.0, SKY_SHADOW_NO_TERRAIN_KM);
-	if (t1 > t0) {
-		float dt = (t1 - t0) / float(STEPS), tau = 0.0, front = 1e30, back = 0.0;
-		for (int k = 0; k < STEPS; k++) {
+		float a0, a1, b0, b1, t0 = 0.0, t1 = 0.0;
+		if (skycloud_sphere(rb, CL.layer[l].top_km, o, d, a0, a1)) {
+			t0 = max(a0, 0.0);
+			t1 = a1;
+			// Down to the base shell where the ray meets it; a ray that
+			// grazes it crosses the layer once, along its whole chord.
+			if (skycloud_sphere(rb, CL.layer[l].base_km, o, d, b0, b1) && b0 > t0)
+				t1 = min(t1, b0);
+			clip_region(o, d, CL.FIELD_EXTENT_KM, t0, t1);
+		}
+		if (!(t1 > t0))
+			continue;
+		int n = clamp(int(ceil(2.0 * (t1 - t0) * across)) + 4, 4, STEPS);
+		float dt = (t1 - t0) / float(n);
+		for (int k = 0; k < n; k++) {
 			float t = t0 + (float(k) + 0.5) * dt;
-			float ext = envelope_at(o + t * d);
+			float ext = envelope_at(l, o + t * d);
 			if (ext > 0.0) {
 				front = min(front, t - 0.5 * dt);
-				back = t + 0.5 * dt;
+				back = max(back, t + 0.5 * dt);
 				tau += ext * dt;
 			}
 		}
-		if (tau > 0.0)
-			texel.xyz = vec3(front, tau / max(back - front, dt), tau);
 	}
+	// No cloud: (0, 0, 0), which a bilinear filter of the texels blends
+	// into a cloud's edge as the clear it is.
+	vec4 texel = vec4(0.0, 0.0, 0.0, SKY_SHADOW_NO_TERRAIN_KM);
+	if (tau > 0.0)
+		texel.xyz = vec3(front, tau / (back - front), tau);
 	ST.d[(px.z * SHADOW_W + px.y) * SHADOW_W + px.x] = texel;
 }

@@ -205,9 +205,6 @@
 #define FIELD_OFFSET_NORTH_KM field[1]
 #define FIELD_EXTENT_KM field[2]	/* the region's half-width */
 #define FIELD_TEXELS_PER_KM field[3]	/* the coverage table's: cloud_width / (2 extent) */
-/* A coverage texel of an absent layer, and the bound of every texel: far
- * below any anvil's reach (6 edges), so bilinear filtering stays finite. */
-#define SKY_CLOUD_NONE (-8.0)
 /* The opaque depth of a texel where no terrain stands (a shadow map's A). */
 #define SKY_SHADOW_NO_TERRAIN_KM 1e30
 

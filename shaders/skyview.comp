@@ -42,8 +42,7 @@ float over_horizon(StepEnd e, float light_h, float light_z)
 void main()
 {
 	load_params();
-	if (CLOUD_LAYERS > 0)
-		load_clouds();
+	load_clouds();
 	int x0 = int(gl_GlobalInvocationID.x) * SV_AZ_GROUP, gy = int(gl_GlobalInvocationID.y);
 	if (x0 >= OUT_W || gy >= OUT_H)
 		return;
@@ -120,8 +119,7 @@ void main()
 			StepEnd eb = step_end(en, sin_z, cos_z, next);
 			Scatter sc;
 			Medium m = medium_parts(hs, sc);
-			if (CLOUD_LAYERS > 0)
-				cloud_ms_open = cloud_sky_open(hs);
+			cloud_ms_open = cloud_sky_open(hs);
 			// The view's cos-zenith at the point is the same in every column.
 			float view_up = sin_z * up_h + cos_z * up_z;
 			vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);

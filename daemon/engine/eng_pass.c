@@ -271,10 +271,9 @@ static void record_iteration(struct eng *e, const struct sky_state *s, const str
 	}
 }
 
-/* March steps of a shadow map's ray through the layers' band: a low
- * light's chord through a thin layer is long, and each step reads the
- * coverage table, not the noise (shadow.comp). */
-#define SHADOW_STEPS 48
+/* The most march steps of a shadow map's ray through one layer: it takes
+ * two a coverage texel its piece crosses, at least four (shadow.comp). */
+#define SHADOW_STEPS 32
 
 /* The cloud passes' constants: the layers and the tables' sizes, nothing
  * of the atmosphere (shadow.comp reads the planet's radius from the

@@ -413,6 +413,30 @@ void pub_set_cloud_tables(struct pub *p, const void *coverage, const void *shado
 	p->cloud_src[1] = shadow;
 }
 
+/* The shadow maps' frames of s as struct sky_shm_clouds gives them: the
+ * engine's (u, v, l and texels per km, eng_cloud_frames) as affine rows
+ * to texture coordinates and depth. */
+static void shadow_rows(const struct sky_state *s, const struct state_lights *lights,
+			struct sky_shm_clouds *ret)
+{
+	float f[2][16];
+	double w = s->quality.shadow_width;
+
+	eng_cloud_frames(s, lights, f);
+	for (int k = 0; k < 2; k++) {
+		/* u (xyz, u_min), v (xyz, v_min), l (xyz, plane), scale */
+		double su = f[k][12] / w, sv = f[k][13] / w;
+		for (int i = 0; i < 3; i++) {
+			ret->shadow_row_u[k][i] = f[k][i] * su;
+			ret->shadow_row_v[k][i] = f[k][4 + i] * sv;
+			ret->shadow_row_depth[k][i] = -f[k][8 + i];
+		}
+		ret->shadow_row_u[k][3] = -f[k][3] * su;
+		ret->shadow_row_v[k][3] = -f[k][7] * sv;
+		ret->shadow_row_depth[k][3] = f[k][11];
+	}
+}
+
 /* The slot's cloud block of s (struct sky_shm_clouds): the drawn layers,
  * the field's place, the shadow maps' frames and the cloud's
  * transmittance toward each light from the observer. */
@@ -445,7 +469,7 @@ static void cloud_block(const struct sky_state *s, const struct state_lights *li
 		double tau = skycloud_optical_depth(layers, n, offset, rb, o, d, 2.0e3f, 256);
 		*(k == 0 ? &ret->sun_transmittance : &ret->moon_transmittance) = exp(-tau);
 	}
-	eng_cloud_frames(s, lights, ret->shadow_frame);
+	shadow_rows(s, lights, ret);
 }
 
 /* The slot's cloud block and, where valid and the engine gave them
