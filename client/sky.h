@@ -541,6 +541,8 @@ struct sky_cloud_params {
 	int light_steps;		/* 0: each light's published shadow map (a march of 8
 					 * steps toward a light without one); > 0: march */
 	double jitter;			/* [0, 1): where in its step a sample lies; NULL params: 0.5 */
+	double ambient_lx[3];		/* sky irradiance scattered as skylight (E / pi), e.g.
+					 * sky_sample_ambient() once per view; 0: none */
 };
 
 /* Flag of sky_sample_clouds(): composite the clouds with what is behind

@@ -111,6 +111,8 @@ int sky_sample_clouds(const struct sky_view *v, const struct sky_cloud_params *p
 	if (sc.n_layers > 0 && sc.extent_km > 0.0 && cloud_table(v, SKY_TABLE_CLOUD, &cov) == 0)
 		sc.coverage = &cov;
 	skysample_direction(elevation_deg * DEG, azimuth_deg * DEG, d);
+	for (int k = 0; k < 3; k++)
+		sc.ambient_lx[k] = p->ambient_lx[k];
 	march_lights(v, p, &sc, &sky, d, distance_km, &c);
 	double rgb[3] = { c.radiance[0], c.radiance[1], c.radiance[2] };
 	if (flags & SKY_SAMPLE_CLOUD_COMPOSITE) {
