@@ -14,8 +14,9 @@
  *   window   --window on an Xvfb shows the bytes the PNG holds (skipped
  *            without Xvfb or libxcb);
  *   clouds   with a METAR's broken layer, skyrender's sky pixels match
- *            libsky's CPU march of the same slot (sky_sample_clouds), and
- *            it keeps drawing while the layers change.
+ *            libsky's CPU march of the same slot (sky_sample_clouds), three
+ *            tiles of a wall meet at their edges, and it keeps drawing
+ *            while the layers change.
  * Frames are compared as the 8-bit sRGB PNGs both programs write with
  * dump_png's encoding at the same fixed exposure. */
 #include <math.h>
@@ -873,6 +874,37 @@ static double compare_clouds(sky_client *c, const char *path, long g, uint32_t w
 	return n ? (double)cloudy / n : 0.0;
 }
 
+/* Three tiles of a wall with the clouds (and their shadows on the
+ * terrain) meet at their edges as the one-process wall does. */
+static void clouds_wall(const char *dir)
+{
+	char path[4][PATH_MAX], tile[8];
+	struct image im[4] = { 0 };
+	for (int k = 0; k < 4; k++) {
+		snprintf(path[k], sizeof(path[k]), "%s/cwall%d.png", dir, k);
+		snprintf(tile, sizeof(tile), "%d,0", k);
+		long g = k < 3 ? skyrender(path[k], (const char *const[]){ "--size", "40x48", "--yaw", "170",
+				"--pitch", "8", "--fov", "40", "--grid", "3x1", "--tile", tile, NULL }) :
+			       skyrender(path[k], (const char *const[]){ "--size", "120x48", "--yaw", "170",
+				"--pitch", "8", "--fov", "40", NULL });
+		if (g < 0 || image_read(path[k], &im[k]) < 0) {
+			FAIL("%s not readable", path[k]);
+			return;
+		}
+	}
+	const struct image *t[3] = { &im[0], &im[1], &im[2] };
+	double mean;
+	int seam = seam_departure(t, &im[3], 40, 48, &mean);
+	printf("clouds: step across the seams against the whole wall's: departure max %d, mean %.4f levels\n",
+	       seam, mean);
+	/* The march takes the same directions in a tile as in the wall. */
+	CHECK(seam <= 2 && mean < 0.03);
+	for (int k = 0; k < 3; k++)
+		compare("clouds: tile vs whole wall", &im[3], (uint32_t)k * 40, 0, &im[k]);
+	for (int k = 0; k < 4; k++)
+		free(im[k].rgb);
+}
+
 static int case_clouds(const char *dir)
 {
 	char path[PATH_MAX];
@@ -891,6 +923,7 @@ static int case_clouds(const char *dir)
 	double share = compare_clouds(c, path, g, 64, 36);
 	sky_disconnect(c);
 	CHECK(share > 0.05 && share < 0.95);
+	clouds_wall(dir);
 	/* Layers changing under a client that draws without end: its frames
 	 * follow every change, and the last one has the new layers. */
 	struct stream st;
