@@ -116,6 +116,17 @@ float cloud_sun_shadow(vec3 q)
 	return skycloud_shadow(shadow_tex, F.sun.frame, q + vec3(0.0, 0.0, F.sky[0].planet.z));
 }
 
+// The share of the sky the layers leave open above altitude h_km (1 -
+// skycloud_sky_occlusion): the sky's irradiance (the clear sky's, from
+// the tables) reaches the ground through it, as skyd lights its haze.
+// The clouds' own light on the ground is left out.
+float cloud_sky_open(float h_km)
+{
+	if (F.clouds.x < 0.5)
+		return 1.0;
+	return 1.0 - skycloud_sky_occlusion(F.layers, int(F.scene.field.z), h_km);
+}
+
 // The unit ENU direction through wall position p (pixels, y down): false
 // outside the fisheye's circle. sky_render_direction(), in float.
 bool view_direction(vec2 p, out vec3 ret_dir)

@@ -32,7 +32,7 @@ void main()
 		 max(dot(n, F.sky[0].sun.xyz), 0.0) * cloud_sun_shadow(in_eye_km) +
 		 light_at(F.sky[0].moon.xyz, F.sky[0].moon_illuminance.rgb, altitude) *
 		 max(dot(n, F.sky[0].moon.xyz), 0.0) +
-		 F.ambient_lx.rgb * (0.5 + 0.5 * n.z);
+		 F.ambient_lx.rgb * (0.5 + 0.5 * n.z) * cloud_sky_open(altitude);
 	vec3 surface = F.terrain.rgb / SKYMAP_PI * e;
 	out_colour = vec4(clouds_over(view, dist, apply_aerial(view, dist, surface)), 1.0);
 }
