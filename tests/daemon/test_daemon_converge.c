@@ -261,7 +261,9 @@ static void check_slot(struct conn *c, const char *what)
 	}
 	state_lights_of(&mirror, &lights);
 	pub_shm_state(&sky, &lights, &want);
-	CHECK_EQ(slot->valid_tables, STATE_ALL_TABLES);
+	/* With a drawn layer the slot holds the cloud tables too. */
+	CHECK_EQ(slot->valid_tables,
+		 STATE_ALL_TABLES | (state_clouds_drawn(&sky) ? (uint32_t)STATE_CLOUD_TABLES : 0u));
 	CHECK(slot->generation >= last_generation);
 	if (memcmp(&slot->state, &want, sizeof(want)))
 		FAIL("%s: the slot's state is not the last change's", what);
@@ -272,6 +274,13 @@ static void check_slot(struct conn *c, const char *what)
 		    (bytes < h->tables[i].bytes || memcmp(ref, base + h->tables[i].offset, h->tables[i].bytes)))
 			FAIL("%s: %s is not a full recompute of the last change", what,
 			     state_table_names[i]);
+	}
+	for (int i = STATE_CLOUD_COVERAGE; i <= STATE_CLOUD_SHADOW; i++) {
+		size_t bytes = 0;
+		const void *ref = eng_cloud_table(ref_eng, i, &bytes);
+		if ((slot->valid_tables & STATE_BIT(i)) &&
+		    (!ref || bytes < h->tables[i].bytes || memcmp(ref, base + h->tables[i].offset, h->tables[i].bytes)))
+			FAIL("%s: cloud table %d is not a full recompute of the last change", what, i);
 	}
 	munmap((void *)map, (size_t)st.st_size);
 }

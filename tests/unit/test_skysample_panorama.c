@@ -285,6 +285,7 @@ static void test_checksum(struct region *r)
 	struct sky_shm_slot *s = (struct sky_shm_slot *)r->slot;
 	const struct sky_shm_table *a = &r->hdr->tables[0];
 	uint64_t c = sky_shm_checksum_words(SKY_SHM_CHECKSUM_SEED, &s->state, sizeof(s->state) / 8);
+	c = sky_shm_checksum_words(c, &s->clouds, sizeof(s->clouds) / 8);
 	c = sky_shm_checksum_words(c, r->slot + a->offset, a->bytes / 8);
 	c = sky_shm_checksum_words(c, s->views, 4 * sizeof(s->views[0]) / 8);
 	c = sky_shm_checksum_words(c, r->slot + r->hdr->view_offset, a->bytes / 8);
