@@ -3,12 +3,14 @@
 // atmosphere, geometry and profiles only (an internal buffer, not published).
 //
 // Optical depth is linear in the coefficients, tau = sum_k ext_k L_k, so
-// transmittance.comp weighs these columns by the extinctions and a change of
-// coefficients alone (the weather) does not repeat this pass. Mirrors
-// optical_depth() and column_linear() in truth/model.c.
+// transmittance.glsl weighs these columns by the extinctions: this pass
+// writes the transmittance of its texels too, and a change of coefficients
+// alone (the weather) runs transmittance.comp from the kept columns
+// instead. Mirrors optical_depth() and column_linear() in truth/model.c.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
+#include "transmittance.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -127,6 +129,26 @@ float column_linear(Linear f, Chord c, float u0, float u1)
 	return sum;
 }
 
+// Whether constituent k's layer (0 or 1) has an exponential term: the
+// column pass's EXP_MASK also says which (eng_column_spec).
+bool exp_in_layer(int k, int layer)
+{
+	return (EXP_MASK & (1 << (4 + 4 * layer + k))) != 0;
+}
+
+// Mean of exp(k h) over [ha, hb], exact when the altitude changes linearly
+// over the step, given ea = exp(k ha) and eb = exp(k hb). A difference of
+// two exponentials of real altitudes, never exp(k hm) sinh(x) / x, which is
+// 0 * inf = NaN for a 0.1 km scale height over a 100 km step; the series
+// keeps the short-step limit exact.
+float mean_exp(float k, float ha, float hb, float ea, float eb)
+{
+	float x = 0.5 * k * (hb - ha);
+	if (abs(x) < 0.1)
+		return exp(0.5 * k * (ha + hb)) * (1.0 + x * x * (1.0 / 6.0 + x * x / 120.0));
+	return (eb - ea) / (2.0 * x);
+}
+
 void main()
 {
 	load_params();
@@ -164,10 +186,20 @@ void main()
 		width[k] = c.LAYER0_WIDTH_KM;
 		column[k] = 0.0;
 	}
-	if (EXP_MASK != 0) {
+	if ((EXP_MASK & 15) != 0) {
 		float dt = d / float(STEPS);
 		float excess0 = rho2(h), two_r_mu = 2.0 * r * mu, rb2 = rb * rb;
 		float ha = h;
+		// exp(k h) of each exponential layer at the step's start: the
+		// previous step's end, the same bits, so a step takes one exp()
+		// per such layer and the midpoint's, not three.
+		vec4 ea0 = vec4(0.0), ea1 = vec4(0.0);
+		for (int k = 0; k < N_CONST; k++) {
+			if (exp_in_layer(k, 0))
+				ea0[k] = exp(lay0[k].y * h);
+			if (exp_in_layer(k, 1))
+				ea1[k] = exp(lay1[k].y * h);
+		}
 		for (int i = 0; i < STEPS; i++) {
 			float t = float(i + 1) * dt;
 			float excess = excess0 + t * (t + two_r_mu);
@@ -176,8 +208,14 @@ void main()
 			for (int k = 0; k < N_CONST; k++) {
 				if ((EXP_MASK & (1 << k)) == 0)
 					continue;
-				vec4 l = hm < width[k] ? lay0[k] : lay1[k];
-				float e = l.x != 0.0 ? l.x * mean_exp(l.y, ha, hb) : 0.0;
+				bool lower = hm < width[k];
+				vec4 l = lower ? lay0[k] : lay1[k];
+				float eb0 = exp_in_layer(k, 0) ? exp(lay0[k].y * hb) : 0.0;
+				float eb1 = exp_in_layer(k, 1) ? exp(lay1[k].y * hb) : 0.0;
+				float e = l.x != 0.0 ? l.x * mean_exp(l.y, ha, hb, lower ? ea0[k] : ea1[k],
+								      lower ? eb0 : eb1) : 0.0;
+				ea0[k] = eb0;
+				ea1[k] = eb1;
 				column[k] += clamp(e + l.z * hm + l.w, 0.0, 1.0);
 			}
 			ha = hb;
@@ -206,4 +244,7 @@ void main()
 	for (int k = 0; k < N_CONST; k++)
 		out_column[k] = column[k];
 	CB.d[px.y * OUT_W + px.x] = out_column;
+	// The column pass runs only with the transmittance table: the same
+	// dispatch writes it, saving a dispatch and a barrier.
+	store_transmittance(px.y * OUT_W + px.x, out_column);
 }

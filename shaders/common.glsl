@@ -168,18 +168,6 @@ float density(int i, float h)
 	return clamp(e + l.z * h + l.w, 0.0, 1.0);
 }
 
-// Mean of exp(k h) over [ha, hb], exact when the altitude changes linearly
-// over the step. A difference of two exponentials of real altitudes, never
-// exp(k hm) sinh(x) / x, which is 0 * inf = NaN for a 0.1 km scale height
-// over a 100 km step; the series keeps the short-step limit exact.
-float mean_exp(float k, float ha, float hb)
-{
-	float x = 0.5 * k * (hb - ha);
-	if (abs(x) < 0.1)
-		return exp(0.5 * k * (ha + hb)) * (1.0 + x * x * (1.0 / 6.0 + x * x / 120.0));
-	return (exp(k * hb) - exp(k * ha)) / (2.0 * x);
-}
-
 int phase_kind(int i) { return i == 0 ? PHASE_0 : i == 1 ? PHASE_1 : i == 2 ? PHASE_2 : PHASE_3; }
 
 // Phase functions in 1/sr. The HG/CS denominator 1 + g^2 - 2 g mu is written

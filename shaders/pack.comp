@@ -11,7 +11,7 @@
 // A power of two scales exactly, so the only rounding is the half's own.
 // A (a transmittance or a share, within [0, 1]) is not scaled. The passes
 // found M as they stored the float32 texels (note_range in common.glsl).
-// Transmittance, never above 1, packs itself (transmittance.comp).
+// Transmittance, never above 1, packs itself (transmittance.glsl).
 //
 // One dispatch after the last pass packs every table of PACK_MASK, one
 // after the other: the tables are constants, since lavapipe runs both sides

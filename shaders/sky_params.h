@@ -28,7 +28,8 @@
 #define SPEC_STEPS 15		/* its march steps */
 #define SPEC_MS_DIRS 16		/* directions of the multi-scattering grid (msgrid.glsl) */
 #define SPEC_MULTISCATTER_ON 17	/* the higher orders are on */
-#define SPEC_EXP_MASK 18	/* bit i: constituent i's profile has an exponential term */
+#define SPEC_EXP_MASK 18	/* bit i: constituent i's profile has an exponential term;
+				 * the column pass's also bit 4 + i: in layer 0, 8 + i: in layer 1 */
 #define SPEC_MS_SUN_GROUP 19	/* sun angles per multi-scattering invocation */
 #define SPEC_SV_AZ_GROUP 20	/* azimuths per sky-view invocation */
 #define SPEC_ITER_FIRST 21	/* the first step of the iteration of psi_ms */

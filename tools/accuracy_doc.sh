@@ -50,6 +50,11 @@ to reach them and what bounds the rest:
 [findings/shaders.md, "Accuracy against a path-traced truth"](findings/shaders.md#accuracy-against-a-path-traced-truth)
 and, for colour and the observers,
 [findings/tools.md, "Colour and observers from the ground to orbit"](findings/tools.md#colour-and-observers-from-the-ground-to-orbit).
+The shadowed scenes (`shadow-*`: the sun behind a broken layer, a low sun
+through scattered cumulus, an overcast at 300 m, a ridge at sunset, an
+observer at 12 km above a layer) and their categories (lit, shadow,
+shafts) are explained in the report below; the tables have no cloud
+shadows yet, so their rows read large.
 HEADER
 	printf '\n## The report\n\nMachine: %s.\n\n' "$machine"
 	printf '![error against run time](accuracy/errtime.png)\n\n'

@@ -16,11 +16,23 @@
 
 #define MAX_DIRS 2048
 #define MAX_KEYS 8
+#define MAX_SCENE_KEYS 8
 
 /* day: sun >= 2 deg, views >= 3 deg; horizon: sun >= 2 deg, views 0 to 3 deg;
  * twilight: sun < 2 deg, all views; down: sun >= 2 deg, views below the
- * observer's horizontal plane (the limb and the planet under it). */
-enum category { CAT_DAY = 0, CAT_HORIZON = 1, CAT_TWILIGHT = 2, CAT_DOWN = 3, N_CAT = 4 };
+ * observer's horizontal plane (the limb and the planet under it). The
+ * scenes with clouds or terrain (shadowed) sort every view by the share of
+ * its single scattering that they shadow (pt_shadow_fraction): lit under
+ * SHADOW_LIT, in shadow from SHADOW_DARK (most of it), shafts between (the
+ * view ray crosses lit and shadowed air). The tables' view ray goes on
+ * through the clouds, so the air above a layer keeps most views up out of
+ * the shadow. */
+enum category {
+	CAT_DAY = 0, CAT_HORIZON = 1, CAT_TWILIGHT = 2, CAT_DOWN = 3,
+	CAT_LIT = 4, CAT_SHADOW = 5, CAT_SHAFTS = 6, N_CAT = 7
+};
+#define SHADOW_LIT 0.1
+#define SHADOW_DARK 0.5
 extern const char *const acc_cat_names[N_CAT];
 
 struct scene {
@@ -31,6 +43,11 @@ struct scene {
 	bool sweep;		/* also measured under the knob sweeps */
 	bool fisheye;		/* gets a side-by-side image */
 	bool down;		/* also views below the horizontal (acc_direction_set) */
+	/* Clouds and terrain: keys applied after the rest ("terrain=@ridge":
+	 * media_terrain_path's field); a scene with any is shadowed, its views
+	 * cover the whole circle, and few keeps them to the CI's nine. */
+	const char *keys[MAX_SCENE_KEYS];
+	bool few;
 };
 
 struct config {
@@ -47,7 +64,7 @@ extern const struct config acc_configs[];
 struct opts {
 	const char *out, *cache, *cache_ro, *device, *limits, *only, *scene_filter;
 	int runs, threads, fisheye_n, image_px;
-	double day_error, twilight_error, fisheye_error;
+	double day_error, twilight_error, fisheye_error, shadow_error;
 	uint64_t max_samples;
 	bool reduced, presets_only, no_images, list_truth;
 };
@@ -58,6 +75,7 @@ struct gt {
 	double weight[MAX_DIRS];
 	double lum[MAX_DIRS], lum_se[MAX_DIRS];
 	double rgb[MAX_DIRS][3], rgb_se[MAX_DIRS][3];
+	double shadow[MAX_DIRS];	/* shadowed scenes: pt_shadow_fraction; else 0 */
 };
 
 /* The error of one category of one scene. Luminance: mean_rel to gt_rel_se.
@@ -81,8 +99,12 @@ struct stats {
 	int grad_ch;
 };
 
+/* unshadowed: a shadowed scene whose tables read the same with its clouds
+ * and terrain as without (acc_tables_unshadowed): the tables carry no
+ * shadow yet, so its categories measure what leaving the shadows out
+ * costs and --limits skips them. */
 struct result {
-	bool done;
+	bool done, unshadowed;
 	double time_ms;
 	struct stats cat[N_CAT];
 };
@@ -135,6 +157,12 @@ static inline int cmp_double(const void *a, const void *b)
 
 /* ---- scenes and the ground truth (bench_accuracy_truth.c) ---- */
 
+/* Whether sc has clouds or terrain. */
+static inline bool acc_shadowed(const struct scene *sc)
+{
+	return sc->keys[0] != NULL;
+}
+
 /* Fills sc (at most max) with the matrix, or the CI's eight scenes when
  * reduced; returns how many. */
 size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced);
@@ -160,9 +188,20 @@ void acc_table_radiance(const struct eng *e, const struct sky_state *s, double e
  * in res; each direction's row goes to dirs (directions.csv) when open. */
 void acc_measure(const struct eng *e, const struct sky_state *s, const struct scene *sc,
 		 const char *config, const struct gt *g, struct result *res, FILE *dirs);
+/* The tables a client's sky reads through acc_table_radiance, and those
+ * they are computed from: the engine's cloud and shadow tables join them
+ * when its cloud passes exist. */
+#define ACC_SKY_TABLES (STATE_BIT(STATE_TRANSMITTANCE) | STATE_BIT(STATE_MULTISCATTER) | \
+			STATE_BIT(STATE_SKYVIEW))
 /* Computes the tables the sky needs once to warm up, then runs times; the
  * median wall time in ret_ms. Returns 0 or -EIO (said on stderr). */
 int acc_time_tables(struct eng *e, const struct sky_state *s, int runs, double *ret_ms);
+/* For a shadowed scene: whether e's tables read the same, bit for bit in
+ * every direction of g, with the scene's clouds and terrain as without
+ * (then the tables carry no shadow). Leaves e's tables those without.
+ * Returns 0 or -EINVAL / -EIO (said on stderr). */
+int acc_tables_unshadowed(struct eng *e, const struct scene *sc, const struct config *cf,
+			  const struct gt *g, bool *ret);
 
 /* ---- images (bench_accuracy_image.c) ---- */
 

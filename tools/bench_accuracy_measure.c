@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "skysample.h"
 
@@ -31,8 +32,11 @@ struct err_sample {
 	double rel, weight;
 };
 
-static enum category category(const struct scene *sc, double el_deg)
+static enum category category(const struct scene *sc, const struct gt *g, size_t i)
 {
+	double el_deg = g->dir[i].elevation_deg;
+	if (acc_shadowed(sc))
+		return g->shadow[i] < SHADOW_LIT ? CAT_LIT : g->shadow[i] >= SHADOW_DARK ? CAT_SHADOW : CAT_SHAFTS;
 	if (sc->sun_elevation_deg < 2.0)
 		return CAT_TWILIGHT;
 	return el_deg < 0.0 ? CAT_DOWN : el_deg < 3.0 ? CAT_HORIZON : CAT_DAY;
@@ -187,13 +191,13 @@ void acc_measure(const struct eng *e, const struct sky_state *s, const struct sc
 		double rgb[3];
 		acc_table_radiance(e, s, g->dir[i].elevation_deg, g->dir[i].azimuth_deg, rgb);
 		double y = luminance(rgb), rel = rel_error(y, g->lum[i]);
-		enum category c = category(sc, g->dir[i].elevation_deg);
+		enum category c = category(sc, g, i);
 		if (dirs)
-			fprintf(dirs, "%s,%s,%s,%g,%g,%g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
+			fprintf(dirs, "%s,%s,%s,%g,%g,%g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4f\n",
 				config, sc->name, acc_cat_names[c], g->dir[i].elevation_deg,
 				g->dir[i].azimuth_deg, g->weight[i], y, g->lum[i], g->lum_se[i], rel,
 				rgb[0], rgb[1], rgb[2], g->rgb[i][0], g->rgb[i][1], g->rgb[i][2],
-				isfinite(y) ? acc_duv(rgb, g->rgb[i]) : INFINITY);
+				isfinite(y) ? acc_duv(rgb, g->rgb[i]) : INFINITY, g->shadow[i]);
 		rel_lum[c][a[c].n] = rel;
 		add_direction(g, i, rgb, rel, &res->cat[c], &a[c]);
 	}
@@ -222,8 +226,7 @@ void acc_measure(const struct eng *e, const struct sky_state *s, const struct sc
  * tables of the last run stay readable through eng_table. */
 int acc_time_tables(struct eng *e, const struct sky_state *s, int runs, double *ret_ms)
 {
-	const uint32_t mask = STATE_BIT(STATE_TRANSMITTANCE) | STATE_BIT(STATE_MULTISCATTER) |
-			      STATE_BIT(STATE_SKYVIEW);
+	const uint32_t mask = ACC_SKY_TABLES;
 	double ms[64];
 	char err[512];
 	struct eng_timing t;
@@ -245,4 +248,38 @@ int acc_time_tables(struct eng *e, const struct sky_state *s, int runs, double *
 	qsort(ms, runs, sizeof(ms[0]), cmp_double);
 	*ret_ms = runs % 2 ? ms[runs / 2] : 0.5 * (ms[runs / 2 - 1] + ms[runs / 2]);
 	return 0;
+}
+
+/* The radiance of every direction of g in the tables of sc's state under cf. */
+static int radiances(struct eng *e, const struct scene *sc, const struct config *cf,
+		     const struct gt *g, double (*ret)[3])
+{
+	struct sky_state s;
+	struct eng_timing t;
+	char err[512];
+
+	if (acc_scene_state(sc, cf, &s) < 0)
+		return -EINVAL;
+	if (eng_compute(e, &s, ACC_SKY_TABLES, &t, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skybench: %s\n", err);
+		return -EIO;
+	}
+	for (size_t i = 0; i < g->n; i++)
+		acc_table_radiance(e, &s, g->dir[i].elevation_deg, g->dir[i].azimuth_deg, ret[i]);
+	return 0;
+}
+
+int acc_tables_unshadowed(struct eng *e, const struct scene *sc, const struct config *cf,
+			  const struct gt *g, bool *ret)
+{
+	static double with[MAX_DIRS][3], without[MAX_DIRS][3];
+	struct scene clear = *sc;
+
+	memset(clear.keys, 0, sizeof(clear.keys));
+	int rc = radiances(e, sc, cf, g, with);
+	if (rc == 0)
+		rc = radiances(e, &clear, cf, g, without);
+	if (rc == 0)
+		*ret = memcmp(with, without, g->n * sizeof(with[0])) == 0;
+	return rc;
 }

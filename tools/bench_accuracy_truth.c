@@ -10,6 +10,9 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "media.h"
+#include "terrain.h"
+
 /* Bumped whenever the path tracer's estimator or this file's use of it
  * changes, so that cached ground truth from before is never reused. */
 #define GT_VERSION "gt2"
@@ -30,7 +33,17 @@ size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced)
 	static const double albedos[] = { 0, 0.3 };
 	size_t n = 0;
 
-#define ADD(...) do { if (n < max) sc[n++] = (struct scene){ __VA_ARGS__ }; } while (0)
+#define ADD(...) do { if (n < max) sc[n++] = (struct scene){ __VA_ARGS__, .keys = { NULL }, .few = false }; } while (0)
+#define SHADOWED(name_, alt, sun, down_, few_, ...)                                           \
+	do {                                                                                  \
+		if (n < max)                                                                  \
+			sc[n++] = (struct scene){ .name = name_, .preset = "earth", .altitude_km = alt, \
+						  .sun_elevation_deg = sun, .albedo = 0.3,        \
+						  .scattering_scale = 1, .down = down_, .few = few_, \
+						  .keys = { __VA_ARGS__ } };                      \
+	} while (0)
+#define BROKEN_SC "cloud1_oktas=6", "cloud1_base_m=1000", "cloud1_type=stratocumulus", "cloud_seed=1"
+#define RIDGE "terrain=@ridge", "terrain_extent_km=40", "terrain_height_m=1500"
 	if (reduced) {
 		/* CI: a day sky with its horizon band and one twilight sky, */
 		ADD("earth-s20-h0.2-a0.3", "earth", 0.2, 20, 0.3, 1, true, false, false);
@@ -45,6 +58,9 @@ size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced)
 		 * up and down at the limb. */
 		ADD("earth-s60-h0.001-a0", "earth", 0.001, 60, 0, 1, false, false, false);
 		ADD("earth-s60-h30-a0", "earth", 30, 60, 0, 1, false, false, true);
+		/* and two shadowed scenes on nine views each. */
+		SHADOWED("shadow-ci-bkn-s30-h0.2", 0.2, 30, false, true, BROKEN_SC);
+		SHADOWED("shadow-ci-ridge-s3-h0.2", 0.2, 3, false, true, RIDGE);
 		return n;
 	}
 	for (size_t a = 0; a < 2; a++)
@@ -75,7 +91,21 @@ size_t acc_build_scenes(struct scene *sc, size_t max, bool reduced)
 			ADD("", "earth", obs_alts[a], obs_suns[s], 0, 1, false, false, obs_alts[a] > 1);
 			snprintf(sc[n - 1].name, sizeof(sc[n - 1].name), "%s", name);
 		}
+	/* The shadowed scenes: the sun behind a broken layer (its seed puts
+	 * the sun behind a cloud), a low sun through the gaps of scattered
+	 * cumulus, an overcast at 300 m, a ridge's shadow at sunset, and an
+	 * observer at 12 km over the broken layer, looking up and down. */
+	SHADOWED("shadow-bkn-s30-h0.2", 0.2, 30, false, false, BROKEN_SC);
+	SHADOWED("shadow-sct-cu-s5-h0.2", 0.2, 5, false, false, "cloud1_oktas=3.5", "cloud1_base_m=1000",
+		 "cloud1_type=cumulus");
+	SHADOWED("shadow-ovc300-s40-h0.2", 0.2, 40, false, false, "cloud1_oktas=8", "cloud1_base_m=300",
+		 "cloud1_type=stratus");
+	SHADOWED("shadow-ridge-s3-h0.2", 0.2, 3, false, false, RIDGE);
+	SHADOWED("shadow-bkn-s30-h12", 12, 30, true, false, BROKEN_SC);
 #undef ADD
+#undef SHADOWED
+#undef BROKEN_SC
+#undef RIDGE
 	return n;
 }
 
@@ -87,6 +117,18 @@ static int apply(struct sky_state *s, const char *pair)
 		return -EINVAL;
 	}
 	return 0;
+}
+
+/* A scene's key; "terrain=@NAME" names a synthetic field (media.h). */
+static int apply_scene_key(struct sky_state *s, const char *pair)
+{
+	char kv[512];
+	const char *k = media_expand_key(pair, kv, sizeof(kv));
+	if (!k) {
+		fprintf(stderr, "skybench: %s: %s\n", pair, strerror(errno));
+		return -EINVAL;
+	}
+	return apply(s, k);
 }
 
 /* The state of a scene under a configuration (NULL: the default preset). */
@@ -113,6 +155,9 @@ int acc_scene_state(const struct scene *sc, const struct config *cf, struct sky_
 	for (int k = 0; cf && k < MAX_KEYS && cf->keys[k]; k++)
 		if (apply(&s, cf->keys[k]) < 0)
 			return -EINVAL;
+	for (int k = 0; k < MAX_SCENE_KEYS && sc->keys[k]; k++)
+		if (apply_scene_key(&s, sc->keys[k]) < 0)
+			return -EINVAL;
 	char err[256];
 	if (state_validate(&s, 0, err, sizeof(err)) < 0) {
 		fprintf(stderr, "skybench: %s: %s\n", sc->name, err);
@@ -138,12 +183,50 @@ static void add_ring(struct gt *g, double el_deg)
 	}
 }
 
+/* Clouds and terrain break the mirror symmetry: the shadowed scenes'
+ * views go round the whole circle, coarser, every one of weight 1. */
+static const double shadow_elevations[] = { 2, 5, 10, 20, 40, 70 };
+static const double few_elevations[] = { 5, 30 };
+static const double shadow_tangent_km[] = { 5, 0.5 };
+static const double shadow_below_deg[] = { 5, 20 };
+
+static void add_circle(struct gt *g, double el_deg, int n_az)
+{
+	for (int a = 0; a < n_az && g->n < MAX_DIRS; a++) {
+		g->dir[g->n] = (struct pt_dir){ el_deg, 360.0 * a / n_az };
+		g->weight[g->n++] = 1.0;
+	}
+}
+
+static void shadow_direction_set(const struct scene *sc, const struct sky_state *s, struct gt *g)
+{
+	int n_az = sc->few ? 4 : 8;
+	size_t n_el = sc->few ? 2 : sizeof(shadow_elevations) / sizeof(shadow_elevations[0]);
+	double rb = s->atmo.bottom_radius_km, r = rb + sc->altitude_km, deg = 180.0 / M_PI;
+
+	for (size_t e = 0; e < n_el; e++)
+		add_circle(g, sc->few ? few_elevations[e] : shadow_elevations[e], n_az);
+	add_circle(g, 90.0, 1);
+	if (!sc->down)
+		return;
+	for (size_t k = 0; k < 2; k++)
+		if (shadow_tangent_km[k] < sc->altitude_km)
+			add_circle(g, -acos((rb + shadow_tangent_km[k]) / r) * deg, n_az);
+	for (size_t k = 0; k < 2; k++)
+		add_circle(g, -(acos(rb / r) * deg + shadow_below_deg[k]), n_az);
+	add_circle(g, -90.0, 1);
+}
+
 void acc_direction_set(const struct scene *sc, struct gt *g)
 {
 	struct sky_state s;
 	g->n = 0;
 	if (acc_scene_state(sc, NULL, &s) < 0)
 		return;
+	if (acc_shadowed(sc)) {
+		shadow_direction_set(sc, &s, g);
+		return;
+	}
 	double rb = s.atmo.bottom_radius_km, shell = s.atmo.top_radius_km - rb;
 	/* Up only with at least 1 km of air above: from the top and beyond,
 	 * tables and truth alike read 0 there, which would flatter the means. */
@@ -184,6 +267,38 @@ static uint64_t fnv_double(uint64_t h, double d)
 	return fnv(h, buf);
 }
 
+/* The clouds and terrain, only where there are some: the clear scenes'
+ * hashes (and the committed truth) stay what they were. */
+static uint64_t hash_media(uint64_t h, const struct sky_state *s)
+{
+	struct skycloudd_layer L[SKYCLOUD_MAX_LAYERS];
+	double off[2];
+	char buf[64];
+
+	if (!media_present(s))
+		return h;
+	int n = state_cloud_layers_double(s, L);
+	h = fnv(h, "media;");
+	for (int i = 0; i < n; i++) {
+		h = fnv_double(h, L[i].type);
+		h = fnv_double(h, L[i].cover);
+		h = fnv_double(h, L[i].base_km);
+		h = fnv_double(h, L[i].top_km);
+		h = fnv_double(h, L[i].seed);
+		h = fnv_double(h, L[i].index);
+	}
+	state_cloud_offset_km(s, off);
+	h = fnv_double(h, off[0]);
+	h = fnv_double(h, off[1]);
+	if (state_terrain_set(s)) {
+		snprintf(buf, sizeof(buf), "%016llx;", (unsigned long long)s->terrain.hash);
+		h = fnv(h, buf);
+		h = fnv_double(h, s->terrain.extent_km);
+		h = fnv_double(h, s->terrain.height_m);
+	}
+	return h;
+}
+
 /* Only what the truth depends on - the atmosphere, the observer's altitude
  * and the sun - so that keys added to the state later leave the cache (and
  * the committed truth of the CI test) valid. */
@@ -212,6 +327,7 @@ static uint64_t hash_scene(uint64_t h, const struct sky_state *s)
 			h = fnv_double(h, y->constant);
 		}
 	}
+	h = hash_media(h, s);
 	h = fnv_double(h, s->altitude_km);
 	h = fnv_double(h, s->sun.elevation_deg);
 	h = fnv_double(h, s->sun.azimuth_deg);
@@ -320,26 +436,28 @@ static int gt_write(const char *path, const char *what, const struct gt *g, cons
 	return rc;
 }
 
-/* The ground truth for g's directions: from the read-only cache, the cache,
- * or the path tracer (then written to the cache). */
-int acc_ground_truth(const struct opts *o, const struct scene *sc, double rel_error, struct gt *g,
-		     const char *kind)
+/* The share of each view's single scattering that the scene shadows, for
+ * the categories (not cached: seconds a scene). */
+static int shadow_fractions(const struct scene *sc, const struct sky_state *s,
+			    const struct pt_sun *sun, const struct media *md, struct gt *g)
 {
-	struct sky_state s;
-	struct pt_options po;
-	char path[4096], what[256];
-
-	if (acc_scene_state(sc, NULL, &s) < 0)
-		return -EINVAL;
-	pt_options_default(&po);
-	po.rel_error = rel_error;
-	po.max_samples = o->max_samples;
-	po.threads = o->threads;
-	uint64_t h = gt_hash(&s, &po, g);
-	if (o->list_truth) {
-		printf("%s %s gt-%016llx.txt\n", sc->name, kind, (unsigned long long)h);
-		return 0;
+	for (size_t i = 0; i < g->n; i++) {
+		g->shadow[i] = 0.0;
+		if (acc_shadowed(sc) &&
+		    pt_shadow_fraction(&s->atmo, s->altitude_km, sun, &md->scene, &g->dir[i],
+				       &g->shadow[i]) < 0)
+			return -EINVAL;
 	}
+	return 0;
+}
+
+/* The truth of g from the read-only cache, the cache, or the tracer (then
+ * cached). */
+static int trace(const struct opts *o, const struct scene *sc, const struct sky_state *s,
+		 const struct pt_sun *sun, const struct media *md, const struct pt_options *po,
+		 uint64_t h, const char *kind, double rel_error, struct gt *g)
+{
+	char path[4096], what[256];
 	if (o->cache_ro) {
 		if (FITS(path, "%s/gt-%016llx.txt", o->cache_ro, (unsigned long long)h) &&
 		    gt_read(path, g) == 0)
@@ -352,11 +470,8 @@ int acc_ground_truth(const struct opts *o, const struct scene *sc, double rel_er
 	struct pt_result *r = calloc(g->n, sizeof(*r));
 	if (!r)
 		return -ENOMEM;
-	struct pt_sun sun = { .elevation_deg = s.sun.elevation_deg, .azimuth_deg = s.sun.azimuth_deg,
-			      .angular_radius_deg = s.sun.angular_radius_deg };
-	for (int c = 0; c < 3; c++)
-		sun.illuminance[c] = s.sun.illuminance_lx * s.sun.color[c];
-	int rc = pt_render(&s.atmo, s.altitude_km, &sun, g->dir, g->n, &po, r);
+	int rc = pt_render_scene(&s->atmo, s->altitude_km, sun, acc_shadowed(sc) ? &md->scene : NULL,
+				 g->dir, g->n, po, r);
 	if (rc == 0) {
 		fill_gt(g, r);
 		if (!FITS(what, "%s %s, rel_error %g, max_samples %llu", sc->name, kind, rel_error,
@@ -369,5 +484,41 @@ int acc_ground_truth(const struct opts *o, const struct scene *sc, double rel_er
 		fprintf(stderr, "skybench: path tracer on %s: %s\n", sc->name, strerror(-rc));
 	}
 	free(r);
+	return rc;
+}
+
+/* The ground truth for g's directions: from the read-only cache, the cache,
+ * or the path tracer (then written to the cache). */
+int acc_ground_truth(const struct opts *o, const struct scene *sc, double rel_error, struct gt *g,
+		     const char *kind)
+{
+	struct sky_state s;
+	struct pt_options po;
+
+	if (acc_scene_state(sc, NULL, &s) < 0)
+		return -EINVAL;
+	pt_options_default(&po);
+	po.rel_error = rel_error;
+	po.max_samples = o->max_samples;
+	po.threads = o->threads;
+	uint64_t h = gt_hash(&s, &po, g);
+	if (o->list_truth) {
+		printf("%s %s gt-%016llx.txt\n", sc->name, kind, (unsigned long long)h);
+		return 0;
+	}
+	struct pt_sun sun = { .elevation_deg = s.sun.elevation_deg, .azimuth_deg = s.sun.azimuth_deg,
+			      .angular_radius_deg = s.sun.angular_radius_deg };
+	for (int c = 0; c < 3; c++)
+		sun.illuminance[c] = s.sun.illuminance_lx * s.sun.color[c];
+	struct media md;
+	char err[256];
+	if (media_from_state(&s, &md, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skybench: %s: %s\n", sc->name, err);
+		return -EINVAL;
+	}
+	int rc = shadow_fractions(sc, &s, &sun, &md, g);
+	if (rc == 0)
+		rc = trace(o, sc, &s, &sun, &md, &po, h, kind, rel_error, g);
+	media_finish(&md);
 	return rc;
 }

@@ -6,7 +6,7 @@
  *            [--dirs elevation:azimuth,...] [--mode sky|single|ground]
  *            [--min-samples N] [--max-samples N] [--batch N] [--reference]
  *            [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]
- *            [--tables] [--model FACTOR] [--sos]
+ *            [--tables] [--model FACTOR] [--sos] [--view air|all]
  *
  * --tables adds the engine's sky radiance per direction (the sky-view table
  * computed by the default Vulkan device for the same state, read as libsky
@@ -30,6 +30,12 @@
  * g' = (g1 - f) / (1 - f); --delta-f sets another f); --delta-excess keeps the light scattered once
  * after the forward peak, which the TMS correction drops.
  *
+ * The state's cloud layers and terrain (cloudN_*, terrain=...) are traced
+ * as media (docs/truth.md, "Clouds and terrain"): --view air (the default)
+ * is the sky tables' view ray, the air's light through them; --view all
+ * what an eye sees, the clouds and the terrain on the view ray too.
+ * --reference then shades the single scattering by them.
+ *
  * The sun of the state lights the sky (sun_illuminance_lx times sun_color per
  * channel); the moon is not traced. Radiance is printed in cd/m2 per
  * channel when the illuminance is in lx.
@@ -43,6 +49,7 @@
 #include <time.h>
 
 #include "eng.h"
+#include "media.h"
 #include "model.h"
 #include "proto.h"
 #include "pt.h"
@@ -65,8 +72,9 @@ static void usage(FILE *f)
 		"                [--dirs EL:AZ,...] [--mode sky|single|ground]\n"
 		"                [--min-samples N] [--max-samples N] [--batch N] [--reference]\n"
 		"                [--isotropic] [--delta-m CONSTITUENT] [--delta-excess] [--delta-f F]\n"
-		"                [--tables] [--model FACTOR] [--sos]\n"
-		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...).\n"
+		"                [--tables] [--model FACTOR] [--sos] [--view air|all]\n"
+		"keys are skyd's state keys (preset, altitude_km, sun_elevation_deg, ...);\n"
+		"terrain=@ridge and terrain=@cliff are truth/media.h's synthetic fields.\n"
 		"--dirs EL:AZ in degrees, or tKM:AZ: the view down that grazes the air at\n"
 		"KM of altitude (the limb; KM below altitude_km).\n"
 		"default --dirs %s\n", default_dirs);
@@ -133,6 +141,7 @@ struct args {
 	int tables;		/* --tables */
 	uint64_t model_factor;	/* --model, 0 none */
 	int sos;		/* --sos */
+	enum pt_view view;	/* --view */
 };
 
 /* Sets option a from its value v. Returns 0, -EINVAL for a bad value, or
@@ -163,6 +172,9 @@ static int set_option(struct args *g, struct pt_dir *dirs, const char *a, const 
 		bad = parse_u64(v, &u) < 0 || !u || u > 64 || (g->model_factor = u, 0);
 	else if (strcmp(a, "--dirs") == 0)
 		bad = parse_dirs(v, dirs, &g->n) < 0;
+	else if (strcmp(a, "--view") == 0)
+		bad = strcmp(v, "air") == 0 ? (g->view = PT_VIEW_AIR, 0)
+		      : strcmp(v, "all") == 0 ? (g->view = PT_VIEW_ALL, 0) : 1;
 	else if (strcmp(a, "--mode") == 0) {
 		if (strcmp(v, "sky") == 0)
 			opt->mode = PT_SKY;
@@ -236,9 +248,17 @@ static int parse_args(int argc, char **argv, struct args *g, struct pt_dir *dirs
 				fprintf(stderr, "skytruth: %s: bad value '%s'\n", a, v);
 				return 2;
 			}
-		} else if (state_set_pair(&g->s, a, NULL, err, sizeof(err)) < 0) {
-			fprintf(stderr, "skytruth: %s\n", err);
-			return 2;
+		} else {
+			char kv[512];
+			const char *k = media_expand_key(a, kv, sizeof(kv));
+			if (!k) {
+				fprintf(stderr, "skytruth: %s: %s\n", a, strerror(errno));
+				return 2;
+			}
+			if (state_set_pair(&g->s, k, NULL, err, sizeof(err)) < 0) {
+				fprintf(stderr, "skytruth: %s\n", err);
+				return 2;
+			}
 		}
 	}
 	if (state_validate(&g->s, 0, err, sizeof(err)) < 0) {
@@ -381,13 +401,26 @@ static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_resu
 	       ap->delta_f, ap->delta_g);
 	fflush(stdout);
 
+	struct media md;
+	char err[256];
+	if (media_from_state(s, &md, err, sizeof(err)) < 0) {
+		fprintf(stderr, "skytruth: %s\n", err);
+		return 1;
+	}
+	md.scene.view = g->view;
+	if (media_present(s))
+		printf("# clouds: %d layers drawn; terrain: %s; view: %s\n", md.scene.n_layers,
+		       md.scene.terrain ? s->terrain.path : "none", g->view == PT_VIEW_ALL ? "all" : "air");
 	double t0 = now_s();
 	int r = ap->isotropic || ap->delta_m ?
-		pt_render_approx(&s->atmo, s->altitude_km, &sun, dirs, g->n, &g->opt, ap, res) :
-		pt_render(&s->atmo, s->altitude_km, &sun, dirs, g->n, &g->opt, res);
+		(media_present(s) ? -ENOTSUP :
+		 pt_render_approx(&s->atmo, s->altitude_km, &sun, dirs, g->n, &g->opt, ap, res)) :
+		pt_render_scene(&s->atmo, s->altitude_km, &sun, &md.scene, dirs, g->n, &g->opt, res);
 	double elapsed = now_s() - t0;
 	if (r < 0) {
-		fprintf(stderr, "skytruth: path tracing failed: %s\n", strerror(-r));
+		fprintf(stderr, "skytruth: path tracing failed: %s%s\n", strerror(-r),
+			r == -ENOTSUP ? " (--isotropic and --delta-m trace a clear sky only)" : "");
+		media_finish(&md);
 		return 1;
 	}
 
@@ -403,7 +436,7 @@ static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_resu
 		       res[i].std_error[2], (unsigned long long)res[i].samples);
 		if (g->reference) {
 			double ref[3];
-			pt_single_scatter_reference(&s->atmo, s->altitude_km, &sun, &dirs[i], ref);
+			pt_single_scatter_scene(&s->atmo, s->altitude_km, &sun, &md.scene, &dirs[i], ref);
 			printf(" %.9g %.9g %.9g", ref[0], ref[1], ref[2]);
 		}
 		if (g->tables)
@@ -417,6 +450,7 @@ static int trace(const struct args *g, const struct pt_dir *dirs, struct pt_resu
 	}
 	printf("# time_s %.3f paths %llu (x3 channels) paths_per_s %.0f\n", elapsed,
 	       (unsigned long long)total, elapsed > 0 ? 3.0 * (double)total / elapsed : 0.0);
+	media_finish(&md);
 	return 0;
 }
 

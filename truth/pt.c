@@ -1,6 +1,7 @@
 /* pt.c - the estimator of pt.h's Monte Carlo path tracer (one sample of one
- * channel along a view ray) and its single-scattering reference; the
- * driver that runs it is pt_render.c.
+ * channel along a view ray); its medium and transport primitives are
+ * pt_media.c, its deterministic references pt_ref.c, the driver that runs
+ * it pt_render.c.
  *
  * Estimator, per channel and per sample:
  *  - The first scattering point along the view ray is importance-sampled
@@ -22,7 +23,16 @@
  *    never counted twice.
  *  - Russian roulette on the throughput ends paths; there is no order cap.
  * The majorant per channel is sum(extinction * max density), the maximum of
- * every clamped exponential-plus-linear layer found analytically.
+ * every clamped exponential-plus-linear layer found analytically, plus
+ * inside each cloud layer's shell its extinction per km (the density of
+ * proto/skycloud.h never exceeds it).
+ *
+ * Clouds scatter with their type's albedo and Henyey-Greenstein phase,
+ * chosen beside the air's constituents in proportion to their scattering;
+ * the terrain is a Lambertian surface of the ground's albedo, met by
+ * marching its height field (proto/skyterrain.h) before the free path is
+ * sampled. The tables' view ray (PT_VIEW_AIR) draws its first vertex in
+ * the air alone, as above; PT_VIEW_ALL draws it by delta tracking.
  */
 #include "pt_internal.h"
 
@@ -31,357 +41,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define PI 3.14159265358979323846
-#define MAX_BREAKS 64
 #define DEFENSIVE 0.1		/* share of the uniform proposal on the view ray */
 #define SUNLIT 0.3		/* share of the proposal that follows the sunlit air */
 
-/* 8-point Gauss-Legendre on [-1, 1], positive half. */
-static const double gl_x[4] = { 0.1834346424956498, 0.5255324099163290,
-				0.7966664774136267, 0.9602898564975363 };
-static const double gl_w[4] = { 0.3626837833783620, 0.3137066458778873,
-				0.2223810344533745, 0.1012285362903763 };
-
-/* ---- vectors ---- */
-
-static double dot(const double a[3], const double b[3])
-{
-	return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
-static void axpy(const double o[3], double t, const double d[3], double ret[3])
-{
-	for (int i = 0; i < 3; i++)
-		ret[i] = o[i] + t * d[i];
-}
-
-/* Orthonormal u, v completing n (Duff et al. 2017). */
-static void basis(const double n[3], double u[3], double v[3])
-{
-	double s = copysign(1.0, n[2]);
-	double a = -1.0 / (s + n[2]), b = n[0] * n[1] * a;
-	u[0] = 1.0 + s * n[0] * n[0] * a;
-	u[1] = s * b;
-	u[2] = -s * n[0];
-	v[0] = b;
-	v[1] = s + n[1] * n[1] * a;
-	v[2] = -n[1];
-}
-
-static void from_local(const double n[3], double cos_t, double phi, double ret[3])
-{
-	double u[3], v[3], s = sqrt(fmax(0.0, (1.0 - cos_t) * (1.0 + cos_t)));
-	basis(n, u, v);
-	double cu = s * cos(phi), cv = s * sin(phi);
-	for (int i = 0; i < 3; i++)
-		ret[i] = cos_t * n[i] + cu * u[i] + cv * v[i];
-}
-
-static void direction(double elevation_deg, double azimuth_deg, double ret[3])
-{
-	double el = elevation_deg * PI / 180.0, az = azimuth_deg * PI / 180.0;
-	ret[0] = cos(el) * sin(az);
-	ret[1] = cos(el) * cos(az);
-	ret[2] = sin(el);
-}
-
-/* ---- counter-based random numbers ---- */
-
-static uint64_t mix64(uint64_t z)
-{
-	z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-	z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-	return z ^ (z >> 31);
-}
-
-void pt_rng_init(struct rng *r, uint64_t seed, uint64_t dir, uint64_t sample, int channel)
-{
-	const uint64_t k = 0x9e3779b97f4a7c15ull;
-	r->key = mix64(mix64(mix64(seed + k) + dir * k) + sample * 4 + (uint64_t)channel);
-	r->ctr = 0;
-}
-
-/* Uniform in [0, 1). */
-static double rnd(struct rng *r)
-{
-	uint64_t x = mix64(r->key + ++r->ctr * 0x9e3779b97f4a7c15ull);
-	return (double)(x >> 11) * 0x1.0p-53;
-}
-
-/* ---- the medium ---- */
-
-static double altitude(const struct medium *m, const double x[3])
-{
-	return sqrt(dot(x, x)) - m->rb;
-}
-
-static void densities(const struct medium *m, const double x[3], double ret[])
-{
-	double h = altitude(m, x);
-	for (int i = 0; i < m->n; i++)
-		ret[i] = atmo_density(&m->c[i].density, h);
-}
-
-static double extinction(const struct medium *m, const double x[3], int ch)
-{
-	double h = altitude(m, x), s = 0.0;
-	for (int i = 0; i < m->n; i++)
-		if (m->ext[i][ch] > 0.0)
-			s += m->ext[i][ch] * atmo_density(&m->c[i].density, h);
-	return s;
-}
-
-static double layer_value(const struct atmo_layer *l, double h)
-{
-	double d = l->exp_term * exp(l->exp_scale_per_km * h) + l->linear_per_km * h + l->constant;
-	return d < 0.0 ? 0.0 : d > 1.0 ? 1.0 : d;
-}
-
-/* Largest density of one layer over [lo, hi]: a e^{sh} + l h + c is convex
- * or concave, so the maximum is at an end or at the stationary point. */
-static double layer_max(const struct atmo_layer *l, double lo, double hi)
-{
-	double m = fmax(layer_value(l, lo), layer_value(l, hi));
-	double a = l->exp_term, s = l->exp_scale_per_km, k = l->linear_per_km;
-	if (a != 0.0 && s != 0.0 && k != 0.0 && -k / (a * s) > 0.0) {
-		double h = log(-k / (a * s)) / s;
-		if (h > lo && h < hi)
-			m = fmax(m, layer_value(l, h));
-	}
-	return m;
-}
-
-static double profile_max(const struct atmo_profile *p, double shell_km)
-{
-	double w = p->layers[0].width_km, m = 0.0;
-	if (w > 0.0)
-		m = layer_max(&p->layers[0], 0.0, fmin(w, shell_km));
-	if (w < shell_km)
-		m = fmax(m, layer_max(&p->layers[1], fmax(w, 0.0), shell_km));
-	return m;
-}
-
-static void add_kink(struct medium *m, double h, double shell_km)
-{
-	size_t cap = sizeof(m->kink_km) / sizeof(m->kink_km[0]);
-	if (isfinite(h) && h > 0.0 && h < shell_km && (size_t)m->n_kinks < cap)
-		m->kink_km[m->n_kinks++] = h;
-}
-
-/* Altitudes where a layer's clamp starts or stops acting, where the
- * quadrature must cut its cells. Mixed exponential-plus-linear layers have
- * no closed form and are left to the cell size. */
-static void layer_kinks(struct medium *m, const struct atmo_layer *l, double shell_km)
-{
-	for (int v = 0; v <= 1; v++) {
-		if (l->exp_term == 0.0 && l->linear_per_km != 0.0)
-			add_kink(m, (v - l->constant) / l->linear_per_km, shell_km);
-		else if (l->linear_per_km == 0.0 && l->exp_term != 0.0 &&
-			 l->exp_scale_per_km != 0.0 && (v - l->constant) / l->exp_term > 0.0)
-			add_kink(m, log((v - l->constant) / l->exp_term) / l->exp_scale_per_km,
-				 shell_km);
-	}
-}
-
-void pt_medium_init(struct medium *m, const struct atmo *a, const struct pt_sun *sun)
-{
-	double shell = a->top_radius_km - a->bottom_radius_km;
-
-	memset(m, 0, sizeof(*m));
-	m->rb = a->bottom_radius_km;
-	m->rt = a->top_radius_km;
-	m->n = a->n_constituents;
-	m->c = a->c;
-	m->dh_max_km = 1e300;
-	for (int i = 0; i < m->n; i++) {
-		const struct atmo_constituent *c = &a->c[i];
-		double dmax = profile_max(&c->density, shell);
-		for (int ch = 0; ch < 3; ch++) {
-			m->ext[i][ch] = c->scattering_per_km[ch] + c->absorption_per_km[ch];
-			m->majorant[ch] += m->ext[i][ch] * dmax;
-		}
-		for (int k = 0; k < 2; k++) {
-			const struct atmo_layer *l = &c->density.layers[k];
-			if (l->exp_term != 0.0 && l->exp_scale_per_km != 0.0)
-				m->dh_max_km = fmin(m->dh_max_km, 2.0 / fabs(l->exp_scale_per_km));
-			layer_kinks(m, l, shell);
-		}
-		add_kink(m, c->density.layers[0].width_km, shell);
-	}
-	for (int ch = 0; ch < 3; ch++) {
-		/* Rounding in atmo_density must never exceed the majorant. */
-		m->majorant[ch] *= 1.0 + 1e-9;
-		m->albedo[ch] = a->ground_albedo[ch];
-		m->illuminance[ch] = sun->illuminance[ch];
-	}
-	direction(sun->elevation_deg, sun->azimuth_deg, m->sun);
-	basis(m->sun, m->sun_u, m->sun_v);
-	double half = sun->angular_radius_deg * PI / 360.0;
-	m->sun_one_minus_cos = 2.0 * sin(half) * sin(half);
-}
-
-/* ---- geometry ---- */
-
-/* |x|^2 - r^2 without cancellation near the sphere. */
-static double sphere_c(const double x[3], double r)
-{
-	double len = sqrt(dot(x, x));
-	return (len - r) * (len + r);
-}
-
-/* Distance from x (inside the shell) along d to where the ray leaves it;
- * *ret_ground says whether that is the ground. A ray only meets the ground
- * while it goes down, which keeps rays that start on the ground off it. */
-static double exit_distance(const struct medium *m, const double x[3], const double d[3],
-			    int *ret_ground)
-{
-	double b = dot(x, d);
-	if (b < 0.0) {
-		double c = sphere_c(x, m->rb);
-		if (c <= 0.0) {
-			*ret_ground = 1;
-			return 0.0;
-		}
-		double disc = b * b - c;
-		if (disc >= 0.0) {
-			*ret_ground = 1;
-			return c / (-b + sqrt(disc));
-		}
-	}
-	*ret_ground = 0;
-	double c = sphere_c(x, m->rt);
-	double s = sqrt(fmax(0.0, b * b - c));
-	double t = b > 0.0 ? -c / (b + s) : -b + s;
-	return t > 0.0 ? t : 0.0;
-}
-
-/* The view ray's stretch inside the shell, [*t0, *t1]; 0 if it misses. */
-static int view_segment(const struct medium *m, const double o[3], const double d[3],
-			double *t0, double *t1, int *ret_ground)
-{
-	*ret_ground = 0;
-	if (sqrt(dot(o, o)) <= m->rt) {
-		*t0 = 0.0;
-		*t1 = exit_distance(m, o, d, ret_ground);
-		return *t1 > 0.0 || *ret_ground;
-	}
-	double b = dot(o, d), c = sphere_c(o, m->rt), disc = b * b - c;
-	if (disc <= 0.0 || b >= 0.0)
-		return 0;
-	double enter = c / (-b + sqrt(disc)), x[3];
-	int g;
-	axpy(o, enter, d, x);
-	double len = exit_distance(m, x, d, &g);
-	*t0 = enter;
-	*t1 = enter + len;
-	*ret_ground = g;
-	return 1;
-}
-
-/* ---- quadrature cells along a ray ---- */
-
-/* Walks [ta, tb] along o + t d in cells whose ends include the point closest
- * to the centre and the crossings of every kink altitude, each cell short
- * enough in altitude (dh_max, 1 km + 10 % of the altitude) and length
- * (20 km) for 8-point Gauss-Legendre to integrate the profiles to rounding. */
-struct walk {
-	const struct medium *m;
-	const double *o, *d;
-	double bp[MAX_BREAKS];
-	int nbp, j;
-	double t;
-};
-
-static void walk_init(struct walk *w, const struct medium *m, const double o[3],
-		      const double d[3], double ta, double tb)
-{
-	w->m = m;
-	w->o = o;
-	w->d = d;
-	w->nbp = 0;
-	w->bp[w->nbp++] = ta;
-	double tc = -dot(o, d);
-	if (tc > ta && tc < tb)
-		w->bp[w->nbp++] = tc;
-	for (int k = 0; k < m->n_kinks && w->nbp < MAX_BREAKS - 3; k++) {
-		double r = m->rb + m->kink_km[k], b = dot(o, d), c = sphere_c(o, r);
-		double disc = b * b - c;
-		if (disc <= 0.0)
-			continue;
-		double s = sqrt(disc);
-		double roots[2] = { -b - s, -b + s };
-		for (int i = 0; i < 2; i++)
-			if (roots[i] > ta && roots[i] < tb)
-				w->bp[w->nbp++] = roots[i];
-	}
-	w->bp[w->nbp++] = tb;
-	for (int i = 1; i < w->nbp; i++)	/* insertion sort: a few entries */
-		for (int k = i; k > 0 && w->bp[k] < w->bp[k - 1]; k--) {
-			double tmp = w->bp[k];
-			w->bp[k] = w->bp[k - 1];
-			w->bp[k - 1] = tmp;
-		}
-	w->j = 0;
-	w->t = ta;
-}
-
-static int walk_next(struct walk *w, double *ret_a, double *ret_b)
-{
-	while (w->j + 1 < w->nbp && w->t >= w->bp[w->j + 1])
-		w->j++;
-	if (w->j + 1 >= w->nbp)
-		return 0;
-	double x[3];
-	axpy(w->o, w->t, w->d, x);
-	double r = sqrt(dot(x, x)), h = r - w->m->rb;
-	double mu = fabs(dot(x, w->d)) / r;
-	double dh = fmin(1.0 + 0.1 * fmax(h, 0.0), w->m->dh_max_km);
-	double step = mu > 0.0 ? fmin(20.0, dh / mu) : 20.0;
-	double end = w->bp[w->j + 1];
-	/* Avoid a sliver cell at the end of a piece. */
-	double b = w->t + step > end - 0.25 * step ? end : w->t + step;
-	*ret_a = w->t;
-	*ret_b = b;
-	w->t = b;
-	return 1;
-}
-
-/* Optical depth per channel of the cell [a, b] along o + t d. */
-static void cell_tau(const struct medium *m, const double o[3], const double d[3],
-		     double a, double b, double ret[3])
-{
-	double mid = 0.5 * (a + b), half = 0.5 * (b - a), x[3];
-	double rho[ATMO_MAX_CONSTITUENTS];
-	ret[0] = ret[1] = ret[2] = 0.0;
-	for (int k = 0; k < 8; k++) {
-		double t = mid + (k < 4 ? -gl_x[k] : gl_x[k - 4]) * half;
-		double w = gl_w[k & 3] * half;
-		axpy(o, t, d, x);
-		densities(m, x, rho);
-		for (int i = 0; i < m->n; i++)
-			for (int ch = 0; ch < 3; ch++)
-				ret[ch] += w * m->ext[i][ch] * rho[i];
-	}
-}
-
-/* Optical depth along the whole ray [ta, tb]. */
-static void ray_tau(const struct medium *m, const double o[3], const double d[3],
-		    double ta, double tb, double ret[3])
-{
-	struct walk w;
-	double a, b, c[3];
-	ret[0] = ret[1] = ret[2] = 0.0;
-	walk_init(&w, m, o, d, ta, tb);
-	while (walk_next(&w, &a, &b)) {
-		cell_tau(m, o, d, a, b, c);
-		for (int ch = 0; ch < 3; ch++)
-			ret[ch] += c[ch];
-	}
-}
-
 /* ---- phase functions (per steradian, normalised over the sphere) ---- */
 
-static double phase(const struct atmo_constituent *c, double mu)
+double pt_phase(const struct atmo_constituent *c, double mu)
 {
 	double g = c->g, den;
 	switch (c->phase) {
@@ -434,31 +99,12 @@ static double sample_phase(const struct atmo_constituent *c, struct rng *r)
 
 /* ---- transport ---- */
 
-/* Ratio tracking: an unbiased estimate of the transmittance from x along d
- * to the edge of the shell, 0 if the ray meets the ground. */
-static double transmittance(const struct medium *m, const double x[3], const double d[3],
-			    int ch, struct rng *r)
+/* Henyey-Greenstein, per steradian: (1-g)^2 + 2g(1-mu), no cancellation
+ * at g -> 1. */
+static double hg(double g, double mu)
 {
-	int ground;
-	double te = exit_distance(m, x, d, &ground);
-	if (ground)
-		return 0.0;
-	double maj = m->majorant[ch], T = 1.0, t = 0.0, p[3];
-	if (maj <= 0.0)
-		return 1.0;
-	for (;;) {
-		t -= log1p(-rnd(r)) / maj;
-		if (t >= te)
-			return T;
-		axpy(x, t, d, p);
-		T *= 1.0 - extinction(m, p, ch) / maj;
-		if (T < 1e-3) {
-			/* Roulette: a dim shadow ray is not worth finishing. */
-			if (rnd(r) >= 0.25)
-				return 0.0;
-			T *= 4.0;
-		}
-	}
+	double den = (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - mu);
+	return (1.0 - g * g) / (4.0 * PI * den * sqrt(den));
 }
 
 /* A direction uniform in solid angle over the sun's disk. */
@@ -471,25 +117,34 @@ static void sample_sun(const struct medium *m, struct rng *r, double ret[3])
 			 sin_t * (cos(phi) * m->sun_u[i] + sin(phi) * m->sun_v[i]);
 }
 
+double pt_phase_mix(const struct medium *m, const double rho[], double sigma_s, double mu, int ch)
+{
+	double p = 0.0;
+	for (int i = 0; i < m->n; i++)
+		if (m->c[i].scattering_per_km[ch] > 0.0)
+			p += m->c[i].scattering_per_km[ch] * rho[i] * pt_phase(&m->c[i], mu);
+	for (int i = 0; i < m->n_layers; i++)
+		if (rho[CLOUD_SLOT(i)] > 0.0)
+			p += m->layer_albedo[i] * rho[CLOUD_SLOT(i)] * hg(m->layer_g[i], mu);
+	return p / sigma_s;
+}
+
 /* Next-event estimate at a scattering point x reached along d: the sun's
  * radiance times its solid angle (the illuminance) times the phase function
  * mixture (sum sigma_s,i p_i / sigma_s) times the shadow ray. */
 static double nee_medium(const struct medium *m, const double x[3], const double d[3],
 			 const double rho[], double sigma_s, int ch, struct rng *r)
 {
-	double ws[3], p = 0.0;
+	double ws[3];
 	sample_sun(m, r, ws);
-	double mu = dot(ws, d);
-	for (int i = 0; i < m->n; i++)
-		if (m->c[i].scattering_per_km[ch] > 0.0)
-			p += m->c[i].scattering_per_km[ch] * rho[i] * phase(&m->c[i], mu);
-	p /= sigma_s;
+	double p = pt_phase_mix(m, rho, sigma_s, dot(ws, d), ch);
 	if (p <= 0.0)
 		return 0.0;
-	return m->illuminance[ch] * p * transmittance(m, x, ws, ch, r);
+	return m->illuminance[ch] * p * pt_transmittance(m, x, ws, ch, r);
 }
 
-/* Next-event estimate at a ground point x (on the sphere) with normal n. */
+/* Next-event estimate at a ground point x (the sphere's or the terrain's)
+ * with normal n. */
 static double nee_ground(const struct medium *m, const double x[3], const double n[3],
 			 int ch, struct rng *r)
 {
@@ -498,19 +153,12 @@ static double nee_ground(const struct medium *m, const double x[3], const double
 	double cos_s = dot(ws, n);
 	if (cos_s <= 0.0 || m->albedo[ch] <= 0.0)
 		return 0.0;
-	return m->illuminance[ch] * m->albedo[ch] / PI * cos_s * transmittance(m, x, ws, ch, r);
+	return m->illuminance[ch] * m->albedo[ch] / PI * cos_s * pt_transmittance(m, x, ws, ch, r);
 }
 
-static double scattering(const struct medium *m, const double rho[], int ch)
-{
-	double s = 0.0;
-	for (int i = 0; i < m->n; i++)
-		s += m->c[i].scattering_per_km[ch] * rho[i];
-	return s;
-}
-
-/* New direction at a scattering point: pick a constituent in proportion to
- * its scattering, then draw from its phase function around d. */
+/* New direction at a scattering point: pick an air constituent or a cloud
+ * layer in proportion to its scattering, then draw from its phase function
+ * around d. */
 static void scatter_dir(const struct medium *m, const double rho[], double sigma_s,
 			const double d[3], int ch, struct rng *r, double ret[3])
 {
@@ -525,33 +173,49 @@ static void scatter_dir(const struct medium *m, const double rho[], double sigma
 		if (u < acc)
 			break;
 	}
-	double mu = sample_phase(&m->c[pick], r);
-	from_local(d, mu, 2.0 * PI * rnd(r), ret);
+	for (int i = 0; i < m->n_layers && !(u < acc && pick >= 0); i++) {
+		double s = m->layer_albedo[i] * rho[CLOUD_SLOT(i)];
+		if (s <= 0.0)
+			continue;
+		pick = CLOUD_SLOT(i);
+		acc += s;
+	}
+	double mu = pick >= CLOUD_SLOT(0) ? sample_hg(m->layer_g[pick - CLOUD_SLOT(0)], rnd(r))
+					  : sample_phase(&m->c[pick], r);
+	pt_from_local(d, mu, 2.0 * PI * rnd(r), ret);
 }
+
+/* Paths through clouds (albedo 1) end by leaving them, after some hundred
+ * orders under an overcast; the clear sky's air is held to this many
+ * orders before its roulette tightens. */
+#define ORDERS_FREE 64
+#define ORDERS_FREE_CLOUDS 4096
 
 /* Radiance carried back to a vertex by every later order, per unit
  * throughput. At entry (x, d) is the vertex and the direction the path
- * arrived along; ground says whether x is on the ground (normal n). */
+ * arrived along; ground says whether x is on a surface, of normal n0. */
 static double trace_on(const struct medium *m, const double x0[3], const double d0[3],
-		       const double rho0[], double sigma_s0, int ground, int ch, struct rng *r)
+		       const double rho0[], double sigma_s0, int ground, const double n0[3], int ch,
+		       struct rng *r)
 {
-	double x[3], d[3], nd[3], rho[ATMO_MAX_CONSTITUENTS], sigma_s = sigma_s0;
+	double x[3], d[3], n[3], nd[3], rho[PT_MEDIA], sigma_s = sigma_s0;
 	double L = 0.0, w = 1.0;
+	struct pt_hit h;
+	int free_orders = m->n_layers ? ORDERS_FREE_CLOUDS : ORDERS_FREE;
 	memcpy(x, x0, sizeof(x));
 	memcpy(d, d0, sizeof(d));
-	memcpy(rho, rho0, sizeof(double) * (size_t)m->n);
+	memcpy(rho, rho0, sizeof(rho));
+	if (ground)
+		memcpy(n, n0, sizeof(n));
 
 	for (int depth = 0;; depth++) {
 		/* Leave the vertex. */
 		if (ground) {
-			double n[3], len = sqrt(dot(x, x));
-			for (int i = 0; i < 3; i++)
-				n[i] = x[i] / len;
 			double u1 = rnd(r);
-			from_local(n, sqrt(1.0 - u1), 2.0 * PI * rnd(r), nd);
+			pt_from_local(n, sqrt(1.0 - u1), 2.0 * PI * rnd(r), nd);
 			w *= m->albedo[ch];
 		} else if (m->isotropic) {
-			from_local(d, 2.0 * rnd(r) - 1.0, 2.0 * PI * rnd(r), nd);
+			pt_from_local(d, 2.0 * rnd(r) - 1.0, 2.0 * PI * rnd(r), nd);
 		} else {
 			scatter_dir(m, rho, sigma_s, d, ch, r, nd);
 		}
@@ -559,7 +223,7 @@ static double trace_on(const struct medium *m, const double x0[3], const double 
 
 		/* Roulette on the throughput; no cap on the number of orders. */
 		double q = fmin(1.0, w);
-		if (depth > 64)
+		if (depth > free_orders)
 			q = fmin(q, 0.9);
 		if (q < 1.0) {
 			if (rnd(r) >= q)
@@ -567,40 +231,19 @@ static double trace_on(const struct medium *m, const double x0[3], const double 
 			w /= q;
 		}
 
-		/* Delta tracking to the next real collision. */
-		int hits_ground;
-		double te = exit_distance(m, x, d, &hits_ground), t = 0.0, p[3];
-		double maj = m->majorant[ch];
-		int collided = 0;
-		while (maj > 0.0) {
-			t -= log1p(-rnd(r)) / maj;
-			if (t >= te)
-				break;
-			axpy(x, t, d, p);
-			densities(m, p, rho);
-			double st = 0.0;
-			for (int i = 0; i < m->n; i++)
-				st += m->ext[i][ch] * rho[i];
-			if (rnd(r) * maj < st) {
-				sigma_s = scattering(m, rho, ch);
-				w *= sigma_s / st;
-				collided = 1;
-				break;
-			}
-		}
-		if (collided) {
-			memcpy(x, p, sizeof(x));
+		enum pt_event e = pt_fly(m, x, d, ch, r, &h);
+		if (e == PT_COLLIDE) {
+			memcpy(x, h.p, sizeof(x));
+			memcpy(rho, h.rho, sizeof(rho));
+			sigma_s = pt_sigma_s(m, rho, ch);
+			w *= sigma_s / h.sigma_t;
 			ground = 0;
 			if (sigma_s <= 0.0)
 				break;
 			L += w * nee_medium(m, x, d, rho, sigma_s, ch, r);
-		} else if (hits_ground) {
-			axpy(x, te, d, p);
-			double s = m->rb / sqrt(dot(p, p)), n[3];
-			for (int i = 0; i < 3; i++) {
-				x[i] = p[i] * s;
-				n[i] = x[i] / m->rb;
-			}
+		} else if (e == PT_SURFACE) {
+			memcpy(x, h.p, sizeof(x));
+			memcpy(n, h.normal, sizeof(n));
 			ground = 1;
 			if (m->albedo[ch] <= 0.0)
 				break;
@@ -610,6 +253,33 @@ static double trace_on(const struct medium *m, const double x0[3], const double 
 		}
 	}
 	return L;
+}
+
+/* PT_VIEW_ALL: the eye's ray, its first vertex by delta tracking through
+ * everything, ending on a surface (whose own light PT_GROUND adds). */
+static double sample_eye(const struct medium *m, const struct view *v, enum pt_mode mode, int ch,
+			 struct rng *r)
+{
+	struct pt_hit h;
+	enum pt_event e = pt_fly(m, v->o, v->d, ch, r, &h);
+
+	if (e == PT_COLLIDE) {
+		double sigma_s = pt_sigma_s(m, h.rho, ch);
+		if (!(sigma_s > 0.0))
+			return 0.0;
+		double w = sigma_s / h.sigma_t, L = 0.0;
+		if (!m->multi_only)
+			L += w * nee_medium(m, h.p, v->d, h.rho, sigma_s, ch, r);
+		if (mode != PT_SINGLE)
+			L += w * trace_on(m, h.p, v->d, h.rho, sigma_s, 0, NULL, ch, r);
+		return L;
+	}
+	if (e == PT_SURFACE && mode == PT_GROUND && m->albedo[ch] > 0.0) {
+		double none[PT_MEDIA] = { 0 };
+		return nee_ground(m, h.p, h.normal, ch, r) +
+		       trace_on(m, h.p, v->d, none, 0.0, 1, h.normal, ch, r);
+	}
+	return 0.0;
 }
 
 /* ---- per-direction view-ray tables ---- */
@@ -622,13 +292,21 @@ void pt_view_free(struct view *v)
 	memset(v, 0, sizeof(*v));
 }
 
+/* What the air alone holds at x: the tables' view ray sees no cloud. */
+static void air_only(const struct medium *m, const double x[3], double rho[])
+{
+	pt_densities(m, x, rho);
+	for (int i = 0; i < m->n_layers; i++)
+		rho[CLOUD_SLOT(i)] = 0.0;
+}
+
 /* Builds the sunlit proposal from the optical-depth table and one shadow ray
  * to the sun's centre per group: a guide only, its pdf is evaluated exactly
  * as sampled, so its accuracy changes the noise, never the mean. */
 static void view_sunlit(struct view *v, const struct medium *m)
 {
 	int per = (v->n + GROUPS - 1) / GROUPS;
-	double rho[ATMO_MAX_CONSTITUENTS];
+	double rho[PT_MEDIA];
 	v->ng = 0;
 	v->gt[0] = v->t[0];
 	for (int ch = 0; ch < 3; ch++)
@@ -640,16 +318,21 @@ static void view_sunlit(struct view *v, const struct medium *m)
 		while (kc + 1 < k1 && v->t[kc + 1] <= mid)
 			kc++;
 		axpy(v->o, mid, v->d, x);
-		densities(m, x, rho);
+		air_only(m, x, rho);
 		int ground;
-		double te = exit_distance(m, x, m->sun, &ground);
+		double te = pt_exit_distance(m, x, m->sun, &ground), th, shade = 1.0;
 		if (!ground)
-			ray_tau(m, x, m->sun, 0.0, te, tau_s);
+			pt_ray_tau(m, x, m->sun, 0.0, te, tau_s);
+		/* The scene's shadow at the group's middle, the guide's only. */
+		if (!ground && pt_terrain_hit(m, x, m->sun, te, &th))
+			shade = 0.0;
+		else if (!ground && m->n_layers)
+			shade = exp(-pt_cloud_tau(m, x, m->sun, te, 64));
 		v->gt[g + 1] = b;
 		for (int ch = 0; ch < 3; ch++) {
 			double s = (v->tau[ch][kc + 1] - v->tau[ch][kc]) / (v->t[kc + 1] - v->t[kc]);
 			double tau_v = v->tau[ch][kc] + s * (mid - v->t[kc]);
-			double w = ground ? 0.0 : (b - a) * scattering(m, rho, ch) *
+			double w = ground ? 0.0 : (b - a) * pt_sigma_s(m, rho, ch) * shade *
 						  exp(-tau_v - tau_s[ch]);
 			v->gcdf[ch][g + 1] = v->gcdf[ch][g] + w;
 		}
@@ -661,8 +344,8 @@ int pt_view_build(struct view *v, const struct medium *m, double altitude_km,
 {
 	memset(v, 0, sizeof(*v));
 	v->o[2] = m->rb + (altitude_km > 0.0 ? altitude_km : 0.0);
-	direction(dir->elevation_deg, dir->azimuth_deg, v->d);
-	if (!view_segment(m, v->o, v->d, &v->t0, &v->t1, &v->ground) || !(v->t1 > v->t0)) {
+	pt_direction(dir->elevation_deg, dir->azimuth_deg, v->d);
+	if (!pt_view_segment(m, v->o, v->d, &v->t0, &v->t1, &v->ground) || !(v->t1 > v->t0)) {
 		v->t0 = v->t1 = 0.0;
 		return 0;	/* nothing to scatter: radiance 0 */
 	}
@@ -676,8 +359,8 @@ int pt_view_build(struct view *v, const struct medium *m, double altitude_km,
 		goto oom;
 	v->t[0] = v->t0;
 	v->tau[0][0] = v->tau[1][0] = v->tau[2][0] = 0.0;
-	walk_init(&w, m, v->o, v->d, v->t0, v->t1);
-	while (walk_next(&w, &a, &b)) {
+	pt_walk_init(&w, m, v->o, v->d, v->t0, v->t1);
+	while (pt_walk_next(&w, &a, &b)) {
 		if (v->n == cap) {
 			cap *= 2;
 			double *nt = realloc(v->t, sizeof(double) * (size_t)(cap + 1));
@@ -691,7 +374,7 @@ int pt_view_build(struct view *v, const struct medium *m, double altitude_km,
 				v->tau[ch] = p;
 			}
 		}
-		cell_tau(m, v->o, v->d, a, b, c);
+		pt_cell_tau(m, v->o, v->d, a, b, c);
 		v->n++;
 		v->t[v->n] = b;
 		for (int ch = 0; ch < 3; ch++)
@@ -722,11 +405,14 @@ static double sample_air(const struct medium *m, const struct view *v, enum pt_m
 			 int ch, struct rng *r);
 
 /* Radiance estimate of one sample of one channel along a view ray: the air,
- * and in PT_GROUND the ground the ray ends on, seen through the air. */
+ * and in PT_GROUND the ground the ray ends on, seen through the air; or,
+ * PT_VIEW_ALL, what the eye sees. */
 double pt_sample_view(const struct medium *m, const struct view *v, enum pt_mode mode,
 		      int ch, struct rng *r)
 {
-	double L = 0.0, rho[ATMO_MAX_CONSTITUENTS] = { 0 };
+	double L = 0.0, rho[PT_MEDIA] = { 0 };
+	if (m->view == PT_VIEW_ALL)
+		return v->t1 > v->t0 ? sample_eye(m, v, mode, ch, r) : 0.0;
 	if (v->n > 0)
 		L += sample_air(m, v, mode, ch, r);
 	if (mode == PT_GROUND && v->ground && m->albedo[ch] > 0.0) {
@@ -739,7 +425,7 @@ double pt_sample_view(const struct medium *m, const struct view *v, enum pt_mode
 		}
 		double Tg = v->n > 0 ? exp(-v->tau[ch][v->n]) : 1.0;
 		L += Tg * nee_ground(m, g, n, ch, r);
-		L += Tg * trace_on(m, g, v->d, rho, 0.0, 1, ch, r);
+		L += Tg * trace_on(m, g, v->d, rho, 0.0, 1, n, ch, r);
 	}
 	return L;
 }
@@ -748,7 +434,7 @@ double pt_sample_view(const struct medium *m, const struct view *v, enum pt_mode
 static double sample_air(const struct medium *m, const struct view *v, enum pt_mode mode,
 			 int ch, struct rng *r)
 {
-	double L = 0.0, rho[ATMO_MAX_CONSTITUENTS], x[3];
+	double L = 0.0, rho[PT_MEDIA], x[3];
 
 	/* The first scattering point: proposal = DEFENSIVE uniform + SUNLIT
 	 * groups weighted by the lit air + the piecewise-exponential fit of
@@ -803,114 +489,19 @@ static double sample_air(const struct medium *m, const struct view *v, enum pt_m
 
 	/* The view ray's transmittance to t: table plus the partial cell. */
 	double part[3];
-	cell_tau(m, v->o, v->d, v->t[k], t, part);
+	pt_cell_tau(m, v->o, v->d, v->t[k], t, part);
 	double T = exp(-(v->tau[ch][k] + part[ch]));
 
 	axpy(v->o, t, v->d, x);
-	densities(m, x, rho);
-	double sigma_s = scattering(m, rho, ch);
+	air_only(m, x, rho);
+	double sigma_s = pt_sigma_s(m, rho, ch);
 	if (sigma_s > 0.0 && pdf > 0.0) {
 		double W = T * sigma_s / pdf;
 		if (!m->multi_only)
 			L += W * nee_medium(m, x, v->d, rho, sigma_s, ch, r);
 		if (mode != PT_SINGLE)
-			L += W * trace_on(m, x, v->d, rho, sigma_s, 0, ch, r);
+			L += W * trace_on(m, x, v->d, rho, sigma_s, 0, NULL, ch, r);
 	}
 	return L;
-}
-
-/* ---- arguments ---- */
-
-int pt_check_args(const struct atmo *a, const struct pt_sun *sun)
-{
-	char err[256];
-	if (!a || !sun || atmo_validate(a, err, sizeof(err)) < 0)
-		return -EINVAL;
-	if (!(sun->angular_radius_deg > 0.0 && sun->angular_radius_deg < 90.0) ||
-	    !isfinite(sun->elevation_deg) || !isfinite(sun->azimuth_deg))
-		return -EINVAL;
-	for (int ch = 0; ch < 3; ch++)
-		if (!isfinite(sun->illuminance[ch]) || sun->illuminance[ch] < 0.0)
-			return -EINVAL;
-	return 0;
-}
-
-/* ---- the deterministic single-scattering reference ---- */
-
-/* 4-point Gauss-Legendre on [0, 1] for the disk's 1 - cos. */
-static const double gl4_x[4] = { 0.0694318442029737, 0.3300094782075719,
-				 0.6699905217924281, 0.9305681557970263 };
-static const double gl4_w[4] = { 0.1739274225687269, 0.3260725774312731,
-				 0.3260725774312731, 0.1739274225687269 };
-#define DISK_PHI 8
-
-/* E * sum_i sigma_s,i rho_i <p_i(w.d) T(x, w)>_disk at one point. */
-static void ss_source(const struct medium *m, const double x[3], const double d[3],
-		      const double rho[], double ret[3])
-{
-	ret[0] = ret[1] = ret[2] = 0.0;
-	for (int a = 0; a < 4; a++) {
-		double v = gl4_x[a] * m->sun_one_minus_cos, cos_t = 1.0 - v;
-		double sin_t = sqrt(fmax(0.0, v * (2.0 - v)));
-		for (int b = 0; b < DISK_PHI; b++) {
-			double phi = 2.0 * PI * (b + 0.5) / DISK_PHI, w[3];
-			for (int i = 0; i < 3; i++)
-				w[i] = cos_t * m->sun[i] +
-				       sin_t * (cos(phi) * m->sun_u[i] + sin(phi) * m->sun_v[i]);
-			int ground;
-			double te = exit_distance(m, x, w, &ground), tau[3];
-			if (ground)
-				continue;
-			ray_tau(m, x, w, 0.0, te, tau);
-			double mu = dot(w, d);
-			for (int ch = 0; ch < 3; ch++) {
-				double s = 0.0;
-				for (int i = 0; i < m->n; i++)
-					s += m->c[i].scattering_per_km[ch] * rho[i] * phase(&m->c[i], mu);
-				ret[ch] += gl4_w[a] / DISK_PHI * s * exp(-tau[ch]);
-			}
-		}
-	}
-	for (int ch = 0; ch < 3; ch++)
-		ret[ch] *= m->illuminance[ch];
-}
-
-int pt_single_scatter_reference(const struct atmo *a, double altitude_km,
-				const struct pt_sun *sun, const struct pt_dir *dir,
-				double ret_radiance[3])
-{
-	struct medium m;
-	double o[3] = { 0 }, d[3], t0, t1, L[3] = { 0 };
-	int ground, r = pt_check_args(a, sun);
-
-	if (r < 0 || !dir || !ret_radiance || !isfinite(altitude_km))
-		return -EINVAL;
-	pt_medium_init(&m, a, sun);
-	o[2] = m.rb + (altitude_km > 0.0 ? altitude_km : 0.0);
-	direction(dir->elevation_deg, dir->azimuth_deg, d);
-	if (view_segment(&m, o, d, &t0, &t1, &ground) && t1 > t0) {
-		struct walk w;
-		double ca, cb, tau_a[3] = { 0 };
-		walk_init(&w, &m, o, d, t0, t1);
-		while (walk_next(&w, &ca, &cb)) {
-			double mid = 0.5 * (ca + cb), half = 0.5 * (cb - ca);
-			for (int k = 0; k < 8; k++) {
-				double t = mid + (k < 4 ? -gl_x[k] : gl_x[k - 4]) * half;
-				double part[3], x[3], rho[ATMO_MAX_CONSTITUENTS], s[3];
-				cell_tau(&m, o, d, ca, t, part);
-				axpy(o, t, d, x);
-				densities(&m, x, rho);
-				ss_source(&m, x, d, rho, s);
-				for (int ch = 0; ch < 3; ch++)
-					L[ch] += gl_w[k & 3] * half * exp(-(tau_a[ch] + part[ch])) * s[ch];
-			}
-			double c[3];
-			cell_tau(&m, o, d, ca, cb, c);
-			for (int ch = 0; ch < 3; ch++)
-				tau_a[ch] += c[ch];
-		}
-	}
-	memcpy(ret_radiance, L, sizeof(L));
-	return 0;
 }
 

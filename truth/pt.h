@@ -19,6 +19,17 @@
  * Frames: the observer's local frame, x east, y north, z up; elevation above
  * the astronomical horizon, azimuth eastward from north, both in degrees.
  *
+ * A scene (pt_render_scene) adds the cloud layers of proto/skycloud.h, in
+ * double, as a heterogeneous medium (the type's extinction, albedo and
+ * Henyey-Greenstein phase; ratio and delta tracking against a majorant per
+ * layer), and a terrain height field of proto/skyterrain.h as an opaque
+ * Lambertian surface of the ground's albedo: both on every shadow ray and
+ * every path segment after the first vertex. The view ray itself is the
+ * tables' (PT_VIEW_AIR: the air's light along it, clouds and terrain on it
+ * left to the client that draws them) or a client's (PT_VIEW_ALL: what the
+ * eye sees, clouds and terrain included). docs/truth.md, "Clouds and
+ * terrain".
+ *
  * Results do not depend on the number of threads: every sample draws from a
  * counter-based random stream keyed by (seed, direction, sample, channel)
  * and partial sums are merged in a fixed order.
@@ -30,6 +41,10 @@
 #include <stdint.h>
 
 #include "atmo.h"
+#define SKYCLOUD_DOUBLE 1
+#include "skycloud.h"
+#define SKYTERRAIN_DOUBLE 1
+#include "skyterrain.h"
 
 enum pt_mode {
 	PT_SKY = 0,		/* all orders, in-scattered light only (the tables) */
@@ -89,6 +104,55 @@ int pt_render(const struct atmo *a, double altitude_km, const struct pt_sun *sun
 int pt_single_scatter_reference(const struct atmo *a, double altitude_km,
 				const struct pt_sun *sun, const struct pt_dir *dir,
 				double ret_radiance[3]);
+
+/* What the view ray sees of the clouds and the terrain. */
+enum pt_view {
+	PT_VIEW_AIR = 0,	/* the tables' view ray: the air's light, through air alone,
+				 * to the sphere's ground or the top; clouds and terrain
+				 * shadow it and scatter the light it gets */
+	PT_VIEW_ALL = 1,	/* the eye's: the first vertex by delta tracking through
+				 * air and clouds, the ray ends on the terrain too */
+};
+
+/* The media a scene adds to the air. */
+struct pt_scene {
+	int n_layers;					/* 0 .. SKYCLOUD_MAX_LAYERS */
+	struct skycloudd_layer layers[SKYCLOUD_MAX_LAYERS];	/* skycloudd_layer_init's */
+	double offset_km[2];				/* the wind's, east and north */
+	const struct skyterrain *terrain;		/* NULL: none; the caller keeps its texels */
+	enum pt_view view;
+};
+
+/* pt_render with the clouds and terrain of scene (NULL: none, as
+ * pt_render). Returns pt_render's codes; -EINVAL for a scene with more than
+ * SKYCLOUD_MAX_LAYERS layers or a view it does not know. */
+int pt_render_scene(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+		    const struct pt_scene *scene, const struct pt_dir *dirs, size_t n,
+		    const struct pt_options *opt, struct pt_result *ret);
+
+/* pt_single_scatter_reference with the scene's clouds and terrain on the
+ * light's way (PT_VIEW_AIR: the air's single scattering along the tables'
+ * view ray): the disk's cloud optical depth and terrain taken at its
+ * centre (skycloudd_optical_depth, 256 steps; skyterraind_ray_hit), the
+ * air's by the disk rule. Returns 0 or -EINVAL. */
+int pt_single_scatter_scene(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+			    const struct pt_scene *scene, const struct pt_dir *dir,
+			    double ret_radiance[3]);
+
+/* How much of the air's single scattering along the tables' view ray the
+ * scene's clouds and terrain shadow: 1 - L1(scene) / L1(clear) of
+ * luminance (Rec. 709 weights), the sun's centre only, in [0, 1]; 0 where
+ * the clear sky has none. The accuracy report's categories (lit, in
+ * shadow, shafts) are cut from it. Returns 0 or -EINVAL. */
+int pt_shadow_fraction(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+		       const struct pt_scene *scene, const struct pt_dir *dir, double *ret_fraction);
+
+/* The two sums pt_shadow_fraction compares, per channel: the air's single
+ * scattering along the tables' view ray clear and under the scene (the
+ * sun's centre only). Returns 0 or -EINVAL. */
+int pt_shadow_pair(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+		   const struct pt_scene *scene, const struct pt_dir *dir, double ret_clear[3],
+		   double ret_shaded[3]);
 
 /* What the sky tables assume, traced otherwise exactly, to measure what
  * each assumption costs against PT_SKY (skytruth --isotropic, --delta-m). */

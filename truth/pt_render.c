@@ -127,19 +127,26 @@ static int converged(const struct acc *a, const struct pt_options *opt)
 #define RENDER_MULTI_ONLY 2
 
 static int render(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
-		  const struct pt_dir *dirs, size_t n, const struct pt_options *opt, int flags,
-		  struct pt_result *ret);
+		  const struct pt_scene *scene, const struct pt_dir *dirs, size_t n,
+		  const struct pt_options *opt, int flags, struct pt_result *ret);
 
 int pt_render(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
 	      const struct pt_dir *dirs, size_t n, const struct pt_options *opt,
 	      struct pt_result *ret)
 {
-	return render(a, altitude_km, sun, dirs, n, opt, 0, ret);
+	return render(a, altitude_km, sun, NULL, dirs, n, opt, 0, ret);
+}
+
+int pt_render_scene(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
+		    const struct pt_scene *scene, const struct pt_dir *dirs, size_t n,
+		    const struct pt_options *opt, struct pt_result *ret)
+{
+	return render(a, altitude_km, sun, scene, dirs, n, opt, 0, ret);
 }
 
 static int render(const struct atmo *a, double altitude_km, const struct pt_sun *sun,
-		  const struct pt_dir *dirs, size_t n, const struct pt_options *opt, int flags,
-		  struct pt_result *ret)
+		  const struct pt_scene *scene, const struct pt_dir *dirs, size_t n,
+		  const struct pt_options *opt, int flags, struct pt_result *ret)
 {
 	struct medium m;
 	struct job j = { 0 };
@@ -154,6 +161,8 @@ static int render(const struct atmo *a, double altitude_km, const struct pt_sun 
 	if (!n)
 		return 0;
 	pt_medium_init(&m, a, sun);
+	if (pt_medium_scene(&m, scene) < 0)
+		return -EINVAL;
 	m.isotropic = !!(flags & RENDER_ISOTROPIC);
 	m.multi_only = !!(flags & RENDER_MULTI_ONLY);
 	int threads = opt->threads > 0 ? opt->threads : (int)sysconf(_SC_NPROCESSORS_ONLN);
@@ -274,9 +283,9 @@ static int render_delta_m(const struct atmo *a, double altitude_km, const struct
 		return -ENOMEM;
 	single.mode = PT_SINGLE;
 	multi.mode = PT_SKY;
-	r = render(a, altitude_km, sun, dirs, n, &single, 0, ret);
+	r = render(a, altitude_km, sun, NULL, dirs, n, &single, 0, ret);
 	if (r == 0)
-		r = render(&scaled, altitude_km, sun, dirs, n, &multi,
+		r = render(&scaled, altitude_km, sun, NULL, dirs, n, &multi,
 			   (ap->delta_excess ? 0 : RENDER_MULTI_ONLY) | (ap->isotropic ? RENDER_ISOTROPIC : 0),
 			   part);
 	add_parts(ret, part, n, 1.0);
@@ -287,7 +296,7 @@ static int render_delta_m(const struct atmo *a, double altitude_km, const struct
 		struct atmo absorbing = scaled;
 		for (int ch = 0; ch < 3; ch++)
 			absorbing.c[k].absorption_per_km[ch] += ap->delta_f * a->c[k].scattering_per_km[ch];
-		r = render(&absorbing, altitude_km, sun, dirs, n, &single, 0, part);
+		r = render(&absorbing, altitude_km, sun, NULL, dirs, n, &single, 0, part);
 		add_parts(ret, part, n, -1.0);
 	}
 	free(part);
@@ -302,5 +311,5 @@ int pt_render_approx(const struct atmo *a, double altitude_km, const struct pt_s
 		return -EINVAL;
 	if (ap->delta_m > 0)
 		return render_delta_m(a, altitude_km, sun, dirs, n, opt, ap, ret);
-	return render(a, altitude_km, sun, dirs, n, opt, ap->isotropic ? RENDER_ISOTROPIC : 0, ret);
+	return render(a, altitude_km, sun, NULL, dirs, n, opt, ap->isotropic ? RENDER_ISOTROPIC : 0, ret);
 }

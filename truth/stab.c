@@ -15,7 +15,8 @@
 
 const char *const stab_invariant_names[STAB_N_INVARIANTS] = {
 	"finite", "non-negative", "T, A, f_ms in [0, 1]", "T monotone along rays",
-	"aerial L monotone", "vacuum exact", "symmetry", "horizon continuity",
+	"aerial L monotone", "vacuum exact", "symmetry", "shadowed <= unshadowed", "field the same",
+	"horizon continuity",
 };
 
 /* Float32 tables: the slack covers rounding of exp, and in the mirror test
@@ -422,10 +423,7 @@ int stab_engine(void *ctx, const struct sky_state *s, uint32_t mask, struct mode
 
 /* Invariants ---------------------------------------------------------------- */
 
-static void note(struct stab_result *r, enum stab_invariant inv, bool ok, const char *fmt, ...)
-	__attribute__((format(printf, 4, 5)));
-
-static void note(struct stab_result *r, enum stab_invariant inv, bool ok, const char *fmt, ...)
+void stab_note(struct stab_result *r, enum stab_invariant inv, bool ok, const char *fmt, ...)
 {
 	r->samples[inv]++;
 	if (ok)
@@ -501,7 +499,7 @@ static void check_rays(const char *name, const struct sky_state *s, const struct
 					double tr = bilinear(tab, m->w[0], m->h[0], u, v, ch);
 					if (k > 0) {
 						r->max_t_ray_drop = fmax(r->max_t_ray_drop, prev_tab[ch] - tr);
-						note(r, STAB_T_MONOTONE,
+						stab_note(r, STAB_T_MONOTONE,
 						     !(tau[ch] > prev_tau[ch] * (1 + tol->ray_t) + 1e-300),
 						     "%s: optical depth grows along a ray from h %g km mu %.9g ch %d point %d: %.9g -> %.9g",
 						     name, h, mu, ch, k, prev_tau[ch], tau[ch]);
@@ -548,7 +546,7 @@ static void check_symmetry(const char *name, const struct sky_state *s, const st
 					double a = sv[4 * (y * w + i) + ch], b = sv[4 * (y * w + j) + ch];
 					double asym = fabs(a - b) <= floor_ ? 0 : peak > 0 ? fabs(a - b) / peak : fabs(a - b);
 					r->max_asym = fmax(r->max_asym, asym);
-					note(r, STAB_SYMMETRY, asym <= tol->sym_rel,
+					stab_note(r, STAB_SYMMETRY, asym <= tol->sym_rel,
 					     "%s: skyview row %u columns %u/%u ch %d: %.9g vs %.9g", name, y, i, j,
 					     ch, a, b);
 				}
@@ -569,7 +567,7 @@ static void check_symmetry(const char *name, const struct sky_state *s, const st
 						double b = ap[4 * ((z * ah + y) * aw + aw - 1 - i) + ch];
 						double asym = fabs(a - b) <= floor_ ? 0 : peak > 0 ? fabs(a - b) / peak : fabs(a - b);
 						r->max_asym = fmax(r->max_asym, asym);
-						note(r, STAB_SYMMETRY, asym <= tol->sym_rel,
+						stab_note(r, STAB_SYMMETRY, asym <= tol->sym_rel,
 						     "%s: aerial slice %u row %u column %u ch %d: %.9g vs %.9g",
 						     name, z, y, i, ch, a, b);
 					}
@@ -600,7 +598,7 @@ static void check_t_row(const char *name, const struct sky_state *s, const doubl
 		if (i == 0)
 			return;
 		double p = x[4 * ((size_t)y * w + i - 1) + ch];
-		note(r, STAB_T_MONOTONE, !(v > p + tol->abs_t),
+		stab_note(r, STAB_T_MONOTONE, !(v > p + tol->abs_t),
 		     "%s: transmittance row %u rises at column %u ch %d (ray going up): %.9g -> %.9g",
 		     name, y, i, ch, p, v);
 		return;
@@ -610,7 +608,7 @@ static void check_t_row(const char *name, const struct sky_state *s, const doubl
 	double c = u_up * w - 0.5;
 	uint32_t c0 = c <= 0.0 ? 0 : (uint32_t)c, c1 = c0 + 1 < w ? c0 + 1 : c0;
 	double bound = fmax(x[4 * ((size_t)y * w + c0) + ch], x[4 * ((size_t)y * w + c1) + ch]);
-	note(r, STAB_T_MONOTONE, !(v > bound + tol->abs_t),
+	stab_note(r, STAB_T_MONOTONE, !(v > bound + tol->abs_t),
 	     "%s: transmittance row %u column %u ch %d (ray going down, mu %.9g) exceeds T at -mu: "
 	     "%.9g > %.9g",
 	     name, y, i, ch, mu, v, bound);
@@ -642,13 +640,13 @@ void stab_check(const char *name, const struct sky_state *s, const struct model_
 					size_t o = 4 * (((size_t)z * h + y) * w + i);
 					for (int ch = 0; ch < 4; ch++) {
 						double v = x[o + ch];
-						note(r, STAB_FINITE, isfinite(v), "%s: %s texel (%u, %u, %u) ch %d is %g",
+						stab_note(r, STAB_FINITE, isfinite(v), "%s: %s texel (%u, %u, %u) ch %d is %g",
 						     name, state_table_names[t], i, y, z, ch, v);
-						note(r, STAB_NONNEG, !(v < 0), "%s: %s texel (%u, %u, %u) ch %d is %g",
+						stab_note(r, STAB_NONNEG, !(v < 0), "%s: %s texel (%u, %u, %u) ch %d is %g",
 						     name, state_table_names[t], i, y, z, ch, v);
 						bool unit = t == STATE_TRANSMITTANCE || ch == 3;
 						if (unit)
-							note(r, STAB_T_RANGE, !(v > 1.0 + tol->abs_t),
+							stab_note(r, STAB_T_RANGE, !(v > 1.0 + tol->abs_t),
 							     "%s: %s texel (%u, %u, %u) ch %d is %.9g > 1", name,
 							     state_table_names[t], i, y, z, ch, v);
 						else if (t == STATE_MULTISCATTER)
@@ -660,19 +658,19 @@ void stab_check(const char *name, const struct sky_state *s, const struct model_
 						if (t == STATE_AERIAL && z > 0) {
 							double p = x[o + ch - 4 * (size_t)w * h];
 							if (ch == 3)
-								note(r, STAB_T_MONOTONE, !(v > p + tol->abs_t),
+								stab_note(r, STAB_T_MONOTONE, !(v > p + tol->abs_t),
 								     "%s: aerial T rises from slice %u at (%u, %u): %.9g -> %.9g",
 								     name, z, i, y, p, v);
 							else
-								note(r, STAB_L_MONOTONE, !(v < p),
+								stab_note(r, STAB_L_MONOTONE, !(v < p),
 								     "%s: aerial L falls from slice %u at (%u, %u) ch %d: %.9g -> %.9g",
 								     name, z, i, y, ch, p, v);
 						}
 						if (no_scattering && (t == STATE_SKYVIEW || t == STATE_AERIAL) && ch < 3)
-							note(r, STAB_VACUUM, v == 0.0, "%s: %s texel (%u, %u, %u) ch %d is %g, not 0",
+							stab_note(r, STAB_VACUUM, v == 0.0, "%s: %s texel (%u, %u, %u) ch %d is %g, not 0",
 							     name, state_table_names[t], i, y, z, ch, v);
 						if (vacuum && (t == STATE_TRANSMITTANCE || ch == 3) && t != STATE_MULTISCATTER)
-							note(r, STAB_VACUUM, v == 1.0, "%s: %s texel (%u, %u, %u) ch %d is %.9g, not 1",
+							stab_note(r, STAB_VACUUM, v == 1.0, "%s: %s texel (%u, %u, %u) ch %d is %.9g, not 1",
 							     name, state_table_names[t], i, y, z, ch, v);
 					}
 				}
@@ -730,7 +728,7 @@ int stab_horizon(const char *name, stab_compute_fn fn, void *ctx, const struct s
 			double floor_ = 1e-6 * peak;
 			if (step[k] > floor_ && nb > 0)
 				r->max_jump_ratio = fmax(r->max_jump_ratio, step[k] / nb);
-			note(r, STAB_HORIZON, !(step[k] > 4.0 * nb + floor_) && isfinite(step[k]),
+			stab_note(r, STAB_HORIZON, !(step[k] > 4.0 * nb + floor_) && isfinite(step[k]),
 			     "%s: sky-view row %u jumps by %.6g between sun %.2f and %.2f deg (neighbours %.6g)",
 			     name, y, step[k], -3.0 + 0.25 * k, -3.0 + 0.25 * (k + 1), nb);
 		}

@@ -61,6 +61,8 @@ enum stab_invariant {
 	STAB_L_MONOTONE,	/* aerial in-scattering non-decreasing with depth */
 	STAB_VACUUM,		/* no scattering: L = 0 exactly; no extinction: T = 1 exactly */
 	STAB_SYMMETRY,		/* mirror symmetry about the sun's vertical plane */
+	STAB_SHADOWED,		/* clouds and terrain: shadowed never brighter than unshadowed */
+	STAB_FIELD_SAME,	/* the cloud field's bits the same in another thread and run */
 	STAB_HORIZON,		/* sky-view continuous as the sun crosses the horizon */
 	STAB_N_INVARIANTS,
 };
@@ -105,6 +107,55 @@ void stab_compare(const struct sky_state *s, const struct model_tables *ref,
 		  double ret_max_rel[STATE_N_TABLES]);
 
 uint64_t stab_total_fails(const struct stab_result *r);
+/* Counts one value checked for inv, and a violation when !ok (the first
+ * of r described by fmt). */
+void stab_note(struct stab_result *r, enum stab_invariant inv, bool ok, const char *fmt, ...)
+	__attribute__((format(printf, 4, 5)));
+
+/* ---- clouds and terrain (stab_clouds.c) ----
+ * The stiff and extreme cases of the cloud layers and the terrain, as keys,
+ * so that the model side (the field of proto/skycloud.h and
+ * proto/skyterrain.h in double, the path tracer) and the engine's cloud
+ * passes run the same cases: stab_cloud_state makes a case's state,
+ * stab_cloud_check_model checks the field and the tracer,
+ * stab_check_shadowed any two sets of tables, with the case's clouds and
+ * terrain and without (stab_cloud_clear). */
+
+#define STAB_CLOUD_KEYS 20
+struct stab_cloud_case {
+	const char *name;
+	const char *stresses;
+	/* Set in order on state_default(); "terrain=@NAME" is media.h's field. */
+	const char *keys[STAB_CLOUD_KEYS];
+	double utc_s;		/* the field placed at this simulated time; 0: not placed */
+};
+extern const struct stab_cloud_case stab_cloud_cases[];
+extern const size_t stab_n_cloud_cases;
+
+/* The state of case c (medium sizes), its field placed at c->utc_s.
+ * Returns 0 or -errno with err (a key refused, a field not written). */
+int stab_cloud_state(const struct stab_cloud_case *c, struct sky_state *ret, char *err,
+		     size_t err_size);
+/* s without cloud layers and terrain: what the shadowed is compared with. */
+void stab_cloud_clear(const struct sky_state *s, struct sky_state *ret);
+
+/* The model side of a case, counted in r: the density over a grid through
+ * every layer finite and in [0, extinction] (the tracer's majorant), the
+ * sky occlusion in [0, 1], the clouds' transmittance toward the sun in
+ * [0, 1], the terrain's height in [0, white]; the air's single scattering
+ * along views up and down never brighter with the scene than without
+ * (pt_shadow_pair); the tracer's radiance finite and >= 0, the same bits
+ * on one thread and three; the grid's checksum (FNV-1a of the density's
+ * bits) the same computed in another thread, returned in
+ * *ret_checksum. Returns 0 or -errno with err. */
+int stab_cloud_check_model(const char *name, const struct sky_state *s, struct stab_result *r,
+			   uint64_t *ret_checksum, char *err, size_t err_size);
+/* Every sky-view and aerial RGB texel of with (a state with clouds or
+ * terrain) at most without's (the same state clear) plus tol->abs_t of the
+ * table's peak, finite both: the shadows only take light away. */
+void stab_check_shadowed(const char *name, const struct model_tables *with,
+			 const struct model_tables *without, const struct stab_tol *tol,
+			 struct stab_result *r);
 
 
 #endif

@@ -50,7 +50,8 @@ struct eng_timing {
 	 * and the table's size and steps only, kept from the last computation
 	 * unless one of those changed. */
 	int columns;
-	double columns_ms;		/* its GPU time (timestamps), else 0 */
+	double columns_ms;		/* its GPU time (timestamps; the pass writes
+					 * the transmittance texels too), else 0 */
 };
 
 /* Lists the Vulkan devices, at most max of them, into ret (may be NULL when

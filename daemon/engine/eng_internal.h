@@ -46,8 +46,9 @@ _Static_assert(SKY_MAX_CONSTITUENTS == ATMO_MAX_CONSTITUENTS && SKY_GROUND_FIT =
  * row of eng_pass.c's table (what it reads and writes, when it runs, its
  * workgroups), which says how to add one. */
 enum pass {
-	PASS_COLUMNS,		/* column densities of the transmittance texels */
-	PASS_TRANSMITTANCE,
+	PASS_COLUMNS,		/* column densities of the transmittance texels,
+				 * and the texels */
+	PASS_TRANSMITTANCE,	/* the texels from kept column densities */
 	PASS_MULTISCATTER,
 	PASS_MSITERATE,		/* the iteration of psi_ms, thick atmospheres */
 	PASS_LOOKUP_IMAGES,	/* transmittance and multi-scattering into images */

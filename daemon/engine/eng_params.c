@@ -308,8 +308,27 @@ struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, in
 	return k;
 }
 
+/* Which layers of the shaders' constituents have an exponential term:
+ * bit 4 + n for constituent n's layer 0, bit 8 + n for its layer 1. */
+static int32_t exp_layers(const struct atmo *a)
+{
+	int32_t bits = 0;
+	int n = 0;
+	for (int i = 0; i < a->n_constituents; i++) {
+		const struct atmo_constituent *c = &a->c[i];
+		if (!constituent_active(c))
+			continue;
+		for (int l = 0; l < 2; l++)
+			if (c->density.layers[l].exp_term != 0.0)
+				bits |= 1 << (4 + 4 * l + n);
+		n++;
+	}
+	return bits;
+}
+
 /* The column pass is specialized on the constituents' count and profile
- * kinds, the transmittance table's size and its steps, nothing else. */
+ * kinds (which layers are exponential: a step carries exp(k h) of those
+ * only), the transmittance table's size and its steps, nothing else. */
 struct spec eng_column_spec(const struct spec *base, const struct sky_state *s)
 {
 	const struct state_table_quality *q = &s->quality.t[STATE_TRANSMITTANCE];
@@ -319,7 +338,7 @@ struct spec eng_column_spec(const struct spec *base, const struct sky_state *s)
 	k.v[SPEC_OUT_W] = (int32_t)q->width;
 	k.v[SPEC_OUT_H] = (int32_t)q->height;
 	k.v[SPEC_STEPS] = (int32_t)q->steps;
-	k.v[SPEC_EXP_MASK] = base->v[SPEC_EXP_MASK];
+	k.v[SPEC_EXP_MASK] = base->v[SPEC_EXP_MASK] | exp_layers(&s->atmo);
 	return k;
 }
 

@@ -73,21 +73,25 @@ static void table_groups(const struct sky_state *s, int t, uint32_t group, struc
 
 /* The column densities are recomputed only when what they depend on
  * changed; the same inputs give the same bits, so a table made from kept
- * columns is the one a fresh engine makes. */
+ * columns is the one a fresh engine makes. The pass writes the
+ * transmittance table too (the storage is in its pipeline's key, not in
+ * the columns'). */
 static void plan_columns(struct eng *e, const struct sky_state *s, const struct spec *base,
 			 struct plan *pl, struct pass_run *r)
 {
 	r->key = eng_column_spec(base, s);
 	eng_column_key(e->params.map, &r->key, &pl->key);
+	r->key.v[SPEC_STORAGE_F16] = base->v[SPEC_STORAGE_F16];
 	r->on = (pl->mask & STATE_BIT(STATE_TRANSMITTANCE)) &&
 		(!e->columns_valid || memcmp(&pl->key, &e->column_key, sizeof(pl->key)));
 	table_groups(s, STATE_TRANSMITTANCE, 1, r);
 }
 
+/* From kept columns only: the column pass writes the table with them. */
 static void plan_transmittance(struct eng *e, const struct sky_state *s, const struct spec *base,
 			       struct plan *pl, struct pass_run *r)
 {
-	r->on = pl->mask & STATE_BIT(STATE_TRANSMITTANCE);
+	r->on = (pl->mask & STATE_BIT(STATE_TRANSMITTANCE)) && !pl->run[PASS_COLUMNS].on;
 	r->key = eng_pass_spec(base, s, STATE_TRANSMITTANCE, &e->grain);
 	table_groups(s, STATE_TRANSMITTANCE, 1, r);
 }
@@ -314,8 +318,8 @@ static void plan_shadow(struct eng *e, const struct sky_state *s, const struct s
 
 /* The passes in recording order (enum pass). */
 static const struct pass_row pass_rows[N_PASSES] = {
-	[PASS_COLUMNS] = { "columns", SHADER_COLUMNS, STATE_TRANSMITTANCE, 0, RES_COLUMNS,
-			   plan_columns, NULL },
+	[PASS_COLUMNS] = { "columns", SHADER_COLUMNS, STATE_TRANSMITTANCE, 0,
+			   RES_COLUMNS | RES_TRANSMITTANCE, plan_columns, NULL },
 	[PASS_TRANSMITTANCE] = { "transmittance", SHADER_TRANSMITTANCE, STATE_TRANSMITTANCE,
 				 RES_COLUMNS, RES_TRANSMITTANCE, plan_transmittance, NULL },
 	[PASS_MULTISCATTER] = { "multiscatter", SHADER_MULTISCATTER, STATE_MULTISCATTER,

@@ -133,6 +133,11 @@ static void status(void *ctx, char *buf, size_t size)
 	for (int i = 1; i < SYNC_DROP_N && n < size; i++)
 		n += (size_t)snprintf(buf + n, size - n, " %s=%" PRIu64,
 				      sync_drop_name((enum sync_drop)i), st.dropped[i]);
+	/* Why the last message was ignored: a follower whose terrain file
+	 * differs from the controller's says so here. */
+	if (n < size)
+		n += (size_t)snprintf(buf + n, size - n, "\nsync_last_drop: %s",
+				      st.last_drop ? st.last_drop_why : "none");
 	if (n < size)
 		snprintf(buf + n, size - n, "\nsync_error: %s\n", st.why[0] ? st.why : "none");
 }

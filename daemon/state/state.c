@@ -175,7 +175,8 @@ int state_validate(const struct sky_state *s, uint64_t max_buffer_bytes,
 		if (r < 0 || (r = atmo_validate(&sky.atmo, err, err_size)) < 0)
 			return r;
 	}
-	if ((r = state_clouds_validate(s, err, err_size)) < 0)
+	if ((r = state_clouds_validate(s, err, err_size)) < 0 ||
+	    (r = state_terrain_validate(s, err, err_size)) < 0)
 		return r;
 	if (s->night.zenith_luminance_cd_m2 > 0.0 &&
 	    s->night.illuminance_lx < M_PI * s->night.zenith_luminance_cd_m2)

@@ -216,6 +216,24 @@ struct state_clouds {
 	double offset_km[2];
 };
 
+/* ---- terrain (docs/terrain.md; state_terrain.c) ----
+ * An optional height field over a square centred on the observer's site,
+ * read from the file `terrain` names (daemon/terrain/terrain.h): a second
+ * caster of shadows beside the cloud layers. The state holds the path and
+ * what the file held when it was read (its texels stay in the terrain
+ * module's cache, found again by path and hash). */
+#define STATE_TERRAIN_PATH_MAX 128
+
+struct state_terrain {
+	char path[STATE_TERRAIN_PATH_MAX];	/* absolute; "" none */
+	double extent_km;		/* terrain_extent_km: the square's side */
+	double height_m;		/* terrain_height_m: what white (65535) stands for */
+	/* Not keys' fields: what the file held when the path was set. hash
+	 * is terrain_hash (terrain.h); 0 and 0 x 0 without a field. */
+	uint64_t hash;
+	uint32_t width, height;		/* texels */
+};
+
 struct sky_state {
 	char preset[ATMO_NAME_MAX];
 	struct atmo atmo;		/* the user's: preset and raw keys, no weather */
@@ -232,6 +250,7 @@ struct sky_state {
 	struct state_view views[STATE_MAX_VIEWS];
 	struct state_weather weather;
 	struct state_clouds clouds;
+	struct state_terrain terrain;
 	struct state_sensor sensor;
 	double exposure_ev100;		/* the sensor's suggested EV100 (exposure
 					 * mode); NAN when none. Not a key: set by
@@ -394,12 +413,30 @@ double state_cloud_extent_km(const struct sky_state *s);
  * how many (0..4). */
 struct skycloud_layer;
 int state_cloud_layers(const struct sky_state *s, struct skycloud_layer *ret);
+/* The same layers in double (the path tracer's skycloudd_*). */
+struct skycloudd_layer;
+int state_cloud_layers_double(const struct sky_state *s, struct skycloudd_layer *ret);
 /* The wind's offset of the field placed at clouds.utc_s (0, 0 when it is
  * NAN), east and north km. */
 void state_cloud_offset_km(const struct sky_state *s, double ret_km[2]);
 /* `get clouds`: each layer (cover, base, top, type, drawn), the wind,
  * the seed, the region and the field's offset. */
 void state_describe_clouds(const struct sky_state *s, state_emit_fn fn, void *ctx);
+
+/* ---- terrain (state_terrain.c) ---- */
+
+/* Whether s has a height field (a path set). */
+bool state_terrain_set(const struct sky_state *s);
+struct terrain;
+struct skyterrain;
+/* The height field of s from the terrain module (terrain_load: the cache
+ * unless the file changed) with the view proto/skyterrain.h takes of it:
+ * 0 with *ret_terrain (a reference, terrain_unref when done) and *ret_view
+ * (valid while it is held); -ENOENT without a field; -EINVAL (-EFBIG)
+ * with err when the file cannot be read again or no longer holds what
+ * the state was set from (its hash differs). */
+int state_terrain_get(const struct sky_state *s, struct terrain **ret_terrain,
+		      struct skyterrain *ret_view, char *err, size_t err_size);
 
 /* ---- the key list (state_keys.c) ---- */
 

@@ -13,6 +13,8 @@
 #include "metar.h"
 #include "simclock.h"
 #include "skycloud.h"
+#define SKYCLOUD_DOUBLE 1
+#include "skycloud.h"
 
 /* In enum skycloud_type's order (test_state_clouds checks the names
  * against skycloud_types). */
@@ -86,6 +88,20 @@ int state_cloud_layers(const struct sky_state *s, struct skycloud_layer *ret)
 			continue;
 		skycloud_layer_init(&ret[n++], l->type, l->oktas / WEATHER_OKTAS_MAX, l->base_m * 1e-3,
 				    state_cloud_top_m(s, i) * 1e-3, s->clouds.seed, (uint32_t)i);
+	}
+	return n;
+}
+
+int state_cloud_layers_double(const struct sky_state *s, struct skycloudd_layer *ret)
+{
+	int n = 0;
+
+	for (int i = 0; i < STATE_CLOUD_LAYERS; i++) {
+		const struct state_cloud_layer *l = &s->clouds.layer[i];
+		if (!layer_drawn(l))
+			continue;
+		skycloudd_layer_init(&ret[n++], l->type, l->oktas / WEATHER_OKTAS_MAX, l->base_m * 1e-3,
+				     state_cloud_top_m(s, i) * 1e-3, s->clouds.seed, (uint32_t)i);
 	}
 	return n;
 }

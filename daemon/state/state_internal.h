@@ -4,7 +4,8 @@
  * code, each with the hooks its rows name: state_clock.c (the clock),
  * state_atmo.c (the planet preset and the constituents), state_weather.c
  * (the weather keys, METAR, state_resolve), state_clouds.c (the cloud
- * layers) and state_sensor.c (the light sensor). */
+ * layers), state_terrain.c (the terrain) and state_sensor.c (the light
+ * sensor). */
 #ifndef SKYD_STATE_INTERNAL_H
 #define SKYD_STATE_INTERNAL_H
 
@@ -100,6 +101,16 @@ void state_clouds_from_metar(struct sky_state *s, const struct metar *m);
 /* The layers' cross-key rules (a top above its base and below the
  * atmosphere's top): 0 or -ERANGE with err naming the key. */
 int state_clouds_validate(const struct sky_state *s, char *err, size_t err_size);
+
+/* ---- state_terrain.c ---- */
+state_key_set_fn state_set_terrain;		/* reads the file; refused whole when it cannot */
+state_key_get_fn state_get_terrain;		/* the path, or none */
+state_key_set_fn state_set_terrain_key;		/* extent and height: nothing while no field */
+state_key_set_fn state_set_terrain_hash;	/* a check against the field read */
+state_key_get_fn state_get_terrain_hash;
+/* The terrain's cross-key rule (its white below the atmosphere's top):
+ * 0 or -ERANGE with err naming the key. */
+int state_terrain_validate(const struct sky_state *s, char *err, size_t err_size);
 
 /* ---- state_sensor.c ---- */
 extern const char *const state_sensor_mode_names[];

@@ -117,6 +117,9 @@ static state_key_set_fn set_multiscatter_dirs;
 	.unit = "-", .listed = STATE_LISTED_NEVER, .set = state_set_cloud_layer_fraction, \
 	.get = state_get_cloud_layer_fraction, .doc = "the layer's cover as a fraction: its oktas / 8"
 
+/* The terrain: the shadow maps (its opaque depth) and what they reach. */
+#define TERRAIN (STATE_BIT(STATE_CLOUD_SHADOW) | S_BIT | A_BIT)
+
 /* A light sensor key: what its readings do and how they are taken; they
  * invalidate no table (the readings change the state, each a change of
  * its own). The ranges are sensor_config's (daemon/sensor/sensor.h). */
@@ -274,6 +277,22 @@ static const struct state_key keys[] = {
 	{ .name = "site_elevation_m", NUMBER(clock.site_elevation_m, -1000, 1e5), .def = 0.0,
 	  .dirty = LIGHTS, .unit = "m", .hands = STATE_HANDS_TO_CLOCK,
 	  .doc = "the site above sea level (parallax); hands both lights to the clock" },
+	/* The site's terrain (docs/terrain.md; state_terrain.c): a block, so
+	 * a state without one reads as before. terrain reads the file. */
+	{ .name = "terrain", .kind = STATE_KIND_TEXT, .def_text = "none", .dirty = TERRAIN,
+	  .unit = "-", .range = "none or an absolute path", .listed = STATE_LISTED_BLOCK,
+	  .set = state_set_terrain, .get = state_get_terrain,
+	  .doc = "a height field (16-bit greyscale PNG or SKYTERRAIN16 raw) centred on the site; every host needs the same file" },
+	{ .name = "terrain_extent_km", NUMBER(terrain.extent_km, 0.01, 1024), .def = 50.0,
+	  .dirty = TERRAIN, .unit = "km", .listed = STATE_LISTED_BLOCK, .set = state_set_terrain_key,
+	  .doc = "the side of the square the height field covers, centred on the site" },
+	{ .name = "terrain_height_m", NUMBER(terrain.height_m, 0, 20000), .def = 1000.0,
+	  .dirty = TERRAIN, .unit = "m", .listed = STATE_LISTED_BLOCK, .set = state_set_terrain_key,
+	  .doc = "the height above the ground that white (65535) stands for" },
+	{ .name = "terrain_hash", .kind = STATE_KIND_TEXT, .dirty = 0, .unit = "-",
+	  .range = "none or 16 hex digits", .listed = STATE_LISTED_BLOCK,
+	  .set = state_set_terrain_hash, .get = state_get_terrain_hash,
+	  .doc = "the field's content hash; set, a check that the file here holds it (a follower's)" },
 	{ .name = "pressure_mbar", NUMBER(clock.pressure_mbar, 0, 5000), .def = 1013.25, .dirty = 0,
 	  .unit = "mbar", .id = STATE_KEY_ID_PRESSURE_MBAR,
 	  .doc = "air pressure at the site, for refraction (reported directions only)" },

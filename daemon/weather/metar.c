@@ -36,7 +36,7 @@ static const struct {
 	[G_NIL] = { "^NIL$", false, false, false, "NIL" },
 	[G_MOD] = { "^(AUTO|COR|CC[A-Z]|RTD)$", true, false, false, "AUTO or COR" },
 	[G_WIND] = { "^([0-9]{3}|VRB|///)P?([0-9]{2,3}|//)(GP?([0-9]{2,3}))?(KT|MPS|KMH)$",
-		     false, false, false, "wind" },
+		     false, false, true, "wind" },
 	[G_WIND_VAR] = { "^([0-9]{3})V([0-9]{3})$", false, false, false, "wind sector" },
 	[G_VIS] = { "^(([0-9]{4})(NDV)?|CAVOK|////(SM)?|([PM]?)([0-9]{1,2})SM|"
 		    "([PM]?)([0-9])/([0-9]{1,2})SM)$", false, false, true, "visibility" },

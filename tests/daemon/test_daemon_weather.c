@@ -149,8 +149,8 @@ static void test_clouds(struct conn *c, struct conn *ev)
 static void test_metar(struct conn *c, struct conn *ev)
 {
 	change(c, ev, "set metar=\"EGLL 241250Z 27008KT 9999 FEW030 12/06 Q1018\"");
-	CHECK(has("metar_used: 9999 FEW030 12/06 Q1018\n"));
-	CHECK(has("metar_ignored: EGLL 241250Z 27008KT\n"));
+	CHECK(has("metar_used: 27008KT 9999 FEW030 12/06 Q1018\n"));
+	CHECK(has("metar_ignored: EGLL 241250Z\n"));
 	CHECK(has("metar_applied: visibility_km=auto relative_humidity=0.66"));
 	CHECK(has("cloud_oktas=1.5 pressure_mbar=1018 temperature_c=12 cloud1_oktas=1.5 "
 		  "cloud1_base_m=914.4 cloud1_type=cumulus wind_dir_deg=270 wind_speed_mps=4.12\n"));

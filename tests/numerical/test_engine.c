@@ -100,6 +100,12 @@ static void test_against_model(void)
 		/* The multiply scattered light's shape on Earth's Mie, moon lit too. */
 		{ "earth shape, moon", "multiscatter_moment=on", "moon_elevation_deg=40", "moon_illuminance_lx=0.3" },
 	};
+	/* Exponential lower layers: Rayleigh's in both layers, Mie's in the
+	 * lower only (the column pass carries exp(k h) per exponential layer). */
+	static const char *const layered[] = { "rayleigh_layer0_width_km=6", "rayleigh_layer0_exp_term=0.9",
+		"rayleigh_layer0_exp_scale_per_km=-0.1", "mie_layer0_width_km=3", "mie_layer0_exp_term=1.2",
+		"mie_layer0_exp_scale_per_km=-0.5", "mie_layer1_exp_term=0", "mie_layer1_linear_per_km=-0.01",
+		"mie_layer1_constant=0.2", NULL };
 	for (size_t c = 0; c < sizeof(cases) / sizeof(cases[0]); c++) {
 		struct sky_state s;
 		struct eng_timing t;
@@ -110,6 +116,15 @@ static void test_against_model(void)
 			continue;
 		check_texels(cases[c][0], &s);
 		compare(cases[c][0], &s, 8, 50.0);
+	}
+	struct sky_state s;
+	struct eng_timing t;
+	state_default(&s);
+	for (int k = 0; layered[k]; k++)
+		set(&s, layered[k]);
+	if (compute(&s, &t) == 0) {
+		check_texels("earth layered profiles", &s);
+		compare("earth layered profiles", &s, 8, 50.0);
 	}
 }
 

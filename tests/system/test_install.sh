@@ -94,7 +94,7 @@ expected=$tmp/expected
 	echo "$TMPFILESDIR/skyd.conf"
 	echo "$UDEVRULESDIR/70-skyd-sensor.rules"
 	echo "$SYSCONFDIR/skyd/skyd.conf"
-	for d in README.md PROTOCOL.md clock.md physics.md sensor.md sync.md weather.md clouds.md render-clients.md render-client-example.md examples/skyd.conf; do
+	for d in README.md PROTOCOL.md clock.md physics.md sensor.md sync.md weather.md clouds.md terrain.md render-clients.md render-client-example.md examples/skyd.conf; do
 		echo "$DOCDIR/$d"
 	done
 	# The Python package, where python/CMakeLists.txt put it.

@@ -290,6 +290,7 @@ static const struct named_id bindings[] = {
 	{ "MultiscatterBuf", BINDING_MULTISCATTER }, { "SkyviewBuf", BINDING_SKYVIEW },
 	{ "AerialBuf", BINDING_AERIAL }, { "AerialTexels", BINDING_AERIAL },
 	{ "TransmittanceHalves", BINDING_TRANSMITTANCE },
+	{ "TransmittanceTexels", BINDING_TRANSMITTANCE },
 	{ "MultiscatterQuads", BINDING_MULTISCATTER }, { "SkyviewQuads", BINDING_SKYVIEW },
 	{ "AerialQuads", BINDING_AERIAL },
 	{ "PackBuf", BINDING_PACK }, { "TransmittanceTex", BINDING_TRANSMITTANCE_TEX },
