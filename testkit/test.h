@@ -10,7 +10,8 @@
 #include <stdint.h>
 #include <stdio.h>
 
-static int test_failures, test_checks;
+/* Atomic: a test's stand-in server or writer thread checks too. */
+static _Atomic int test_failures, test_checks;
 
 #define FAIL(...)                                                    \
 	do {                                                         \

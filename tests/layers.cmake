@@ -19,7 +19,8 @@
 #   fuzz/       libFuzzer targets (LLVMFuzzerTestOneInput). Label fuzz.
 #
 # What is checked: every test program (*.c, *.sh) under tests/ lies in a
-# layer's folder; tests are added only by the layers' CMakeLists.txt, each
+# layer's folder (sanitizers/ holds no test: the sanitizer pass's
+# suppressions and its preloaded library, tests/CMakeLists.txt); tests are added only by the layers' CMakeLists.txt, each
 # of which names its layer (skyd_layer); each
 # test carries its folder's labels and no other layer's (but numerical in
 # daemon/ and system/); the programs a layer builds take their sources under
@@ -84,6 +85,10 @@ endfunction()
 function(skyd_layer layer)
   set_property(DIRECTORY PROPERTY SKYD_LAYER ${layer})
   cmake_language(DEFER CALL skyd_check_layer)
+  # The sanitizers' settings for its tests (tests/CMakeLists.txt).
+  if(SKYD_SANITIZE_KIND)
+    cmake_language(DEFER CALL skyd_sanitizer_env)
+  endif()
 endfunction()
 
 # Run at the end of tests/<layer>/CMakeLists.txt, in its scope (where its
@@ -140,7 +145,7 @@ function(skyd_check_layers)
   list(JOIN SKYD_LAYERS ", " names)
   foreach(f ${programs})
     string(REGEX MATCH "^[^/]+" top "${f}")
-    if(NOT top IN_LIST SKYD_LAYERS)
+    if(NOT top IN_LIST SKYD_LAYERS AND NOT top STREQUAL "sanitizers")
       list(APPEND problems "tests/${f} is outside the layers' folders (${names})")
     endif()
   endforeach()

@@ -116,31 +116,30 @@ static void submit_in(struct sensor_dev *d);
 static void handle_input(struct sensor_dev *d, const uint8_t *data, size_t len)
 {
 	struct hid_priv *p = sensor_dev_priv(d);
-	const struct sensor_hid_layout *l = &p->layout;
-	const struct sensor_hid_field *f = &l->illuminance;
-	int64_t v, state;
+	const struct sensor_hid_field *f = &p->layout.illuminance;
+	int64_t v = 0;
 
-	if (l->uses_report_ids && len >= 1 && data[0] != f->report_id &&
-	    sensor_hid_report_bytes(l, SENSOR_HID_INPUT, data[0]))
-		return;			/* another sensor of a hub */
-	if (sensor_hid_get(l, f, data, len, &v) < 0) {
+	switch (sensor_hid_input(&p->layout, data, len, &v)) {
+	case SENSOR_HID_IN_OTHER:
+		return;
+	case SENSOR_HID_IN_MALFORMED:
 		sensor_dev_note(d, "input report of %zu bytes with id %d: not the illuminance's", len,
 				len ? data[0] : -1);
 		sensor_dev_reading(d, NAN, SENSOR_REJECT_MALFORMED);
 		return;
-	}
-	if (v < f->logical_min || v > f->logical_max) {
+	case SENSOR_HID_IN_RANGE:
 		sensor_dev_note(d, "illuminance %lld outside its range %lld..%lld", (long long)v,
 				(long long)f->logical_min, (long long)f->logical_max);
 		sensor_dev_reading(d, NAN, SENSOR_REJECT_MALFORMED);
 		return;
+	case SENSOR_HID_IN_NOT_READY:
+		sensor_dev_reading(d, (double)v * p->scale, SENSOR_REJECT_NOT_READY);
+		return;
+	case SENSOR_HID_IN_READING:
+		sensor_dev_reading(d, (double)v * p->scale,
+				   p->unit_ok ? SENSOR_REJECT_NONE : SENSOR_REJECT_UNIT);
+		return;
 	}
-	enum sensor_reject why = p->unit_ok ? SENSOR_REJECT_NONE : SENSOR_REJECT_UNIT;
-	if (l->sensor_state.present && l->sensor_state.report_id == f->report_id &&
-	    sensor_hid_get(l, &l->sensor_state, data, len, &state) == 0 &&
-	    state != l->sensor_state.wanted)
-		why = SENSOR_REJECT_NOT_READY;
-	sensor_dev_reading(d, (double)v * p->scale, why);
 }
 
 static void polled(struct sensor_dev *d, int status, const uint8_t *data, size_t len)

@@ -412,3 +412,23 @@ int sensor_hid_lux_scale(const struct sensor_hid_field *f, double *ret_scale)
 	*ret_scale = pow(10.0, f->unit_exponent);
 	return 0;
 }
+
+enum sensor_hid_input sensor_hid_input(const struct sensor_hid_layout *l, const uint8_t *report,
+				       size_t len, int64_t *ret_value)
+{
+	const struct sensor_hid_field *f = &l->illuminance, *st = &l->sensor_state;
+	int64_t v, state;
+
+	if (l->uses_report_ids && len >= 1 && report[0] != f->report_id &&
+	    sensor_hid_report_bytes(l, SENSOR_HID_INPUT, report[0]))
+		return SENSOR_HID_IN_OTHER;
+	if (sensor_hid_get(l, f, report, len, &v) < 0)
+		return SENSOR_HID_IN_MALFORMED;
+	*ret_value = v;
+	if (v < f->logical_min || v > f->logical_max)
+		return SENSOR_HID_IN_RANGE;
+	if (st->present && st->report_id == f->report_id &&
+	    sensor_hid_get(l, st, report, len, &state) == 0 && state != st->wanted)
+		return SENSOR_HID_IN_NOT_READY;
+	return SENSOR_HID_IN_READING;
+}

@@ -109,6 +109,20 @@ int sensor_hid_put(const struct sensor_hid_layout *l, const struct sensor_hid_fi
  * lux; -ENOTSUP for any other unit. */
 int sensor_hid_lux_scale(const struct sensor_hid_field *f, double *ret_scale);
 
+/* What one input report says of the illuminance. */
+enum sensor_hid_input {
+	SENSOR_HID_IN_OTHER = 0,	/* another report of the device (a hub's other sensor) */
+	SENSOR_HID_IN_MALFORMED,	/* too short, or an id that no input report has */
+	SENSOR_HID_IN_RANGE,		/* outside the field's logical range */
+	SENSOR_HID_IN_NOT_READY,	/* a value, but the sensor state says not ready */
+	SENSOR_HID_IN_READING,		/* a value */
+};
+/* Reads the illuminance (and, in the same report, the sensor state) from
+ * an input report as the device sent it. *ret_value gets the logical value
+ * for IN_RANGE, IN_NOT_READY and IN_READING, and is untouched otherwise. */
+enum sensor_hid_input sensor_hid_input(const struct sensor_hid_layout *l, const uint8_t *report,
+				       size_t len, int64_t *ret_value);
+
 /* ---- the driver interface ---- */
 
 struct sensor_dev;

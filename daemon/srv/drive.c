@@ -87,7 +87,10 @@ int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *
 		next.sun.elevation_deg = a.geometric.elevation_deg;
 		next.sun.azimuth_deg = a.geometric.azimuth_deg;
 		next.sun.illuminance_lx = a.illuminance_lx;
-		next.sun.angular_radius_deg = a.angular_radius_deg;
+		/* Rounded, so that the disk the multiple-scattering table sees
+		 * moves a few times a day rather than at every step. */
+		next.sun.angular_radius_deg =
+			round(a.angular_radius_deg / DRIVE_SUN_RADIUS_STEP_DEG) * DRIVE_SUN_RADIUS_STEP_DEG;
 	}
 	if (moon && !isnan(utc_s)) {
 		struct astro_moon m;

@@ -28,6 +28,12 @@ struct loop;
  * illuminance ratio, about 2e-6) adds under 1 % of the night-sky floor. */
 #define DRIVE_MOON_MIN_ELEVATION_DEG (-5.0)
 
+/* The clock's sun disk radius is kept to this step (0.036 arcsec, far
+ * below the ephemeris' error): the radius follows the earth's distance by
+ * at most 4e-5 deg a day, so the multiple-scattering table, which sees
+ * the disk, is recomputed a few times a day instead of at every move. */
+#define DRIVE_SUN_RADIUS_STEP_DEG 1e-5
+
 /* Upper bound of how fast either light moves across the sky, in degrees
  * of simulated time per hour: the earth turns 15.04 deg/h; the moon's
  * own motion is slower and in the other direction. */

@@ -169,12 +169,18 @@ double weather_visibility_km(const struct atmo *a)
 	return e > 0.0 ? KOSCHMIEDER / e : INFINITY;
 }
 
+/* Most steps of profile_column_km: 0.05 km steps up to a shell of
+ * 10,000 km. It runs on the loop for every change, and a shell as thick as
+ * the keys allow (1e7 km) took seconds at 0.05 km; a thicker shell gets
+ * longer steps instead. */
+#define PROFILE_STEPS_MAX 200000
+
 /* Integral of a density profile over the shell, km, by composite Simpson
  * on 0.05 km steps (exact for the piecewise linear ozone tent). */
 static double profile_column_km(const struct atmo *a, const struct atmo_profile *p)
 {
 	double shell = a->top_radius_km - a->bottom_radius_km;
-	int n = (int)ceil(shell / 0.05);
+	int n = (int)ceil(fmin(shell / 0.05, PROFILE_STEPS_MAX));
 	if (n < 2)
 		n = 2;
 	if (n % 2)

@@ -89,6 +89,26 @@ static void test_sun_matches_astro(struct conn *c, struct conn *ev)
 	conn_close(&sub);
 }
 
+/* The sun's disk follows its distance in steps of DRIVE_SUN_RADIUS_STEP_DEG,
+ * so that a move of the clock recomputes multi-scattering only when the
+ * step changes: not for a minute later, but for half a year later. */
+static void test_radius_steps(struct conn *c)
+{
+	char buf[256];
+
+	CHECK(conn_request(c, "set utc=2026-03-10T12:00:00Z time_rate=0 sun_mode=clock", reply,
+			   sizeof(reply)) == 0);
+	double r0 = get_num(c, "get sun_angular_radius_deg", "sun_angular_radius_deg");
+	CHECK_NEAR(r0 / 1e-5, round(r0 / 1e-5), 1e-6);
+	CHECK(conn_request(c, "set utc=2026-03-10T12:01:00Z", reply, sizeof(reply)) == 0);
+	CHECK(reply_value(reply, "tables", buf, sizeof(buf)) && strcmp(buf, "skyview,aerial") == 0);
+	printf("a minute later: tables %s\n", buf);
+	CHECK(conn_request(c, "set utc=2026-09-10T12:01:00Z", reply, sizeof(reply)) == 0);
+	CHECK(reply_value(reply, "tables", buf, sizeof(buf)) && strstr(buf, "multiscatter") != NULL);
+	CHECK(get_num(c, "get sun_angular_radius_deg", "sun_angular_radius_deg") != r0);
+	printf("half a year later: tables %s\n", buf);
+}
+
 /* Rate 0 freezes; a high rate moves the sun and the daemon recomputes on
  * its own (a changed: event nobody asked for); a negative rate runs back. */
 static void test_rate(struct conn *c, struct conn *ev)
@@ -306,6 +326,7 @@ int main(void)
 
 	test_sun_matches_astro(&c, &ev);
 	test_rate(&c, &ev);
+	test_radius_steps(&c);
 	test_modes(&c);
 	test_times(&c);
 	test_invalid(&c);

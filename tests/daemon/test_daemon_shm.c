@@ -26,6 +26,7 @@ static uint64_t slot_checksum(const struct sky_shm_header *h, const struct sky_s
 	const uint8_t *base = (const uint8_t *)slot;
 	uint64_t c = sky_shm_checksum_words(SKY_SHM_CHECKSUM_SEED, &slot->state,
 					    sizeof(slot->state) / 8);
+	c = sky_shm_checksum_words(c, &slot->clouds, sizeof(slot->clouds) / 8);
 	for (uint32_t t = 0; t < h->n_tables; t++)
 		if (slot->valid_tables & (1u << t))
 			c = sky_shm_checksum_words(c, base + h->tables[t].offset, h->tables[t].bytes / 8);
@@ -373,9 +374,12 @@ int main(void)
 	test_readers(&d);
 	test_abuse(&d);
 	test_sigkill(&d);
-	if (test_failures)
+	if (test_failures) {
+		/* Stopped (it holds our stdout: ctest would wait for it), log kept. */
+		daemon_stop(&d, SIGTERM);
 		printf("skyd log kept: %s\n", d.log);
-	else
+	} else {
 		daemon_cleanup(&d);
+	}
 	return test_report("test_daemon_shm");
 }

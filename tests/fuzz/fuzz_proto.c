@@ -4,7 +4,8 @@
  * end: the whole input is a stream from skyd into libsky's own input code
  * (sky_input.c: greeting, replies, ACKs, event lines, the event queue), once
  * from a fresh connection and once after the greeting. Built without
- * libFuzzer, a main() replays the files named on the command line. */
+ * libFuzzer, a main() replays the files named on the command line
+ * (fuzz_replay.h). */
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -142,22 +143,4 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 	return 0;
 }
 
-#ifdef SKYD_FUZZ_REPLAY
-int main(int argc, char **argv)
-{
-	static uint8_t buf[1 << 20];
-
-	for (int i = 1; i < argc; i++) {
-		FILE *f = fopen(argv[i], "rb");
-		if (!f) {
-			perror(argv[i]);
-			return 1;
-		}
-		size_t n = fread(buf, 1, sizeof(buf), f);
-		fclose(f);
-		LLVMFuzzerTestOneInput(buf, n);
-	}
-	printf("fuzz_proto: replayed %d inputs\n", argc - 1);
-	return 0;
-}
-#endif
+#include "fuzz_replay.h"

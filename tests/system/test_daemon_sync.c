@@ -3,12 +3,12 @@
  * show the same sky, switch together at the apply time as their libsky
  * clients see it, survive the broker's restart, a restarted follower
  * catches up from the retained message, garbage on the topic changes
- * nothing, and after a METAR and a wind step the three hold the same cloud
- * and shadow tables bit for bit (keys travel, never textures), and a
- * follower whose terrain file differs from the controller's keeps its
- * sky and says why. Exits 77 without mosquitto or a Vulkan device.
+ * nothing, a follower whose terrain file differs from the controller's
+ * keeps its sky and says why, and after a METAR and a wind step the three
+ * hold the same cloud and shadow tables bit for bit (keys travel, never
+ * textures). Exits 77 without mosquitto or a Vulkan device.
  *
- * Usage: test_daemon_sync switch|restart|garbage|clouds|terrain */
+ * Usage: test_daemon_sync switch|restart|garbage|terrain|clouds */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -473,6 +473,68 @@ static void scenario_garbage(void)
 	reload_follower();
 }
 
+/* ---- terrain: every host needs the same file ---- */
+
+/* A SKYTERRAIN16 file of 16 x 16 texels of one value. */
+static int write_terrain(const char *path, uint16_t value)
+{
+	FILE *f = fopen(path, "wb");
+	if (!f)
+		return -1;
+	fprintf(f, "SKYTERRAIN16 16 16\n");
+	for (int i = 0; i < 16 * 16; i++) {
+		fputc(value & 0xff, f);
+		fputc(value >> 8, f);
+	}
+	return fclose(f);
+}
+
+static int dropped(int i)
+{
+	char buf[8192], v[512];
+	return request(i, "status", buf, sizeof(buf)) == 0 &&
+	       reply_value(buf, "sync_last_drop", v, sizeof(v)) && strcmp(v, "none") != 0;
+}
+
+/* The followers take the controller's field; once the file under the
+ * same path holds other heights (as a host with another file would),
+ * they refuse the controller's next state, keep their sky, and say why
+ * in their status. */
+static void scenario_terrain(void)
+{
+	char path[192], req[256], buf[8192], v[512], hash[520] = "";
+
+	snprintf(path, sizeof(path), "%s/terrain.raw", rig.dir);
+	CHECK(write_terrain(path, 30000) == 0);
+	snprintf(req, sizeof(req), "set terrain=%s sun_elevation_deg=20", path);
+	CHECK(request(0, req, buf, sizeof(buf)) == 0);
+	for (int i = 1; i < N_SKYD; i++)
+		CHECK(wait_until(i, has_z, i) == 0);
+	check_same_generation();
+	for (int i = 0; i < N_SKYD; i++) {
+		CHECK(request(i, "get terrain_hash", buf, sizeof(buf)) == 0 &&
+		      reply_value(buf, "terrain_hash", v, sizeof(v)));
+		if (i == 0)
+			snprintf(hash, sizeof(hash), "%s", v);
+		CHECK(strcmp(v, hash) == 0);
+		CHECK(status_is(i, "sync_last_drop", "none"));
+	}
+	CHECK(write_terrain(path, 50000) == 0);
+	struct timespec mt[2] = { { 3000, 0 }, { 3000, 0 } };
+	CHECK(utimensat(AT_FDCWD, path, mt, 0) == 0);
+	double z1 = sun_z(1);
+	uint64_t g1 = status_u64(1, "sync_generation");
+	CHECK(request(0, "set sun_elevation_deg=35", buf, sizeof(buf)) == 0);
+	CHECK(wait_until(1, dropped, 1) == 0);
+	CHECK(request(1, "status", buf, sizeof(buf)) == 0);
+	printf("follower: sync_last_drop: %s\n",
+	       reply_value(buf, "sync_last_drop", v, sizeof(v)) ? v : "(none)");
+	CHECK(strstr(v, "terrain_hash: '") && strstr(v, "every host needs the same file"));
+	CHECK(strstr(v, hash) != NULL);
+	CHECK(status_u64(1, "sync_generation") == g1);
+	CHECK(sun_z(1) == z1);
+}
+
 /* ---- the cloud field: the same tables on every host ---- */
 
 #define CLOUD_BITS (SKY_TABLE_BIT(SKY_TABLE_CLOUD) | SKY_TABLE_BIT(SKY_TABLE_SHADOW))
@@ -562,68 +624,6 @@ static void scenario_clouds(void)
 	}
 }
 
-/* ---- terrain: every host needs the same file ---- */
-
-/* A SKYTERRAIN16 file of 16 x 16 texels of one value. */
-static int write_terrain(const char *path, uint16_t value)
-{
-	FILE *f = fopen(path, "wb");
-	if (!f)
-		return -1;
-	fprintf(f, "SKYTERRAIN16 16 16\n");
-	for (int i = 0; i < 16 * 16; i++) {
-		fputc(value & 0xff, f);
-		fputc(value >> 8, f);
-	}
-	return fclose(f);
-}
-
-static int dropped(int i)
-{
-	char buf[8192], v[512];
-	return request(i, "status", buf, sizeof(buf)) == 0 &&
-	       reply_value(buf, "sync_last_drop", v, sizeof(v)) && strcmp(v, "none") != 0;
-}
-
-/* The followers take the controller's field; once the file under the
- * same path holds other heights (as a host with another file would),
- * they refuse the controller's next state, keep their sky, and say why
- * in their status. */
-static void scenario_terrain(void)
-{
-	char path[192], req[256], buf[8192], v[512], hash[520] = "";
-
-	snprintf(path, sizeof(path), "%s/terrain.raw", rig.dir);
-	CHECK(write_terrain(path, 30000) == 0);
-	snprintf(req, sizeof(req), "set terrain=%s sun_elevation_deg=20", path);
-	CHECK(request(0, req, buf, sizeof(buf)) == 0);
-	for (int i = 1; i < N_SKYD; i++)
-		CHECK(wait_until(i, has_z, i) == 0);
-	check_same_generation();
-	for (int i = 0; i < N_SKYD; i++) {
-		CHECK(request(i, "get terrain_hash", buf, sizeof(buf)) == 0 &&
-		      reply_value(buf, "terrain_hash", v, sizeof(v)));
-		if (i == 0)
-			snprintf(hash, sizeof(hash), "%s", v);
-		CHECK(strcmp(v, hash) == 0);
-		CHECK(status_is(i, "sync_last_drop", "none"));
-	}
-	CHECK(write_terrain(path, 50000) == 0);
-	struct timespec mt[2] = { { 3000, 0 }, { 3000, 0 } };
-	CHECK(utimensat(AT_FDCWD, path, mt, 0) == 0);
-	double z1 = sun_z(1);
-	uint64_t g1 = status_u64(1, "sync_generation");
-	CHECK(request(0, "set sun_elevation_deg=35", buf, sizeof(buf)) == 0);
-	CHECK(wait_until(1, dropped, 1) == 0);
-	CHECK(request(1, "status", buf, sizeof(buf)) == 0);
-	printf("follower: sync_last_drop: %s\n",
-	       reply_value(buf, "sync_last_drop", v, sizeof(v)) ? v : "(none)");
-	CHECK(strstr(v, "terrain_hash: '") && strstr(v, "every host needs the same file"));
-	CHECK(strstr(v, hash) != NULL);
-	CHECK(status_u64(1, "sync_generation") == g1);
-	CHECK(sun_z(1) == z1);
-}
-
 int main(int argc, char **argv)
 {
 	const char *scenario = argc > 1 ? argv[1] : "switch";
@@ -642,10 +642,10 @@ int main(int argc, char **argv)
 		scenario_restart();
 	else if (strcmp(scenario, "garbage") == 0)
 		scenario_garbage();
-	else if (strcmp(scenario, "clouds") == 0)
-		scenario_clouds();
 	else if (strcmp(scenario, "terrain") == 0)
 		scenario_terrain();
+	else if (strcmp(scenario, "clouds") == 0)
+		scenario_clouds();
 	else
 		fprintf(stderr, "unknown scenario %s\n", scenario), failures++;
 	sync_rig_finish(&rig);
