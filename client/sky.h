@@ -339,8 +339,9 @@ enum sky_subscribe_flags {
 	SKY_SUBSCRIBE_EVENTS = 1,	/* also send "changed" event lines (sky_dispatch) */
 };
 
-/* Subscribes to the tables in the mask (SKY_TABLE_BIT of each; the daemon
- * adds what they depend on) and maps the shared memory passed with the
+/* Subscribes to the tables in the mask (SKY_TABLE_BIT of each, the cloud
+ * tables' SKY_TABLES_CLOUDS among them since layout 7; the daemon adds
+ * what they depend on) and maps the shared memory passed with the
  * reply, read-only. A second call changes the subscription. When the daemon
  * later publishes a new region (new table sizes) it sends it with a
  * "layout:" line: sky_dispatch() maps it and returns SKY_EVENT_LAYOUT;

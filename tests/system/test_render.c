@@ -912,7 +912,7 @@ static int case_clouds(const char *dir)
 	const char *const args[] = { "--no-terrain", "--no-disks", "--size", "64x36", "--yaw", "160", "--pitch",
 				     "25", "--cloud-steps", "32", NULL };
 	sky_client *c = NULL;
-	if (sky_connect(d.sock, &c) < 0 || sky_subscribe(c, SKY_TABLES_ALL, 0) < 0) {
+	if (sky_connect(d.sock, &c) < 0 || sky_subscribe(c, SKY_TABLES_ALL | SKY_TABLES_CLOUDS, 0) < 0) {
 		FAIL("cannot subscribe");
 		return 1;
 	}
