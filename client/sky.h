@@ -339,8 +339,9 @@ enum sky_subscribe_flags {
 	SKY_SUBSCRIBE_EVENTS = 1,	/* also send "changed" event lines (sky_dispatch) */
 };
 
-/* Subscribes to the tables in the mask (SKY_TABLE_BIT of each; the daemon
- * adds what they depend on) and maps the shared memory passed with the
+/* Subscribes to the tables in the mask (SKY_TABLE_BIT of each, the cloud
+ * tables' SKY_TABLES_CLOUDS among them since layout 7; the daemon adds
+ * what they depend on) and maps the shared memory passed with the
  * reply, read-only. A second call changes the subscription. When the daemon
  * later publishes a new region (new table sizes) it sends it with a
  * "layout:" line: sky_dispatch() maps it and returns SKY_EVENT_LAYOUT;
@@ -533,22 +534,16 @@ SKY_EXPORT int sky_sample_ambient(const struct sky_view *v, double ret_lx[3]);
 
 /* ---- Clouds (thread-safe on a view) ------------------------------------- */
 
-/* The cloud layers and the sun's shadow map come from skycloudmarch.h
- * (installed beside this header): include it to fill these. */
-struct skycloud_scene;
-struct skycloud_shadow_frame;
-struct skysample_table;
-
-/* What sky_sample_clouds() draws the clouds with. */
+/* How sky_sample_clouds() marches; the layers, the coverage table and the
+ * shadow maps are the view's own (its slot's struct sky_shm_clouds and
+ * tables). NULL params: every default. */
 struct sky_cloud_params {
-	const struct skycloud_scene *scene;	/* the layers and how they scatter
-						 * (skycloud_scene_init) */
-	const struct skysample_table *sun_shadow;	/* the sun's Beer shadow map, or NULL:
-							 * march toward the sun instead */
-	const struct skycloud_shadow_frame *sun_frame;	/* its frame (with sun_shadow) */
 	int steps;			/* of the view march; 0: SKYCLOUD_MARCH_STEPS_MEDIUM */
-	int light_steps;		/* toward a light without a map; 0: 8 */
-	double jitter;			/* [0, 1): where in its step a sample lies (0.5) */
+	int light_steps;		/* 0: each light's published shadow map (a march of 8
+					 * steps toward a light without one); > 0: march */
+	double jitter;			/* [0, 1): where in its step a sample lies; NULL params: 0.5 */
+	double ambient_lx[3];		/* sky irradiance scattered as skylight (E / pi), e.g.
+					 * sky_sample_ambient() once per view; 0: none */
 };
 
 /* Flag of sky_sample_clouds(): composite the clouds with what is behind
@@ -557,10 +552,13 @@ struct sky_cloud_params {
 
 /* The clouds seen from the observer of the view's state toward
  * elevation_deg above the horizon and azimuth_deg eastward from north, up
- * to distance_km (the scene's depth: a surface there, or INFINITY), lit by
- * the state's sun through the view's transmittance and multi-scattering
- * tables, and by its moon where it lights (marched toward, light_steps):
- * skycloud_march() of skycloudmarch.h, the same numbers as the GLSL
+ * to distance_km (the scene's depth: a surface there, or INFINITY): the
+ * slot's cloud layers (none: no cloud, transmittance 1), with the
+ * coverage table where the view holds it (else the field's own
+ * coverage), lit by the state's sun through the view's transmittance and
+ * multi-scattering tables, and by its moon where it lights, each through
+ * its published shadow map where valid (else marched toward, light_steps):
+ * skycloud_march() of skycloudmarch.h on skycloud_scene_from_slot, the same numbers as the GLSL
  * library's skycloud_march() (proto/glsl/skycloud_march.glsl) to float
  * rounding. Without SKY_SAMPLE_CLOUD_COMPOSITE, ret_rgb is the clouds'
  * own in-scattered radiance (cd/m2); with it, the pixel: the sky behind
@@ -572,7 +570,7 @@ struct sky_cloud_params {
  * and their mean depth (distance_km where there are none). -EINVAL on bad
  * arguments, -ENODATA if a needed table is not valid in the view. Costs
  * steps times the layers' density (docs/clouds.md, "Drawing clouds in a
- * client"). Since 0.4. */
+ * client"). Since 0.4; the view's own layers and maps with layout 7. */
 SKY_EXPORT int sky_sample_clouds(const struct sky_view *v, const struct sky_cloud_params *p,
 				 double elevation_deg, double azimuth_deg, double distance_km, unsigned flags,
 				 double ret_rgb[3], double *ret_transmittance, double *ret_depth_km);

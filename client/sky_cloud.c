@@ -24,47 +24,65 @@ static int check_args(const struct sky_view *v, const struct sky_cloud_params *p
 {
 	const unsigned known = SKY_SAMPLE_SUN_DISK | SKY_SAMPLE_MOON_DISK | SKY_SAMPLE_LIMB_DARKENING |
 			       SKY_SAMPLE_CLOUD_COMPOSITE;
-	if (!v || !v->header || !v->slot_base || !p || !p->scene || (flags & ~known))
+	if (!v || !v->header || !v->slot_base || !v->slot || (flags & ~known))
 		return -EINVAL;
 	if (!isfinite(elevation_deg) || !isfinite(azimuth_deg) || !(distance_km > 0.0))
 		return -EINVAL;
-	const struct skycloud_scene *sc = p->scene;
-	if (sc->n_layers < 0 || sc->n_layers > SKYCLOUD_MAX_LAYERS || (sc->n_layers && !sc->layers) ||
-	    sc->octaves < 1 || sc->octaves > SKYCLOUD_MARCH_MAX_OCTAVES || (sc->coverage && !(sc->extent_km > 0.0)))
+	if (p->steps < 0 || p->light_steps < 0 || !(p->jitter >= 0.0 && p->jitter < 1.0))
 		return -EINVAL;
-	if (p->steps < 0 || p->light_steps < 0 || !(p->jitter >= 0.0 && p->jitter < 1.0) ||
-	    (p->sun_shadow && !p->sun_frame))
-		return -EINVAL;
+	return 0;
+}
+
+/* Light k's (0 the sun, 1 the moon) published shadow map as a 2-D table,
+ * its slice of the shadow table; -ENODATA where the slot has none. */
+static int light_map(const struct sky_view *v, int k, struct skysample_table *ret)
+{
+	if (!(v->slot->clouds.shadow_lights & (1u << k)) || cloud_table(v, SKY_TABLE_SHADOW, ret) < 0 ||
+	    ret->depth < 2 || ret->format != SKY_FORMAT_RGBA32F)
+		return -ENODATA;
+	ret->texels = (const float *)ret->texels + (size_t)k * ret->width * ret->height * 4;
+	ret->depth = 1;
+	return 0;
+}
+
+/* Light k of the state, with its map where it has one and light_steps is
+ * 0; returns the light steps to march it with. */
+static int light_of(const struct sky_view *v, const struct sky_cloud_params *p, int k,
+		    struct skysample_table *map, struct skycloud_light *ret)
+{
+	const struct sky_shm_state *st = &v->slot->state;
+	*ret = (struct skycloud_light){ .shadow = NULL };
+	for (int c = 0; c < 3; c++) {
+		ret->dir[c] = k ? st->moon_direction[c] : st->sun_direction[c];
+		ret->illuminance_lx[c] = k ? st->moon_illuminance_lx[c] : st->sun_illuminance_lx[c];
+	}
+	if (p->light_steps > 0)
+		return p->light_steps;
+	if (light_map(v, k, map) < 0)
+		return LIGHT_STEPS;
+	ret->shadow = map;
+	skycloud_shadow_frame_from_slot(&v->slot->clouds, k, &ret->frame);
 	return 0;
 }
 
 /* Marches the clouds along d for the sun, and the moon where it lights. */
 static void march_lights(const struct sky_view *v, const struct sky_cloud_params *p,
-			 const struct skycloud_sky *sky, const double d[3], double distance_km,
-			 struct skycloud_sample *ret)
+			 const struct skycloud_scene *sc, const struct skycloud_sky *sky, const double d[3],
+			 double distance_km, struct skycloud_sample *ret)
 {
 	const struct sky_shm_state *st = &v->slot->state;
 	const double o[3] = { 0.0, 0.0, st->altitude_km };
 	const double far_km = isfinite(distance_km) ? distance_km : 1e30;
 	int steps = p->steps ? p->steps : SKYCLOUD_MARCH_STEPS_MEDIUM;
-	int light_steps = p->light_steps ? p->light_steps : LIGHT_STEPS;
-	struct skycloud_light li = { .shadow = p->sun_shadow };
-	if (p->sun_shadow)
-		li.frame = *p->sun_frame;
-	for (int k = 0; k < 3; k++) {
-		li.dir[k] = st->sun_direction[k];
-		li.illuminance_lx[k] = st->sun_illuminance_lx[k];
-	}
-	skycloud_march(p->scene, &li, sky, o, d, far_km, steps, p->sun_shadow ? 0 : light_steps, p->jitter, ret);
+	struct skysample_table map;
+	struct skycloud_light li;
+	int light_steps = light_of(v, p, 0, &map, &li);
+	skycloud_march(sc, &li, sky, o, d, far_km, steps, light_steps, p->jitter, ret);
 	if (!(st->moon_illuminance_lx[0] + st->moon_illuminance_lx[1] + st->moon_illuminance_lx[2] > 0.0))
 		return;
-	struct skycloud_light moon = { .shadow = NULL };
 	struct skycloud_sample m;
-	for (int k = 0; k < 3; k++) {
-		moon.dir[k] = st->moon_direction[k];
-		moon.illuminance_lx[k] = st->moon_illuminance_lx[k];
-	}
-	skycloud_march(p->scene, &moon, sky, o, d, far_km, steps, light_steps, p->jitter, &m);
+	light_steps = light_of(v, p, 1, &map, &li);
+	skycloud_march(sc, &li, sky, o, d, far_km, steps, light_steps, p->jitter, &m);
 	for (int k = 0; k < 3; k++)
 		ret->radiance[k] += m.radiance[k];
 }
@@ -73,9 +91,14 @@ int sky_sample_clouds(const struct sky_view *v, const struct sky_cloud_params *p
 		      double azimuth_deg, double distance_km, unsigned flags, double ret_rgb[3],
 		      double *ret_transmittance, double *ret_depth_km)
 {
-	struct skysample_table trans, ms;
+	static const struct sky_cloud_params defaults = { .jitter = 0.5 };
+	struct skysample_table trans, ms, cov;
+	struct skycloud_layer layers[SKYCLOUD_MAX_LAYERS];
+	struct skycloud_scene sc;
 	struct skycloud_sample c;
 	double d[3];
+	if (!p)
+		p = &defaults;
 	int r = check_args(v, p, elevation_deg, azimuth_deg, distance_km, flags);
 	if (r < 0 || !ret_rgb)
 		return r < 0 ? r : -EINVAL;
@@ -84,8 +107,13 @@ int sky_sample_clouds(const struct sky_view *v, const struct sky_cloud_params *p
 		return r;
 	const struct skycloud_sky sky = { &trans, &ms, v->slot->state.bottom_radius_km,
 					  v->slot->state.top_radius_km };
+	skycloud_scene_from_slot(&v->slot->clouds, layers, &sc);
+	if (sc.n_layers > 0 && sc.extent_km > 0.0 && cloud_table(v, SKY_TABLE_CLOUD, &cov) == 0)
+		sc.coverage = &cov;
 	skysample_direction(elevation_deg * DEG, azimuth_deg * DEG, d);
-	march_lights(v, p, &sky, d, distance_km, &c);
+	for (int k = 0; k < 3; k++)
+		sc.ambient_lx[k] = p->ambient_lx[k];
+	march_lights(v, p, &sc, &sky, d, distance_km, &c);
 	double rgb[3] = { c.radiance[0], c.radiance[1], c.radiance[2] };
 	if (flags & SKY_SAMPLE_CLOUD_COMPOSITE) {
 		double behind[3] = { 0.0, 0.0, 0.0 }, air[3], air_t;

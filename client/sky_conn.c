@@ -499,7 +499,8 @@ static int subscribe_now(sky_client *c, uint32_t tables, unsigned flags)
 
 int sky_subscribe(sky_client *c, uint32_t tables, unsigned flags)
 {
-	if (!c || !tables || (tables & ~SKY_TABLES_ALL) || (flags & ~(unsigned)SKY_SUBSCRIBE_EVENTS))
+	if (!c || !tables || (tables & ~(SKY_TABLES_ALL | SKY_TABLES_CLOUDS)) ||
+	    (flags & ~(unsigned)SKY_SUBSCRIBE_EVENTS))
 		return -EINVAL;
 	int r = subscribe_now(c, tables, flags);
 	if (r == 0) {

@@ -15,29 +15,35 @@
  * planet's centre at (0, 0, -bottom_radius_km)); a light direction points
  * toward the light; the view ray o + t d has d unit.
  *
- * The cloud tables as skyd is to publish them, taken here as plain tables
- * (struct skysample_table), so that whatever slot or upload holds them
- * plugs in:
- *   - the coverage table: 2-D, RGBA = the coverage (skycloud_coverage) of
- *     layers 1-4 over the square [-extent, extent]^2 km around the observer
- *     (x east, y north), texel (i, j) of n centred at -extent + (i + 0.5)
- *     2 extent / n (skycloud_table_uv);
- *   - a light's Beer shadow map: 2-D RGBA32F = (front depth km, mean
- *     extinction per km, max optical depth, opaque depth km of the terrain
- *     or huge; a texel whose ray meets no cloud is (0, 0, 0, terrain), so
- *     that the filter blends a cloud's edge into the clear), orthographic
- *     along the light; where a point p falls in it and its depth along the
- *     light are an affine map of p (struct skycloud_shadow_frame;
- *     skycloud_shadow_frame_init makes the one docs/clouds.md proposes).
- *     The optical depth at depth dp is
+ * The cloud tables as skyd publishes them (layout 7, proto/skyproto.h;
+ * docs/clouds.md, "Published"), taken here as plain tables (struct
+ * skysample_table), so that a slot or an upload plugs in as it is:
+ *   - the coverage table (SKY_TABLE_CLOUD): 2-D, channel k = the coverage
+ *     (skycloud_coverage) of the layer of index k over the square
+ *     [-extent, extent]^2 km around the observer (x east, y north), texel
+ *     (i, j) of n centred at -extent + (i + 0.5) 2 extent / n
+ *     (skycloud_table_uv);
+ *   - a light's Beer shadow map (SKY_TABLE_SHADOW: slice 0 the sun's,
+ *     slice 1 the moon's; the march takes a slice as a 2-D table):
+ *     RGBA32F = (front depth km, mean extinction per km, max optical
+ *     depth, opaque depth km of the terrain or 1e30; a texel whose ray
+ *     meets no cloud is (0, 0, 0, terrain), so that the filter blends a
+ *     cloud's edge into the clear), orthographic along the light; where a
+ *     point p falls in it and its depth along the light are the affine
+ *     rows the slot publishes (struct skycloud_shadow_frame,
+ *     skycloud_shadow_frame_from_slot). The optical depth at depth dp is
  *     min(max_od, mean_ext max(0, dp - front)); beyond the terrain's depth
  *     the point is in the terrain's shadow.
+ * The layers, their phase and albedo, the wind's offset and the region:
+ * skycloud_scene_from_slot.
  */
 #ifndef SKYD_SKYCLOUDMARCH_H
 #define SKYD_SKYCLOUDMARCH_H
 
 #include <math.h>
+#include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "skycloud.h"
 #include "skysample.h"
@@ -55,7 +61,8 @@
 
 /* The affine map of a light's shadow map: for a point p (ENU km),
  * u = row_u . (p, 1), v = row_v . (p, 1), its depth along the light from
- * the map's plane (growing away from the light) row_depth . (p, 1).
+ * the map's plane (growing away from the light) row_depth . (p, 1): the
+ * slot's shadow_row_u, shadow_row_v, shadow_row_depth of the light.
  * terrain_bias_km: how far past the terrain's opaque depth a point must be
  * to be in the terrain's shadow (a ground point lies on it). */
 struct skycloud_shadow_frame {
@@ -124,6 +131,34 @@ static inline void skycloud_scene_init(struct skycloud_scene *sc, const struct s
 	}
 }
 
+/* The published layer is struct skycloud_layer field for field, then its
+ * phase and albedo (proto/skyproto.h). */
+_Static_assert(offsetof(struct sky_shm_cloud_layer, phase_g) == sizeof(struct skycloud_layer) &&
+		       sizeof(struct skycloud_layer) == 72,
+	       "a published layer begins with struct skycloud_layer");
+
+/* The scene of a slot's clouds: its layers copied into layers (the first
+ * 72 bytes of each published one), their phase g and albedo, the wind's
+ * offset and the region's half-width, skycloud_scene_init's octaves; the
+ * coverage table is the caller's to set (NULL: the field's own coverage).
+ * Returns the number of layers. */
+static inline int skycloud_scene_from_slot(const struct sky_shm_clouds *c,
+					   struct skycloud_layer layers[SKYCLOUD_MAX_LAYERS],
+					   struct skycloud_scene *ret)
+{
+	int n = c->n_layers < SKYCLOUD_MAX_LAYERS ? (int)c->n_layers : SKYCLOUD_MAX_LAYERS;
+	const float off[2] = { (float)c->offset_km[0], (float)c->offset_km[1] };
+	for (int i = 0; i < n; i++)
+		memcpy(&layers[i], &c->layers[i], sizeof(layers[i]));
+	skycloud_scene_init(ret, layers, n, off);
+	for (int i = 0; i < n; i++) {
+		ret->phase_g[i] = c->layers[i].phase_g;
+		ret->albedo[i] = c->layers[i].albedo;
+	}
+	ret->extent_km = c->extent_km;
+	return n;
+}
+
 /* The coverage table's texture coordinate of field coordinates (x, y) km
  * (before the wind's offset: the table is computed with it). */
 static inline void skycloud_table_uv(double extent_km, double x, double y, double ret_uv[2])
@@ -132,38 +167,56 @@ static inline void skycloud_table_uv(double extent_km, double x, double y, doubl
 	ret_uv[1] = 0.5 + 0.5 * y / extent_km;
 }
 
-/* The orthographic frame docs/clouds.md proposes for a light's shadow map
- * over the box [-extent_km, extent_km]^2 x [bottom_km, top_km] (ENU: the
- * clouds lie below the highest top; the ground at the region's corners
- * sinks to -extent^2 / R): the map's plane is perpendicular to the light,
- * its u axis horizontal (east where the light is at the zenith), v = light
- * x u; u and v span the box seen along the light, and the depth is 0 on the
- * plane through the box's corner nearest the light. */
+/* The frame skyd publishes for a light's map (daemon/engine/eng_clouds.c
+ * and daemon/pub/pub.c compute it, in float) over the box [-extent_km,
+ * extent_km]^2 x [bottom_km, top_km] (bottom_km: the curvature's drop at
+ * the region's corners, -extent^2 / R): orthographic, u horizontal and
+ * across the light (east where the light is at the zenith), v = u x light
+ * up the light's vertical plane, each spanning the box seen along the
+ * light, and the depth 0 on the plane 1 km beyond the box's corner
+ * nearest the light. For a client that makes its own map, and for tests. */
 static inline void skycloud_shadow_frame_init(const double light[3], double extent_km, double bottom_km,
 					      double top_km, struct skycloud_shadow_frame *ret)
 {
-	double h = sqrt(light[0] * light[0] + light[1] * light[1]);
-	double eu[3] = { 1.0, 0.0, 0.0 };
-	if (h > 1e-9) {
-		eu[0] = -light[1] / h;
-		eu[1] = light[0] / h;
+	const double *l = light;
+	double u[3] = { l[1], -l[0], 0.0 }, v[3], e = extent_km;
+	double n = sqrt(u[0] * u[0] + u[1] * u[1]);
+	if (n < 1e-6) {
+		u[0] = 1.0;
+		u[1] = 0.0;
+	} else {
+		u[0] /= n;
+		u[1] /= n;
 	}
-	double ev[3] = { light[1] * eu[2] - light[2] * eu[1], light[2] * eu[0] - light[0] * eu[2],
-			 light[0] * eu[1] - light[1] * eu[0] };
-	/* Half-spans of the box on each axis, and its centre's v. */
-	double zc = 0.5 * (top_km + bottom_km), zs = 0.5 * (top_km - bottom_km);
-	double su = extent_km * (fabs(eu[0]) + fabs(eu[1]));
-	double sv = extent_km * (fabs(ev[0]) + fabs(ev[1])) + zs * fabs(ev[2]);
-	double cv = zc * ev[2];
-	double near = extent_km * (fabs(light[0]) + fabs(light[1])) + zc * light[2] + zs * fabs(light[2]);
+	v[0] = u[1] * l[2] - u[2] * l[1];
+	v[1] = u[2] * l[0] - u[0] * l[2];
+	v[2] = u[0] * l[1] - u[1] * l[0];
+	double u_half = (fabs(u[0]) + fabs(u[1])) * e, v_half = (fabs(v[0]) + fabs(v[1])) * e;
+	double v_lo = -v_half + fmin(v[2] * bottom_km, v[2] * top_km);
+	double v_hi = v_half + fmax(v[2] * bottom_km, v[2] * top_km);
+	double plane = (fabs(l[0]) + fabs(l[1])) * e + fmax(l[2] * bottom_km, l[2] * top_km) + 1.0;
+	double su = 1.0 / (2.0 * u_half), sv = 1.0 / fmax(v_hi - v_lo, 1e-3);
 	for (int k = 0; k < 3; k++) {
-		ret->row_u[k] = 0.5 * eu[k] / su;
-		ret->row_v[k] = 0.5 * ev[k] / sv;
-		ret->row_depth[k] = -light[k];
+		ret->row_u[k] = u[k] * su;
+		ret->row_v[k] = v[k] * sv;
+		ret->row_depth[k] = -l[k];
 	}
-	ret->row_u[3] = 0.5;
-	ret->row_v[3] = 0.5 - 0.5 * cv / sv;
-	ret->row_depth[3] = near;
+	ret->row_u[3] = u_half * su;
+	ret->row_v[3] = -v_lo * sv;
+	ret->row_depth[3] = plane;
+	ret->terrain_bias_km = 0.0;
+}
+
+/* Light k's (0 the sun, 1 the moon) frame as the slot publishes it
+ * (struct sky_shm_clouds), bias 0. */
+static inline void skycloud_shadow_frame_from_slot(const struct sky_shm_clouds *c, int k,
+						   struct skycloud_shadow_frame *ret)
+{
+	for (int i = 0; i < 4; i++) {
+		ret->row_u[i] = c->shadow_row_u[k][i];
+		ret->row_v[i] = c->shadow_row_v[k][i];
+		ret->row_depth[i] = c->shadow_row_depth[k][i];
+	}
 	ret->terrain_bias_km = 0.0;
 }
 

@@ -73,8 +73,10 @@ fail:
 
 static int layout_init(struct rvk *r, char *err, size_t err_size)
 {
-	/* 0: the uniform block; 1, 2: transmittance, sky-view; 3: the aerial
-	 * textures (volumes or a panorama), an array. */
+	/* 0: the uniform block; 1 to 5: transmittance, sky-view,
+	 * multi-scattering, the clouds' coverage and the sun's shadow map
+	 * (enum rvk_table); 6: the aerial textures (volumes or a panorama),
+	 * an array. */
 	VkDescriptorSetLayoutBinding b[1 + RVK_AERIAL + 1];
 	int rc = 0;
 	for (uint32_t i = 0; i < 1 + RVK_AERIAL + 1; i++)

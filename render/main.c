@@ -21,6 +21,7 @@
 #include "proto.h"
 #include "rvk.h"
 #include "sky.h"
+#include "skycloudmarch.h"
 #include "window.h"
 
 enum { EXIT_OK = 0, EXIT_FAILED = 1, EXIT_USAGE = 2 };
@@ -82,6 +83,8 @@ static void usage(FILE *f)
 		"  --no-terrain         the sky only\n"
 		"  --no-disks           no sun or moon disk\n"
 		"  --albedo A           the ground's reflectance (default 0.15)\n"
+		"  --cloud-steps N      steps of the cloud march, the quality knob (default 32;\n"
+		"                       0: no clouds)\n"
 		"  --aerial FORM        panorama: aerial perspective from skyd's panorama of the\n"
 		"                       eye point, which all tiles of a wall share (default);\n"
 		"                       volume: a volume of this camera (a dome: four)\n"
@@ -160,6 +163,10 @@ static int parse_args(int argc, char **argv, struct opts *o)
 		} else if (!strcmp(k, "--aerial")) {
 			bad = !v || (strcmp(v, "panorama") && strcmp(v, "volume"));
 			o->aerial = v && !strcmp(v, "volume") ? AERIAL_VOLUME : AERIAL_PANORAMA;
+		} else if (!strcmp(k, "--cloud-steps")) {
+			double steps = 0.0;
+			bad = parse_number(v, 0.0, 1024.0, &steps) < 0;
+			o->rvk.cloud_steps = (int)steps;
 		} else if (!strcmp(k, "--albedo")) {
 			bad = parse_number(v, 0.0, 1.0, &o->rvk.terrain_albedo) < 0;
 		} else if (!strcmp(k, "--exposure")) {
@@ -391,6 +398,7 @@ static int refresh(struct link *l, struct rvk *r, const struct opts *o)
 	}
 	u.generation = v.generation;
 	sky_sample_ambient(&v, u.ambient_lx);
+	u.clouds = &v.slot->clouds;
 	if ((rc = rvk_upload(r, &u, err, sizeof(err))) < 0) {
 		fprintf(stderr, "skyrender: upload: %s\n", err);
 		return rc;
@@ -408,7 +416,8 @@ static int refresh(struct link *l, struct rvk *r, const struct opts *o)
 /* Connects, subscribes and waits for the first generation with the tables. */
 static int link_open(struct link *l, const struct opts *o)
 {
-	uint32_t tables = NEEDED_TABLES | (o->rvk.terrain ? SKY_TABLE_BIT(SKY_TABLE_AERIAL) : 0);
+	uint32_t tables = NEEDED_TABLES | (o->rvk.terrain ? SKY_TABLE_BIT(SKY_TABLE_AERIAL) : 0) |
+			  (o->rvk.cloud_steps > 0 ? SKY_TABLE_BIT(SKY_TABLE_MULTISCATTER) : 0);
 	int r = sky_connect(o->socket, &l->c);
 	if (r == 0)
 		r = sky_subscribe(l->c, tables, SKY_SUBSCRIBE_EVENTS);
@@ -517,7 +526,7 @@ int main(int argc, char **argv)
 {
 	struct opts o = {
 		.out = "frame-%04d.png", .frames = 1,
-		.rvk = { .terrain = true, .terrain_albedo = 0.15,
+		.rvk = { .terrain = true, .terrain_albedo = 0.15, .cloud_steps = SKYCLOUD_MARCH_STEPS_LOW,
 			 .disk_flags = SKY_SAMPLE_SUN_DISK | SKY_SAMPLE_MOON_DISK | SKY_SAMPLE_LIMB_DARKENING,
 			 .camera = { .width = 640, .height = 360, .cols = 1, .rows = 1,
 				     .yaw_deg = 180.0, .pitch_deg = 10.0, .vfov_deg = 60.0 } },

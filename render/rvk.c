@@ -381,7 +381,8 @@ static const float stand_in_texel[4] = { 0.0f, 0.0f, 0.0f, 1.0f };
 static void find_tables(const struct rvk_upload *u, const void *ret_src[RVK_TABLES],
 			struct rvk_table_layout ret[RVK_TABLES], uint32_t ret_changed[RVK_TABLES])
 {
-	static const uint32_t ids[RVK_AERIAL] = { SKY_TABLE_TRANSMITTANCE, SKY_TABLE_SKYVIEW };
+	static const uint32_t ids[RVK_AERIAL] = { SKY_TABLE_TRANSMITTANCE, SKY_TABLE_SKYVIEW,
+						  SKY_TABLE_MULTISCATTER, SKY_TABLE_CLOUD, SKY_TABLE_SHADOW };
 	uint64_t off = 0;
 	for (int i = 0; i < RVK_TABLES; i++) {
 		int k = i - RVK_AERIAL;
@@ -393,7 +394,8 @@ static void find_tables(const struct rvk_upload *u, const void *ret_src[RVK_TABL
 			l->format = t->format;
 			l->width = t->width;
 			l->height = t->height;
-			l->depth = t->depth;
+			/* The shadow table's slice 0, the sun's map, as a 2-D image. */
+			l->depth = i == RVK_SHADOW ? 1 : t->depth;
 			ret_src[i] = t->texels;
 			ret_changed[i] = t->changed_generation;
 		} else {
@@ -470,6 +472,46 @@ static void camera_basis(const struct rvk_camera *c, double f[3], double rt[3], 
 	u[2] = rt[0] * f[1] - rt[1] * f[0];
 }
 
+/* The clouds' part of the block: the slot's layers as
+ * skycloud_scene_from_slot reads them, and the sun with its map's frame
+ * where the slot holds one (else 4 steps toward it). */
+static void fill_clouds(const struct rvk *r, const struct rvk_upload *up, bool has_map,
+			struct rvk_frame_ubo *u)
+{
+	struct skycloud_layer layers[SKYCLOUD_MAX_LAYERS];
+	struct skycloud_scene sc;
+	struct skycloud_shadow_frame f;
+	if (!up->clouds || r->opt.cloud_steps <= 0 || skycloud_scene_from_slot(up->clouds, layers, &sc) == 0)
+		return;
+	for (int i = 0; i < sc.n_layers; i++) {
+		u->layers[i].l = layers[i];
+		u->scene[0][i] = (float)sc.phase_g[i];
+		u->scene[1][i] = (float)sc.albedo[i];
+	}
+	u->scene[2][0] = (float)sc.octaves;
+	u->scene[2][1] = (float)sc.octave_a;
+	u->scene[2][2] = (float)sc.octave_b;
+	u->scene[2][3] = (float)sc.octave_c;
+	u->scene[3][0] = sc.offset_km[0];
+	u->scene[3][1] = sc.offset_km[1];
+	u->scene[3][2] = (float)sc.n_layers;
+	u->scene[3][3] = (float)sc.extent_km;
+	vec4(u->scene[4], up->ambient_lx, 0.0);
+	has_map = has_map && (up->clouds->shadow_lights & 1u);
+	for (int c = 0; c < 4; c++) {
+		u->sun[0][c] = up->state[0]->sun[c];
+		u->sun[1][c] = up->state[0]->sun_illuminance_lx[c];
+	}
+	u->sun[0][3] = has_map ? 1.0f : 0.0f;
+	u->sun[1][3] = 0.0f;
+	skycloud_shadow_frame_from_slot(up->clouds, 0, &f);
+	vec4(u->sun[2], f.row_u, f.row_u[3]);
+	vec4(u->sun[3], f.row_v, f.row_v[3]);
+	vec4(u->sun[4], f.row_depth, f.row_depth[3]);
+	u->clouds[0] = (float)r->opt.cloud_steps;
+	u->clouds[1] = has_map ? 0.0f : 4.0f;
+}
+
 static void fill_ubo(const struct rvk *r, const struct rvk_upload *up, struct rvk_frame_ubo *u)
 {
 	const struct rvk_camera *c = &r->opt.camera;
@@ -494,6 +536,8 @@ static void fill_ubo(const struct rvk *r, const struct rvk_upload *up, struct rv
 	vec4(u->ambient_lx, up->ambient_lx, r->opt.disk_flags);
 	double albedo[3] = { r->opt.terrain_albedo, r->opt.terrain_albedo, r->opt.terrain_albedo };
 	vec4(u->terrain, albedo, up->n_aerial);
+	const struct sky_gpu_table *sh = &up->tables[SKY_TABLE_SHADOW];
+	fill_clouds(r, up, sh->present && sh->texels && sh->depth >= 2, u);
 }
 
 static void image_barrier(VkCommandBuffer cmd, VkImage image, VkImageLayout from, VkImageLayout to,

@@ -41,6 +41,7 @@ struct rvk_options {
 	bool terrain;			/* draw the height field */
 	unsigned disk_flags;		/* enum sky_sample_flags: the sun and moon disks */
 	double terrain_albedo;		/* the ground's reflectance, [0, 1] */
+	int cloud_steps;		/* the cloud march's steps (the quality knob); 0: no clouds */
 };
 
 /* Opens a device and builds the target, the pipelines and the terrain mesh.
@@ -75,6 +76,7 @@ struct rvk_upload {
 	const struct sky_gpu_state *state[RVK_MAX_AERIAL];
 	uint32_t generation;			/* the view's */
 	double ambient_lx[3];			/* sky_sample_ambient() of the view */
+	const struct sky_shm_clouds *clouds;	/* the slot's cloud field; NULL: none */
 };
 
 /* Starts uploading into the set of images frames are not drawing from:

@@ -9,6 +9,7 @@
 #include <vulkan/vulkan.h>
 
 #include "rvk.h"
+#include "skycloudmarch.h"
 
 void rvk_set_err(char *err, size_t n, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 const char *rvk_result_name(VkResult r);
@@ -57,12 +58,20 @@ struct rvk_frame_ubo {
 	float cam_u[4];			/* up; w: near plane (km) */
 	float ambient_lx[4];		/* horizontal sky irradiance (rgb); w: disk flags */
 	float terrain[4];		/* albedo (rgb); w: number of aerial textures */
+	/* The clouds (skycloud_march.glsl's blocks; std140 rounds a layer up
+	 * to 80 bytes): the slot's layers, their scene, the sun and its
+	 * shadow map's frame, and x: the march's steps (0: no clouds), y:
+	 * light steps (0: the shadow map). */
+	struct { struct skycloud_layer l; float pad[2]; } layers[SKYCLOUD_MAX_LAYERS];
+	float scene[5][4];
+	float sun[6][4];
+	float clouds[4];
 };
 
 /* The tables a frame samples, in binding order after the uniform block;
  * the aerial textures (one binding, an array) are the client's views'
  * volumes or panorama when it has them. */
-enum rvk_table { RVK_TRANSMITTANCE, RVK_SKYVIEW, RVK_AERIAL,
+enum rvk_table { RVK_TRANSMITTANCE, RVK_SKYVIEW, RVK_MULTISCATTER, RVK_CLOUD, RVK_SHADOW, RVK_AERIAL,
 		 RVK_TABLES = RVK_AERIAL + RVK_MAX_AERIAL };
 
 /* Where one table's texels come from in a slot and how they are stored. */

@@ -38,6 +38,7 @@
 #include <unistd.h>
 
 #include "sky.h"
+#include "skycloud.h"
 #include "skysample.h"
 #include "test.h"
 
@@ -92,6 +93,31 @@ static inline uint64_t fake_skyd_align64(uint64_t x)
 	return (x + 63) & ~(uint64_t)63;
 }
 
+/* The stand-in's cloud field: one stratocumulus layer, as skyd would
+ * publish it without its tables (FAKE_CLOUD_* for a test to rebuild it). */
+#define FAKE_CLOUD_COVER 0.8
+#define FAKE_CLOUD_BASE_KM 1.0
+#define FAKE_CLOUD_TOP_KM 1.4
+#define FAKE_CLOUD_SEED 5u
+static const float fake_cloud_offset_km[2] = { 10.0f, 20.0f };
+static inline void fake_skyd_clouds(struct sky_shm_clouds *c)
+{
+	struct skycloud_layer L;
+	memset(c, 0, sizeof(*c));
+	skycloud_layer_init(&L, SKYCLOUD_STRATOCUMULUS, FAKE_CLOUD_COVER, FAKE_CLOUD_BASE_KM, FAKE_CLOUD_TOP_KM,
+			    FAKE_CLOUD_SEED, 0u);
+	c->n_layers = 1;
+	memcpy(&c->layers[0], &L, sizeof(L));
+	c->layers[0].phase_g = (float)skycloud_types[SKYCLOUD_STRATOCUMULUS].phase_g;
+	c->layers[0].albedo = (float)skycloud_types[SKYCLOUD_STRATOCUMULUS].albedo;
+	c->extent_km = 50.0;
+	c->offset_km[0] = fake_cloud_offset_km[0];
+	c->offset_km[1] = fake_cloud_offset_km[1];
+	c->period_km = SKYCLOUD_PERIOD_KM;
+	c->placed_utc_s = NAN;
+	c->sun_transmittance = c->moon_transmittance = 1.0;
+}
+
 /* Writes slot s's state and tables with scale k, as the header says, and
  * its checksum; the seqlock is the caller's. */
 static inline void fake_skyd_fill_slot(struct fake_skyd *f, uint32_t s, double scale)
@@ -111,6 +137,7 @@ static inline void fake_skyd_fill_slot(struct fake_skyd *f, uint32_t s, double s
 	st->aerial_range_km = 32.0;
 	st->aerial_squared = 1;
 	st->utc_unix_s = scale;
+	fake_skyd_clouds(&sl->clouds);
 	/* transmittance: a smooth function of the (altitude, mu) of each texel */
 	float *t = fake_skyd_table(f, s, SKY_TABLE_TRANSMITTANCE);
 	for (int j = 0; j < FAKE_TH; j++)

@@ -2,8 +2,9 @@
 // (the GLSL library's SkyState, then the camera: struct rvk_frame_ubo of
 // render/rvk_internal.h), the table images, and the camera of one tile of a
 // wall: pixel -> view direction as libsky's sky_render_direction() gives
-// it, and a point -> the tile's clip position for the terrain.
-#include "sky.glsl"
+// it, and a point -> the tile's clip position for the terrain; the clouds
+// in front of what a pixel shows (the GLSL library's cloud march).
+#include "skycloud_march.glsl"
 
 // The aerial textures: one for a perspective tile or a dome master (a
 // volume, or the eye point's panorama), or four volumes, quarters of the
@@ -19,11 +20,18 @@ layout(std140, set = 0, binding = 0) uniform FrameBlock {
 	vec4 cam_u;		// up; w: near plane (km)
 	vec4 ambient_lx;	// horizontal sky irradiance; w: disk flags (SKY_DISK_*)
 	vec4 terrain;		// the ground's albedo (rgb); w: the number of aerial volumes
+	SkycloudLayer layers[SKYCLOUD_MAX_LAYERS];	// the slot's (std140: 80 bytes each)
+	SkycloudScene scene;
+	SkycloudLight sun;	// with its shadow map's frame (dir.w 1: the map is bound)
+	vec4 clouds;		// x: the march's steps (0: no clouds); y: light steps
 } F;
 
 layout(set = 0, binding = 1) uniform sampler2D transmittance_tex;
 layout(set = 0, binding = 2) uniform sampler2D skyview_tex;
-layout(set = 0, binding = 3) uniform sampler3D aerial_tex[MAX_AERIAL];
+layout(set = 0, binding = 3) uniform sampler2D multiscatter_tex;
+layout(set = 0, binding = 4) uniform sampler2D coverage_tex;	// SKY_TABLE_CLOUD
+layout(set = 0, binding = 5) uniform sampler2D shadow_tex;	// SKY_TABLE_SHADOW's slice 0: the sun's
+layout(set = 0, binding = 6) uniform sampler3D aerial_tex[MAX_AERIAL];
 
 const float HALF_PI = 0.5 * SKYMAP_PI;
 
@@ -71,6 +79,52 @@ vec3 apply_aerial(vec3 view, float distance_km, vec3 surface)
 		return sky_apply_aerial_dir(F.sky[0], aerial_tex[0], view, distance_km, surface);
 	vec4 a = aerial_quarters(view, distance_km);
 	return surface * a.a + a.rgb;
+}
+
+// The aerial perspective toward view at distance_km, whichever textures
+// the frame has.
+vec4 aerial_toward(vec3 view, float distance_km)
+{
+	if (int(F.terrain.w) != MAX_AERIAL)
+		return aerial_of(0, view, distance_km);
+	return aerial_quarters(view, distance_km);
+}
+
+// The clouds between the eye and what the pixel shows toward view at
+// far_km (behind: its radiance with its own aerial perspective; 1e30 for
+// the sky), composited in the library's order (skycloud_composite): the
+// march at the block's steps, the air at the clouds' depth.
+vec3 clouds_over(vec3 view, float far_km, vec3 behind)
+{
+	if (F.clouds.x < 0.5)
+		return behind;
+	vec3 eye = vec3(0.0, 0.0, F.sky[0].planet.z);
+	SkycloudSample c = skycloud_march(F.sky[0], transmittance_tex, multiscatter_tex, coverage_tex, shadow_tex,
+					  F.layers, F.scene, F.sun, eye, view, far_km, int(F.clouds.x),
+					  int(F.clouds.y), 0.5);
+	if (!(c.transmittance < 1.0))
+		return behind;
+	return skycloud_composite(behind, c, aerial_toward(view, c.depth_km));
+}
+
+// The sun's light through the clouds at q (km from the eye): its shadow
+// map's transmittance, 1 without clouds or a map.
+float cloud_sun_shadow(vec3 q)
+{
+	if (F.clouds.x < 0.5 || F.sun.dir.w < 0.5)
+		return 1.0;
+	return skycloud_shadow(shadow_tex, F.sun.frame, q + vec3(0.0, 0.0, F.sky[0].planet.z));
+}
+
+// The share of the sky the layers leave open above altitude h_km (1 -
+// skycloud_sky_occlusion): the sky's irradiance (the clear sky's, from
+// the tables) reaches the ground through it, as skyd lights its haze.
+// The clouds' own light on the ground is left out.
+float cloud_sky_open(float h_km)
+{
+	if (F.clouds.x < 0.5)
+		return 1.0;
+	return 1.0 - skycloud_sky_occlusion(F.layers, int(F.scene.field.z), h_km);
 }
 
 // The unit ENU direction through wall position p (pixels, y down): false

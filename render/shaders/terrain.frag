@@ -1,8 +1,9 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // terrain.frag - the ground: a lambertian albedo lit by the sun and the moon
-// through the transmittance from the point, and by the sky's irradiance;
-// then aerial perspective at its distance, through the GLSL library.
+// through the transmittance from the point (the sun's through the clouds'
+// shadow map too), and by the sky's irradiance; then aerial perspective at
+// its distance and the clouds in front, through the GLSL library.
 #include "frame.glsl"
 
 layout(location = 0) in vec3 in_eye_km;
@@ -28,10 +29,10 @@ void main()
 	vec3 view = in_eye_km / dist;
 	float altitude = max(F.sky[0].planet.z + in_eye_km.z, 0.0);
 	vec3 e = light_at(F.sky[0].sun.xyz, F.sky[0].sun_illuminance.rgb, altitude) *
-		 max(dot(n, F.sky[0].sun.xyz), 0.0) +
+		 max(dot(n, F.sky[0].sun.xyz), 0.0) * cloud_sun_shadow(in_eye_km) +
 		 light_at(F.sky[0].moon.xyz, F.sky[0].moon_illuminance.rgb, altitude) *
 		 max(dot(n, F.sky[0].moon.xyz), 0.0) +
-		 F.ambient_lx.rgb * (0.5 + 0.5 * n.z);
+		 F.ambient_lx.rgb * (0.5 + 0.5 * n.z) * cloud_sky_open(altitude);
 	vec3 surface = F.terrain.rgb / SKYMAP_PI * e;
-	out_colour = vec4(apply_aerial(view, dist, surface), 1.0);
+	out_colour = vec4(clouds_over(view, dist, apply_aerial(view, dist, surface)), 1.0);
 }

@@ -12,7 +12,11 @@
  *            still draws from volumes, close to the panorama's frame; a
  *            ninth skyrender, refused a view, draws with the state's camera;
  *   window   --window on an Xvfb shows the bytes the PNG holds (skipped
- *            without Xvfb or libxcb).
+ *            without Xvfb or libxcb);
+ *   clouds   with a METAR's broken layer, skyrender's sky pixels match
+ *            libsky's CPU march of the same slot (sky_sample_clouds), three
+ *            tiles of a wall meet at their edges, and it keeps drawing
+ *            while the layers change.
  * Frames are compared as the 8-bit sRGB PNGs both programs write with
  * dump_png's encoding at the same fixed exposure. */
 #include <math.h>
@@ -22,7 +26,9 @@
 #include <time.h>
 
 #include "daemon_harness.h"
+#include "dump.h"
 #include "sky.h"
+#include "skysample.h"
 #include "test.h"
 #include "vk_or_skip.h"
 
@@ -783,6 +789,160 @@ static int case_window(const char *dir)
 }
 #endif
 
+/* The unit ENU direction of pixel (x, y) of a w x h perspective frame
+ * (yaw, pitch, vertical field of view in degrees): frame.glsl's
+ * view_direction of a 1 x 1 wall. */
+static void pixel_direction(uint32_t x, uint32_t y, uint32_t w, uint32_t h, double yaw_deg, double pitch_deg,
+			    double vfov_deg, double ret[3])
+{
+	double yaw = yaw_deg * SKYMAP_PI / 180.0, f[3], r[3] = { cos(yaw), -sin(yaw), 0.0 }, u[3];
+	skysample_direction(pitch_deg * SKYMAP_PI / 180.0, yaw, f);
+	u[0] = r[1] * f[2] - r[2] * f[1];
+	u[1] = r[2] * f[0] - r[0] * f[2];
+	u[2] = r[0] * f[1] - r[1] * f[0];
+	double t = tan(0.5 * vfov_deg * SKYMAP_PI / 180.0), n = 0.0;
+	double sx = (2.0 * (x + 0.5) / w - 1.0) * t * ((double)w / h), sy = (1.0 - 2.0 * (y + 0.5) / h) * t;
+	for (int k = 0; k < 3; k++) {
+		ret[k] = f[k] + sx * r[k] + sy * u[k];
+		n += ret[k] * ret[k];
+	}
+	for (int k = 0; k < 3; k++)
+		ret[k] /= sqrt(n);
+}
+
+/* The frame of skyrender at path (drawn in generation g, 32 cloud steps)
+ * against sky_sample_clouds of that generation's slot, encoded as the PNG
+ * is; the share of its pixels with cloud (transmittance < 0.9). */
+static double compare_clouds(sky_client *c, const char *path, long g, uint32_t w, uint32_t h)
+{
+	struct image im;
+	struct sky_view v;
+	struct sky_cloud_params p = { .steps = 32, .light_steps = 0, .jitter = 0.5 };
+	long cloudy = 0, over = 0, n = 0, refused = 0;
+	double sum = 0.0, worst = 0.0;
+	uint32_t seen = 0;
+	int rc = image_read(path, &im);
+	/* The slot skyrender drew, with every table (our subscription's). */
+	while (rc == 0 && (rc = sky_wait(c, seen, HARNESS_TIMEOUT_MS, &seen)) >= 0 &&
+	       (rc = sky_view_begin(c, &v)) == 0) {
+		if ((long)v.generation >= g && (v.valid_tables & SKY_TABLES_ALL) == SKY_TABLES_ALL)
+			break;
+		sky_view_end(c, &v);
+	}
+	if (rc < 0) {
+		FAIL("cannot read %s or the slot: %d", path, rc);
+		return 0.0;
+	}
+	CHECK_EQ((long)v.generation, g);
+	CHECK(im.w == w && im.h == h);
+	sky_sample_ambient(&v, p.ambient_lx);	/* skyrender's skylight */
+	for (uint32_t y = 0; y < h && im.w == w; y++)
+		for (uint32_t x = 0; x < w; x++) {
+			double d3[3], rgb[3], t;
+			pixel_direction(x, y, w, h, 160.0, 25.0, 60.0, d3);
+			double el = asin(d3[2]) * 180.0 / SKYMAP_PI, az = atan2(d3[0], d3[1]) * 180.0 / SKYMAP_PI;
+			if (el < 0.5)
+				continue;	/* the sky only (--no-terrain draws the ground's sky too) */
+			if (sky_sample_clouds(&v, &p, el, az, INFINITY, SKY_SAMPLE_CLOUD_COMPOSITE, rgb, &t, NULL) < 0) {
+				refused++;
+				continue;
+			}
+			cloudy += t < 0.9;
+			for (int k = 0; k < 3; k++) {
+				double e = fabs((double)dump_tonemap_srgb8((float)rgb[k], strtod(exposure, NULL),
+									     DUMP_CURVE_ACES) - px(&im, x, y, k));
+				sum += e;
+				worst = e > worst ? e : worst;
+				over += e > 3.0;
+			}
+			n++;
+		}
+	CHECK(sky_view_end(c, &v));
+	CHECK_EQ(refused, 0);
+	free(im.rgb);
+	printf("clouds: %ld sky pixels, %ld cloudy; 8-bit error mean %.3f, max %.0f, %ld channels over 3\n", n,
+	       cloudy, n ? sum / (3.0 * n) : 0.0, worst, over);
+	/* Tolerance: the device's float march against the C's double is
+	 * within 3e-3 of the radiance (test_glsl_cloud_march), a third of a
+	 * level of 8 bits at this exposure, so a channel rounds to a
+	 * neighbouring level at most; the texture unit's filter of the
+	 * tables and the shadow map (8-bit weights on lavapipe) may move a
+	 * pixel at a cloud's sharp edge by more, rarely. Measured on
+	 * lavapipe: mean 0.000, largest 1. */
+	CHECK(n > 0 && sum / (3.0 * n) < 0.1);
+	CHECK(over * 100 <= n);
+	return n ? (double)cloudy / n : 0.0;
+}
+
+/* Three tiles of a wall with the clouds (and their shadows on the
+ * terrain) meet at their edges as the one-process wall does. */
+static void clouds_wall(const char *dir)
+{
+	char path[4][PATH_MAX], tile[8];
+	struct image im[4] = { 0 };
+	for (int k = 0; k < 4; k++) {
+		snprintf(path[k], sizeof(path[k]), "%s/cwall%d.png", dir, k);
+		snprintf(tile, sizeof(tile), "%d,0", k);
+		long g = k < 3 ? skyrender(path[k], (const char *const[]){ "--size", "40x48", "--yaw", "170",
+				"--pitch", "8", "--fov", "40", "--grid", "3x1", "--tile", tile, NULL }) :
+			       skyrender(path[k], (const char *const[]){ "--size", "120x48", "--yaw", "170",
+				"--pitch", "8", "--fov", "40", NULL });
+		if (g < 0 || image_read(path[k], &im[k]) < 0) {
+			FAIL("%s not readable", path[k]);
+			return;
+		}
+	}
+	const struct image *t[3] = { &im[0], &im[1], &im[2] };
+	double mean;
+	int seam = seam_departure(t, &im[3], 40, 48, &mean);
+	printf("clouds: step across the seams against the whole wall's: departure max %d, mean %.4f levels\n",
+	       seam, mean);
+	/* The march takes the same directions in a tile as in the wall. */
+	CHECK(seam <= 2 && mean < 0.03);
+	for (int k = 0; k < 3; k++)
+		compare("clouds: tile vs whole wall", &im[3], (uint32_t)k * 40, 0, &im[k]);
+	for (int k = 0; k < 4; k++)
+		free(im[k].rgb);
+}
+
+static int case_clouds(const char *dir)
+{
+	char path[PATH_MAX];
+	snprintf(path, sizeof(path), "%s/clouds.png", dir);
+	const char *const args[] = { "--no-terrain", "--no-disks", "--size", "64x36", "--yaw", "160", "--pitch",
+				     "25", "--cloud-steps", "32", NULL };
+	sky_client *c = NULL;
+	if (sky_connect(d.sock, &c) < 0 || sky_subscribe(c, SKY_TABLES_ALL | SKY_TABLES_CLOUDS, 0) < 0) {
+		FAIL("cannot subscribe");
+		return 1;
+	}
+	/* The clock stopped: the wind moves the field with simulated time, and
+	 * the comparison needs the slot skyrender drew. */
+	long g0 = request("set time_rate=0 metar=\"EGLL 241250Z 27015KT 9999 BKN030 12/06 Q1018\"");
+	CHECK(g0 > 0);
+	long g = skyrender(path, args);
+	CHECK(g >= g0);
+	double share = compare_clouds(c, path, g, 64, 36);
+	sky_disconnect(c);
+	CHECK(share > 0.05 && share < 0.95);
+	clouds_wall(dir);
+	/* Layers changing under a client that draws without end: its frames
+	 * follow every change, and the last one has the new layers. */
+	struct stream st;
+	char out[PATH_MAX];
+	snprintf(out, sizeof(out), "%s/live.png", dir);
+	if (stream_start(&st, out) < 0) {
+		FAIL("cannot start skyrender");
+		return 1;
+	}
+	long g1 = request("set metar=\"EGLL 241250Z 27015KT 9999 OVC010 12/06 Q1018\"");
+	CHECK(g1 > g0 && stream_until(&st, g1) >= g1);
+	long g2 = request("set metar=\"EGLL 241250Z 27015KT 9999 FEW040 12/06 Q1018\"");
+	CHECK(g2 > g1 && stream_until(&st, g2) >= g2);
+	stream_stop(&st);
+	return 0;
+}
+
 int main(int argc, char **argv)
 {
 	const char *which = argc > 1 ? argv[1] : "";
@@ -790,9 +950,10 @@ int main(int argc, char **argv)
 				   !strcmp(which, "wall") ? case_wall :
 				   !strcmp(which, "restart") ? case_restart :
 				   !strcmp(which, "panorama") ? case_panorama :
-				   !strcmp(which, "window") ? case_window : NULL;
+				   !strcmp(which, "window") ? case_window :
+				   !strcmp(which, "clouds") ? case_clouds : NULL;
 	if (!fn) {
-		fprintf(stderr, "usage: test_render sky|wall|restart|panorama|window\n");
+		fprintf(stderr, "usage: test_render sky|wall|restart|panorama|window|clouds\n");
 		return 2;
 	}
 	eng_free(vk_or_skip());

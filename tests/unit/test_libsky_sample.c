@@ -146,8 +146,10 @@ static void test_ambient_and_disk(void)
 	CHECK(lx[0] == 0.0 && lx[1] == 0.0);
 }
 
-/* sky_sample_clouds() is skycloud_march() on the view's tables and lights,
- * bit for bit, and its composite is skycloud_composite() of the view's sky
+/* sky_sample_clouds() is skycloud_march() on the view's tables, lights
+ * and cloud layers (the stand-in publishes one stratocumulus layer and no
+ * cloud tables: the field's own coverage, a march toward the sun), bit
+ * for bit, and its composite is skycloud_composite() of the view's sky
  * and aerial perspective; bad arguments are refused. */
 static void test_sample_clouds(sky_client *c)
 {
@@ -155,11 +157,11 @@ static void test_sample_clouds(sky_client *c)
 	struct skycloud_layer L;
 	struct skycloud_scene sc;
 	struct skysample_table tr, ms;
-	const float off[2] = { 10.0f, 20.0f };
 	CHECK_EQ(sky_view_begin(c, &v), 0);
-	skycloud_layer_init(&L, SKYCLOUD_STRATOCUMULUS, 0.8, 1.0, 1.4, 5u, 0u);
-	skycloud_scene_init(&sc, &L, 1, off);
-	struct sky_cloud_params p = { .scene = &sc, .steps = 32, .light_steps = 4, .jitter = 0.5 };
+	skycloud_layer_init(&L, SKYCLOUD_STRATOCUMULUS, FAKE_CLOUD_COVER, FAKE_CLOUD_BASE_KM, FAKE_CLOUD_TOP_KM,
+			    FAKE_CLOUD_SEED, 0u);
+	skycloud_scene_init(&sc, &L, 1, fake_cloud_offset_km);
+	struct sky_cloud_params p = { .steps = 32, .light_steps = 4, .jitter = 0.5 };
 	CHECK_EQ(skysample_table_from_slot(v.header, v.slot_base, SKY_TABLE_TRANSMITTANCE, &tr), 0);
 	CHECK_EQ(skysample_table_from_slot(v.header, v.slot_base, SKY_TABLE_MULTISCATTER, &ms), 0);
 	const struct sky_shm_state *st = &v.slot->state;
@@ -188,10 +190,14 @@ static void test_sample_clouds(sky_client *c)
 		CHECK_EQ(sky_sample_view_aerial_dir(&v, NULL, d, m.depth_km, air, &air_t), 0);
 		skycloud_composite(sky_rgb, &m, air, air_t, want);
 		CHECK_NEAR(rgb[2], want[2], 1e-12 * fabs(want[2]));
+		/* Defaults: 64 steps, 8 toward the sun, the midpoint. */
+		skycloud_march(&sc, &sun, &sky, o, d, 1e30, SKYCLOUD_MARCH_STEPS_MEDIUM, 8, 0.5, &m);
+		CHECK_EQ(sky_sample_clouds(&v, NULL, el, az, INFINITY, 0, rgb, &t, NULL), 0);
+		CHECK_EQ(t, m.transmittance);
 	}
 	CHECK(cloudy > 4);
 	double rgb[3];
-	CHECK_EQ(sky_sample_clouds(&v, NULL, 10.0, 0.0, INFINITY, 0, rgb, NULL, NULL), -EINVAL);
+	CHECK_EQ(sky_sample_clouds(NULL, &p, 10.0, 0.0, INFINITY, 0, rgb, NULL, NULL), -EINVAL);
 	CHECK_EQ(sky_sample_clouds(&v, &p, NAN, 0.0, INFINITY, 0, rgb, NULL, NULL), -EINVAL);
 	CHECK_EQ(sky_sample_clouds(&v, &p, 10.0, 0.0, -1.0, 0, rgb, NULL, NULL), -EINVAL);
 	CHECK_EQ(sky_sample_clouds(&v, &p, 10.0, 0.0, INFINITY, 64, rgb, NULL, NULL), -EINVAL);
