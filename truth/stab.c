@@ -524,7 +524,9 @@ static double table_peak(const struct model_tables *m, int t)
 static void check_symmetry(const char *name, const struct sky_state *s, const struct model_tables *m,
 			   const struct stab_tol *tol, struct stab_result *r)
 {
-	if (s->moon.illuminance_lx > 0)
+	/* Clouds and terrain are no mirror images about the sun's plane: the
+	 * symmetry holds for a horizontally uniform atmosphere only. */
+	if (s->moon.illuminance_lx > 0 || state_clouds_drawn(s) || s->terrain.path[0])
 		return;
 	/* A floor of 1e-12 of the sun's illuminance: a ray that grazes the top
 	 * of the shell from space enters it on one side and misses it on the
