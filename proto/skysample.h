@@ -158,8 +158,10 @@ static inline int skysample_check_layout(const struct sky_shm_header *hdr, uint6
 	if (hdr->n_slots < SKY_SHM_MIN_SLOTS || hdr->n_slots > 1024 ||
 	    hdr->n_tables > SKY_SHM_MAX_TABLES || hdr->header_bytes < sizeof(*hdr) ||
 	    hdr->slot_bytes < sizeof(struct sky_shm_slot) || hdr->total_bytes > map_bytes ||
-	    hdr->slot_bytes > hdr->total_bytes)
-		return -EPROTO;
+	    hdr->slot_bytes > hdr->total_bytes ||
+	    hdr->header_bytes % _Alignof(struct sky_shm_slot) ||
+	    hdr->slot_bytes % _Alignof(struct sky_shm_slot))
+		return -EPROTO;	/* a slot must be where its fields can be read */
 	if (hdr->header_bytes + (uint64_t)hdr->n_slots * hdr->slot_bytes > hdr->total_bytes)
 		return -EPROTO;
 	for (uint32_t n = 0; n < hdr->n_tables; n++) {
