@@ -10,6 +10,8 @@
 layout(std430, binding = BINDING_CLOUDS) readonly buffer CloudBlock {
 	SkycloudLayer layer[SKYCLOUD_MAX_LAYERS];
 	vec4 field;
+	vec4 terrain;
+	uvec4 terrain_size;
 	ShadowFrame frame[2];
 } CL;
 layout(binding = BINDING_CLOUD_TEX) uniform samplerBuffer CloudTex;

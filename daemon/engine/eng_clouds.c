@@ -4,13 +4,17 @@
  * on the device, and whether a computation must redo them. A clear sky
  * (no layer drawn) keeps one texel of each and runs neither pass. */
 #include "eng_internal.h"
+#include "terrain.h"
+
+#include "skyterrain.h"
 
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
 
 _Static_assert(sizeof(struct skycloud_layer) == 72 &&
-	       offsetof(struct gpu_clouds, field) == 288 && offsetof(struct gpu_clouds, frame) == 304,
+	       offsetof(struct gpu_clouds, field) == 288 && offsetof(struct gpu_clouds, terrain) == 304 &&
+	       offsetof(struct gpu_clouds, frame) == 336,
 	       "struct gpu_clouds is clouds.glsl's CloudBlock in std430");
 
 /* The frame of a light's map: u horizontal and across the light, v = u x l
@@ -66,6 +70,17 @@ int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights
 	ret->FIELD_OFFSET_NORTH_KM = (float)s->clouds.offset_km[1];
 	ret->FIELD_EXTENT_KM = (float)e;
 	ret->FIELD_TEXELS_PER_KM = (float)(s->quality.cloud_width / (2.0 * e));
+	if (state_terrain_set(s)) {
+		/* The top is white's height: a bound of the highest texel,
+		 * which only the upload knows. */
+		ret->TERRAIN_HALF_KM = (float)(0.5 * s->terrain.extent_km);
+		ret->TERRAIN_KM_PER_UNIT = (float)(s->terrain.height_m * 1e-3 / SKYTERRAIN_WHITE);
+		ret->TERRAIN_TOP_KM = (float)(s->terrain.height_m * 1e-3);
+		ret->TERRAIN_WIDTH_TEXELS = s->terrain.width;
+		ret->TERRAIN_HEIGHT_TEXELS = s->terrain.height;
+		ret->terrain_size[2] = (uint32_t)s->terrain.hash;
+		ret->terrain_size[3] = (uint32_t)(s->terrain.hash >> 32);
+	}
 	shadow_frame(lights->sun, e, top, s->atmo.bottom_radius_km, s->quality.shadow_width, &ret->frame[0]);
 	if (s->moon.illuminance_lx > 0.0)
 		shadow_frame(lights->moon, e, top, s->atmo.bottom_radius_km, s->quality.shadow_width,
@@ -85,8 +100,9 @@ uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct g
 	 * be this state's, whatever the caller asked. The coverage table
 	 * depends on the layers and the field's place, the maps on it and
 	 * the lights' frames too. */
-	bool field = !e->clouds_valid || memcmp(c, &e->clouds_key, offsetof(struct gpu_clouds, frame));
-	bool frames = field || memcmp(c->frame, e->clouds_key.frame, sizeof(c->frame));
+	bool field = !e->clouds_valid || memcmp(c, &e->clouds_key, offsetof(struct gpu_clouds, terrain));
+	bool frames = field || memcmp(c->terrain, e->clouds_key.terrain,
+				      sizeof(*c) - offsetof(struct gpu_clouds, terrain));
 	if ((mask & readers) && field)
 		mask |= STATE_CLOUD_TABLES;
 	if ((mask & readers) && frames)
@@ -123,6 +139,41 @@ static void cloud_buffer_free(struct eng *e, struct gpu_buffer *b, VkBufferView 
 	eng_buffer_free(e, b);
 }
 
+/* BINDING_TERRAIN: the field of s, its 16-bit texels packed two a word,
+ * uploaded when its hash changes; one zero word without a field. */
+static int ensure_terrain(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
+			  size_t err_size)
+{
+	uint64_t hash = state_terrain_set(s) ? s->terrain.hash : 0;
+	struct terrain *t = NULL;
+	struct skyterrain view = { 0 };
+	uint64_t words = 1;
+	int rc;
+
+	if (e->terrain.buf && hash == e->terrain_hash)
+		return 0;
+	if (hash) {
+		if ((rc = state_terrain_get(s, &t, &view, err, err_size)) < 0)
+			return rc;
+		words = ((uint64_t)view.width * view.height + 1) / 2;
+	}
+	eng_buffer_free(e, &e->terrain);
+	e->terrain_hash = 0;
+	rc = eng_buffer_new(e, words * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+			    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT, 0,
+			    &e->terrain, err, err_size);
+	if (rc == 0) {
+		memset(e->terrain.map, 0, words * 4);
+		if (t)
+			memcpy(e->terrain.map, view.texels, (size_t)view.width * view.height * 2);
+		e->terrain_hash = hash;
+		*rebind = true;
+	}
+	if (t)
+		terrain_unref(t);
+	return rc;
+}
+
 int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
 		      size_t err_size)
 {
@@ -152,6 +203,8 @@ int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, ch
 		e->clouds_valid = false;
 		*rebind = true;
 	}
+	if (rc == 0)
+		rc = ensure_terrain(e, s, rebind, err, err_size);
 	return rc;
 }
 
@@ -160,6 +213,8 @@ void eng_free_clouds(struct eng *e)
 	cloud_buffer_free(e, &e->cloud, &e->cloud_view);
 	cloud_buffer_free(e, &e->shadow, &e->shadow_view);
 	eng_buffer_free(e, &e->clouds);
+	eng_buffer_free(e, &e->terrain);
+	e->terrain_hash = 0;
 }
 
 const void *eng_cloud_table(const struct eng *e, int t, size_t *ret_bytes)
