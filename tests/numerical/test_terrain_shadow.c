@@ -1,8 +1,8 @@
 /* test_terrain_shadow.c - the terrain as a caster in the shadow maps
  * (docs/terrain.md, "On the device"), on the device: a north-south ridge
  * 2 km high, 3 km east of the observer, with the sun 5 degrees up in the
- * east behind it (and a thin cirrus, since the maps exist only while a
- * layer is drawn):
+ * east behind it, under a thin cirrus and alone (the maps exist for the
+ * terrain without a layer, and then no coverage table):
  *  - every texel's opaque depth (the map's 4th channel) is where
  *    skyterrain_ray_hit finds the same ray's first point below the
  *    ground, within the march's bracket: shadow.comp steps half a texel
@@ -219,6 +219,13 @@ int main(void)
 	snprintf(shadowed, sizeof(shadowed), "%s terrain=%s terrain_extent_km=%g terrain_height_m=2500", open,
 		 ridge_path, RIDGE_EXTENT_KM);
 	depths_match(shadowed);
+	never_brighter(open, shadowed);
+	/* The ridge alone: the maps exist for it, without a coverage table. */
+	snprintf(open, sizeof(open), "sun_elevation_deg=5 sun_azimuth_deg=90");
+	snprintf(shadowed, sizeof(shadowed), "%s terrain=%s terrain_extent_km=%g terrain_height_m=2500", open,
+		 ridge_path, RIDGE_EXTENT_KM);
+	depths_match(shadowed);
+	CHECK(eng_cloud_table(eng, STATE_CLOUD_COVERAGE, NULL) == NULL);
 	never_brighter(open, shadowed);
 	eng_free(eng);
 	unlink(ridge_path);
