@@ -103,14 +103,14 @@ void main()
 				float vis = light_visible(ta, mu_l, P.SUN_RADIUS_RAD);
 				// The clouds (clouds.glsl), the eye over the observer's ground point.
 				vec3 q = vec3(dir.xy * t, h0 + dir.z * t);
-				if (CLOUD_LAYERS > 0)
+				if (SHADOW_W > 0)
 					vis *= cloud_step(q, hs);
 				march_source(ta, mu_l, vis, P.sun_illum.rgb, sc, ph_sun, m, ground, forward, ds, view_up,
 					     sun_v, s, s_scaled);
 				if (MOON_LIT) {
 					mu_l = dot(up, moon_dir);
 					vis = light_visible(ta, mu_l, P.MOON_RADIUS_RAD) *
-					      (CLOUD_LAYERS > 0 ? cloud_light(1, q) : 1.0);
+					      (SHADOW_W > 0 ? cloud_light(1, q) : 1.0);
 					march_source(ta, mu_l, vis, P.moon_illum.rgb, sc, ph_moon, m, ground, forward, ds,
 						     view_up, moon_v, s, s_scaled);
 				}

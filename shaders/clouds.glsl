@@ -2,7 +2,8 @@
 // layers' block, the coverage table and the shadow maps as lookups, the
 // cloud's optical depth toward a light at a point and the layers'
 // occlusion of the sky (docs/clouds.md, "In the tables"). Included after
-// common.glsl; every term is read only where CLOUD_LAYERS > 0.
+// common.glsl; the maps are read only where SHADOW_W > 0 (a layer or the
+// terrain casts), the layers only where CLOUD_LAYERS > 0.
 
 #include "skycloud.glsl"
 
@@ -10,6 +11,8 @@
 layout(std430, binding = BINDING_CLOUDS) readonly buffer CloudBlock {
 	SkycloudLayer layer[SKYCLOUD_MAX_LAYERS];
 	vec4 field;
+	vec4 terrain;
+	uvec4 terrain_size;
 	ShadowFrame frame[2];
 } CL;
 layout(binding = BINDING_CLOUD_TEX) uniform samplerBuffer CloudTex;
@@ -27,7 +30,7 @@ vec4 cloud_column[SKYCLOUD_MAX_LAYERS];
 
 void load_clouds()
 {
-	if (CLOUD_LAYERS == 0)
+	if (SHADOW_W == 0)
 		return;
 	cloud_frame[0] = CL.frame[0];
 	cloud_frame[1] = CL.frame[1];

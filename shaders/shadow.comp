@@ -10,6 +10,7 @@
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 #include "clouds.glsl"
+#include "terrain.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = BINDING_SHADOW) writeonly buffer ShadowTexels { vec4 d[]; } ST;
@@ -55,6 +56,51 @@ void clip_region(vec3 o, vec3 d, float e, inout float t0, inout float t1)
 	}
 }
 
+// The depth along o + t d (km from the map's plane) where the ray first
+// goes below the terrain, or SKY_SHADOW_NO_TERRAIN_KM. Its piece inside
+// the square's columns and below the sphere of the terrain's top is
+// marched in steps of about half a texel across the ground, at most
+// SKY_SHADOW_TERRAIN_STEPS (a piece longer than that many half texels
+// takes longer steps and can miss a ridge narrower than one), then the
+// crossing is refined by three secant steps inside the bracket.
+float terrain_depth_km(vec3 o, vec3 d, float rb)
+{
+	float half_km = CL.TERRAIN_HALF_KM, t0 = 0.0, t1 = 1e30, a0, a1;
+	if (!(half_km > 0.0) || !skycloud_sphere(rb, CL.TERRAIN_TOP_KM, o, d, a0, a1))
+		return SKY_SHADOW_NO_TERRAIN_KM;
+	t0 = max(a0, 0.0);
+	t1 = a1;
+	clip_region(o, d, half_km, t0, t1);
+	if (!(t1 > t0))
+		return SKY_SHADOW_NO_TERRAIN_KM;
+	float texels_per_km = float(max(CL.TERRAIN_WIDTH_TEXELS, CL.TERRAIN_HEIGHT_TEXELS)) / (2.0 * half_km);
+	float across = max(length(d.xy) * texels_per_km, 1e-6);
+	int n = clamp(int(ceil(2.0 * (t1 - t0) * across)), 2, SKY_SHADOW_TERRAIN_STEPS);
+	float dt = (t1 - t0) / float(n), ta = t0, ca = terrain_clearance_km(rb, o + t0 * d);
+	if (ca <= 0.0)
+		return t0;
+	for (int k = 1; k <= n; k++) {
+		float tb = t0 + float(k) * dt, cb = terrain_clearance_km(rb, o + tb * d);
+		if (cb <= 0.0) {
+			for (int r = 0; r < 3; r++) {
+				float tm = ta + (tb - ta) * ca / (ca - cb);
+				float cm = terrain_clearance_km(rb, o + tm * d);
+				if (cm > 0.0) {
+					ta = tm;
+					ca = cm;
+				} else {
+					tb = tm;
+					cb = cm;
+				}
+			}
+			return tb;
+		}
+		ta = tb;
+		ca = cb;
+	}
+	return SKY_SHADOW_NO_TERRAIN_KM;
+}
+
 void main()
 {
 	load_params();
@@ -98,7 +144,7 @@ void main()
 	}
 	// No cloud: (0, 0, 0), which a bilinear filter of the texels blends
 	// into a cloud's edge as the clear it is.
-	vec4 texel = vec4(0.0, 0.0, 0.0, SKY_SHADOW_NO_TERRAIN_KM);
+	vec4 texel = vec4(0.0, 0.0, 0.0, terrain_depth_km(o, d, rb));
 	if (tau > 0.0)
 		texel.xyz = vec3(front, tau / (back - front), tau);
 	ST.d[(px.z * SHADOW_W + px.y) * SHADOW_W + px.x] = texel;

@@ -77,7 +77,9 @@
 #define BINDING_CLOUD_TEX 19		/* the same memory as a lookup */
 #define BINDING_SHADOW 20		/* the shadow maps, a slice per light (shadow.comp) */
 #define BINDING_SHADOW_TEX 21		/* the same memory as a lookup */
-#define BINDING_COUNT 22
+#define BINDING_TERRAIN 22		/* the terrain's 16-bit texels, two a word
+					 * (a 1-word dummy without a field) */
+#define BINDING_COUNT 23
 
 /* The aerial jobs at BINDING_VIEWS (eng_fill_views, aerial.comp,
  * aerial_resample.comp): a head whose first word is the number of march
@@ -206,6 +208,14 @@
 #define FIELD_OFFSET_NORTH_KM field[1]
 #define FIELD_EXTENT_KM field[2]	/* the region's half-width */
 #define FIELD_TEXELS_PER_KM field[3]	/* the coverage table's: cloud_width / (2 extent) */
+/* The terrain's place (the block's vec4 terrain; 0 without a field). */
+#define TERRAIN_HALF_KM terrain[0]	/* half the square's side */
+#define TERRAIN_KM_PER_UNIT terrain[1]	/* terrain_height_m / 1000 / 65535 */
+#define TERRAIN_TOP_KM terrain[2]	/* the highest texel's height */
+#define TERRAIN_WIDTH_TEXELS terrain_size[0]	/* the field's width and height */
+#define TERRAIN_HEIGHT_TEXELS terrain_size[1]
+/* The most steps of a shadow map's ray across the terrain (shadow.comp). */
+#define SKY_SHADOW_TERRAIN_STEPS 256
 /* The opaque depth of a texel where no terrain stands (a shadow map's A). */
 #define SKY_SHADOW_NO_TERRAIN_KM 1e30
 

@@ -137,14 +137,14 @@ void main()
 							      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
 				// The cloud's shadow at the step's middle (clouds.glsl).
 				vec3 q = vec3(dir[j].xy * (en.t0 + t), h0 + dir[j].z * (en.t0 + t));
-				if (CLOUD_LAYERS > 0)
+				if (SHADOW_W > 0)
 					vis *= cloud_light(0, q);
 				march_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, sc, ph_sun[j], m, ground,
 					     forward, ds, view_up, dot(dir[j], P.sun_dir.xyz), s, s_scaled);
 				if (MOON_LIT) {
 					vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
 								over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
-					if (CLOUD_LAYERS > 0)
+					if (SHADOW_W > 0)
 						vis *= cloud_light(1, q);
 					march_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, sc, ph_moon[j], m,
 						     ground, forward, ds, view_up, dot(dir[j], P.moon_dir.xyz), s, s_scaled);

@@ -4,13 +4,17 @@
  * on the device, and whether a computation must redo them. A clear sky
  * (no layer drawn) keeps one texel of each and runs neither pass. */
 #include "eng_internal.h"
+#include "terrain.h"
+
+#include "skyterrain.h"
 
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
 
 _Static_assert(sizeof(struct skycloud_layer) == 72 &&
-	       offsetof(struct gpu_clouds, field) == 288 && offsetof(struct gpu_clouds, frame) == 304,
+	       offsetof(struct gpu_clouds, field) == 288 && offsetof(struct gpu_clouds, terrain) == 304 &&
+	       offsetof(struct gpu_clouds, frame) == 336,
 	       "struct gpu_clouds is clouds.glsl's CloudBlock in std430");
 
 /* The frame of a light's map: u horizontal and across the light, v = u x l
@@ -54,23 +58,45 @@ static void shadow_frame(const double l[3], double e, double top_km, double rb_k
 int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights,
 		    struct gpu_clouds *ret)
 {
-	double e = state_cloud_extent_km(s), top = 0.0;
+	double e = state_cloud_extent_km(s), top = 0.0, map_e = e;
 
 	memset(ret, 0, sizeof(*ret));
 	int n = state_cloud_layers(s, ret->layer);
-	if (n == 0)
+	bool terrain = state_terrain_set(s);
+	if (n == 0 && !terrain)
 		return 0;
 	for (int i = 0; i < n; i++)
 		top = fmax(top, ret->layer[i].top_km);
-	ret->FIELD_OFFSET_EAST_KM = (float)s->clouds.offset_km[0];
-	ret->FIELD_OFFSET_NORTH_KM = (float)s->clouds.offset_km[1];
-	ret->FIELD_EXTENT_KM = (float)e;
-	ret->FIELD_TEXELS_PER_KM = (float)(s->quality.cloud_width / (2.0 * e));
-	shadow_frame(lights->sun, e, top, s->atmo.bottom_radius_km, s->quality.shadow_width, &ret->frame[0]);
+	if (n > 0) {
+		ret->FIELD_OFFSET_EAST_KM = (float)s->clouds.offset_km[0];
+		ret->FIELD_OFFSET_NORTH_KM = (float)s->clouds.offset_km[1];
+		ret->FIELD_EXTENT_KM = (float)e;
+		ret->FIELD_TEXELS_PER_KM = (float)(s->quality.cloud_width / (2.0 * e));
+	}
+	if (terrain) {
+		/* The top is white's height: a bound of the highest texel,
+		 * which only the upload knows. The maps hold the whole square
+		 * and its peaks, whatever the layers' region. */
+		ret->TERRAIN_HALF_KM = (float)(0.5 * s->terrain.extent_km);
+		ret->TERRAIN_KM_PER_UNIT = (float)(s->terrain.height_m * 1e-3 / SKYTERRAIN_WHITE);
+		ret->TERRAIN_TOP_KM = (float)(s->terrain.height_m * 1e-3);
+		ret->TERRAIN_WIDTH_TEXELS = s->terrain.width;
+		ret->TERRAIN_HEIGHT_TEXELS = s->terrain.height;
+		ret->terrain_size[2] = (uint32_t)s->terrain.hash;
+		ret->terrain_size[3] = (uint32_t)(s->terrain.hash >> 32);
+		top = fmax(top, s->terrain.height_m * 1e-3);
+		map_e = n > 0 ? fmax(e, 0.5 * s->terrain.extent_km) : 0.5 * s->terrain.extent_km;
+	}
+	shadow_frame(lights->sun, map_e, top, s->atmo.bottom_radius_km, s->quality.shadow_width, &ret->frame[0]);
 	if (s->moon.illuminance_lx > 0.0)
-		shadow_frame(lights->moon, e, top, s->atmo.bottom_radius_km, s->quality.shadow_width,
+		shadow_frame(lights->moon, map_e, top, s->atmo.bottom_radius_km, s->quality.shadow_width,
 			     &ret->frame[1]);
 	return n;
+}
+
+bool eng_shadow_casters(const struct sky_state *s)
+{
+	return state_clouds_drawn(s) > 0 || state_terrain_set(s);
 }
 
 uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct gpu_clouds *c, int n,
@@ -78,21 +104,24 @@ uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct g
 {
 	uint32_t readers = STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
 
-	if (n == 0)
+	if (!eng_shadow_casters(s))
 		return mask & ~(uint32_t)STATE_CLOUD_TABLES;
-	(void)s;
 	/* Sky-view and aerial read the maps: what they were made from must
 	 * be this state's, whatever the caller asked. The coverage table
 	 * depends on the layers and the field's place, the maps on it and
 	 * the lights' frames too. */
-	bool field = !e->clouds_valid || memcmp(c, &e->clouds_key, offsetof(struct gpu_clouds, frame));
-	bool frames = field || memcmp(c->frame, e->clouds_key.frame, sizeof(c->frame));
+	bool field = !e->clouds_valid || memcmp(c, &e->clouds_key, offsetof(struct gpu_clouds, terrain));
+	bool frames = field || memcmp(c->terrain, e->clouds_key.terrain,
+				      sizeof(*c) - offsetof(struct gpu_clouds, terrain));
 	if ((mask & readers) && field)
 		mask |= STATE_CLOUD_TABLES;
 	if ((mask & readers) && frames)
 		mask |= STATE_BIT(STATE_CLOUD_SHADOW);
 	if (mask & STATE_BIT(STATE_CLOUD_COVERAGE))
 		mask |= STATE_BIT(STATE_CLOUD_SHADOW);
+	/* The terrain alone casts: the maps, no coverage table. */
+	if (n == 0)
+		mask &= ~STATE_BIT(STATE_CLOUD_COVERAGE);
 	return mask;
 }
 
@@ -123,11 +152,47 @@ static void cloud_buffer_free(struct eng *e, struct gpu_buffer *b, VkBufferView 
 	eng_buffer_free(e, b);
 }
 
+/* BINDING_TERRAIN: the field of s, its 16-bit texels packed two a word,
+ * uploaded when its hash changes; one zero word without a field. */
+static int ensure_terrain(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
+			  size_t err_size)
+{
+	uint64_t hash = state_terrain_set(s) ? s->terrain.hash : 0;
+	struct terrain *t = NULL;
+	struct skyterrain view = { 0 };
+	uint64_t words = 1;
+	int rc;
+
+	if (e->terrain.buf && hash == e->terrain_hash)
+		return 0;
+	if (hash) {
+		if ((rc = state_terrain_get(s, &t, &view, err, err_size)) < 0)
+			return rc;
+		words = ((uint64_t)view.width * view.height + 1) / 2;
+	}
+	eng_buffer_free(e, &e->terrain);
+	e->terrain_hash = 0;
+	rc = eng_buffer_new(e, words * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+			    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT, 0,
+			    &e->terrain, err, err_size);
+	if (rc == 0) {
+		memset(e->terrain.map, 0, words * 4);
+		if (t)
+			memcpy(e->terrain.map, view.texels, (size_t)view.width * view.height * 2);
+		e->terrain_hash = hash;
+		*rebind = true;
+	}
+	if (t)
+		terrain_unref(t);
+	return rc;
+}
+
 int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
 		      size_t err_size)
 {
 	bool drawn = state_clouds_drawn(s) > 0;
-	uint64_t cw = drawn ? s->quality.cloud_width : 1, sw = drawn ? s->quality.shadow_width : 1;
+	uint64_t cw = drawn ? s->quality.cloud_width : 1;
+	uint64_t sw = eng_shadow_casters(s) ? s->quality.shadow_width : 1;
 	uint64_t cloud_texels = cw * cw, shadow_texels = 2 * sw * sw;
 	int rc = 0;
 
@@ -152,6 +217,8 @@ int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, ch
 		e->clouds_valid = false;
 		*rebind = true;
 	}
+	if (rc == 0)
+		rc = ensure_terrain(e, s, rebind, err, err_size);
 	return rc;
 }
 
@@ -160,6 +227,8 @@ void eng_free_clouds(struct eng *e)
 	cloud_buffer_free(e, &e->cloud, &e->cloud_view);
 	cloud_buffer_free(e, &e->shadow, &e->shadow_view);
 	eng_buffer_free(e, &e->clouds);
+	eng_buffer_free(e, &e->terrain);
+	e->terrain_hash = 0;
 }
 
 const void *eng_cloud_table(const struct eng *e, int t, size_t *ret_bytes)
@@ -168,6 +237,9 @@ const void *eng_cloud_table(const struct eng *e, int t, size_t *ret_bytes)
 				     : t == STATE_CLOUD_SHADOW ? &e->shadow : NULL;
 
 	if (!b || !b->map || !e->clouds_valid)
+		return NULL;
+	/* The terrain alone casts: the coverage buffer is the dummy. */
+	if (t == STATE_CLOUD_COVERAGE && !(e->clouds_key.FIELD_EXTENT_KM > 0.0f))
 		return NULL;
 	if (ret_bytes)
 		*ret_bytes = (size_t)b->bytes;

@@ -93,6 +93,10 @@ struct ground_cache {
 struct gpu_clouds {
 	struct skycloud_layer layer[SKYCLOUD_MAX_LAYERS];
 	float field[4];				/* FIELD_* lanes */
+	float terrain[4];			/* TERRAIN_* lanes */
+	uint32_t terrain_size[4];		/* TERRAIN_*_TEXELS; [2..3] the
+						 * field's hash: a new field is a
+						 * new block */
 	struct gpu_shadow_frame frame[2];	/* sun, moon */
 };
 
@@ -259,6 +263,10 @@ struct eng {
 	 * clouds_key gives. */
 	struct gpu_buffer clouds, cloud, shadow;
 	VkBufferView cloud_view, shadow_view;
+	/* BINDING_TERRAIN: the field's texels as uploaded, terrain_hash
+	 * names them (0: the dummy). */
+	struct gpu_buffer terrain;
+	uint64_t terrain_hash;
 	bool clouds_valid;
 	struct gpu_clouds clouds_key;
 
@@ -338,6 +346,9 @@ int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights
 /* mask with the cloud tables a computation of it needs for c (n layers):
  * none for a clear sky; both where sky-view or aerial perspective would
  * read maps made for another block. */
+/* Whether anything casts into the shadow maps: a drawn layer or the
+ * terrain (the maps exist, SPEC_SHADOW_W is their width). */
+bool eng_shadow_casters(const struct sky_state *s);
 uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct gpu_clouds *c, int n,
 			uint32_t mask);
 /* (Re)allocates the cloud buffers for s (one texel each without a drawn

@@ -310,7 +310,7 @@ static void plan_shadow(struct eng *e, const struct sky_state *s, const struct s
 {
 	(void)e;
 	(void)base;
-	r->on = pl->n_clouds > 0 && (pl->mask & STATE_BIT(STATE_CLOUD_SHADOW));
+	r->on = eng_shadow_casters(s) && (pl->mask & STATE_BIT(STATE_CLOUD_SHADOW));
 	r->key = cloud_spec(s, pl);
 	r->groups[0] = r->groups[1] = div_up(s->quality.shadow_width, 8);
 	r->groups[2] = s->moon.illuminance_lx > 0.0 ? 2 : 1;
@@ -423,7 +423,7 @@ int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_l
 	pl->n_clouds = eng_fill_clouds(s, lights, &pl->clouds);
 	pl->mask = mask = eng_cloud_mask(e, s, &pl->clouds, pl->n_clouds, mask);
 	base.v[SPEC_CLOUD_LAYERS] = pl->n_clouds;
-	base.v[SPEC_SHADOW_W] = pl->n_clouds ? (int32_t)s->quality.shadow_width : 0;
+	base.v[SPEC_SHADOW_W] = eng_shadow_casters(s) ? (int32_t)s->quality.shadow_width : 0;
 	base.v[SPEC_CLOUD_W] = pl->n_clouds ? (int32_t)s->quality.cloud_width : 0;
 	memcpy(e->clouds.map, &pl->clouds, sizeof(pl->clouds));
 	/* The column pass's key compares the uniform block as uploaded. */

@@ -58,6 +58,8 @@ static void bind_buffers(struct eng *e)
 			bi[i] = (VkDescriptorBufferInfo){ e->cloud.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_SHADOW)
 			bi[i] = (VkDescriptorBufferInfo){ e->shadow.buf, 0, VK_WHOLE_SIZE };
+		else if (i == BINDING_TERRAIN)
+			bi[i] = (VkDescriptorBufferInfo){ e->terrain.buf, 0, VK_WHOLE_SIZE };
 		else if (i > 0)
 			bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
 		w[i].pBufferInfo = &bi[i];

@@ -301,6 +301,7 @@ static const struct named_id bindings[] = {
 	{ "MultiscatterImg", BINDING_MULTISCATTER_IMG },
 	{ "CloudBlock", BINDING_CLOUDS }, { "CloudTexels", BINDING_CLOUD }, { "CloudTex", BINDING_CLOUD_TEX },
 	{ "ShadowTexels", BINDING_SHADOW }, { "ShadowTex", BINDING_SHADOW_TEX },
+	{ "TerrainTexels", BINDING_TERRAIN },
 };
 
 static const struct named_id *find(const struct named_id *list, size_t n, const char *name)
