@@ -154,6 +154,9 @@ enum state_override {
 	STATE_OVERRIDE_OZONE_ABSORPTION = 1u << 4,	/* ozone_absorption_per_km */
 };
 #define STATE_OVERRIDE_MIE 0xfu
+/* The name an override bit goes by in `get weather`'s overridden: line and
+ * the sync message: its key's, or mie_profile for the Mie profile's keys. */
+const char *state_override_name(uint32_t bit);
 
 struct state_weather {
 	struct weather in;		/* the weather keys; all auto by default */

@@ -262,8 +262,12 @@ static void describe_mie(const struct weather_map *m, state_emit_fn fn, void *ct
 	emit_mapped(fn, ctx, STATE_OVERRIDE_MIE_PROFILE, &p->scale_height_km, 1);
 }
 
-/* The raw keys that win over the weather, a comma list or none; the Mie
- * profile's keys are one: mie_profile. */
+const char *state_override_name(uint32_t bit)
+{
+	return bit == STATE_OVERRIDE_MIE_PROFILE ? "mie_profile" : state_key_pinning(bit)->name;
+}
+
+/* The raw keys that win over the weather, a comma list or none. */
 static void describe_overridden(const struct sky_state *s, state_emit_fn fn, void *ctx)
 {
 	char list[160] = "";
@@ -272,9 +276,7 @@ static void describe_overridden(const struct sky_state *s, state_emit_fn fn, voi
 	for (uint32_t bit = 1; bit <= STATE_OVERRIDE_OZONE_ABSORPTION; bit <<= 1)
 		if (s->weather.overridden & bit)
 			o += (size_t)snprintf(list + o, o < sizeof(list) ? sizeof(list) - o : 0,
-					      "%s%s", o ? "," : "",
-					      bit == STATE_OVERRIDE_MIE_PROFILE
-					      ? "mie_profile" : state_key_pinning(bit)->name);
+					      "%s%s", o ? "," : "", state_override_name(bit));
 	fn(ctx, "overridden", o ? list : "none");
 }
 

@@ -117,25 +117,14 @@ static void emit_body(void *ctx, const char *key, const char *value)
 	put(w, "%s=%s\n", key, value);
 }
 
-/* The raw coefficients that win over the weather (struct state_weather's
- * overridden bits), by the names `get weather` shows them with, in the
- * order of their bits (enum state_override). */
-static const char *const override_names[] = {
-	"mie_scattering_per_km", "mie_absorption_per_km", "mie_g", "mie_profile",
-	"ozone_absorption_per_km",
-};
-#define N_OVERRIDES (sizeof(override_names) / sizeof(override_names[0]))
-_Static_assert(1u << (N_OVERRIDES - 1) == STATE_OVERRIDE_OZONE_ABSORPTION &&
-	       STATE_OVERRIDE_MIE_PROFILE == 1u << 3, "one name per override bit");
-
 static void format_overrides(uint32_t bits, char *buf, size_t size)
 {
 	size_t o = 0;
 
 	buf[0] = 0;
-	for (unsigned i = 0; i < N_OVERRIDES; i++)
-		if (bits & (1u << i) && o < size)
-			o += (size_t)snprintf(buf + o, size - o, "%s%s", o ? "," : "", override_names[i]);
+	for (uint32_t bit = 1; bit <= STATE_OVERRIDE_OZONE_ABSORPTION; bit <<= 1)
+		if (bits & bit && o < size)
+			o += (size_t)snprintf(buf + o, size - o, "%s%s", o ? "," : "", state_override_name(bit));
 	if (!o)
 		snprintf(buf, size, "none");
 }
@@ -318,7 +307,7 @@ struct header {
 	double cloud_factor;
 };
 
-/* "none" or a comma list of override_names, each once. */
+/* "none" or a comma list of override names (state_override_name), each once. */
 static int parse_overrides(const char *v, uint32_t *ret)
 {
 	uint32_t bits = 0;
@@ -329,13 +318,13 @@ static int parse_overrides(const char *v, uint32_t *ret)
 	}
 	while (*v) {
 		size_t n = strcspn(v, ",");
-		unsigned i = 0;
-		while (i < N_OVERRIDES && (strlen(override_names[i]) != n ||
-					   strncmp(override_names[i], v, n) != 0))
-			i++;
-		if (i == N_OVERRIDES || bits & (1u << i))
+		uint32_t bit = 1;
+		while (bit <= STATE_OVERRIDE_OZONE_ABSORPTION &&
+		       (strlen(state_override_name(bit)) != n || strncmp(state_override_name(bit), v, n) != 0))
+			bit <<= 1;
+		if (bit > STATE_OVERRIDE_OZONE_ABSORPTION || bits & bit)
 			return -EINVAL;
-		bits |= 1u << i;
+		bits |= bit;
 		v += n;
 		if (*v == ',' && *++v == 0)
 			return -EINVAL;
