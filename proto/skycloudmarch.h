@@ -167,43 +167,57 @@ static inline void skycloud_table_uv(double extent_km, double x, double y, doubl
 	ret_uv[1] = 0.5 + 0.5 * y / extent_km;
 }
 
-/* The frame skyd publishes for a light's map (daemon/engine/eng_clouds.c
- * and daemon/pub/pub.c compute it, in float) over the box [-extent_km,
- * extent_km]^2 x [bottom_km, top_km] (bottom_km: the curvature's drop at
- * the region's corners, -extent^2 / R): orthographic, u horizontal and
- * across the light (east where the light is at the zenith), v = u x light
- * up the light's vertical plane, each spanning the box seen along the
- * light, and the depth 0 on the plane 1 km beyond the box's corner
- * nearest the light. For a client that makes its own map, and for tests. */
-static inline void skycloud_shadow_frame_init(const double light[3], double extent_km, double bottom_km,
-					      double top_km, struct skycloud_shadow_frame *ret)
+/* The box a light's map spans, as skyd computes it (daemon/engine/
+ * eng_clouds.c calls this too): over [-extent_km, extent_km]^2 x
+ * [bottom_km, top_km] (bottom_km: the curvature's drop at the region's
+ * corners, -extent^2 / R), orthographic, u horizontal and across the light
+ * (east where the light is at the zenith), v = u x light up the light's
+ * vertical plane, u in [-u_half, u_half] and v in [v_lo, v_hi] holding the
+ * box seen along the light, and the depth 0 on the plane 1 km beyond the
+ * box's corner nearest the light (plane: its distance along the light). */
+struct skycloud_shadow_box {
+	double u[3], v[3];
+	double u_half_km, v_lo_km, v_hi_km, plane_km;
+};
+
+static inline void skycloud_shadow_box_of(const double light[3], double extent_km, double bottom_km,
+					  double top_km, struct skycloud_shadow_box *ret)
 {
 	const double *l = light;
-	double u[3] = { l[1], -l[0], 0.0 }, v[3], e = extent_km;
-	double n = sqrt(u[0] * u[0] + u[1] * u[1]);
-	if (n < 1e-6) {
-		u[0] = 1.0;
-		u[1] = 0.0;
-	} else {
-		u[0] /= n;
-		u[1] /= n;
-	}
+	double *u = ret->u, *v = ret->v, e = extent_km;
+	double n = sqrt(l[1] * l[1] + l[0] * l[0]);
+
+	u[0] = n < 1e-6 ? 1.0 : l[1] / n;
+	u[1] = n < 1e-6 ? 0.0 : -l[0] / n;
+	u[2] = 0.0;
 	v[0] = u[1] * l[2] - u[2] * l[1];
 	v[1] = u[2] * l[0] - u[0] * l[2];
 	v[2] = u[0] * l[1] - u[1] * l[0];
-	double u_half = (fabs(u[0]) + fabs(u[1])) * e, v_half = (fabs(v[0]) + fabs(v[1])) * e;
-	double v_lo = -v_half + fmin(v[2] * bottom_km, v[2] * top_km);
-	double v_hi = v_half + fmax(v[2] * bottom_km, v[2] * top_km);
-	double plane = (fabs(l[0]) + fabs(l[1])) * e + fmax(l[2] * bottom_km, l[2] * top_km) + 1.0;
-	double su = 1.0 / (2.0 * u_half), sv = 1.0 / fmax(v_hi - v_lo, 1e-3);
+	ret->u_half_km = (fabs(u[0]) + fabs(u[1])) * e;
+	double v_half = (fabs(v[0]) + fabs(v[1])) * e;
+	ret->v_lo_km = -v_half + fmin(v[2] * bottom_km, v[2] * top_km);
+	ret->v_hi_km = v_half + fmax(v[2] * bottom_km, v[2] * top_km);
+	ret->plane_km = (fabs(l[0]) + fabs(l[1])) * e + fmax(l[2] * bottom_km, l[2] * top_km) + 1.0;
+}
+
+/* The frame skyd publishes for a light's map (the box above as the affine
+ * rows a client applies), bias 0. For a client that makes its own map, and
+ * for tests. */
+static inline void skycloud_shadow_frame_init(const double light[3], double extent_km, double bottom_km,
+					      double top_km, struct skycloud_shadow_frame *ret)
+{
+	struct skycloud_shadow_box b;
+
+	skycloud_shadow_box_of(light, extent_km, bottom_km, top_km, &b);
+	double su = 1.0 / (2.0 * b.u_half_km), sv = 1.0 / fmax(b.v_hi_km - b.v_lo_km, 1e-3);
 	for (int k = 0; k < 3; k++) {
-		ret->row_u[k] = u[k] * su;
-		ret->row_v[k] = v[k] * sv;
-		ret->row_depth[k] = -l[k];
+		ret->row_u[k] = b.u[k] * su;
+		ret->row_v[k] = b.v[k] * sv;
+		ret->row_depth[k] = -light[k];
 	}
-	ret->row_u[3] = u_half * su;
-	ret->row_v[3] = -v_lo * sv;
-	ret->row_depth[3] = plane;
+	ret->row_u[3] = b.u_half_km * su;
+	ret->row_v[3] = -b.v_lo_km * sv;
+	ret->row_depth[3] = b.plane_km;
 	ret->terrain_bias_km = 0.0;
 }
 

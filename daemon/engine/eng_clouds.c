@@ -6,6 +6,7 @@
 #include "eng_internal.h"
 #include "terrain.h"
 
+#include "skycloudmarch.h"
 #include "skyterrain.h"
 
 #include <math.h>
@@ -17,42 +18,26 @@ _Static_assert(sizeof(struct skycloud_layer) == 72 &&
 	       offsetof(struct gpu_clouds, frame) == 336,
 	       "struct gpu_clouds is clouds.glsl's CloudBlock in std430");
 
-/* The frame of a light's map: u horizontal and across the light, v = u x l
- * (up the light's vertical plane), and the ranges that hold the region
- * (half-width e, altitudes from the curvature's drop at its corners,
- * -e^2 / R, to top): the map's plane along l passes beyond every point
- * of it, so that depths from it are positive. */
+/* The frame of a light's map: the box of skycloud_shadow_box_of (the one
+ * clients compute too) over the region, from the curvature's drop at its
+ * corners, -e^2 / R, to top, in the engine's float lanes. */
 static void shadow_frame(const double l[3], double e, double top_km, double rb_km, uint32_t width,
 			 struct gpu_shadow_frame *ret)
 {
-	double u[3] = { l[1], -l[0], 0.0 }, v[3];
-	double n = hypot(u[0], u[1]), z_lo = -e * e / rb_km, z_hi = top_km;
+	struct skycloud_shadow_box b;
 
-	if (n < 1e-6) {
-		u[0] = 1.0;
-		u[1] = 0.0;
-	} else {
-		u[0] /= n;
-		u[1] /= n;
-	}
-	v[0] = u[1] * l[2] - u[2] * l[1];
-	v[1] = u[2] * l[0] - u[0] * l[2];
-	v[2] = u[0] * l[1] - u[1] * l[0];
-	double u_half = (fabs(u[0]) + fabs(u[1])) * e;
-	double v_half = (fabs(v[0]) + fabs(v[1])) * e;
-	double v_lo = -v_half + fmin(v[2] * z_lo, v[2] * z_hi), v_hi = v_half + fmax(v[2] * z_lo, v[2] * z_hi);
-	double plane = (fabs(l[0]) + fabs(l[1])) * e + fmax(l[2] * z_lo, l[2] * z_hi) + 1.0;
+	skycloud_shadow_box_of(l, e, -e * e / rb_km, top_km, &b);
 	memset(ret, 0, sizeof(*ret));
 	for (int i = 0; i < 3; i++) {
-		ret->u[i] = (float)u[i];
-		ret->v[i] = (float)v[i];
+		ret->u[i] = (float)b.u[i];
+		ret->v[i] = (float)b.v[i];
 		ret->l[i] = (float)l[i];
 	}
-	ret->U_MIN_KM = (float)-u_half;
-	ret->V_MIN_KM = (float)v_lo;
-	ret->PLANE_KM = (float)plane;
-	ret->U_TEXELS_PER_KM = (float)(width / (2.0 * u_half));
-	ret->V_TEXELS_PER_KM = (float)(width / fmax(v_hi - v_lo, 1e-3));
+	ret->U_MIN_KM = (float)-b.u_half_km;
+	ret->V_MIN_KM = (float)b.v_lo_km;
+	ret->PLANE_KM = (float)b.plane_km;
+	ret->U_TEXELS_PER_KM = (float)(width / (2.0 * b.u_half_km));
+	ret->V_TEXELS_PER_KM = (float)(width / fmax(b.v_hi_km - b.v_lo_km, 1e-3));
 }
 
 int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights,
