@@ -33,12 +33,14 @@
 #define RIDGE_EXTENT_KM 20.0
 
 static struct eng *eng;
-static char ridge_path[128];
+static char ridge_path[600];
 
 /* A SKYTERRAIN16 file: a Gaussian ridge along x = 3 km, 1 km wide. */
 static int write_ridge(void)
 {
-	char dir[] = "/tmp/test_terrain_shadow.XXXXXX";
+	const char *tmp = getenv("TMPDIR");
+	char dir[512];
+	snprintf(dir, sizeof(dir), "%s/test_terrain_shadow.XXXXXX", tmp && *tmp ? tmp : "/tmp");
 	if (!mkdtemp(dir))
 		return -1;
 	snprintf(ridge_path, sizeof(ridge_path), "%s/ridge.raw", dir);
@@ -210,7 +212,7 @@ static void never_brighter(const char *open, const char *shadowed)
 
 int main(void)
 {
-	char open[256], shadowed[512];
+	char open[256], shadowed[1024];
 
 	eng = vk_or_skip();
 	CHECK(write_ridge() == 0);
