@@ -159,6 +159,7 @@ struct conn {
 	int n_fds;
 	uint64_t event_generation;	/* newest changed: seen */
 	int layouts;			/* layout: lines seen */
+	char event_tables[96];		/* the tables= of the newest changed: */
 };
 
 static inline int conn_raw(const char *path)
@@ -242,8 +243,11 @@ static inline void conn_note_event(struct conn *c, const char *line)
 	if (!g)
 		return;
 	uint64_t gen = strtoull(g + 11, NULL, 10);
-	if (strncmp(line, "changed: ", 9) == 0 && gen > c->event_generation)
+	if (strncmp(line, "changed: ", 9) == 0 && gen > c->event_generation) {
+		const char *t = strstr(line, "tables=");
 		c->event_generation = gen;
+		snprintf(c->event_tables, sizeof(c->event_tables), "%s", t ? t + 7 : "");
+	}
 	if (strncmp(line, "layout: ", 8) == 0)
 		c->layouts++;
 }

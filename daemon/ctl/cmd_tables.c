@@ -30,11 +30,11 @@ int ctl_cmd_status(struct client *c, const struct proto_request *req, struct rep
 	}
 	ctl_reply_add(r, "generation: %llu\n", (unsigned long long)st.generation);
 	ctl_reply_add(r, "computing: %d\npending: %d\n", st.computing, st.pending);
-	state_format_tables(st.last_computed, names, sizeof(names));
+	state_format_all_tables(st.last_computed, names, sizeof(names));
 	ctl_reply_add(r, "tables_computed: %s\n", names);
 	state_format_tables(st.published_valid, names, sizeof(names));
 	ctl_reply_add(r, "tables_valid: %s\n", names);
-	state_format_tables(st.published_computed, names, sizeof(names));
+	state_format_all_tables(st.published_computed, names, sizeof(names));
 	ctl_reply_add(r, "last_computed: %s\n", names);
 	state_format_tables(st.demand, names, sizeof(names));
 	ctl_reply_add(r, "demand: %s\n", names);

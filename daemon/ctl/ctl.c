@@ -37,7 +37,7 @@ static void on_published(void *ctx, uint64_t generation, uint32_t tables, int ne
 	struct client *c, *next;
 	char names[64], line[160];
 
-	state_format_tables(tables, names, sizeof(names));
+	state_format_all_tables(tables, names, sizeof(names));
 	for (c = ctl->clients; c; c = next) {
 		next = c->next;
 		if (new_region && c->sub_tables) {

@@ -497,7 +497,7 @@ static void eng_ready(void *ctx, uint32_t events)
 			if (s->st.last_computed & STATE_BIT(t))
 				s->st.table_ms[t] = timing.table_ms[t];
 		check_storage(s, s->st.last_computed);
-		if (finish(s, s->in_flight_mask))
+		if (finish(s, s->in_flight_mask | (timing.computed & STATE_CLOUD_TABLES)))
 			return;
 	}
 	kick(s);

@@ -4,7 +4,7 @@
  * sun as before while a layer with a base switches that factor off; bad
  * cloud keys are refused with the usual ACK codes and change nothing; and
  * the field drifts with the simulated clock, backwards too, and stops
- * when it is frozen. */
+ * when it is frozen; changed: events name the cloud tables computed. */
 #include <math.h>
 
 #include "daemon_harness.h"
@@ -45,6 +45,10 @@ static void test_metar(struct conn *c, struct conn *ev)
 {
 	change(c, ev, "set metar=\"EGLL 241250Z 27015KT 9999 BKN030 12/06 Q1018\"");
 	printf("%s", reply);
+	/* The layer's first generation computes the coverage and the sun's
+	 * map, and its changed: line names them with the sky's tables. */
+	printf("changed: tables=%s\n", ev->event_tables);
+	CHECK(strstr(ev->event_tables, "cloud") && strstr(ev->event_tables, "shadow"));
 	CHECK(has("cloud1_oktas=6 cloud1_base_m=914.4 cloud1_type=stratocumulus wind_dir_deg=270 "
 		  "wind_speed_mps=7.72\n"));
 	CHECK(conn_request(c, "get clouds", reply, sizeof(reply)) == 0);
@@ -192,7 +196,7 @@ int main(void)
 	}
 	CHECK(conn_open(&c, d.sock) == 0);
 	CHECK(conn_open(&ev, d.sock) == 0);
-	CHECK(conn_request(&ev, "subscribe events=1", reply, sizeof(reply)) == 0);
+	CHECK(conn_request(&ev, "subscribe tables=skyview,cloud,shadow events=1", reply, sizeof(reply)) == 0);
 	test_metar(&c, &ev);
 	test_light_factor(&c, &ev);
 	test_refusals(&c);
