@@ -545,6 +545,54 @@ static inline void skycloud_march(const struct skycloud_scene *sc, const struct 
 		ret->depth_km = tsum / wsum;
 }
 
+/* A slab of vertical optical depth tau and phase g, conservative, lit by a
+ * beam at cosine mu0 > 0: the share of the beam it lets through, direct
+ * and scattered (the Eddington two-stream solution, Shettle and Weinman
+ * 1970): (2/3 + mu0 + (2/3 - mu0) e^(-tau / mu0)) / (4/3 + (1 - g) tau),
+ * 1 at tau 0, falling as 1 / tau in a thick cloud. */
+static inline double skycloud_slab_transmittance(double tau, double g, double mu0)
+{
+	return (2.0 / 3.0 + mu0 + (2.0 / 3.0 - mu0) * exp(-tau / mu0)) / (4.0 / 3.0 + (1.0 - g) * tau);
+}
+
+/* The same slab under a uniform sky: the beam's share over the hemisphere
+ * weighted by 2 mu0, by two-point Gauss-Legendre in mu0 (4/3 over the
+ * denominator in the thick limit, as the exact integral). */
+static inline double skycloud_slab_diffuse(double tau, double g)
+{
+	const double m0 = 0.21132486540518713, m1 = 0.7886751345948129;
+	return m0 * skycloud_slab_transmittance(tau, g, m0) + m1 * skycloud_slab_transmittance(tau, g, m1);
+}
+
+/* The light on the ground at altitude h_km under the layers, as regional
+ * means and shares of the clear sky's: ret[0] of the sky's irradiance (the
+ * open share of each layer, 1 - cover, and its cover share through the
+ * slab, skycloud_slab_diffuse), ret[1] of a light's horizontal irradiance
+ * at cosine mu_l that the layers scatter down (through each layer's cover
+ * share, skycloud_slab_transmittance less the beam exp(-tau / mu_l) that
+ * the shadow map gives the point itself). Each layer's vertical optical
+ * depth is skycloud_sky_occlusion's; the layers are conservative and the
+ * light between the ground and the cloud base reflected once more is left
+ * out. Under a clear sky 1 and 0. */
+static inline void skycloud_ground_light(const struct skycloud_scene *sc, double h_km, double mu_l,
+					 double ret[2])
+{
+	double sky = 1.0, through = 1.0, beam = 1.0;
+	for (int i = 0; i < sc->n_layers; i++) {
+		const struct skycloud_layer *L = &sc->layers[i];
+		double above = skymap_clamp((L->top_km - h_km) * L->inv_thickness_per_km, 0.0, 1.0);
+		double tau = (double)L->extinction_per_km * (L->top_km - L->base_km) * above * L->profile_integral;
+		double c = L->cover;
+		sky *= 1.0 - c + c * skycloud_slab_diffuse(tau, sc->phase_g[i]);
+		if (mu_l > 0.0) {
+			through *= 1.0 - c + c * skycloud_slab_transmittance(tau, sc->phase_g[i], mu_l);
+			beam *= 1.0 - c + c * exp(-tau / mu_l);
+		}
+	}
+	ret[0] = sky;
+	ret[1] = mu_l > 0.0 ? through - beam : 0.0;
+}
+
 /* The radiance of a pixel whose clouds c lie in front of what is behind
  * them (behind: the sky with its disks, or a surface with its own aerial
  * perspective), with the air's aerial perspective at the clouds' depth

@@ -299,6 +299,42 @@ SkycloudSample skycloud_march(SkyState s, sampler2D transmittance, sampler2D mul
 	return r;
 }
 
+// skycloud_slab_transmittance: a conservative slab's share of a beam at
+// cosine mu0 > 0 let through, direct and scattered (Eddington two-stream).
+float skycloud_slab_transmittance(float tau, float g, float mu0)
+{
+	return (2.0 / 3.0 + mu0 + (2.0 / 3.0 - mu0) * exp(-tau / mu0)) / (4.0 / 3.0 + (1.0 - g) * tau);
+}
+
+// skycloud_slab_diffuse: the same under a uniform sky (two-point Gauss).
+float skycloud_slab_diffuse(float tau, float g)
+{
+	const float m0 = 0.21132486540518713, m1 = 0.7886751345948129;
+	return m0 * skycloud_slab_transmittance(tau, g, m0) + m1 * skycloud_slab_transmittance(tau, g, m1);
+}
+
+// skycloud_ground_light: the ground's light at altitude h_km under the
+// layers as shares of the clear sky's: x of the sky's irradiance, y of a
+// light's horizontal irradiance at cosine mu_l scattered down through the
+// layers (its beam is the shadow map's).
+vec2 skycloud_ground_light(SkycloudLayer layers[SKYCLOUD_MAX_LAYERS], SkycloudScene sc, float h_km, float mu_l)
+{
+	float sky = 1.0, through = 1.0, beam = 1.0;
+	int n = int(sc.field.z);
+	for (int i = 0; i < n; i++) {
+		SkycloudLayer L = layers[i];
+		float above = clamp((L.top_km - h_km) * L.inv_thickness_per_km, 0.0, 1.0);
+		float tau = L.extinction_per_km * (L.top_km - L.base_km) * above * L.profile_integral;
+		float c = L.cover;
+		sky *= 1.0 - c + c * skycloud_slab_diffuse(tau, sc.phase_g[i]);
+		if (mu_l > 0.0) {
+			through *= 1.0 - c + c * skycloud_slab_transmittance(tau, sc.phase_g[i], mu_l);
+			beam *= 1.0 - c + c * exp(-tau / mu_l);
+		}
+	}
+	return vec2(sky, mu_l > 0.0 ? through - beam : 0.0);
+}
+
 // A pixel's radiance with the clouds c in front of behind (the sky with
 // its disks, or a surface with its own aerial perspective) and the air's
 // aerial perspective at the clouds' depth (air: rgb in-scattered, a its

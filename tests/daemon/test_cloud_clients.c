@@ -572,7 +572,7 @@ static const char *const truth_keys[] = { "utc=2024-06-21T12:00:00Z", "time_rate
 	"cloud1_oktas=5", "cloud1_base_m=900", "cloud1_type=stratocumulus", "wind_speed_mps=0",
 	"cloud_extent_km=32", "cloud_width=256", "shadow_width=256", NULL };
 #define TRUTH_DIRS 64
-#define TRUTH_SAMPLES 2048
+#define TRUTH_SAMPLES 4096
 #define TRUTH_STEPS 64
 
 static double luminance(const double rgb[3])
@@ -692,8 +692,17 @@ static int case_truth(const char *dir)
 			printf("%s: %d directions, luminance error mean |e| %.3f, mean e %+.3f, largest %.3f; "
 			       "the truth's standard error %.3f\n", k ? "cloud" : "clear or thin", n[k],
 			       sum[k] / n[k], bias[k] / n[k], worst[k], se[k] / n[k]);
-	CHECK(n[1] >= 8);
-	CHECK(n[1] > 0 && sum[1] / n[1] < 0.5);
+	/* What the figures are (docs/clouds.md, "Against the path tracer"):
+	 * through the gaps the sky table's, short of the light the clouds
+	 * scatter into the air (which the tables leave out): -0.21 on the
+	 * mean; on the clouds the three octaves' loss of the light that
+	 * diffuses through a layer of optical depth ~10: the bases about
+	 * 0.8 too dark. The bounds hold those figures with a margin of a
+	 * few standard errors, so that a change of the march or the tables
+	 * that moves them shows here and in the document. */
+	CHECK(n[0] >= 4 && n[1] >= 32);
+	CHECK(n[0] > 0 && sum[0] / n[0] < 0.3);
+	CHECK(n[1] > 0 && bias[1] / n[1] > -0.85 && sum[1] / n[1] < 0.9);
 	return 0;
 }
 
