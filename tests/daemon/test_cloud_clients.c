@@ -693,16 +693,19 @@ static int case_truth(const char *dir)
 			       "the truth's standard error %.3f\n", k ? "cloud" : "clear or thin", n[k],
 			       sum[k] / n[k], bias[k] / n[k], worst[k], se[k] / n[k]);
 	/* What the figures are (docs/clouds.md, "Against the path tracer"):
-	 * through the gaps the sky table's, short of the light the clouds
-	 * scatter into the air (which the tables leave out): -0.21 on the
-	 * mean; on the clouds the three octaves' loss of the light that
-	 * diffuses through a layer of optical depth ~10: the bases about
-	 * 0.8 too dark. The bounds hold those figures with a margin of a
-	 * few standard errors, so that a change of the march or the tables
-	 * that moves them shows here and in the document. */
+	 * on the clouds the two-stream diffusion's plane-parallel slab and
+	 * its isotropic light (the bases toward the sun are brighter in the
+	 * truth, the forward peak kept by the diffusing light): -0.15 of the
+	 * luminance on the mean, 0.28 in magnitude; through the gaps and thin
+	 * edges the sky table's, short of the light the clouds scatter into
+	 * the air (which the tables leave out), and at an edge the coverage
+	 * table's cells against the field's own: 0.25. The truth's standard
+	 * error is 0.056 a direction, under 0.01 on a mean of 52; the bounds
+	 * hold the figures with a margin, so that a change of the march or
+	 * the tables that moves them shows here and in the document. */
 	CHECK(n[0] >= 4 && n[1] >= 32);
-	CHECK(n[0] > 0 && sum[0] / n[0] < 0.3);
-	CHECK(n[1] > 0 && bias[1] / n[1] > -0.85 && sum[1] / n[1] < 0.9);
+	CHECK(n[0] > 0 && sum[0] / n[0] < 0.4);
+	CHECK(n[1] > 0 && sum[1] / n[1] < 0.4 && fabs(bias[1] / n[1]) < 0.3);
 	return 0;
 }
 
