@@ -513,8 +513,10 @@ static inline double skycloud_diffuse(const struct skycloud_layer *L, double g, 
 
 /* The source at p per unit of each layer's extinction, summed over layers
  * with their extinctions sigma: octaves of sunlight through the air and
- * the cloud, and the ambient (multi-scattering table and skylight) under
- * the sky the layers leave open. mu: view . light. */
+ * the cloud (with the scene's diffusion: the first, and the light
+ * diffused through the layer, skycloud_diffuse), and the ambient
+ * (multi-scattering table and skylight) under the sky the layers leave
+ * open. mu: view . light; mu_v: the view's cosine to the local up. */
 static inline void skycloud_march_source(const struct skycloud_scene *sc, const struct skycloud_light *li,
 					 const struct skycloud_sky *sky, const double p[3], double h_km,
 					 const double sigma[SKYCLOUD_MAX_LAYERS], double mu, double mu_v,

@@ -260,7 +260,8 @@ float skycloud_diffuse(SkycloudLayer L, float g, float h_km, float tau, float mu
 }
 
 // skycloud_march_source: the source at p per unit of extinction, summed
-// over the layers' extinctions sigma; mu = view . light.
+// over the layers' extinctions sigma; mu = view . light, mu_v the view's
+// cosine to the local up (for the diffusion).
 vec3 skycloud_march_source(SkyState s, sampler2D transmittance, sampler2D multiscatter, sampler2D coverage,
 			   sampler2D shadow,
 			   SkycloudLayer layers[SKYCLOUD_MAX_LAYERS], SkycloudScene sc, SkycloudLight li, vec3 p,
