@@ -16,6 +16,7 @@
 #include "dump.h"
 #include "proto.h"
 #include "sky.h"
+#include "skycloudmarch.h"
 
 /* Exit codes, documented in usage() and skyctl(1) (man/skyctl.1.scd). */
 enum { EXIT_OK = 0, EXIT_REFUSED = 1, EXIT_USAGE = 2 };
@@ -423,6 +424,9 @@ static int take_snapshot(const struct opts *o, uint32_t tables, sky_client **ret
 	int e = connect_or_complain(o, ret_c);
 	if (e)
 		return e;
+	/* The cloud tables exist only while a layer is drawn: asked for,
+	 * they are waited for only in a slot that draws one. */
+	uint32_t sky = tables & ~(uint32_t)SKY_TABLES_CLOUDS;
 	int r = sky_subscribe(*ret_c, tables, 0);
 	*ret_buf = NULL;
 	while (r == 0) {
@@ -430,7 +434,8 @@ static int take_snapshot(const struct opts *o, uint32_t tables, sky_client **ret
 		free(*ret_buf);
 		*ret_buf = aligned_alloc(64, (n + 63) / 64 * 64);
 		r = *ret_buf ? sky_snapshot(*ret_c, *ret_buf, n, ret_view) : -ENOMEM;
-		if (r < 0 || (ret_view->valid_tables & tables) == tables)
+		uint32_t need = r == 0 && ret_view->slot->clouds.n_layers > 0 ? tables : sky;
+		if (r < 0 || (ret_view->valid_tables & need) == need)
 			break;
 		r = sky_wait(*ret_c, ret_view->generation, o->timeout_ms, NULL);
 	}
@@ -487,11 +492,12 @@ static int cmd_dump(const struct opts *o, int argc, char **argv)
 }
 
 /* render --view fisheye|equirect|perspective [--size WxH] [--yaw D]
- * [--pitch D] [--vfov D] [--exposure E] [--no-disks] OUT.png */
-/* render's arguments into p, *ret_out and *ret_exposure: 0, or
- * EXIT_USAGE (said on stderr). */
+ * [--pitch D] [--vfov D] [--exposure E] [--no-disks] [--cloud-steps N]
+ * OUT.png */
+/* render's arguments into p, *ret_out, *ret_exposure and *ret_cloud_steps:
+ * 0, or EXIT_USAGE (said on stderr). */
 static int render_args(int argc, char **argv, struct sky_render_params *p, const char **ret_out,
-		       double *ret_exposure)
+		       double *ret_exposure, int *ret_cloud_steps)
 {
 	const char *out = NULL;
 	bool sized = false;
@@ -529,6 +535,11 @@ static int render_args(int argc, char **argv, struct sky_render_params *p, const
 			bad = proto_parse_number(argv[++i], ret_exposure) < 0 || *ret_exposure < 0.0;
 		} else if (strcmp(a, "--no-disks") == 0) {
 			p->flags = 0;
+		} else if (strcmp(a, "--cloud-steps") == 0 && val) {
+			double steps;
+			bad = proto_parse_number(argv[++i], &steps) < 0 || steps < 0.0 || steps > 1024.0 ||
+			      steps != floor(steps);
+			*ret_cloud_steps = bad ? 0 : (int)steps;
 		} else if (a[0] != '-' && !out) {
 			out = a;
 		} else {
@@ -589,6 +600,32 @@ static int render_png(const char *path, const struct sky_render_params *p, const
 	return e;
 }
 
+/* The sky of the view with its clouds in front, as skyrender draws them
+ * (the same march, jitter 1/2, the sun's shadow map, the view's ambient
+ * as skylight; sky_sample_clouds marches the moon too where it lights):
+ * sky_render()'s pixels through sky_sample_clouds(). 0 or -errno. */
+static int render_clouds(const struct sky_view *v, const struct sky_render_params *p, int steps,
+			 float *ret_rgb)
+{
+	struct sky_cloud_params cp = { .steps = steps, .light_steps = 0, .jitter = 0.5 };
+	int r = sky_sample_ambient(v, cp.ambient_lx);
+	for (uint32_t y = 0; r == 0 && y < p->height; y++)
+		for (uint32_t x = 0; r == 0 && x < p->width; x++) {
+			double dir[3], rgb[3] = { 0.0, 0.0, 0.0 };
+			float *o = ret_rgb + ((size_t)y * p->width + x) * 3;
+			if ((r = sky_render_direction(p, x + 0.5, y + 0.5, dir)) == 1) {
+				double el = asin(skymap_clamp(dir[2], -1.0, 1.0)) * 180.0 / SKYMAP_PI;
+				double az = atan2(dir[0], dir[1]) * 180.0 / SKYMAP_PI;
+				r = sky_sample_clouds(v, &cp, el, az, INFINITY, p->flags | SKY_SAMPLE_CLOUD_COMPOSITE,
+						      rgb, NULL, NULL);
+			}
+			r = r < 0 ? r : 0;
+			for (int c = 0; c < 3; c++)
+				o[c] = (float)rgb[c];
+		}
+	return r;
+}
+
 static int cmd_render(const struct opts *o, int argc, char **argv)
 {
 	struct sky_render_params p = { .projection = SKY_PROJECTION_FISHEYE, .vfov_deg = 60.0,
@@ -596,18 +633,23 @@ static int cmd_render(const struct opts *o, int argc, char **argv)
 						SKY_SAMPLE_LIMB_DARKENING };
 	const char *out = NULL;
 	double exposure = 0.0;
-	int e = render_args(argc, argv, &p, &out, &exposure);
+	int steps = SKYCLOUD_MARCH_STEPS_LOW;
+	int e = render_args(argc, argv, &p, &out, &exposure, &steps);
 	if (e)
 		return e;
 	sky_client *c;
 	void *buf = NULL;
 	struct sky_view v;
 	uint32_t need = SKY_TABLE_BIT(SKY_TABLE_SKYVIEW) | SKY_TABLE_BIT(SKY_TABLE_TRANSMITTANCE);
+	if (steps > 0)
+		need |= SKY_TABLE_BIT(SKY_TABLE_MULTISCATTER) | SKY_TABLE_BIT(SKY_TABLE_AERIAL) |
+			SKY_TABLES_CLOUDS;
 	e = take_snapshot(o, need, &c, &buf, &v);
 	if (e)
 		return e;
 	float *rgb = malloc((size_t)p.width * p.height * 3 * sizeof(float));
-	int r = rgb ? sky_render(&v, &p, rgb) : -ENOMEM;
+	bool clouds = steps > 0 && v.slot->clouds.n_layers > 0;
+	int r = !rgb ? -ENOMEM : clouds ? render_clouds(&v, &p, steps, rgb) : sky_render(&v, &p, rgb);
 	if (r != 0) {
 		fprintf(stderr, "skyctl: render: %s\n", sky_strerror(r));
 		e = EXIT_REFUSED;
@@ -643,7 +685,8 @@ static const struct cmd cmds[] = {
 	{ "watch", "watch [--count N]        print each new generation", cmd_watch },
 	{ "dump", "dump DIR                 write the current tables as EXR files", cmd_dump },
 	{ "render", "render --view fisheye|equirect|perspective [--size WxH] [--yaw D]\n"
-		    "                         [--pitch D] [--vfov D] [--exposure E] [--no-disks] OUT.png",
+		    "                         [--pitch D] [--vfov D] [--exposure E] [--no-disks]\n"
+		    "                         [--cloud-steps N] OUT.png (clouds: N steps, default 32)",
 	  cmd_render },
 };
 

@@ -91,6 +91,10 @@ struct skycloud_scene {
 	 * sky's light, which the multi-scattering table leaves out; 0 for
 	 * none. */
 	double ambient_lx[3];
+	/* 1: the light diffused through the layers (two-stream,
+	 * skycloud_diffuse) in place of the octaves past the first; 0: the
+	 * octaves alone. */
+	int diffusion;
 };
 
 /* One light (the sun, or the moon when it lights). */
@@ -156,6 +160,7 @@ static inline int skycloud_scene_from_slot(const struct sky_shm_clouds *c,
 		ret->albedo[i] = c->layers[i].albedo;
 	}
 	ret->extent_km = c->extent_km;
+	ret->diffusion = 1;
 	return n;
 }
 
@@ -464,14 +469,58 @@ static inline double skycloud_light_depth(const struct skycloud_scene *sc, const
 	return li->shadow ? skycloud_shadow_depth(li->shadow, &li->frame, p) : 0.0;
 }
 
+/* A slab of vertical optical depth tau and phase g, conservative, lit by a
+ * beam at cosine mu0 > 0: the share of the beam it lets through, direct
+ * and scattered (the Eddington two-stream solution, Shettle and Weinman
+ * 1970): (2/3 + mu0 + (2/3 - mu0) e^(-tau / mu0)) / (4/3 + (1 - g) tau),
+ * 1 at tau 0, falling as 1 / tau in a thick cloud. */
+static inline double skycloud_slab_transmittance(double tau, double g, double mu0)
+{
+	return (2.0 / 3.0 + mu0 + (2.0 / 3.0 - mu0) * exp(-tau / mu0)) / (4.0 / 3.0 + (1.0 - g) * tau);
+}
+
+/* The same slab under a uniform sky: the beam's share over the hemisphere
+ * weighted by 2 mu0, by two-point Gauss-Legendre in mu0 (4/3 over the
+ * denominator in the thick limit, as the exact integral). */
+static inline double skycloud_slab_diffuse(double tau, double g)
+{
+	const double m0 = 0.21132486540518713, m1 = 0.7886751345948129;
+	return m0 * skycloud_slab_transmittance(tau, g, m0) + m1 * skycloud_slab_transmittance(tau, g, m1);
+}
+
+/* The light diffused inside layer L (phase g) at altitude h_km, per unit
+ * of its scattering and of the light's illuminance through the air: the
+ * point lies at vertical optical depth tau_z = tau mu_l below the layer's
+ * sunlit top (tau: its optical depth toward the light at cosine mu_l),
+ * which lets down the share Fd of the light that the slab above it
+ * scatters (skycloud_slab_transmittance less the beam); the part of the
+ * layer below it, of depth tau_b by its mean profile, sends back up the
+ * share Fu that a conservative slab reflects of all that comes down. The
+ * radiance toward the eye (mu_v: the view's cosine to the local up) is
+ * Fd / pi from above and Fu / pi from below, mixed by the view. */
+static inline double skycloud_diffuse(const struct skycloud_layer *L, double g, double h_km, double tau,
+				      double mu_l, double mu_v)
+{
+	if (!(mu_l > 0.0) || !(tau < SKYCLOUD_SHADOW_OPAQUE))
+		return 0.0;
+	double tau_z = tau * mu_l, beam = exp(-tau / mu_l);
+	double below = skymap_clamp((h_km - L->base_km) * L->inv_thickness_per_km, 0.0, 1.0);
+	double tau_b = (double)L->extinction_per_km * (L->top_km - L->base_km) * below * L->profile_integral;
+	double fd = skycloud_slab_transmittance(tau_z, g, mu_l) - beam;
+	double fu = (1.0 - skycloud_slab_diffuse(tau_b, g)) * (fd + beam);
+	return mu_l * (fd * (1.0 + mu_v) + fu * (1.0 - mu_v)) / (2.0 * SKYMAP_PI);
+}
+
 /* The source at p per unit of each layer's extinction, summed over layers
  * with their extinctions sigma: octaves of sunlight through the air and
- * the cloud, and the ambient (multi-scattering table and skylight) under
- * the sky the layers leave open. mu: view . light. */
+ * the cloud (with the scene's diffusion: the first, and the light
+ * diffused through the layer, skycloud_diffuse), and the ambient
+ * (multi-scattering table and skylight) under the sky the layers leave
+ * open. mu: view . light; mu_v: the view's cosine to the local up. */
 static inline void skycloud_march_source(const struct skycloud_scene *sc, const struct skycloud_light *li,
 					 const struct skycloud_sky *sky, const double p[3], double h_km,
-					 const double sigma[SKYCLOUD_MAX_LAYERS], double mu, int light_steps,
-					 double ret_rgb[3])
+					 const double sigma[SKYCLOUD_MAX_LAYERS], double mu, double mu_v,
+					 int light_steps, double ret_rgb[3])
 {
 	double rb = sky->bottom_radius_km, c[3] = { p[0], p[1], p[2] + rb };
 	double r = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
@@ -485,12 +534,14 @@ static inline void skycloud_march_source(const struct skycloud_scene *sc, const 
 		if (!(s > 0.0))
 			continue;
 		double bk = 1.0, ak = 1.0, ck = 1.0, lobes = 0.0;
-		for (int k = 0; k < sc->octaves; k++) {
+		for (int k = 0; k < (sc->diffusion ? 1 : sc->octaves); k++) {
 			lobes += bk * exp(-ak * tau) * skycloud_hg(ck * sc->phase_g[i], mu);
 			bk *= sc->octave_b;
 			ak *= sc->octave_a;
 			ck *= sc->octave_c;
 		}
+		if (sc->diffusion)
+			lobes += skycloud_diffuse(&sc->layers[i], sc->phase_g[i], h_km, tau, mu_l, mu_v);
 		direct += s * lobes;
 		scatter += s;
 	}
@@ -532,7 +583,9 @@ static inline void skycloud_march(const struct skycloud_scene *sc, const struct 
 		double s = skycloud_march_density(sc, p, h, sigma);
 		if (!(s > 0.0))
 			continue;
-		skycloud_march_source(sc, li, sky, p, h, sigma, mu, light_steps, src);
+		double up = (p[0] * d[0] + p[1] * d[1] + (p[2] + sky->bottom_radius_km) * d[2]) /
+			    sqrt(p[0] * p[0] + p[1] * p[1] + (p[2] + sky->bottom_radius_km) * (p[2] + sky->bottom_radius_km));
+		skycloud_march_source(sc, li, sky, p, h, sigma, mu, up, light_steps, src);
 		double dT = exp(-s * dt), w = T * (1.0 - dT);
 		for (int c = 0; c < 3; c++)
 			ret->radiance[c] += w * src[c] / s;
@@ -543,6 +596,35 @@ static inline void skycloud_march(const struct skycloud_scene *sc, const struct 
 	ret->transmittance = T;
 	if (wsum > 0.0)
 		ret->depth_km = tsum / wsum;
+}
+
+/* The light on the ground at altitude h_km under the layers, as regional
+ * means and shares of the clear sky's: ret[0] of the sky's irradiance (the
+ * open share of each layer, 1 - cover, and its cover share through the
+ * slab, skycloud_slab_diffuse), ret[1] of a light's horizontal irradiance
+ * at cosine mu_l that the layers scatter down (through each layer's cover
+ * share, skycloud_slab_transmittance less the beam exp(-tau / mu_l) that
+ * the shadow map gives the point itself). Each layer's vertical optical
+ * depth is skycloud_sky_occlusion's; the layers are conservative and the
+ * light between the ground and the cloud base reflected once more is left
+ * out. Under a clear sky 1 and 0. */
+static inline void skycloud_ground_light(const struct skycloud_scene *sc, double h_km, double mu_l,
+					 double ret[2])
+{
+	double sky = 1.0, through = 1.0, beam = 1.0;
+	for (int i = 0; i < sc->n_layers; i++) {
+		const struct skycloud_layer *L = &sc->layers[i];
+		double above = skymap_clamp((L->top_km - h_km) * L->inv_thickness_per_km, 0.0, 1.0);
+		double tau = (double)L->extinction_per_km * (L->top_km - L->base_km) * above * L->profile_integral;
+		double c = L->cover;
+		sky *= 1.0 - c + c * skycloud_slab_diffuse(tau, sc->phase_g[i]);
+		if (mu_l > 0.0) {
+			through *= 1.0 - c + c * skycloud_slab_transmittance(tau, sc->phase_g[i], mu_l);
+			beam *= 1.0 - c + c * exp(-tau / mu_l);
+		}
+	}
+	ret[0] = sky;
+	ret[1] = mu_l > 0.0 ? through - beam : 0.0;
 }
 
 /* The radiance of a pixel whose clouds c lie in front of what is behind

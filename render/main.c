@@ -416,7 +416,10 @@ static int refresh(struct link *l, struct rvk *r, const struct opts *o)
 /* Connects, subscribes and waits for the first generation with the tables. */
 static int link_open(struct link *l, const struct opts *o)
 {
-	uint32_t tables = NEEDED_TABLES | (o->rvk.terrain ? SKY_TABLE_BIT(SKY_TABLE_AERIAL) : 0) |
+	/* The clouds need the aerial perspective even without terrain: the
+	 * air in front of them (skycloud_composite). */
+	uint32_t tables = NEEDED_TABLES |
+			  (o->rvk.terrain || o->rvk.cloud_steps > 0 ? SKY_TABLE_BIT(SKY_TABLE_AERIAL) : 0) |
 			  (o->rvk.cloud_steps > 0 ? SKY_TABLE_BIT(SKY_TABLE_MULTISCATTER) : 0);
 	int r = sky_connect(o->socket, &l->c);
 	if (r == 0)

@@ -58,7 +58,8 @@ struct SkycloudScene {
 	vec4 octaves;		// x: count (1..4), y: a (extinction), z: b (scattering), w: c (phase g)
 	vec4 field;		// xy: the wind's offset km, z: the number of layers,
 				// w: the coverage table's half-width km (0: the field's own coverage)
-	vec4 ambient;		// rgb: sky irradiance lx, scattered as E / pi; w: 0
+	vec4 ambient;		// rgb: sky irradiance lx, scattered as E / pi; w: 1 the light
+				// diffused through the layers in place of the octaves past the first
 };
 
 // struct skycloud_light: dir.xyz toward the light, dir.w 1 when it has a
@@ -229,12 +230,42 @@ float skycloud_light_depth(SkycloudLayer layers[SKYCLOUD_MAX_LAYERS], SkycloudSc
 	return li.dir.w > 0.5 ? skycloud_shadow_depth(shadow, li.frame, p) : 0.0;
 }
 
+// skycloud_slab_transmittance: a conservative slab's share of a beam at
+// cosine mu0 > 0 let through, direct and scattered (Eddington two-stream).
+float skycloud_slab_transmittance(float tau, float g, float mu0)
+{
+	return (2.0 / 3.0 + mu0 + (2.0 / 3.0 - mu0) * exp(-tau / mu0)) / (4.0 / 3.0 + (1.0 - g) * tau);
+}
+
+// skycloud_slab_diffuse: the same under a uniform sky (two-point Gauss).
+float skycloud_slab_diffuse(float tau, float g)
+{
+	const float m0 = 0.21132486540518713, m1 = 0.7886751345948129;
+	return m0 * skycloud_slab_transmittance(tau, g, m0) + m1 * skycloud_slab_transmittance(tau, g, m1);
+}
+
+// skycloud_diffuse: the light diffused inside layer L at h_km per unit of
+// its scattering and of the light through the air (tau toward the light
+// at cosine mu_l; mu_v the view's cosine to the local up).
+float skycloud_diffuse(SkycloudLayer L, float g, float h_km, float tau, float mu_l, float mu_v)
+{
+	if (!(mu_l > 0.0) || !(tau < SKYCLOUD_SHADOW_OPAQUE))
+		return 0.0;
+	float tau_z = tau * mu_l, beam = exp(-tau / mu_l);
+	float below = clamp((h_km - L.base_km) * L.inv_thickness_per_km, 0.0, 1.0);
+	float tau_b = L.extinction_per_km * (L.top_km - L.base_km) * below * L.profile_integral;
+	float fd = skycloud_slab_transmittance(tau_z, g, mu_l) - beam;
+	float fu = (1.0 - skycloud_slab_diffuse(tau_b, g)) * (fd + beam);
+	return mu_l * (fd * (1.0 + mu_v) + fu * (1.0 - mu_v)) / (2.0 * SKYMAP_PI);
+}
+
 // skycloud_march_source: the source at p per unit of extinction, summed
-// over the layers' extinctions sigma; mu = view . light.
+// over the layers' extinctions sigma; mu = view . light, mu_v the view's
+// cosine to the local up (for the diffusion).
 vec3 skycloud_march_source(SkyState s, sampler2D transmittance, sampler2D multiscatter, sampler2D coverage,
 			   sampler2D shadow,
 			   SkycloudLayer layers[SKYCLOUD_MAX_LAYERS], SkycloudScene sc, SkycloudLight li, vec3 p,
-			   float h_km, vec4 sigma, float mu, int light_steps)
+			   float h_km, vec4 sigma, float mu, float mu_v, int light_steps)
 {
 	float rb = s.planet.x;
 	vec3 c = vec3(p.xy, p.z + rb);
@@ -242,7 +273,8 @@ vec3 skycloud_march_source(SkyState s, sampler2D transmittance, sampler2D multis
 	vec3 tr = skycloud_air_transmittance(s, transmittance, h_km, mu_l);
 	float tau = tr.r + tr.g + tr.b > 0.0 ? skycloud_light_depth(layers, sc, li, coverage, shadow, rb, p, light_steps) : 0.0;
 	float direct = 0.0, scatter = 0.0;
-	int n = int(sc.field.z), octaves = int(sc.octaves.x);
+	bool diffusion = sc.ambient.w > 0.5;
+	int n = int(sc.field.z), octaves = diffusion ? 1 : int(sc.octaves.x);
 	for (int i = 0; i < n; i++) {
 		float sg = sc.albedo[i] * sigma[i];
 		if (!(sg > 0.0))
@@ -254,6 +286,8 @@ vec3 skycloud_march_source(SkyState s, sampler2D transmittance, sampler2D multis
 			ak *= sc.octaves.y;
 			ck *= sc.octaves.w;
 		}
+		if (diffusion)
+			lobes += skycloud_diffuse(layers[i], sc.phase_g[i], h_km, tau, mu_l, mu_v);
 		direct += sg * lobes;
 		scatter += sg;
 	}
@@ -285,8 +319,10 @@ SkycloudSample skycloud_march(SkyState s, sampler2D transmittance, sampler2D mul
 		float sg = skycloud_march_density(layers, sc, coverage, p, h, sigma);
 		if (!(sg > 0.0))
 			continue;
+		vec3 cp = vec3(p.xy, p.z + rb);
+		float up = dot(cp, d) / length(cp);
 		vec3 src = skycloud_march_source(s, transmittance, multiscatter, coverage, shadow, layers, sc, li, p,
-						 h, sigma, mu, light_steps);
+						 h, sigma, mu, up, light_steps);
 		float dT = exp(-sg * dt), w = T * (1.0 - dT);
 		r.radiance += w * src / sg;
 		wsum += w;
@@ -297,6 +333,28 @@ SkycloudSample skycloud_march(SkyState s, sampler2D transmittance, sampler2D mul
 	if (wsum > 0.0)
 		r.depth_km = tsum / wsum;
 	return r;
+}
+
+// skycloud_ground_light: the ground's light at altitude h_km under the
+// layers as shares of the clear sky's: x of the sky's irradiance, y of a
+// light's horizontal irradiance at cosine mu_l scattered down through the
+// layers (its beam is the shadow map's).
+vec2 skycloud_ground_light(SkycloudLayer layers[SKYCLOUD_MAX_LAYERS], SkycloudScene sc, float h_km, float mu_l)
+{
+	float sky = 1.0, through = 1.0, beam = 1.0;
+	int n = int(sc.field.z);
+	for (int i = 0; i < n; i++) {
+		SkycloudLayer L = layers[i];
+		float above = clamp((L.top_km - h_km) * L.inv_thickness_per_km, 0.0, 1.0);
+		float tau = L.extinction_per_km * (L.top_km - L.base_km) * above * L.profile_integral;
+		float c = L.cover;
+		sky *= 1.0 - c + c * skycloud_slab_diffuse(tau, sc.phase_g[i]);
+		if (mu_l > 0.0) {
+			through *= 1.0 - c + c * skycloud_slab_transmittance(tau, sc.phase_g[i], mu_l);
+			beam *= 1.0 - c + c * exp(-tau / mu_l);
+		}
+	}
+	return vec2(sky, mu_l > 0.0 ? through - beam : 0.0);
 }
 
 // A pixel's radiance with the clouds c in front of behind (the sky with

@@ -116,15 +116,16 @@ float cloud_sun_shadow(vec3 q)
 	return skycloud_shadow(shadow_tex, F.sun.frame, q + vec3(0.0, 0.0, F.sky[0].planet.z));
 }
 
-// The share of the sky the layers leave open above altitude h_km (1 -
-// skycloud_sky_occlusion): the sky's irradiance (the clear sky's, from
-// the tables) reaches the ground through it, as skyd lights its haze.
-// The clouds' own light on the ground is left out.
-float cloud_sky_open(float h_km)
+// The ground's light under the layers at altitude h_km, as shares of the
+// clear sky's (the library's skycloud_ground_light): x of the sky's
+// irradiance (the sky the layers leave open and what they let through),
+// y of the sun's horizontal irradiance that they scatter down (its beam
+// is the shadow map's); 1 and 0 without clouds.
+vec2 cloud_ground_light(float h_km)
 {
 	if (F.clouds.x < 0.5)
-		return 1.0;
-	return 1.0 - skycloud_sky_occlusion(F.layers, int(F.scene.field.z), h_km);
+		return vec2(1.0, 0.0);
+	return skycloud_ground_light(F.layers, F.scene, h_km, F.sun.dir.z);
 }
 
 // The unit ENU direction through wall position p (pixels, y down): false

@@ -295,6 +295,40 @@ static void test_composite(void)
 	CHECK_NEAR(rgb[1], 0.5 + 0.9 * 8.0, 1e-12);
 }
 
+/* The ground's light under a layer (skycloud_ground_light): the two-stream
+ * slab's limits (all through at tau 0, 4/3 over 4/3 + (1 - g) tau under a
+ * thick one, never less than the beam alone), and a layer's cover mixing
+ * the clear share with the slab's. */
+static void test_ground_light(void)
+{
+	const double g = 0.85, mu = 0.5;
+	CHECK_NEAR(skycloud_slab_transmittance(0.0, g, mu), 1.0, 1e-15);
+	CHECK_NEAR(skycloud_slab_diffuse(0.0, g), 1.0, 1e-15);
+	CHECK_NEAR(skycloud_slab_diffuse(400.0, g) * (4.0 / 3.0 + (1.0 - g) * 400.0), 4.0 / 3.0, 1e-9);
+	for (double tau = 0.1; tau < 100.0; tau *= 2.0)
+		CHECK(skycloud_slab_transmittance(tau, g, mu) > exp(-tau / mu) &&
+		      skycloud_slab_transmittance(tau, g, mu) < 1.0);
+	struct skycloud_layer L;
+	struct skycloud_scene sc;
+	const float zero[2] = { 0.0f, 0.0f };
+	double e[2];
+	slab(&L);
+	L.cover = 0.6f;
+	skycloud_scene_init(&sc, &L, 1, zero);
+	skycloud_ground_light(&sc, 0.0, mu, e);
+	double tau = (double)L.extinction_per_km * (L.top_km - L.base_km) * L.profile_integral;
+	double c = L.cover;
+	printf("ground light under the slab (tau %.2f, cover %.2f): sky %.4f, sun scattered down %.4f\n", tau, c,
+	       e[0], e[1]);
+	CHECK_NEAR(e[0], 1.0 - c + c * skycloud_slab_diffuse(tau, sc.phase_g[0]), 1e-12);
+	CHECK_NEAR(e[1], c * (skycloud_slab_transmittance(tau, sc.phase_g[0], mu) - exp(-tau / mu)), 1e-12);
+	skycloud_ground_light(&sc, 0.0, -0.1, e);
+	CHECK(e[1] == 0.0);
+	sc.n_layers = 0;
+	skycloud_ground_light(&sc, 0.0, mu, e);
+	CHECK(e[0] == 1.0 && e[1] == 0.0);
+}
+
 int main(void)
 {
 	test_shadow();
@@ -302,5 +336,6 @@ int main(void)
 	test_scatter();
 	test_table();
 	test_composite();
+	test_ground_light();
 	return test_report("test_cloud_march");
 }

@@ -146,6 +146,7 @@ static void make_world(const struct scene_def *s, uint32_t seed, struct world *w
 	w->sc.ambient_lx[0] = 3000.0;
 	w->sc.ambient_lx[1] = 5000.0;
 	w->sc.ambient_lx[2] = 8000.0;
+	w->sc.diffusion = s->table;	/* both sources: a client's (from a slot) and the octaves' */
 	for (int j = 0; j < COV_N; j++)
 		for (int i = 0; i < COV_N; i++)
 			for (int k = 0; k < 4; k++) {
@@ -198,6 +199,7 @@ static void pack_scene(const struct world *w, struct gpu_scene *g)
 	g->sc[3][3] = w->sc.coverage ? (float)w->sc.extent_km : 0.0f;
 	for (int c = 0; c < 3; c++) {
 		g->sc[4][c] = (float)w->sc.ambient_lx[c];
+		g->sc[4][3] = (float)w->sc.diffusion;
 		g->li[0][c] = (float)w->li.dir[c];
 		g->li[1][c] = (float)w->li.illuminance_lx[c];
 	}

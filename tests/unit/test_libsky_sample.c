@@ -161,6 +161,7 @@ static void test_sample_clouds(sky_client *c)
 	skycloud_layer_init(&L, SKYCLOUD_STRATOCUMULUS, FAKE_CLOUD_COVER, FAKE_CLOUD_BASE_KM, FAKE_CLOUD_TOP_KM,
 			    FAKE_CLOUD_SEED, 0u);
 	skycloud_scene_init(&sc, &L, 1, fake_cloud_offset_km);
+	sc.diffusion = 1;	/* a slot's scene (skycloud_scene_from_slot) */
 	struct sky_cloud_params p = { .steps = 32, .light_steps = 4, .jitter = 0.5 };
 	CHECK_EQ(skysample_table_from_slot(v.header, v.slot_base, SKY_TABLE_TRANSMITTANCE, &tr), 0);
 	CHECK_EQ(skysample_table_from_slot(v.header, v.slot_base, SKY_TABLE_MULTISCATTER, &ms), 0);
