@@ -40,6 +40,28 @@ vec3 panorama_dir(uint z, int i, int j)
 	return vec3(cos(el) * sin(az), cos(el) * cos(az), sin(el));
 }
 
+// Slice k's texel from the march so far: the radiance and the view's
+// transmittance to the slice's far edge, and the night sky's floor,
+// airlight (1 - T) of a sky of the floor's mean level L_z (1 + c / 3).
+vec4 slice_texel(vec3 radiance, vec3 tr)
+{
+	vec3 night = P.night.rgb * (1.0 + P.NIGHT_GAIN / 3.0) * (1.0 - tr);
+	return vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0);
+}
+
+// A panorama is published in float32 (views of form panorama) or
+// resampled into volumes, whose range is noted there. Its radiance is kept
+// as a logarithm, which readers interpolate: below the horizon the
+// airlight goes as the distance to the ground, about 1 / sin of the
+// depression, which is far closer to linear in log than in radiance.
+void store_slice(bool panorama, int out_base, int k, int pano_texels, int col, ivec2 px, vec4 texel)
+{
+	if (panorama)
+		AT.d[out_base + k * pano_texels + col] = floatBitsToUint(vec4(log(max(texel.rgb, vec3(1e-30))), texel.a));
+	else
+		store_texel(out_base + (k * OUT_H + px.y) * OUT_W + px.x, texel);
+}
+
 void main()
 {
 	load_params();
@@ -73,7 +95,6 @@ void main()
 	}
 
 	Phases ph_sun = ray_phases(dir, sun_dir), ph_moon = ray_phases(dir, moon_dir);
-	float sun_v = dot(dir, sun_dir), moon_v = dot(dir, moon_dir);
 	Entry en;
 	bool inside = ray_in_shell(h0, dir, en);
 	float t0 = en.t0, t1 = en.t0 + en.len;
@@ -81,7 +102,13 @@ void main()
 	vec3 tr_scaled = vec3(1.0);	// through the delta-M scaled medium (delta_source)
 	float tau_view = 0.0;		// the peak's optical depth along it (scaled_step)
 	float prev_depth = 0.0;
-	for (int k = 0; k < OUT_D; k++) {
+	int k = 0;
+	for (; k < OUT_D; k++) {
+		// Past the ray's end (the ground, the top, or a ray that misses)
+		// no slice marches: lavapipe would still run the march for these
+		// lanes, masked, until every lane of the row had ended.
+		if (!inside || prev_depth >= t1)
+			break;
 		float depth = skymap_aerial_depth_km(k, OUT_D, range, P.AERIAL_SQUARED > 0.5);
 		// The part of this slice inside the atmosphere and above the ground.
 		float a = max(prev_depth, t0), b = inside ? min(depth, t1) : a;
@@ -105,14 +132,14 @@ void main()
 				vec3 q = vec3(dir.xy * t, h0 + dir.z * t);
 				if (SHADOW_W > 0)
 					vis *= cloud_step(q, hs);
-				march_source(ta, mu_l, vis, P.sun_illum.rgb, sc, ph_sun, m, ground, forward, ds, view_up,
-					     sun_v, s, s_scaled);
+				march_source(ta, mu_l, vis, P.sun_illum.rgb, sc, ph_sun, m, ground, forward, ds, view_up, s,
+					     s_scaled);
 				if (MOON_LIT) {
 					mu_l = dot(up, moon_dir);
 					vis = light_visible(ta, mu_l, P.MOON_RADIUS_RAD) *
 					      (SHADOW_W > 0 ? cloud_light(1, q) : 1.0);
 					march_source(ta, mu_l, vis, P.moon_illum.rgb, sc, ph_moon, m, ground, forward, ds,
-						     view_up, moon_v, s, s_scaled);
+						     view_up, s, s_scaled);
 				}
 				vec3 step_t;
 				radiance += tr * s * step_weight(m.extinction, dt, step_t);
@@ -124,20 +151,11 @@ void main()
 				tr *= step_t;
 			}
 		}
-		// Night-sky floor: airlight (1 - T) of a sky of the floor's mean level L_z (1 + c / 3).
-		vec3 night = P.night.rgb * (1.0 + P.NIGHT_GAIN / 3.0) * (1.0 - tr);
-		vec4 texel = vec4(radiance + night, (tr.r + tr.g + tr.b) / 3.0);
-		// A panorama is published in float32 (views of form panorama) or
-		// resampled into volumes, whose range is noted there. Its
-		// radiance is kept as a logarithm, which readers interpolate:
-		// below the horizon the airlight goes as the distance to the
-		// ground, about 1 / sin of the depression, which is far closer to
-		// linear in log than in radiance.
-		if (panorama)
-			AT.d[out_base + k * int(pano_w * pano_h) + col] =
-				floatBitsToUint(vec4(log(max(texel.rgb, vec3(1e-30))), texel.a));
-		else
-			store_texel(out_base + (k * OUT_H + px.y) * OUT_W + px.x, texel);
+		store_slice(panorama, out_base, k, int(pano_w * pano_h), col, px, slice_texel(radiance, tr));
 	}
+	// The slices beyond hold what the march reached.
+	vec4 last = slice_texel(radiance, tr);
+	for (; k < OUT_D; k++)
+		store_slice(panorama, out_base, k, int(pano_w * pano_h), col, px, last);
 	flush_range(BINDING_AERIAL - BINDING_TRANSMITTANCE);
 }

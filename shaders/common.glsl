@@ -439,11 +439,27 @@ vec4 multiscatter_at(TAlt a, float mu_s)
 	return ms_read_table(ms_taps(a, mu_s));
 }
 
+// The Legendre moments g1, g2 through which the lobe constituent scatters
+// the shape of the multiply scattered light (ms_source).
+vec2 ms_lobe_moments()
+{
+	vec2 g = vec2(P.c[max(MOMENT_CONST, 0)].PHASE_G1, P.c[max(MOMENT_CONST, 0)].PHASE_G2);
+	// With delta-M the field is the scaled medium's, scattered by the
+	// truncated phase: Henyey-Greenstein g', moments g' and g'^2.
+	if (DELTA_CONST >= 0)
+		g = vec2(P.c[max(DELTA_CONST, 0)].DELTA_G, P.c[max(DELTA_CONST, 0)].DELTA_G * P.c[max(DELTA_CONST, 0)].DELTA_G);
+	return g;
+}
+
 // The phase of every constituent for one light: constant along a view ray
-// towards a distant light, so it is evaluated once per ray, not per step.
+// towards a distant light, so it is evaluated once per ray, not per step;
+// so is the aureole's lobe seen at the view's angle to the light, 4 pi HG
+// - 1 at g1 g1 (ms_source), a square root and a division per column-step
+// of sky-view otherwise.
 struct Phases {
 	float p[4];
 	float mu;		// the view's cosine with the light
+	float ms_lobe;		// 4 pi HG(g1 g1, mu) - 1; 0 without a lobe constituent
 };
 
 Phases ray_phases(vec3 view_dir, vec3 light_dir)
@@ -453,6 +469,12 @@ Phases ray_phases(vec3 view_dir, vec3 light_dir)
 	for (int i = 0; i < 4; i++)
 		ph.p[i] = i < N_CONST && phase_kind(i) != 0 ? phase(phase_kind(i), P.c[i].PHASE_G, mu) : 0.0;
 	ph.mu = mu;
+	ph.ms_lobe = 0.0;
+	if (MOMENT_CONST >= 0) {
+		float gl = ms_lobe_moments().x * ms_lobe_moments().x;
+		float den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - mu);
+		ph.ms_lobe = (1.0 - gl * gl) / (den * sqrt(den)) - 1.0;
+	}
 	return ph;
 }
 
@@ -536,10 +558,12 @@ vec4 multiscatter_shape_at(TAlt a, float mu_s, out vec4 ret_shape)
 // convolve into one of parameter g1 g1 (their moments multiply), seen at
 // o . sunlight = view . light. A forward phase (Mars' dust, g = 0.85) sees
 // a field brightest near the horizon and around the sun, which the
-// isotropic assumption reads far too dark. view_up and view_light: the
-// view's cosines with the local vertical and with the light.
-vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, float view_up, float view_light)
+// isotropic assumption reads far too dark. view_up: the view's cosine
+// with the local vertical; ph: the light's (ray_phases), its cosine with
+// the view and the lobe seen there.
+vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, float view_up, Phases ph)
 {
+	float view_light = ph.mu;
 	if (MOMENT_CONST < 0) {
 		vec4 ms = multiscatter_at(a, mu_l);
 		return (sigma_s + ms.a * ground) * ms.rgb;
@@ -557,16 +581,10 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 	// o_x^2 - o_y^2 = 2 o_x^2 + o_z^2 - 1.
 	float b2 = sh.y * (1.5 * o_z * o_z - 0.5) +
 		   sh.z * (DELTA_CONST >= 0 ? 2.0 * o_x * o_x + o_z * o_z - 1.0 : o_x * o_z);
-	vec2 g = vec2(P.c[max(MOMENT_CONST, 0)].PHASE_G1, P.c[max(MOMENT_CONST, 0)].PHASE_G2);
-	// With delta-M the field is the scaled medium's, scattered by the
-	// truncated phase: Henyey-Greenstein g', moments g' and g'^2.
-	if (DELTA_CONST >= 0)
-		g = vec2(P.c[max(DELTA_CONST, 0)].DELTA_G, P.c[max(DELTA_CONST, 0)].DELTA_G * P.c[max(DELTA_CONST, 0)].DELTA_G);
+	vec2 g = ms_lobe_moments();
 	// A truncated expansion may go negative where the field is strongly
 	// directed; the light scattered never does.
-	float gl = g.x * g.x;
-	float den = (1.0 - gl) * (1.0 - gl) + 2.0 * gl * (1.0 - view_light);
-	float lobe = sh.w * ((1.0 - gl * gl) / (den * sqrt(den)) - 1.0);	// a (4 pi HG - 1)
+	float lobe = sh.w * ph.ms_lobe;	// a (4 pi HG - 1)
 	return max(sigma_s + ms.a * ground + forward * (g.x * b1 + g.y * b2 + lobe), vec3(0.0)) * ms.rgb;
 }
 
@@ -575,11 +593,11 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 // step): single scattering through each constituent's phase plus the
 // higher orders (ms_source).
 vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground,
-		      vec3 forward, float view_up, float view_light)
+		      vec3 forward, float view_up, Phases ph)
 {
 	vec3 s = visible > 0.0 ? phased * (visible * transmittance_lookup(a, mu_l)) : vec3(0.0);
 	if (MULTISCATTER_ON) {
-		vec3 ms = ms_source(a, mu_l, sigma_s, ground, forward, view_up, view_light);
+		vec3 ms = ms_source(a, mu_l, sigma_s, ground, forward, view_up, ph);
 		if (CLOUD_LAYERS > 0)
 			ms *= cloud_ms_open;
 		s += ms;
@@ -734,7 +752,7 @@ float delta_peak_phase(float mu_l, float tau, Phases ph)
 // phased: the real phase-weighted scattering, sc and ph its parts;
 // ds: the scaled medium at the step (scaled_step()).
 void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Phases ph, vec3 phased, Scaled ds,
-		  float view_up, float view_light, out vec3 ret_real, out vec3 ret_scaled)
+		  float view_up, out vec3 ret_real, out vec3 ret_scaled)
 {
 	int k = max(DELTA_CONST, 0);
 	vec3 t = visible > 0.0 ? visible * transmittance_lookup(a, mu_l) : vec3(0.0);
@@ -746,7 +764,7 @@ void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Pha
 	ret_real = (phased - phased_s) * t * illum;
 	ret_scaled = phased_s * t * exp(min(depth, vec3(80.0)));
 	if (MULTISCATTER_ON) {
-		vec3 ms = ms_source(a, mu_l, ds.sigma_s, ds.ground, ds.forward, view_up, view_light);
+		vec3 ms = ms_source(a, mu_l, ds.sigma_s, ds.ground, ds.forward, view_up, ph);
 		if (CLOUD_LAYERS > 0)
 			ms *= cloud_ms_open;
 		ret_scaled += ms;
@@ -759,16 +777,15 @@ void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Pha
 // (weighed by the view's transmittance) and, with delta-M, to scaled (by the
 // scaled one): light_source_lit, or delta_source where DELTA_CONST is set.
 void march_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Phases ph, Medium m, vec3 ground,
-		  vec3 forward, Scaled ds, float view_up, float view_light, inout vec3 real, inout vec3 scaled)
+		  vec3 forward, Scaled ds, float view_up, inout vec3 real, inout vec3 scaled)
 {
 	vec3 p = phased(sc, ph);
 	if (DELTA_CONST >= 0) {
 		vec3 r, rs;
-		delta_source(a, mu_l, visible, illum, sc, ph, p, ds, view_up, view_light, r, rs);
+		delta_source(a, mu_l, visible, illum, sc, ph, p, ds, view_up, r, rs);
 		real += r;
 		scaled += rs;
 	} else {
-		real += light_source_lit(a, mu_l, visible, illum, p, m.scattering, ground, forward, view_up,
-					 view_light);
+		real += light_source_lit(a, mu_l, visible, illum, p, m.scattering, ground, forward, view_up, ph);
 	}
 }

@@ -140,14 +140,14 @@ void main()
 				if (SHADOW_W > 0)
 					vis *= cloud_light(0, q);
 				march_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, sc, ph_sun[j], m, ground,
-					     forward, ds, view_up, dot(dir[j], P.sun_dir.xyz), s, s_scaled);
+					     forward, ds, view_up, s, s_scaled);
 				if (MOON_LIT) {
 					vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
 								over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
 					if (SHADOW_W > 0)
 						vis *= cloud_light(1, q);
 					march_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, sc, ph_moon[j], m,
-						     ground, forward, ds, view_up, dot(dir[j], P.moon_dir.xyz), s, s_scaled);
+						     ground, forward, ds, view_up, s, s_scaled);
 				}
 				radiance[j] += w * s;
 				if (DELTA_CONST >= 0)
