@@ -27,6 +27,15 @@ layout(constant_id = SPEC_CLOUD_W) const int CLOUD_W = 1;	// the coverage table'
 // vertical optical depth at full cover, cover) for cloud_sky_open.
 ShadowFrame cloud_frame[2];
 vec4 cloud_column[SKYCLOUD_MAX_LAYERS];
+// Per layer, per unit of its vertical optical depth: the two-stream's
+// 3/4 (1 - g) and the delta-scaled 1 - g^2 (cloud_reflectance).
+vec2 cloud_slab[SKYCLOUD_MAX_LAYERS];
+// The altitude of the march's step (cloud_at), km.
+float cloud_h_km = 0.0;
+
+// enum skycloud_type's cirrus: ice, Henyey-Greenstein g 0.75; the water
+// clouds' 0.85 (skycloud_types in proto/skycloud.h).
+const int CLOUD_TYPE_CIRRUS = 5;
 
 void load_clouds()
 {
@@ -39,6 +48,10 @@ void load_clouds()
 				       CL.layer[i].extinction_per_km * (CL.layer[i].top_km - CL.layer[i].base_km) *
 					       CL.layer[i].profile_integral,
 				       CL.layer[i].cover);
+	for (int i = 0; i < CLOUD_LAYERS; i++) {
+		float g = CL.layer[i].type == CLOUD_TYPE_CIRRUS ? 0.75 : 0.85;
+		cloud_slab[i] = vec2(0.75 * (1.0 - g), 1.0 - g * g);
+	}
 }
 
 // The optical depth of one map texel's column at depth d (km from the
@@ -96,11 +109,65 @@ float cloud_sky_open(float h)
 	return 1.0 - skycloud_saturate(1.0 - open);
 }
 
-// At a march step at q, altitude h: sets the sky the layers leave open
-// for the multiply scattered light (cloud_ms_open) and returns the share
-// of the sun's light the cloud lets through.
-float cloud_step(vec3 q, float h)
+// At a march step of altitude h: the sky the layers leave open for the
+// multiply scattered light (cloud_ms_open) and the altitude that
+// cloud_diffuse_source reads.
+void cloud_at(float h)
 {
 	cloud_ms_open = cloud_sky_open(h);
+	cloud_h_km = h;
+}
+
+// At a march step at q, altitude h: cloud_at(h), and the share of the
+// sun's light the cloud lets through.
+float cloud_step(vec3 q, float h)
+{
+	cloud_at(h);
 	return exp(-cloud_tau(0, q));
+}
+
+// The reflectance of a conservative slab of vertical optical depth tau
+// (slab: cloud_slab's) for a beam at cos-zenith mu0 > 0: the
+// delta-Eddington two-stream (Joseph, Wiscombe and Weinman 1976; Meador
+// and Weaver 1980, the conservative case), held in [0, 1] (Eddington's
+// goes slightly negative for a thin slab under a high light).
+float cloud_reflectance(float tau, vec2 slab, float mu0)
+{
+	float gt = slab.x * tau;
+	float r = (gt + (0.5 - 0.75 * mu0) * (1.0 - exp(-slab.y * tau / mu0))) / (1.0 + gt);
+	return clamp(r, 0.0, 1.0);
+}
+
+// The light the layers scatter into the air at the step (cloud_at) for a
+// light at cos-zenith mu_l there, per unit of its illuminance: under a
+// layer, what it lets through diffusely (1 - R - exp(-tau / mu), the
+// direct part being the shadow map's) as a uniform radiance from above,
+// and the ground's reflection of it from below; over a layer, what the
+// deck (cloud and ground) reflects beyond the ground alone, R (1 - A)^2 /
+// (1 - R A), from below. Each a uniform hemisphere of radiance mu E x / pi,
+// whose mean over the sphere is half of it, scattered as ms_source
+// scatters the ground's bounce: sigma_s plus (below) or less (above) the
+// ground's excess. Each layer alone, over its cover.
+vec3 cloud_diffuse_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground)
+{
+	if (!(mu_l > 0.0))
+		return vec3(0.0);
+	vec3 albedo = GROUND_BLACK ? vec3(0.0) : P.albedo.rgb, down = vec3(0.0), up = vec3(0.0);
+	for (int i = 0; i < CLOUD_LAYERS; i++) {
+		vec4 col = cloud_column[i];
+		float above = skycloud_saturate((col.x - cloud_h_km) * col.y);
+		float ta = col.z * above, tb = col.z - ta;
+		if (ta > 0.0) {
+			float r = cloud_reflectance(ta, cloud_slab[i], mu_l);
+			vec3 d = col.w * max(1.0 - r - exp(-ta / mu_l), 0.0) / (1.0 - r * albedo);
+			down += d;
+			up += albedo * d;
+		}
+		if (tb > 0.0) {
+			float r = cloud_reflectance(tb, cloud_slab[i], mu_l);
+			up += col.w * r * (1.0 - albedo) * (1.0 - albedo) / (1.0 - r * albedo);
+		}
+	}
+	vec3 lit = transmittance_lookup(a, mu_l) * (0.5 * mu_l / PI);
+	return lit * ((sigma_s - ground) * down + (sigma_s + ground) * up);
 }
