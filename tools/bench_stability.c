@@ -49,17 +49,17 @@ static void f16_figures(const struct model_tables *a, const struct model_tables 
 static int cloud_case(struct eng *e, const struct stab_cloud_case *k, struct stab_result *rm,
 		      struct stab_result *rg, uint64_t *ret_sum, char *err, size_t n)
 {
-	struct sky_state s, clear;
+	struct sky_state s, bound;
 	struct model_tables mw, mo, gw, go;
 	int rc = stab_cloud_state(k, &s, err, n);
 
 	if (rc < 0 || (rc = stab_cloud_check_model(k->name, &s, rm, ret_sum, err, n)) < 0)
 		return rc;
-	stab_cloud_clear(&s, &clear);
+	stab_cloud_bound(&s, &bound);
 	if ((rc = stab_model(NULL, &s, STATE_ALL_TABLES, &mw, err, n)) < 0 ||
-	    (rc = stab_model(NULL, &clear, STATE_ALL_TABLES, &mo, err, n)) < 0 ||
+	    (rc = stab_model(NULL, &bound, STATE_ALL_TABLES, &mo, err, n)) < 0 ||
 	    (rc = stab_engine(e, &s, STATE_ALL_TABLES, &gw, err, n)) < 0 ||
-	    (rc = stab_engine(e, &clear, STATE_ALL_TABLES, &go, err, n)) < 0)
+	    (rc = stab_engine(e, &bound, STATE_ALL_TABLES, &go, err, n)) < 0)
 		return rc;
 	stab_check(k->name, &s, &mw, &stab_tol_model, rm);
 	stab_check_shadowed(k->name, &mw, &mo, &stab_tol_model, rm);
