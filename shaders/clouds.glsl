@@ -64,35 +64,31 @@ float shadow_texel_tau(vec4 s, float d)
 	return d > s.w ? 80.0 : tau;
 }
 
-// The cloud's optical depth toward light (0 sun, 1 moon) at q (km, the
-// observer's east-north-up frame from the ground under it), from the
-// light's map, bilinear between its texels; 0 outside the
+// The share of light (0 sun, 1 moon) the cloud lets through at q (km,
+// the observer's east-north-up frame from the ground under it), from the
+// light's map: each texel's transmittance, then bilinear between them (a
+// texel at a cloud's edge holds cloud and gap, whose mean transmittance is
+// the mean of the two, not exp of the mean optical depth); 1 outside the
 // map (no cloud beyond the region).
-float cloud_tau(int light, vec3 q)
+float cloud_light(int light, vec3 q)
 {
 	ShadowFrame f = cloud_frame[light];
 	float x = (dot(q, f.u.xyz) - f.U_MIN_KM) * f.U_TEXELS_PER_KM - 0.5;
 	float y = (dot(q, f.v.xyz) - f.V_MIN_KM) * f.V_TEXELS_PER_KM - 0.5;
 	float top = float(SHADOW_W) - 0.5;
 	if (!(x > -0.5 && y > -0.5 && x < top && y < top))
-		return 0.0;
+		return 1.0;
 	x = clamp(x, 0.0, float(SHADOW_W - 1));
 	y = clamp(y, 0.0, float(SHADOW_W - 1));
 	int i = min(int(x), SHADOW_W - 2), j = min(int(y), SHADOW_W - 2);
 	float fx = x - float(i), fy = y - float(j);
 	float d = f.PLANE_KM - dot(q, f.l.xyz);
 	int base = light * SHADOW_W * SHADOW_W + j * SHADOW_W + i;
-	float t00 = shadow_texel_tau(texelFetch(ShadowTex, base), d);
-	float t10 = shadow_texel_tau(texelFetch(ShadowTex, base + 1), d);
-	float t01 = shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W), d);
-	float t11 = shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W + 1), d);
+	float t00 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base), d));
+	float t10 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base + 1), d));
+	float t01 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W), d));
+	float t11 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W + 1), d));
 	return mix(mix(t00, t10, fx), mix(t01, t11, fx), fy);
-}
-
-// The share of light the cloud lets through toward light at q.
-float cloud_light(int light, vec3 q)
-{
-	return exp(-cloud_tau(light, q));
 }
 
 // 1 - skycloud_sky_occlusion(h) for the block's layers: the same formula
@@ -123,7 +119,7 @@ void cloud_at(float h)
 float cloud_step(vec3 q, float h)
 {
 	cloud_at(h);
-	return exp(-cloud_tau(0, q));
+	return cloud_light(0, q);
 }
 
 // The reflectance of a conservative slab of vertical optical depth tau
