@@ -2,9 +2,10 @@
 // texel of a light's map (z: 0 sun, 1 moon), the light's ray through each
 // layer's shell inside the region, marched in the steps its piece needs,
 // the density the layer's envelope gives (coverage table x profile x
-// extinction: the detail noise's cells are below a texel). RGBA32F =
-// (front depth km from the map's plane, mean extinction per km over the
-// cloud span, the column's optical depth, the terrain's opaque depth or
+// extinction: the detail noise's cells are below a texel), a partial
+// cover taken as that share of the texel clouded. RGBA32F = (front depth
+// km from the map's plane, mean extinction per km over the cloud span, the
+// column's optical depth, the terrain's opaque depth or
 // SKY_SHADOW_NO_TERRAIN_KM).
 #version 450
 #extension GL_GOOGLE_include_directive : require
@@ -16,12 +17,13 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = BINDING_SHADOW) writeonly buffer ShadowTexels { vec4 d[]; } ST;
 
 // Layer l's extinction per km at q: its envelope from the coverage
-// table, bilinear.
-float envelope_at(int l, vec3 q)
+// table, bilinear; ret_cover the cover there.
+float envelope_at(int l, vec3 q, out float ret_cover)
 {
 	float e = CL.FIELD_EXTENT_KM, k = CL.FIELD_TEXELS_PER_KM;
 	float h = skycloud_altitude(P.BOTTOM_RADIUS_KM, q);
 	float hf = (h - CL.layer[l].base_km) * CL.layer[l].inv_thickness_per_km;
+	ret_cover = 0.0;
 	if (!(hf > 0.0 && hf < 1.0))
 		return 0.0;
 	float x = clamp((q.x + e) * k - 0.5, 0.0, float(CLOUD_W - 1));
@@ -37,6 +39,7 @@ float envelope_at(int l, vec3 q)
 	if (!(c0 > 0.0))
 		return 0.0;
 	float c = skycloud_saturate(c0 + CL.layer[l].anvil * hf * hf);
+	ret_cover = c;
 	return CL.layer[l].extinction_per_km * c * skycloud_profile(CL.layer[l], hf);
 }
 
@@ -115,7 +118,7 @@ void main()
 	// crosses coverage texels (two a texel, at least four for the
 	// profile, at most STEPS): a high light crosses a thin layer in a
 	// few, and the gaps between layers cost nothing.
-	float rb = P.BOTTOM_RADIUS_KM, tau = 0.0, front = 1e30, back = 0.0;
+	float rb = P.BOTTOM_RADIUS_KM, tau = 0.0, tau_full = 0.0, front = 1e30, back = 0.0;
 	float across = length(d.xy) * CL.FIELD_TEXELS_PER_KM;
 	for (int l = 0; l < CLOUD_LAYERS; l++) {
 		float a0, a1, b0, b1, t0 = 0.0, t1 = 0.0;
@@ -134,18 +137,27 @@ void main()
 		float dt = (t1 - t0) / float(n);
 		for (int k = 0; k < n; k++) {
 			float t = t0 + (float(k) + 0.5) * dt;
-			float ext = envelope_at(l, o + t * d);
+			float cover, ext = envelope_at(l, o + t * d, cover);
 			if (ext > 0.0) {
 				front = min(front, t - 0.5 * dt);
 				back = max(back, t + 0.5 * dt);
 				tau += ext * dt;
+				tau_full += ext / cover * dt;
 			}
 		}
 	}
 	// No cloud: (0, 0, 0), which a bilinear filter of the texels blends
 	// into a cloud's edge as the clear it is.
 	vec4 texel = vec4(0.0, 0.0, 0.0, terrain_depth_km(o, d, rb));
-	if (tau > 0.0)
+	// The coverage table's bilinear cover c at a cloud's edge is the share
+	// of cloud in the texel, whose edge is sharp (coverage_edge): the ray
+	// crosses cloud of optical depth tau_full over that share and gap over
+	// the rest, 1 - c + c exp(-tau_full) of light through, not exp(-c
+	// tau_full). c: the cover along the ray, weighed by the density.
+	if (tau > 0.0) {
+		float c = tau / tau_full;
+		tau = c < 1.0 ? -log(1.0 - c + c * exp(-tau_full)) : tau_full;
 		texel.xyz = vec3(front, tau / (back - front), tau);
+	}
 	ST.d[(px.z * SHADOW_W + px.y) * SHADOW_W + px.x] = texel;
 }
