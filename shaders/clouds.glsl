@@ -91,8 +91,12 @@ float cloud_light(int light, vec3 q)
 	return mix(mix(t00, t10, fx), mix(t01, t11, fx), fy);
 }
 
-// 1 - skycloud_sky_occlusion(h) for the block's layers: the same formula
-// from the private copy (load_clouds).
+// The share of the sky's multiply scattered light that reaches altitude
+// h through the layers above it: skycloud_sky_occlusion's product over
+// the layers, 1 - cover (1 - t), but with t the light a conservative slab
+// lets through diffusely, 1 / (1 + 3/4 (1 - g) tau) (the two-stream under
+// diffuse light), not exp(-tau): the sky's light scatters through a cloud,
+// it is not taken away.
 float cloud_sky_open(float h)
 {
 	if (CLOUD_LAYERS == 0)
@@ -100,7 +104,8 @@ float cloud_sky_open(float h)
 	float open = 1.0;
 	for (int i = 0; i < CLOUD_LAYERS; i++) {
 		float above = skycloud_saturate((cloud_column[i].x - h) * cloud_column[i].y);
-		open *= 1.0 - cloud_column[i].w * (1.0 - exp(-cloud_column[i].z * above));
+		float t = 1.0 / (1.0 + cloud_slab[i].x * cloud_column[i].z * above);
+		open *= 1.0 - cloud_column[i].w * (1.0 - t);
 	}
 	return 1.0 - skycloud_saturate(1.0 - open);
 }

@@ -3,15 +3,15 @@
  *  - under an 8/8 stratocumulus at 1.0-1.4 km with the sun at 40 degrees,
  *    the aerial perspective's in-scattered light at 10 km is below the
  *    clear sky's but far from dark: the sun's single scattering under the
- *    layer passes a column of optical depth ~9 (exp(-9) ~ 1e-4), the sky's
- *    multiply scattered light the open sky (~1e-4), but the layer lets
- *    1 - R - exp(-tau / mu) ~ 0.52 of the sun's flux through diffusely
- *    (delta-Eddington, tau 9.3, g 0.85), which the ground reflects in
- *    part: the air under the base is lit by about half the clear sky's
- *    light (bounds 0.25 to 0.75; measured 0.507 on lavapipe), and the
+ *    layer passes a column of optical depth ~9 (exp(-9) ~ 1e-4), but a
+ *    conservative slab lets the light through diffusely (two-stream,
+ *    tau 9.3, g 0.85: 1 - R - exp(-tau / mu) = 0.52 of the sun's flux,
+ *    1 / (1 + 3/4 (1 - g) tau) = 0.49 of the sky's), and the ground
+ *    reflects part of it back: the air under the base gets between half
+ *    and 0.9 of the clear sky's light (measured 0.736 on lavapipe); the
  *    whole slice, whose views that look up reach the air over the deck,
- *    lit from below by the deck's reflection, more (bounds 0.5 to 0.9;
- *    measured 0.674; docs/clouds.md, "In the tables").
+ *    lit from below by its reflection, between 0.6 and 1 (measured
+ *    0.854; docs/clouds.md, "In the tables").
  *  - the layers never add more light than a white ground would: every
  *    texel of sky-view and aerial with layers is at most the same sky's
  *    without them over a ground of albedo 1 (the deck reflects and
@@ -166,14 +166,14 @@ static void overcast_at_ten_km(void)
 		double lit = aerial_mean_at(&s, a[1], 10.0, 1e30), shadowed = aerial_mean_at(&s, b[1], 10.0, 1e30);
 		printf("aerial in-scatter at 10 km, sun 40 deg: clear %.6g, under 8/8 at 1 km %.6g, ratio %.4f\n",
 		       lit, shadowed, shadowed / lit);
-		CHECK(lit > 0.0 && shadowed / lit > 0.5 && shadowed / lit < 0.9);
+		CHECK(lit > 0.0 && shadowed / lit > 0.6 && shadowed / lit < 1.0);
 		/* The views that stay under the base for their 10 km: the
-		 * light the layer lets through diffusely, and its ground's. */
+		 * light the layer lets through diffusely, and the ground's. */
 		lit = aerial_mean_at(&s, a[1], 10.0, 1.0);
 		shadowed = aerial_mean_at(&s, b[1], 10.0, 1.0);
 		printf("the same, views under the base all the way: clear %.6g, overcast %.6g, ratio %.3g\n", lit,
 		       shadowed, shadowed / lit);
-		CHECK(lit > 0.0 && shadowed / lit > 0.25 && shadowed / lit < 0.75);
+		CHECK(lit > 0.0 && shadowed / lit > 0.5 && shadowed / lit < 0.9);
 	}
 	for (int k = 0; k < 2; k++) {
 		free(a[k]);
