@@ -43,6 +43,22 @@ float envelope_at(int l, vec3 q, out float ret_cover)
 	return CL.layer[l].extinction_per_km * c * skycloud_profile(CL.layer[l], hf);
 }
 
+// The optical depth of the ray's piece over one coverage texel, tau at
+// the table's cover and tau_full at full cover: the bilinear cover c at a
+// cloud's edge is the share of cloud in the texel, whose edge is sharp
+// (coverage_edge 0.04 of the fBm's spread 0.28), so the piece crosses
+// cloud over that share of the map texel and gap over the rest, 1 - c +
+// c exp(-tau_full) of light through, not exp(-c tau_full). c: the cover
+// along the piece, weighed by the density. The pieces over successive
+// texels meet different parts of the field: their optical depths add.
+float partial_cover_tau(float tau, float tau_full)
+{
+	if (!(tau > 0.0))
+		return 0.0;
+	float c = tau / tau_full;
+	return c < 1.0 ? -log(1.0 - c + c * exp(-tau_full)) : tau_full;
+}
+
 // The ray o - t l's piece [t0, t1] inside the region's square (its east
 // and north components within the half-width e).
 void clip_region(vec3 o, vec3 d, float e, inout float t0, inout float t1)
@@ -118,7 +134,7 @@ void main()
 	// crosses coverage texels (two a texel, at least four for the
 	// profile, at most STEPS): a high light crosses a thin layer in a
 	// few, and the gaps between layers cost nothing.
-	float rb = P.BOTTOM_RADIUS_KM, tau = 0.0, tau_full = 0.0, front = 1e30, back = 0.0;
+	float rb = P.BOTTOM_RADIUS_KM, tau = 0.0, front = 1e30, back = 0.0;
 	float across = length(d.xy) * CL.FIELD_TEXELS_PER_KM;
 	for (int l = 0; l < CLOUD_LAYERS; l++) {
 		float a0, a1, b0, b1, t0 = 0.0, t1 = 0.0;
@@ -134,30 +150,30 @@ void main()
 		if (!(t1 > t0))
 			continue;
 		int n = clamp(int(ceil(2.0 * (t1 - t0) * across)) + 4, 4, STEPS);
-		float dt = (t1 - t0) / float(n);
+		float dt = (t1 - t0) / float(n), seg_tau = 0.0, seg_full = 0.0;
+		int seg = -1;
 		for (int k = 0; k < n; k++) {
 			float t = t0 + (float(k) + 0.5) * dt;
 			float cover, ext = envelope_at(l, o + t * d, cover);
+			int texel_k = int(t * across);
+			if (texel_k != seg) {
+				tau += partial_cover_tau(seg_tau, seg_full);
+				seg_tau = seg_full = 0.0;
+				seg = texel_k;
+			}
 			if (ext > 0.0) {
 				front = min(front, t - 0.5 * dt);
 				back = max(back, t + 0.5 * dt);
-				tau += ext * dt;
-				tau_full += ext / cover * dt;
+				seg_tau += ext * dt;
+				seg_full += ext / cover * dt;
 			}
 		}
+		tau += partial_cover_tau(seg_tau, seg_full);
 	}
 	// No cloud: (0, 0, 0), which a bilinear filter of the texels blends
 	// into a cloud's edge as the clear it is.
 	vec4 texel = vec4(0.0, 0.0, 0.0, terrain_depth_km(o, d, rb));
-	// The coverage table's bilinear cover c at a cloud's edge is the share
-	// of cloud in the texel, whose edge is sharp (coverage_edge): the ray
-	// crosses cloud of optical depth tau_full over that share and gap over
-	// the rest, 1 - c + c exp(-tau_full) of light through, not exp(-c
-	// tau_full). c: the cover along the ray, weighed by the density.
-	if (tau > 0.0) {
-		float c = tau / tau_full;
-		tau = c < 1.0 ? -log(1.0 - c + c * exp(-tau_full)) : tau_full;
+	if (tau > 0.0)
 		texel.xyz = vec3(front, tau / (back - front), tau);
-	}
 	ST.d[(px.z * SHADOW_W + px.y) * SHADOW_W + px.x] = texel;
 }
