@@ -1,7 +1,8 @@
 // clouds.glsl - what the cloud passes and the sky marches share: the
 // layers' block, the coverage table and the shadow maps as lookups, the
-// cloud's optical depth toward a light at a point and the layers'
-// occlusion of the sky (docs/clouds.md, "In the tables"). Included after
+// light the cloud lets through toward a light at a point, the sky's light
+// through the layers and the layers' own light in the air (docs/clouds.md,
+// "In the tables"). Included after
 // common.glsl; the maps are read only where SHADOW_W > 0 (a layer or the
 // terrain casts), the layers only where CLOUD_LAYERS > 0.
 
