@@ -1,7 +1,8 @@
 // clouds.glsl - what the cloud passes and the sky marches share: the
 // layers' block, the coverage table and the shadow maps as lookups, the
-// cloud's optical depth toward a light at a point and the layers'
-// occlusion of the sky (docs/clouds.md, "In the tables"). Included after
+// light the cloud lets through toward a light at a point, the sky's light
+// through the layers and the layers' own light in the air (docs/clouds.md,
+// "In the tables"). Included after
 // common.glsl; the maps are read only where SHADOW_W > 0 (a layer or the
 // terrain casts), the layers only where CLOUD_LAYERS > 0.
 
@@ -27,6 +28,15 @@ layout(constant_id = SPEC_CLOUD_W) const int CLOUD_W = 1;	// the coverage table'
 // vertical optical depth at full cover, cover) for cloud_sky_open.
 ShadowFrame cloud_frame[2];
 vec4 cloud_column[SKYCLOUD_MAX_LAYERS];
+// Per layer, per unit of its vertical optical depth: the two-stream's
+// 3/4 (1 - g) and the delta-scaled 1 - g^2 (cloud_reflectance).
+vec2 cloud_slab[SKYCLOUD_MAX_LAYERS];
+// The altitude of the march's step (cloud_at), km.
+float cloud_h_km = 0.0;
+
+// enum skycloud_type's cirrus: ice, Henyey-Greenstein g 0.75; the water
+// clouds' 0.85 (skycloud_types in proto/skycloud.h).
+const int CLOUD_TYPE_CIRRUS = 5;
 
 void load_clouds()
 {
@@ -39,6 +49,10 @@ void load_clouds()
 				       CL.layer[i].extinction_per_km * (CL.layer[i].top_km - CL.layer[i].base_km) *
 					       CL.layer[i].profile_integral,
 				       CL.layer[i].cover);
+	for (int i = 0; i < CLOUD_LAYERS; i++) {
+		float g = CL.layer[i].type == CLOUD_TYPE_CIRRUS ? 0.75 : 0.85;
+		cloud_slab[i] = vec2(0.75 * (1.0 - g), 1.0 - g * g);
+	}
 }
 
 // The optical depth of one map texel's column at depth d (km from the
@@ -51,39 +65,39 @@ float shadow_texel_tau(vec4 s, float d)
 	return d > s.w ? 80.0 : tau;
 }
 
-// The cloud's optical depth toward light (0 sun, 1 moon) at q (km, the
-// observer's east-north-up frame from the ground under it), from the
-// light's map, bilinear between its texels; 0 outside the
+// The share of light (0 sun, 1 moon) the cloud lets through at q (km,
+// the observer's east-north-up frame from the ground under it), from the
+// light's map: each texel's transmittance, then bilinear between them (a
+// texel at a cloud's edge holds cloud and gap, whose mean transmittance is
+// the mean of the two, not exp of the mean optical depth); 1 outside the
 // map (no cloud beyond the region).
-float cloud_tau(int light, vec3 q)
+float cloud_light(int light, vec3 q)
 {
 	ShadowFrame f = cloud_frame[light];
 	float x = (dot(q, f.u.xyz) - f.U_MIN_KM) * f.U_TEXELS_PER_KM - 0.5;
 	float y = (dot(q, f.v.xyz) - f.V_MIN_KM) * f.V_TEXELS_PER_KM - 0.5;
 	float top = float(SHADOW_W) - 0.5;
 	if (!(x > -0.5 && y > -0.5 && x < top && y < top))
-		return 0.0;
+		return 1.0;
 	x = clamp(x, 0.0, float(SHADOW_W - 1));
 	y = clamp(y, 0.0, float(SHADOW_W - 1));
 	int i = min(int(x), SHADOW_W - 2), j = min(int(y), SHADOW_W - 2);
 	float fx = x - float(i), fy = y - float(j);
 	float d = f.PLANE_KM - dot(q, f.l.xyz);
 	int base = light * SHADOW_W * SHADOW_W + j * SHADOW_W + i;
-	float t00 = shadow_texel_tau(texelFetch(ShadowTex, base), d);
-	float t10 = shadow_texel_tau(texelFetch(ShadowTex, base + 1), d);
-	float t01 = shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W), d);
-	float t11 = shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W + 1), d);
+	float t00 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base), d));
+	float t10 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base + 1), d));
+	float t01 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W), d));
+	float t11 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W + 1), d));
 	return mix(mix(t00, t10, fx), mix(t01, t11, fx), fy);
 }
 
-// The share of light the cloud lets through toward light at q.
-float cloud_light(int light, vec3 q)
-{
-	return exp(-cloud_tau(light, q));
-}
-
-// 1 - skycloud_sky_occlusion(h) for the block's layers: the same formula
-// from the private copy (load_clouds).
+// The share of the sky's multiply scattered light that reaches altitude
+// h through the layers above it: skycloud_sky_occlusion's product over
+// the layers, 1 - cover (1 - t), but with t the light a conservative slab
+// lets through diffusely, 1 / (1 + 3/4 (1 - g) tau) (the two-stream under
+// diffuse light), not exp(-tau): the sky's light scatters through a cloud,
+// it is not taken away.
 float cloud_sky_open(float h)
 {
 	if (CLOUD_LAYERS == 0)
@@ -91,16 +105,71 @@ float cloud_sky_open(float h)
 	float open = 1.0;
 	for (int i = 0; i < CLOUD_LAYERS; i++) {
 		float above = skycloud_saturate((cloud_column[i].x - h) * cloud_column[i].y);
-		open *= 1.0 - cloud_column[i].w * (1.0 - exp(-cloud_column[i].z * above));
+		float t = 1.0 / (1.0 + cloud_slab[i].x * cloud_column[i].z * above);
+		open *= 1.0 - cloud_column[i].w * (1.0 - t);
 	}
 	return 1.0 - skycloud_saturate(1.0 - open);
 }
 
-// At a march step at q, altitude h: sets the sky the layers leave open
-// for the multiply scattered light (cloud_ms_open) and returns the share
-// of the sun's light the cloud lets through.
-float cloud_step(vec3 q, float h)
+// At a march step of altitude h: the sky the layers leave open for the
+// multiply scattered light (cloud_ms_open) and the altitude that
+// cloud_diffuse_source reads.
+void cloud_at(float h)
 {
 	cloud_ms_open = cloud_sky_open(h);
-	return exp(-cloud_tau(0, q));
+	cloud_h_km = h;
+}
+
+// At a march step at q, altitude h: cloud_at(h), and the share of the
+// sun's light the cloud lets through.
+float cloud_step(vec3 q, float h)
+{
+	cloud_at(h);
+	return cloud_light(0, q);
+}
+
+// The reflectance of a conservative slab of vertical optical depth tau
+// (slab: cloud_slab's) for a beam at cos-zenith mu0 > 0: the
+// delta-Eddington two-stream (Joseph, Wiscombe and Weinman 1976; Meador
+// and Weaver 1980, the conservative case), held in [0, 1] (Eddington's
+// goes slightly negative for a thin slab under a high light).
+float cloud_reflectance(float tau, vec2 slab, float mu0)
+{
+	float gt = slab.x * tau;
+	float r = (gt + (0.5 - 0.75 * mu0) * (1.0 - exp(-slab.y * tau / mu0))) / (1.0 + gt);
+	return clamp(r, 0.0, 1.0);
+}
+
+// The light the layers scatter into the air at the step (cloud_at) for a
+// light at cos-zenith mu_l there, per unit of its illuminance: under a
+// layer, what it lets through diffusely (1 - R - exp(-tau / mu), the
+// direct part being the shadow map's) as a uniform radiance from above,
+// and the ground's reflection of it from below; over a layer, what the
+// deck (cloud and ground) reflects beyond the ground alone, R (1 - A)^2 /
+// (1 - R A), from below. Each a uniform hemisphere of radiance mu E x / pi,
+// whose mean over the sphere is half of it, scattered as ms_source
+// scatters the ground's bounce: sigma_s plus (below) or less (above) the
+// ground's excess. Each layer alone, over its cover.
+vec3 cloud_diffuse_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground)
+{
+	if (!(mu_l > 0.0))
+		return vec3(0.0);
+	vec3 albedo = GROUND_BLACK ? vec3(0.0) : P.albedo.rgb, down = vec3(0.0), up = vec3(0.0);
+	for (int i = 0; i < CLOUD_LAYERS; i++) {
+		vec4 col = cloud_column[i];
+		float above = skycloud_saturate((col.x - cloud_h_km) * col.y);
+		float ta = col.z * above, tb = col.z - ta;
+		if (ta > 0.0) {
+			float r = cloud_reflectance(ta, cloud_slab[i], mu_l);
+			vec3 d = col.w * max(1.0 - r - exp(-ta / mu_l), 0.0) / (1.0 - r * albedo);
+			down += d;
+			up += albedo * d;
+		}
+		if (tb > 0.0) {
+			float r = cloud_reflectance(tb, cloud_slab[i], mu_l);
+			up += col.w * r * (1.0 - albedo) * (1.0 - albedo) / (1.0 - r * albedo);
+		}
+	}
+	vec3 lit = transmittance_lookup(a, mu_l) * (0.5 * mu_l / PI);
+	return lit * ((sigma_s - ground) * down + (sigma_s + ground) * up);
 }

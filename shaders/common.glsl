@@ -588,6 +588,10 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 	return max(sigma_s + ms.a * ground + forward * (g.x * b1 + g.y * b2 + lobe), vec3(0.0)) * ms.rgb;
 }
 
+// The light the cloud layers scatter into the air at the march's step
+// (clouds.glsl; sky-view and aerial, where CLOUD_LAYERS > 0).
+vec3 cloud_diffuse_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground);
+
 // In-scattered radiance source at a point for one light whose visible
 // fraction is known (light_visible, or disk_visible_mean over a march
 // step): single scattering through each constituent's phase plus the
@@ -599,7 +603,7 @@ vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased
 	if (MULTISCATTER_ON) {
 		vec3 ms = ms_source(a, mu_l, sigma_s, ground, forward, view_up, ph);
 		if (CLOUD_LAYERS > 0)
-			ms *= cloud_ms_open;
+			ms = ms * cloud_ms_open + cloud_diffuse_source(a, mu_l, sigma_s, ground);
 		s += ms;
 	}
 	return s * illum;
@@ -766,7 +770,7 @@ void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Pha
 	if (MULTISCATTER_ON) {
 		vec3 ms = ms_source(a, mu_l, ds.sigma_s, ds.ground, ds.forward, view_up, ph);
 		if (CLOUD_LAYERS > 0)
-			ms *= cloud_ms_open;
+			ms = ms * cloud_ms_open + cloud_diffuse_source(a, mu_l, ds.sigma_s, ds.ground);
 		ret_scaled += ms;
 	}
 	ret_scaled *= illum;

@@ -2,9 +2,10 @@
 // texel of a light's map (z: 0 sun, 1 moon), the light's ray through each
 // layer's shell inside the region, marched in the steps its piece needs,
 // the density the layer's envelope gives (coverage table x profile x
-// extinction: the detail noise's cells are below a texel). RGBA32F =
-// (front depth km from the map's plane, mean extinction per km over the
-// cloud span, the column's optical depth, the terrain's opaque depth or
+// extinction: the detail noise's cells are below a texel), a partial
+// cover taken as that share of the texel clouded. RGBA32F = (front depth
+// km from the map's plane, mean extinction per km over the cloud span, the
+// column's optical depth, the terrain's opaque depth or
 // SKY_SHADOW_NO_TERRAIN_KM).
 #version 450
 #extension GL_GOOGLE_include_directive : require
@@ -16,12 +17,13 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = BINDING_SHADOW) writeonly buffer ShadowTexels { vec4 d[]; } ST;
 
 // Layer l's extinction per km at q: its envelope from the coverage
-// table, bilinear.
-float envelope_at(int l, vec3 q)
+// table, bilinear; ret_cover the cover there.
+float envelope_at(int l, vec3 q, out float ret_cover)
 {
 	float e = CL.FIELD_EXTENT_KM, k = CL.FIELD_TEXELS_PER_KM;
 	float h = skycloud_altitude(P.BOTTOM_RADIUS_KM, q);
 	float hf = (h - CL.layer[l].base_km) * CL.layer[l].inv_thickness_per_km;
+	ret_cover = 0.0;
 	if (!(hf > 0.0 && hf < 1.0))
 		return 0.0;
 	float x = clamp((q.x + e) * k - 0.5, 0.0, float(CLOUD_W - 1));
@@ -37,7 +39,24 @@ float envelope_at(int l, vec3 q)
 	if (!(c0 > 0.0))
 		return 0.0;
 	float c = skycloud_saturate(c0 + CL.layer[l].anvil * hf * hf);
+	ret_cover = c;
 	return CL.layer[l].extinction_per_km * c * skycloud_profile(CL.layer[l], hf);
+}
+
+// The optical depth of the ray's piece over one coverage texel, tau at
+// the table's cover and tau_full at full cover: the bilinear cover c at a
+// cloud's edge is the share of cloud in the texel, whose edge is sharp
+// (coverage_edge 0.04 of the fBm's spread 0.28), so the piece crosses
+// cloud over that share of the map texel and gap over the rest, 1 - c +
+// c exp(-tau_full) of light through, not exp(-c tau_full). c: the cover
+// along the piece, weighed by the density. The pieces over successive
+// texels meet different parts of the field: their optical depths add.
+float partial_cover_tau(float tau, float tau_full)
+{
+	if (!(tau > 0.0))
+		return 0.0;
+	float c = tau / tau_full;
+	return c < 1.0 ? -log(1.0 - c + c * exp(-tau_full)) : tau_full;
 }
 
 // The ray o - t l's piece [t0, t1] inside the region's square (its east
@@ -131,16 +150,25 @@ void main()
 		if (!(t1 > t0))
 			continue;
 		int n = clamp(int(ceil(2.0 * (t1 - t0) * across)) + 4, 4, STEPS);
-		float dt = (t1 - t0) / float(n);
+		float dt = (t1 - t0) / float(n), seg_tau = 0.0, seg_full = 0.0;
+		int seg = -1;
 		for (int k = 0; k < n; k++) {
 			float t = t0 + (float(k) + 0.5) * dt;
-			float ext = envelope_at(l, o + t * d);
+			float cover, ext = envelope_at(l, o + t * d, cover);
+			int texel_k = int(t * across);
+			if (texel_k != seg) {
+				tau += partial_cover_tau(seg_tau, seg_full);
+				seg_tau = seg_full = 0.0;
+				seg = texel_k;
+			}
 			if (ext > 0.0) {
 				front = min(front, t - 0.5 * dt);
 				back = max(back, t + 0.5 * dt);
-				tau += ext * dt;
+				seg_tau += ext * dt;
+				seg_full += ext / cover * dt;
 			}
 		}
+		tau += partial_cover_tau(seg_tau, seg_full);
 	}
 	// No cloud: (0, 0, 0), which a bilinear filter of the texels blends
 	// into a cloud's edge as the clear it is.

@@ -119,7 +119,7 @@ void main()
 			StepEnd eb = step_end(en, sin_z, cos_z, next);
 			Scatter sc;
 			Medium m = medium_parts(hs, sc);
-			cloud_ms_open = cloud_sky_open(hs);
+			cloud_at(hs);
 			// The view's cos-zenith at the point is the same in every column.
 			float view_up = sin_z * up_h + cos_z * up_z;
 			vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);

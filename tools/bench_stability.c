@@ -49,17 +49,17 @@ static void f16_figures(const struct model_tables *a, const struct model_tables 
 static int cloud_case(struct eng *e, const struct stab_cloud_case *k, struct stab_result *rm,
 		      struct stab_result *rg, uint64_t *ret_sum, char *err, size_t n)
 {
-	struct sky_state s, clear;
+	struct sky_state s, bound;
 	struct model_tables mw, mo, gw, go;
 	int rc = stab_cloud_state(k, &s, err, n);
 
 	if (rc < 0 || (rc = stab_cloud_check_model(k->name, &s, rm, ret_sum, err, n)) < 0)
 		return rc;
-	stab_cloud_clear(&s, &clear);
+	stab_cloud_bound(&s, &bound);
 	if ((rc = stab_model(NULL, &s, STATE_ALL_TABLES, &mw, err, n)) < 0 ||
-	    (rc = stab_model(NULL, &clear, STATE_ALL_TABLES, &mo, err, n)) < 0 ||
+	    (rc = stab_model(NULL, &bound, STATE_ALL_TABLES, &mo, err, n)) < 0 ||
 	    (rc = stab_engine(e, &s, STATE_ALL_TABLES, &gw, err, n)) < 0 ||
-	    (rc = stab_engine(e, &clear, STATE_ALL_TABLES, &go, err, n)) < 0)
+	    (rc = stab_engine(e, &bound, STATE_ALL_TABLES, &go, err, n)) < 0)
 		return rc;
 	stab_check(k->name, &s, &mw, &stab_tol_model, rm);
 	stab_check_shadowed(k->name, &mw, &mo, &stab_tol_model, rm);
@@ -84,9 +84,11 @@ static int cloud_section(FILE *f, struct eng *e, char *err, size_t n)
 		   "without (shadowed never brighter), the path tracer (finite, >= 0, the same bits on "
 		   "one thread and three), the field's checksum computed again in another thread, and "
 		   "the model's tables with every invariant; f32: the engine's tables, the same "
-		   "invariants. Neither the model's tables nor the engine's hold cloud shadows yet: "
-		   "with and without are the same tables there until the cloud passes exist, which "
-		   "then run these cases as they are (test_stability_gpu). The checksum is the "
+		   "invariants. The tables with the scene are held to the same state without it over "
+		   "a white ground (stab_cloud_bound): the layers' own light makes the air over a deck "
+		   "brighter than over the ground, never more than a white ground would. The model's "
+		   "tables hold no cloud term (with and without differ by the ground alone); the "
+		   "engine's run these cases (test_stability_gpu). The checksum is the "
 		   "field's over the grid (FNV-1a of the doubles' bits): every host gives the same "
 		   "(test_stability_clouds holds it).\n\n"
 		   "| case | on | stresses | finite | non-negative | in range | shadowed <= unshadowed | "

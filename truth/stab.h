@@ -119,7 +119,7 @@ void stab_note(struct stab_result *r, enum stab_invariant inv, bool ok, const ch
  * passes run the same cases: stab_cloud_state makes a case's state,
  * stab_cloud_check_model checks the field and the tracer,
  * stab_check_shadowed any two sets of tables, with the case's clouds and
- * terrain and without (stab_cloud_clear). */
+ * terrain and the bound (stab_cloud_bound). */
 
 #define STAB_CLOUD_KEYS 20
 struct stab_cloud_case {
@@ -136,8 +136,12 @@ extern const size_t stab_n_cloud_cases;
  * Returns 0 or -errno with err (a key refused, a field not written). */
 int stab_cloud_state(const struct stab_cloud_case *c, struct sky_state *ret, char *err,
 		     size_t err_size);
-/* s without cloud layers and terrain: what the shadowed is compared with. */
-void stab_cloud_clear(const struct sky_state *s, struct sky_state *ret);
+/* s without cloud layers and terrain, over a white ground (albedo 1): what
+ * the shadowed is compared with. The layers' shadows only take light away,
+ * but the light they scatter into the air (docs/clouds.md, "In the
+ * tables") makes the air over a deck brighter than over the ground, as a
+ * brighter ground would, never more than a white one. */
+void stab_cloud_bound(const struct sky_state *s, struct sky_state *ret);
 
 /* The model side of a case, counted in r: the density over a grid through
  * every layer finite and in [0, extinction] (the tracer's majorant), the
@@ -151,8 +155,8 @@ void stab_cloud_clear(const struct sky_state *s, struct sky_state *ret);
 int stab_cloud_check_model(const char *name, const struct sky_state *s, struct stab_result *r,
 			   uint64_t *ret_checksum, char *err, size_t err_size);
 /* Every sky-view and aerial RGB texel of with (a state with clouds or
- * terrain) at most without's (the same state clear) plus tol->abs_t of the
- * table's peak, finite both: the shadows only take light away. */
+ * terrain) at most without's (stab_cloud_bound's) plus tol->abs_t of the
+ * table's peak, finite both. */
 void stab_check_shadowed(const char *name, const struct model_tables *with,
 			 const struct model_tables *without, const struct stab_tol *tol,
 			 struct stab_result *r);

@@ -1,9 +1,9 @@
 /* stab_clouds.c - the stiff and extreme cases of the clouds and the terrain
  * (stab.h) and their invariants on the model side: the field of
  * proto/skycloud.h and proto/skyterrain.h in double and the path tracer;
- * and the check that any two sets of tables, with and without the scene,
- * keep the shadowed never brighter than the unshadowed (the engine's
- * cloud passes run the same cases through it). */
+ * and the check that any two sets of tables, with the scene and without
+ * it over a white ground, keep the shadowed never brighter than the bound
+ * (the engine's cloud passes run the same cases through it). */
 #include "stab.h"
 
 #include <errno.h>
@@ -76,13 +76,14 @@ int stab_cloud_state(const struct stab_cloud_case *c, struct sky_state *ret, cha
 	return 0;
 }
 
-void stab_cloud_clear(const struct sky_state *s, struct sky_state *ret)
+void stab_cloud_bound(const struct sky_state *s, struct sky_state *ret)
 {
 	char err[256];
 	*ret = *s;
 	for (int i = 0; i < STATE_CLOUD_LAYERS; i++)
 		ret->clouds.layer[i].oktas = NAN;
 	state_set(ret, "terrain", "none", NULL, err, sizeof(err));
+	state_set(ret, "ground_albedo", "1", NULL, err, sizeof(err));
 }
 
 /* ---- the field ---- */

@@ -1,23 +1,25 @@
 /* test_cloud_shadow.c - the cloud layers' shadows in the tables
  * (docs/clouds.md, "In the tables"), on the device:
  *  - under an 8/8 stratocumulus at 1.0-1.4 km with the sun at 40 degrees,
- *    the aerial perspective's in-scattered light at 10 km is well below
- *    the clear sky's: the sun's single scattering under the layer passes
- *    a column of optical depth ~9 (exp(-9) ~ 1e-4) and the multiply
- *    scattered light is dimmed by the sky the layer leaves open (1 - 1 x
- *    (1 - exp(-9.3)) ~ 1e-4), so what is left is the air above the layer
- *    along the slanted views, which the camera looks through only where it
- *    looks up (its views above the layer's top see the clear sky's air:
- *    the tables leave the cloud's own extinction along the view to the
- *    client that draws it); the bound says at most half of the clear
- *    sky's over the whole slice, and under 1 % for the views whose 10 km
- *    stay under the base (measured 0.27 and 4.3e-5 on lavapipe).
- *  - shadowed is never brighter than unshadowed: every texel of sky-view
- *    and aerial perspective with layers is at most the same sky's without
- *    them (each term is the clear one times a factor in [0, 1]; a rounded
- *    product of non-negative floats is monotonic in each factor), for an
- *    overcast, a broken layer at low sun and a layer below an observer in
- *    flight.
+ *    the aerial perspective's in-scattered light at 10 km is below the
+ *    clear sky's but far from dark: the sun's single scattering under the
+ *    layer passes a column of optical depth ~9 (exp(-9) ~ 1e-4), but a
+ *    conservative slab lets the light through diffusely (two-stream,
+ *    tau 9.3, g 0.85: 1 - R - exp(-tau / mu) = 0.52 of the sun's flux,
+ *    1 / (1 + 3/4 (1 - g) tau) = 0.49 of the sky's), and the ground
+ *    reflects part of it back: the air under the base gets between half
+ *    and 0.9 of the clear sky's light (measured 0.736 on lavapipe); the
+ *    whole slice, whose views that look up reach the air over the deck,
+ *    lit from below by its reflection, between 0.6 and 1 (measured
+ *    0.854; docs/clouds.md, "In the tables").
+ *  - the layers never add more light than a white ground would: every
+ *    texel of sky-view and aerial with layers is at most the same sky's
+ *    without them over a ground of albedo 1 (the deck reflects and
+ *    transmits what reaches it, R + T <= 1; the shadows only take away),
+ *    for an overcast, a broken layer at low sun and a layer below an
+ *    observer in flight. The clear sky over its own ground is no bound:
+ *    the air over a deck is brighter than over the ground, as the path
+ *    tracer's is (docs/accuracy.md, "Shadowed scenes").
  *  - a clear sky runs no cloud pass: no cloud table, no shadow map.
  *  - the cloud and shadow tables are the same bits from a second engine. */
 #include <math.h>
@@ -79,13 +81,14 @@ static int tables_of(const char *pairs, float *ret[2], size_t ret_n[2])
 	return 0;
 }
 
-/* Every radiance value of the cloudy tables at most the clear ones'. */
-static void never_brighter(const char *clear, const char *cloudy)
+/* Every radiance value of the cloudy tables at most the bound's (the
+ * same sky clear over a white ground). */
+static void never_brighter(const char *bound, const char *cloudy)
 {
 	float *a[2] = { 0 }, *b[2] = { 0 };
 	size_t n[2], m[2];
 
-	if (tables_of(clear, a, n) == 0 && tables_of(cloudy, b, m) == 0)
+	if (tables_of(bound, a, n) == 0 && tables_of(cloudy, b, m) == 0)
 		for (int k = 0; k < 2; k++) {
 			size_t darker = 0;
 			CHECK_EQ(n[k], m[k]);
@@ -94,7 +97,7 @@ static void never_brighter(const char *clear, const char *cloudy)
 					continue;
 				darker += b[k][i] < a[k][i];
 				if (!(b[k][i] <= a[k][i]))
-					FAIL("%s: %s value %zu: %.9g above the clear %.9g", cloudy,
+					FAIL("%s: %s value %zu: %.9g above the bound %.9g", cloudy,
 					     k ? "aerial" : "skyview", i, b[k][i], a[k][i]);
 			}
 			printf("%-60s %-8s %zu of %zu values darker\n", cloudy, k ? "aerial" : "skyview", darker,
@@ -163,14 +166,14 @@ static void overcast_at_ten_km(void)
 		double lit = aerial_mean_at(&s, a[1], 10.0, 1e30), shadowed = aerial_mean_at(&s, b[1], 10.0, 1e30);
 		printf("aerial in-scatter at 10 km, sun 40 deg: clear %.6g, under 8/8 at 1 km %.6g, ratio %.4f\n",
 		       lit, shadowed, shadowed / lit);
-		CHECK(lit > 0.0 && shadowed / lit < 0.5);
-		/* The views that stay under the base for their 10 km: nothing
-		 * but the light through 9 optical depths of cloud. */
+		CHECK(lit > 0.0 && shadowed / lit > 0.6 && shadowed / lit < 1.0);
+		/* The views that stay under the base for their 10 km: the
+		 * light the layer lets through diffusely, and the ground's. */
 		lit = aerial_mean_at(&s, a[1], 10.0, 1.0);
 		shadowed = aerial_mean_at(&s, b[1], 10.0, 1.0);
 		printf("the same, views under the base all the way: clear %.6g, overcast %.6g, ratio %.3g\n", lit,
 		       shadowed, shadowed / lit);
-		CHECK(lit > 0.0 && shadowed / lit < 0.01);
+		CHECK(lit > 0.0 && shadowed / lit > 0.5 && shadowed / lit < 0.9);
 	}
 	for (int k = 0; k < 2; k++) {
 		free(a[k]);
@@ -215,11 +218,12 @@ int main(void)
 {
 	eng = vk_or_skip();
 	overcast_at_ten_km();
-	never_brighter("sun_elevation_deg=40", "sun_elevation_deg=40 cloud1_oktas=8 cloud1_base_m=1000");
-	never_brighter("sun_elevation_deg=4 sun_azimuth_deg=250",
+	never_brighter("sun_elevation_deg=40 ground_albedo=1",
+		       "sun_elevation_deg=40 cloud1_oktas=8 cloud1_base_m=1000");
+	never_brighter("sun_elevation_deg=4 sun_azimuth_deg=250 ground_albedo=1",
 		       "sun_elevation_deg=4 sun_azimuth_deg=250 cloud1_oktas=4 cloud1_base_m=1200 "
 		       "cloud1_type=cumulus");
-	never_brighter("altitude_km=6 sun_elevation_deg=20",
+	never_brighter("altitude_km=6 sun_elevation_deg=20 ground_albedo=1",
 		       "altitude_km=6 sun_elevation_deg=20 cloud1_oktas=6 cloud1_base_m=1000");
 	demand_and_bits();
 	eng_free(eng);

@@ -135,24 +135,24 @@ static void test_sweep(void)
 }
 
 /* The clouds' and terrain's cases (truth/stab_clouds.c) on the engine:
- * every table invariant, and never brighter than the same state clear.
- * Until the engine's cloud passes exist both are the same tables; once
- * they do, this is where their shadows are held to it. */
+ * every table invariant, and never brighter than the same state clear
+ * over a white ground (stab_cloud_bound): here the shadows and the light
+ * the layers scatter into the air are held to it. */
 static void test_clouds(void)
 {
 	char err[512];
 	for (size_t c = 0; c < stab_n_cloud_cases; c++) {
 		const char *name = stab_cloud_cases[c].name;
-		struct sky_state s, clear;
+		struct sky_state s, bound;
 		struct model_tables with, without;
 		struct stab_result r = { 0 };
 		if (stab_cloud_state(&stab_cloud_cases[c], &s, err, sizeof(err)) < 0) {
 			FAIL("%s: %s", name, err);
 			continue;
 		}
-		stab_cloud_clear(&s, &clear);
+		stab_cloud_bound(&s, &bound);
 		if (stab_engine(eng, &s, STATE_ALL_TABLES, &with, err, sizeof(err)) < 0 ||
-		    stab_engine(eng, &clear, STATE_ALL_TABLES, &without, err, sizeof(err)) < 0) {
+		    stab_engine(eng, &bound, STATE_ALL_TABLES, &without, err, sizeof(err)) < 0) {
 			FAIL("%s: %s", name, err);
 			continue;
 		}
