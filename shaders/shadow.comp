@@ -130,7 +130,7 @@ void main()
 		}
 		if (!(t1 > t0))
 			continue;
-		int n = clamp(int(ceil(2.0 * (t1 - t0) * across)) + 4, 4, STEPS);
+		int n = clamp(int(ceil(2.0 * (t1 - t0) * across)), 4, STEPS);
 		float dt = (t1 - t0) / float(n);
 		for (int k = 0; k < n; k++) {
 			float t = t0 + (float(k) + 0.5) * dt;
