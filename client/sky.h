@@ -171,8 +171,9 @@ typedef struct sky_reply sky_reply;
 /* Table bits for sky_subscribe() and struct sky_view (bit = 1 << id of
  * enum sky_shm_table_id). SKY_TABLES_ALL is the sky's four tables; the
  * cloud tables (layout 7: SKY_TABLE_CLOUD, the coverage table, and
- * SKY_TABLE_SHADOW, the shadow maps) are in a region only while skyd
- * draws a cloud layer, and come with sky-view or aerial perspective, or by
+ * SKY_TABLE_SHADOW, the shadow maps) are in a region only while something
+ * casts, a drawn cloud layer or the terrain (which has maps and no
+ * coverage), and come with sky-view or aerial perspective, or by
  * their own bits (SKY_TABLES_CLOUDS). The slot's clouds (struct
  * sky_shm_clouds: the layers, the wind's offset, the maps' frames, the
  * cloud's transmittance toward the lights) are in every slot:

@@ -144,8 +144,9 @@ struct sky_shm_cloud_layer {
 
 /* The cloud field of a slot (layout 7; docs/clouds.md): the layers as
  * skyd draws them, where the wind has put the field, and the frames of
- * the shadow maps (SKY_TABLE_SHADOW). n_layers 0: a clear sky, every
- * other field 0 but the transmittances (1). */
+ * the shadow maps (SKY_TABLE_SHADOW). n_layers 0: no layer, every other
+ * field 0 but the transmittances (1) and, where the terrain casts, the
+ * shadow maps' frames and shadow_lights. */
 struct sky_shm_clouds {
 	uint32_t n_layers;		/* layers[0 .. n_layers) */
 	uint32_t shadow_lights;		/* bit 0: the sun's map is valid, bit 1: the moon's */

@@ -149,7 +149,7 @@ void main()
 		}
 		if (!(t1 > t0))
 			continue;
-		int n = clamp(int(ceil(2.0 * (t1 - t0) * across)) + 4, 4, STEPS);
+		int n = clamp(int(ceil(2.0 * (t1 - t0) * across)), 4, STEPS);
 		float dt = (t1 - t0) / float(n), seg_tau = 0.0, seg_full = 0.0;
 		int seg = -1;
 		for (int k = 0; k < n; k++) {

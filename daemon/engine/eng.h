@@ -231,6 +231,10 @@ const void *eng_cloud_table(const struct eng *e, int t, size_t *ret_bytes);
  * lights; returns the layers drawn (0: all zero). */
 int eng_cloud_frames(const struct sky_state *s, const struct state_lights *lights,
 		     float ret[2][16]);
+/* Whether anything casts into the shadow maps of s: a drawn layer or the
+ * terrain (the maps exist, SPEC_SHADOW_W is their width, and a region
+ * publishes them). */
+bool eng_shadow_casters(const struct sky_state *s);
 
 /* k such that the table's RGB values are its stored RGB times 2^k: 0 for
  * float32 storage; for float16, the pack pass's choice, the smallest k

@@ -40,10 +40,54 @@ static void shadow_frame(const double l[3], double e, double top_km, double rb_k
 	ret->V_TEXELS_PER_KM = (float)(width / fmax(b.v_hi_km - b.v_lo_km, 1e-3));
 }
 
+/* The share of the finest caster texel (coverage or terrain) by which a
+ * map's light may miss the true one at the casters' top: the maps are
+ * made for a light on a grid of horizontal slopes (its east and north
+ * components over its up one), so that a light that moves less than a
+ * cell keeps the maps, whatever moved it and in which order. Rounding each
+ * slope by at most half a cell shifts a shadow cast from the top down to
+ * the ground by at most SHADOW_LIGHT_SHARE / sqrt(2) of that texel
+ * (docs/performance.md, "Clouds"). */
+#define SHADOW_LIGHT_SHARE 0.5
+/* Below this up component (about 0.6 degrees) a light's slope is too
+ * steep for the grid: its maps follow it exactly. */
+#define SHADOW_LIGHT_MIN_UP 0.01
+
+/* The light l's direction on the grid of slopes of cell grid (0: l). */
+static void grid_light(const double l[3], double grid, double ret[3])
+{
+	if (!(grid > 0.0) || !(l[2] > SHADOW_LIGHT_MIN_UP)) {
+		memcpy(ret, l, 3 * sizeof(double));
+		return;
+	}
+	double sx = round(l[0] / l[2] / grid) * grid, sy = round(l[1] / l[2] / grid) * grid;
+	double n = sqrt(sx * sx + sy * sy + 1.0);
+	ret[0] = sx / n;
+	ret[1] = sy / n;
+	ret[2] = 1.0 / n;
+}
+
+/* The frames of the lights that light: the sun's and, while it lights,
+ * the moon's, each for its light on the grid of slopes whose cell is
+ * SHADOW_LIGHT_SHARE of texel_km at top_km. */
+static void light_frames(const struct sky_state *s, const struct state_lights *lights, double map_e,
+			 double top_km, double texel_km, struct gpu_clouds *ret)
+{
+	double grid = top_km > 0.0 ? SHADOW_LIGHT_SHARE * texel_km / top_km : 0.0, l[3];
+
+	grid_light(lights->sun, grid, l);
+	shadow_frame(l, map_e, top_km, s->atmo.bottom_radius_km, s->quality.shadow_width, &ret->frame[0]);
+	if (s->moon.illuminance_lx > 0.0) {
+		grid_light(lights->moon, grid, l);
+		shadow_frame(l, map_e, top_km, s->atmo.bottom_radius_km, s->quality.shadow_width,
+			     &ret->frame[1]);
+	}
+}
+
 int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights,
 		    struct gpu_clouds *ret)
 {
-	double e = state_cloud_extent_km(s), top = 0.0, map_e = e;
+	double e = state_cloud_extent_km(s), top = 0.0, map_e = e, texel_km = INFINITY;
 
 	memset(ret, 0, sizeof(*ret));
 	int n = state_cloud_layers(s, ret->layer);
@@ -57,6 +101,7 @@ int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights
 		ret->FIELD_OFFSET_NORTH_KM = (float)s->clouds.offset_km[1];
 		ret->FIELD_EXTENT_KM = (float)e;
 		ret->FIELD_TEXELS_PER_KM = (float)(s->quality.cloud_width / (2.0 * e));
+		texel_km = 2.0 * e / s->quality.cloud_width;
 	}
 	if (terrain) {
 		/* The top is white's height: a bound of the highest texel,
@@ -71,11 +116,9 @@ int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights
 		ret->terrain_size[3] = (uint32_t)(s->terrain.hash >> 32);
 		top = fmax(top, s->terrain.height_m * 1e-3);
 		map_e = n > 0 ? fmax(e, 0.5 * s->terrain.extent_km) : 0.5 * s->terrain.extent_km;
+		texel_km = fmin(texel_km, s->terrain.extent_km / fmax(s->terrain.width, s->terrain.height));
 	}
-	shadow_frame(lights->sun, map_e, top, s->atmo.bottom_radius_km, s->quality.shadow_width, &ret->frame[0]);
-	if (s->moon.illuminance_lx > 0.0)
-		shadow_frame(lights->moon, map_e, top, s->atmo.bottom_radius_km, s->quality.shadow_width,
-			     &ret->frame[1]);
+	light_frames(s, lights, map_e, top, texel_km, ret);
 	return n;
 }
 

@@ -346,9 +346,6 @@ int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights
 /* mask with the cloud tables a computation of it needs for c (n layers):
  * none for a clear sky; both where sky-view or aerial perspective would
  * read maps made for another block. */
-/* Whether anything casts into the shadow maps: a drawn layer or the
- * terrain (the maps exist, SPEC_SHADOW_W is their width). */
-bool eng_shadow_casters(const struct sky_state *s);
 uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct gpu_clouds *c, int n,
 			uint32_t mask);
 /* (Re)allocates the cloud buffers for s (one texel each without a drawn

@@ -62,16 +62,20 @@ static uint32_t views_capacity(const struct sky_state *s)
 	return s->n_views ? SKY_SHM_MAX_VIEWS : 0;
 }
 
-/* The cloud tables are in a layout only while a layer is drawn: a clear
- * sky's region is what it was before clouds. */
+/* The cloud tables are in a layout only while something casts (a drawn
+ * layer or the terrain): a clear sky's region is what it was before
+ * clouds. The terrain alone has maps but no coverage: its entry is one
+ * texel, never valid. */
 static uint32_t cloud_width(const struct sky_state *s)
 {
-	return state_clouds_drawn(s) ? s->quality.cloud_width : 0;
+	if (state_clouds_drawn(s))
+		return s->quality.cloud_width;
+	return eng_shadow_casters(s) ? 1 : 0;
 }
 
 static uint32_t shadow_width(const struct sky_state *s)
 {
-	return state_clouds_drawn(s) ? s->quality.shadow_width : 0;
+	return eng_shadow_casters(s) ? s->quality.shadow_width : 0;
 }
 
 /* A cloud table's directory entry: float32 RGBA, never scaled. */
@@ -438,8 +442,8 @@ static void shadow_rows(const struct sky_state *s, const struct state_lights *li
 }
 
 /* The slot's cloud block of s (struct sky_shm_clouds): the drawn layers,
- * the field's place, the shadow maps' frames and the cloud's
- * transmittance toward each light from the observer. */
+ * the field's place, the shadow maps' frames (a layer's or the terrain's)
+ * and the cloud's transmittance toward each light from the observer. */
 static void cloud_block(const struct sky_state *s, const struct state_lights *lights,
 			struct sky_shm_clouds *ret)
 {
@@ -450,6 +454,9 @@ static void cloud_block(const struct sky_state *s, const struct state_lights *li
 
 	memset(ret, 0, sizeof(*ret));
 	ret->sun_transmittance = ret->moon_transmittance = 1.0;
+	/* The terrain alone casts too: its maps have frames. */
+	if (eng_shadow_casters(s))
+		shadow_rows(s, lights, ret);
 	if (n == 0)
 		return;
 	ret->n_layers = (uint32_t)n;
@@ -469,7 +476,6 @@ static void cloud_block(const struct sky_state *s, const struct state_lights *li
 		double tau = skycloud_optical_depth(layers, n, offset, rb, o, d, 2.0e3f, 256);
 		*(k == 0 ? &ret->sun_transmittance : &ret->moon_transmittance) = exp(-tau);
 	}
-	shadow_rows(s, lights, ret);
 }
 
 /* The slot's cloud block and, where valid and the engine gave them

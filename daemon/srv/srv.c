@@ -142,9 +142,10 @@ static uint32_t demand_closure(const struct sky_state *st, uint32_t demand)
 	if (st->quality.multiscatter_dirs == 0 && !(demand & STATE_BIT(STATE_MULTISCATTER)))
 		c &= ~STATE_BIT(STATE_MULTISCATTER);
 	/* Drawn layers shadow sky-view and aerial perspective: their maps,
-	 * made from the coverage table, come along. */
-	if (state_clouds_drawn(st) && (c & (STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL))))
-		c |= STATE_CLOUD_TABLES;
+	 * made from the coverage table, come along; the terrain alone casts
+	 * into the maps only. */
+	if (eng_shadow_casters(st) && (c & (STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL))))
+		c |= state_clouds_drawn(st) ? STATE_CLOUD_TABLES : STATE_BIT(STATE_CLOUD_SHADOW);
 	return c;
 }
 
