@@ -406,13 +406,22 @@ static long stream_until(struct stream *st, long gen)
 }
 
 /* Sends one request to skyd; the generation its reply names, or -1. */
+/* Sends line and returns the generation it names once that generation
+ * (or a newer one) is published, so that a client started next draws it. */
 static long request(const char *line)
 {
 	struct conn c;
 	char reply[4096];
 	long g = -1;
-	if (conn_open(&c, d.sock) == 0 && conn_request(&c, line, reply, sizeof(reply)) == 0)
-		g = (long)reply_u64(reply, "generation");
+	if (conn_open(&c, d.sock) == 0 && conn_request(&c, "subscribe events=1", reply, sizeof(reply)) == 0 &&
+	    conn_request(&c, "status", reply, sizeof(reply)) == 0) {
+		uint64_t published = reply_u64(reply, "generation");
+		if (conn_request(&c, line, reply, sizeof(reply)) == 0) {
+			g = (long)reply_u64(reply, "generation");
+			if ((uint64_t)g > published && conn_wait_generation(&c, (uint64_t)g) < 0)
+				g = -1;
+		}
+	}
 	conn_close(&c);
 	return g;
 }
