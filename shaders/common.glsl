@@ -37,6 +37,7 @@ const int MOMENT_CONST = MOMENT_LOBE - 1;
 layout(constant_id = SPEC_DELTA_LOBE) const int DELTA_LOBE = 0;     // 1 + the constituent delta-M scaled for the higher orders (delta_source), 0 none
 const int DELTA_CONST = DELTA_LOBE - 1;
 layout(constant_id = SPEC_LOOKUP_IMAGES) const bool LOOKUP_IMAGES = false;	// the lookups through sampled images
+layout(constant_id = SPEC_MS_UNIFORM) const bool MS_UNIFORM = false;	// multi-scattering through MU
 layout(constant_id = SPEC_CLOUD_LAYERS) const int CLOUD_LAYERS = 0;	// cloud layers drawn (clouds.glsl); 0: no cloud term
 
 // The share of the sky's multiply scattered light that the cloud layers
@@ -84,6 +85,12 @@ layout(std430, binding = BINDING_AERIAL) buffer AerialBuf { uint d[]; } AB;
 // buffers (float32 RGBA): the gathers are vectorized.
 layout(binding = BINDING_TRANSMITTANCE_TEX) uniform samplerBuffer TransmittanceTex;
 layout(binding = BINDING_MULTISCATTER_TEX) uniform samplerBuffer MultiscatterTex;
+// And as a uniform block where MS_UNIFORM (aerial perspective on a CPU):
+// llvmpipe calls out for every texel-buffer fetch, spilling its vector
+// registers, but loads a uniform block inline.
+layout(std140, binding = BINDING_MULTISCATTER_UBO) uniform MultiscatterBlock {
+	vec4 t[SKY_MS_UNIFORM_TEXELS];
+} MU;
 // And as sampled images, bilinear by the texture units at texel
 // coordinates (texel i's centre at i + 0.5), where LOOKUP_IMAGES: the
 // engine copies the tables into them (eng_pass.c).
@@ -431,6 +438,9 @@ vec4 ms_read_table(MsTaps t)
 {
 	if (LOOKUP_IMAGES)
 		return mix(textureLod(MultiscatterImg, t.at.xy, 0.0), textureLod(MultiscatterImg, t.at.zw, 0.0), t.f.z);
+	if (MS_UNIFORM)
+		return mix(mix(MU.t[t.i.x], MU.t[t.i.y], t.f.x),
+			   mix(MU.t[t.i.z], MU.t[t.i.w], t.f.y), t.f.z);
 	return ms_read(MultiscatterTex, t);
 }
 

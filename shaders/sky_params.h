@@ -48,7 +48,9 @@
 				 * computed as it was before clouds existed */
 #define SPEC_SHADOW_W 30	/* a shadow map's width (shadow_width), 0 without clouds */
 #define SPEC_CLOUD_W 31		/* the coverage table's (cloud_width), 0 without clouds */
-#define SPEC_COUNT 32
+#define SPEC_MS_UNIFORM 32	/* aerial perspective reads multi-scattering through
+				 * the uniform block at BINDING_MULTISCATTER_UBO */
+#define SPEC_COUNT 33
 
 /* Bindings of the one descriptor set. The tables are storage buffers in
  * state_table order; transmittance and multi-scattering are read again
@@ -79,7 +81,11 @@
 #define BINDING_SHADOW_TEX 21		/* the same memory as a lookup */
 #define BINDING_TERRAIN 22		/* the terrain's 16-bit texels, two a word
 					 * (a 1-word dummy without a field) */
-#define BINDING_COUNT 23
+#define BINDING_MULTISCATTER_UBO 23	/* the multi-scattering table's float texels
+					 * as a uniform block of SKY_MS_UNIFORM_TEXELS
+					 * vec4s (SPEC_MS_UNIFORM) */
+#define SKY_MS_UNIFORM_TEXELS 1024	/* 16 KiB, the least maxUniformBufferRange */
+#define BINDING_COUNT 24
 
 /* The aerial jobs at BINDING_VIEWS (eng_fill_views, aerial.comp,
  * aerial_resample.comp): a head whose first word is the number of march

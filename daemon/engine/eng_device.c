@@ -341,7 +341,7 @@ static void *waiter_main(void *arg)
 
 VkDescriptorType eng_binding_type(int binding)
 {
-	if (binding == 0)
+	if (binding == 0 || binding == BINDING_MULTISCATTER_UBO)
 		return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
 	if (binding == BINDING_MOMENT_TEX || binding == BINDING_COLUMNS_TEX || binding == BINDING_AERIAL_TEX ||
 	    binding == BINDING_CLOUD_TEX || binding == BINDING_SHADOW_TEX)
@@ -429,7 +429,7 @@ static int create_descriptors(struct eng *e, char *err, size_t err_size)
 	VkPipelineLayoutCreateInfo pli = { .sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
 		.setLayoutCount = 1, .pSetLayouts = &e->set_layout };
 	VK_TRY(e->vk.vkCreatePipelineLayout(e->dev, &pli, NULL, &e->pipe_layout));
-	VkDescriptorPoolSize ps[4] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1 },
+	VkDescriptorPoolSize ps[4] = { { VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2 },
 		{ VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, STATE_N_TABLES + 8 },
 		{ VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, N_LOOKUPS + 5 },
 		{ VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, N_LOOKUPS } };

@@ -12,6 +12,7 @@
  * barrier would turn every invocation into a coroutine (lavapipe). */
 static const struct grain cpu_grain = {
 	.kind = ENG_GRAIN_CPU, .ms_sun_group = 4, .sv_az_group = 12, .ms_wide = false,
+	.ms_uniform = true,
 };
 
 /* A GPU wants thousands of workgroups: a multi-scattering texel per

@@ -77,6 +77,9 @@ struct grain {
 	 * multi-scattering through sampled images, filtered by the texture
 	 * units, instead of texel buffers filtered by hand. */
 	bool lookup_images;
+	/* Aerial perspective reads multi-scattering through a uniform block
+	 * (BINDING_MULTISCATTER_UBO) where the table fits one. */
+	bool ms_uniform;
 };
 
 /* phase_ground_excess of one constituent, kept while its phase stays: it
@@ -222,6 +225,9 @@ struct eng {
 	 * vectorized, where a storage-buffer load with a varying index is a
 	 * loop over the lanes on lavapipe. */
 	VkBufferView lookup_view[N_LOOKUPS];
+	/* The multi-scattering texels BINDING_MULTISCATTER_UBO covers: the
+	 * table's float texels, at most SKY_MS_UNIFORM_TEXELS of them. */
+	VkDeviceSize ms_uniform_bytes;
 	/* The same tables as sampled images (grain.lookup_images), copied
 	 * from the buffers after each computation of them; made whatever the
 	 * grain, since every pipeline's descriptors name them. images_valid:

@@ -451,7 +451,8 @@ void eng_record_passes(struct eng *e, const struct sky_state *s, const struct pl
 {
 	const VkMemoryBarrier after = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
 		.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT,
-		.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT };
+		.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT |
+				 VK_ACCESS_UNIFORM_READ_BIT };
 	/* What passes since the last barrier wrote and read. */
 	uint32_t written = 0, read = 0;
 

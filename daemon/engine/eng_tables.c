@@ -60,6 +60,8 @@ static void bind_buffers(struct eng *e)
 			bi[i] = (VkDescriptorBufferInfo){ e->shadow.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_TERRAIN)
 			bi[i] = (VkDescriptorBufferInfo){ e->terrain.buf, 0, VK_WHOLE_SIZE };
+		else if (i == BINDING_MULTISCATTER_UBO)
+			bi[i] = (VkDescriptorBufferInfo){ e->table[STATE_MULTISCATTER].buf, 0, e->ms_uniform_bytes };
 		else if (i > 0)
 			bi[i] = (VkDescriptorBufferInfo){ e->table[i - 1].buf, 0, VK_WHOLE_SIZE };
 		w[i].pBufferInfo = &bi[i];
@@ -116,7 +118,7 @@ static int table_new(struct eng *e, const struct sky_state *s, int t, char *err,
 	eng_buffer_free(e, &e->table[t]);
 	eng_buffer_free(e, &e->readback[t]);
 	e->table_bytes[t] = e->device_bytes[t] = 0;
-	rc = eng_buffer_new(e, device, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+	rc = eng_buffer_new(e, device, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT |
 				  VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
 				  VK_BUFFER_USAGE_TRANSFER_DST_BIT,
 			    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT,
@@ -140,6 +142,9 @@ static int table_new(struct eng *e, const struct sky_state *s, int t, char *err,
 			.buffer = e->table[t].buf, .format = VK_FORMAT_R32G32B32A32_SFLOAT,
 			.range = eng_float_bytes(e, s, t) };
 		VK_TRY(e->vk.vkCreateBufferView(e->dev, &vi, NULL, &e->lookup_view[t]));
+		if (t == STATE_MULTISCATTER)
+			e->ms_uniform_bytes = vi.range < 16 * SKY_MS_UNIFORM_TEXELS ? vi.range
+										  : 16 * SKY_MS_UNIFORM_TEXELS;
 	}
 	if (t == STATE_AERIAL) {
 		VkBufferViewCreateInfo vi = { .sType = VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO,

@@ -275,7 +275,7 @@ static const struct named_id spec_ids[] = {
 	{ "SV_AZ_GROUP", SPEC_SV_AZ_GROUP }, { "ITER_FIRST", SPEC_ITER_FIRST },
 	{ "MOMENT_LOBE", SPEC_MOMENT_LOBE }, { "DELTA_LOBE", SPEC_DELTA_LOBE },
 	{ "PACK_MASK", SPEC_PACK_MASK }, { "MS_LANES", SPEC_MS_LANES },
-	{ "LOOKUP_IMAGES", SPEC_LOOKUP_IMAGES },
+	{ "LOOKUP_IMAGES", SPEC_LOOKUP_IMAGES }, { "MS_UNIFORM", SPEC_MS_UNIFORM },
 	{ "CLOUD_LAYERS", SPEC_CLOUD_LAYERS }, { "SHADOW_W", SPEC_SHADOW_W }, { "CLOUD_W", SPEC_CLOUD_W },
 	/* layout(local_size_x_id, local_size_y_id): glslang leaves the
 	 * workgroup size's constants without a name. */
@@ -301,7 +301,7 @@ static const struct named_id bindings[] = {
 	{ "MultiscatterImg", BINDING_MULTISCATTER_IMG },
 	{ "CloudBlock", BINDING_CLOUDS }, { "CloudTexels", BINDING_CLOUD }, { "CloudTex", BINDING_CLOUD_TEX },
 	{ "ShadowTexels", BINDING_SHADOW }, { "ShadowTex", BINDING_SHADOW_TEX },
-	{ "TerrainTexels", BINDING_TERRAIN },
+	{ "TerrainTexels", BINDING_TERRAIN }, { "MultiscatterBlock", BINDING_MULTISCATTER_UBO },
 };
 
 static const struct named_id *find(const struct named_id *list, size_t n, const char *name)
