@@ -603,6 +603,50 @@ static void same_cloud_tables(void)
 			CHECK(sky_view_end(client[i], &v[i]));
 }
 
+/* skyrender's frame of skyd i's sky, clouds and their shadows on the
+ * terrain, into dir/frame<i>.png; 0 when skyrender exited 0. */
+static int render_frame(int i, char *path, size_t size)
+{
+	snprintf(path, size, "%s/frame%d.png", rig.dir, i);
+	pid_t pid = fork();
+	if (pid == 0) {
+		int null = open("/dev/null", O_WRONLY);
+		dup2(null, STDOUT_FILENO);
+		execl(SKYRENDER_BINARY, SKYRENDER_BINARY, "--socket", rig.skyd[i]->sock, "--size", "48x32",
+		      "--yaw", "200", "--pitch", "5", "--cloud-steps", "16", "--out", path, (char *)NULL);
+		_exit(127);
+	}
+	int status;
+	return pid > 0 && waitpid(pid, &status, 0) == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0
+		       ? 0
+		       : -1;
+}
+
+static int read_file(const char *path, char *buf, size_t size, size_t *ret_len)
+{
+	FILE *f = fopen(path, "rb");
+	if (!f)
+		return -1;
+	*ret_len = fread(buf, 1, size, f);
+	fclose(f);
+	return 0;
+}
+
+/* The same slot draws the same frame: skyrender on the controller's and
+ * on a follower's machine writes the same PNG, byte for byte. */
+static void same_frames(void)
+{
+	static char a[1 << 16], b[1 << 16];
+	char pa[256], pb[256];
+	size_t na = 0, nb = 0;
+
+	CHECK(render_frame(0, pa, sizeof(pa)) == 0 && render_frame(1, pb, sizeof(pb)) == 0);
+	CHECK(read_file(pa, a, sizeof(a), &na) == 0 && read_file(pb, b, sizeof(b), &nb) == 0);
+	printf("skyrender on the controller and a follower: %zu and %zu bytes, %s\n", na, nb,
+	       na == nb && memcmp(a, b, na) == 0 ? "the same" : "different");
+	CHECK(na > 0 && na == nb && memcmp(a, b, na) == 0);
+}
+
 /* A METAR with a broken layer, then a wind step, on the controller. */
 static void scenario_clouds(void)
 {
@@ -622,6 +666,7 @@ static void scenario_clouds(void)
 		printf("%s: the three hold checksum %016llx, the field at %.6f km east\n", steps[n],
 		       (unsigned long long)want_sum, want_offset);
 	}
+	same_frames();
 }
 
 int main(int argc, char **argv)
