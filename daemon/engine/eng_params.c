@@ -301,8 +301,10 @@ struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, in
 	if (t == STATE_SKYVIEW || t == STATE_AERIAL) {
 		k.v[SPEC_GROUND_BLACK] = 0;	/* the ground enters through the multiscatter table */
 		k.v[SPEC_LOOKUP_IMAGES] = g->lookup_images;
+		/* Only a table that fills the shader's block exactly: the
+		 * descriptor's range is then the block's whole size. */
 		k.v[SPEC_MS_UNIFORM] = t == STATE_AERIAL && g->ms_uniform && !g->lookup_images &&
-				       s->quality.t[STATE_MULTISCATTER].width * s->quality.t[STATE_MULTISCATTER].height <=
+				       s->quality.t[STATE_MULTISCATTER].width * s->quality.t[STATE_MULTISCATTER].height ==
 					       SKY_MS_UNIFORM_TEXELS;
 	} else {
 		/* Only the sky's marches read the clouds. */
