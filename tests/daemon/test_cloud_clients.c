@@ -23,6 +23,7 @@
 
 #include "daemon_harness.h"
 #include "dump.h"
+#include "frame_kit.h"
 #include "media.h"
 #include "pt.h"
 #include "sky.h"
@@ -53,67 +54,6 @@ static const char *const scene_args[] = { TABLES, SCENE, NULL };
 static const char *const exposure = "0.0002";	/* about 1 / the sky's radiance, cd/m2 */
 static struct daemon d;
 
-struct image {
-	uint32_t w, h;
-	uint8_t *rgb;
-};
-
-static int image_read(const char *path, struct image *ret)
-{
-	png_image im = { .version = PNG_IMAGE_VERSION };
-	if (!png_image_begin_read_from_file(&im, path)) {
-		fprintf(stderr, "%s: %s\n", path, im.message);
-		return -1;
-	}
-	im.format = PNG_FORMAT_RGB;
-	ret->w = im.width;
-	ret->h = im.height;
-	ret->rgb = malloc(PNG_IMAGE_SIZE(im));
-	if (!ret->rgb || !png_image_finish_read(&im, NULL, ret->rgb, 0, NULL)) {
-		free(ret->rgb);
-		ret->rgb = NULL;
-		return -1;
-	}
-	return 0;
-}
-
-static int px(const struct image *im, uint32_t x, uint32_t y, int c)
-{
-	return im->rgb[((size_t)y * im->w + x) * 3 + c];
-}
-
-/* Runs argv to its end, its stdout into out; the exit status or -1. */
-static int run(const char *const *argv, char *out, size_t size)
-{
-	int p[2];
-	if (pipe2(p, O_CLOEXEC) < 0)
-		return -1;
-	pid_t pid = fork();
-	if (pid == 0) {
-		dup2(p[1], 1);
-		execv(argv[0], (char *const *)argv);
-		_exit(127);
-	}
-	close(p[1]);
-	size_t n = 0;
-	ssize_t k;
-	while ((k = read(p[0], out + n, size - 1 - n)) > 0 && n + 1 < size)
-		n += (size_t)k;
-	out[n] = 0;
-	close(p[0]);
-	int status;
-	if (waitpid(pid, &status, 0) < 0 || !WIFEXITED(status))
-		return -1;
-	return WEXITSTATUS(status);
-}
-
-/* The generation after "generation " in a program's output, or -1. */
-static long generation_of(const char *out)
-{
-	const char *g = strstr(out, "generation ");
-	return g ? strtol(g + 11, NULL, 10) : -1;
-}
-
 /* prog (skyrender or skyctl render) with our socket, the exposure, args
  * and the frame's path; the generation it drew, or -1. */
 static long draw(bool skyctl, const char *path, const char *const *args)
@@ -133,7 +73,7 @@ static long draw(bool skyctl, const char *path, const char *const *args)
 	if (skyctl)
 		argv[n++] = path;
 	char out[4096];
-	int code = run(argv, out, sizeof(out));
+	int code = run(argv, false, out, sizeof(out));
 	printf("%s", out);
 	if (code != 0) {
 		FAIL("%s exited %d", argv[0], code);
