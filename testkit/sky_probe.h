@@ -1,6 +1,7 @@
 /* sky_probe.h - a scene's sky-view table from the model or the engine, and
  * its luminance in a direction as a client samples it: what the tests of
- * the multi-scattering terms (test_moment, test_delta) compare. */
+ * the multi-scattering terms (test_moment, test_delta) compare; and a
+ * state from key=value pairs (the shadow tests). */
 #ifndef SKYD_SKY_PROBE_H
 #define SKYD_SKY_PROBE_H
 
@@ -19,6 +20,27 @@ static inline void probe_set(struct sky_state *s, const char *pair)
 	char err[256];
 	if (state_set_pair(s, pair, NULL, err, sizeof(err)) < 0)
 		FAIL("%s", err);
+}
+
+/* The resolved state of the default's with the space-separated pairs set
+ * on top, or -1 (failed, said). */
+static inline int probe_state_of(const char *pairs, struct sky_state *ret)
+{
+	struct sky_state s;
+	char err[256], copy[768];
+
+	state_default(&s);
+	snprintf(copy, sizeof(copy), "%s", pairs);
+	for (char *save, *p = strtok_r(copy, " ", &save); p; p = strtok_r(NULL, " ", &save))
+		if (state_set_pair(&s, p, NULL, err, sizeof(err)) < 0) {
+			FAIL("%s: %s", pairs, err);
+			return -1;
+		}
+	if (state_resolve(&s, ret, NULL, err, sizeof(err)) < 0) {
+		FAIL("%s: %s", pairs, err);
+		return -1;
+	}
+	return 0;
 }
 
 /* Mars at 0.2 km with the sun 5 deg up at azimuth 180: where the

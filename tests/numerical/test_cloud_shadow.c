@@ -42,30 +42,11 @@
 #include "eng.h"
 #include "skymap.h"
 #include "state_geom.h"
+#include "sky_probe.h"
 #include "test.h"
 #include "vk_or_skip.h"
 
 static struct eng *eng;
-
-/* The resolved state of the space-separated pairs, or -1 (failed). */
-static int state_of(const char *pairs, struct sky_state *ret)
-{
-	struct sky_state s;
-	char err[256], copy[512];
-
-	state_default(&s);
-	snprintf(copy, sizeof(copy), "%s", pairs);
-	for (char *save, *p = strtok_r(copy, " ", &save); p; p = strtok_r(NULL, " ", &save))
-		if (state_set_pair(&s, p, NULL, err, sizeof(err)) < 0) {
-			FAIL("%s: %s", pairs, err);
-			return -1;
-		}
-	if (state_resolve(&s, ret, NULL, err, sizeof(err)) < 0) {
-		FAIL("%s: %s", pairs, err);
-		return -1;
-	}
-	return 0;
-}
 
 /* Sky-view and aerial perspective of pairs as floats (malloc'd). */
 static int tables_of(const char *pairs, float *ret[2], size_t ret_n[2])
@@ -74,7 +55,7 @@ static int tables_of(const char *pairs, float *ret[2], size_t ret_n[2])
 	struct eng_timing t;
 	char err[512];
 
-	if (state_of(pairs, &s) < 0)
+	if (probe_state_of(pairs, &s) < 0)
 		return -1;
 	if (eng_compute(eng, &s, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
 		FAIL("%s: %s", pairs, err);
@@ -173,7 +154,7 @@ static void overcast_at_ten_km(void)
 	size_t n[2], m[2];
 	struct sky_state s;
 
-	if (state_of(clear, &s) == 0 && tables_of(clear, a, n) == 0 && tables_of(cloudy, b, m) == 0) {
+	if (probe_state_of(clear, &s) == 0 && tables_of(clear, a, n) == 0 && tables_of(cloudy, b, m) == 0) {
 		double lit = aerial_mean_at(&s, a[1], 10.0, 1e30), shadowed = aerial_mean_at(&s, b[1], 10.0, 1e30);
 		printf("aerial in-scatter at 10 km, sun 40 deg: clear %.6g, under 8/8 at 1 km %.6g, ratio %.4f\n",
 		       lit, shadowed, shadowed / lit);
@@ -209,7 +190,7 @@ static void moon_map(void)
 	char err[512];
 
 	snprintf(cloudy, sizeof(cloudy), "%s cloud1_oktas=8 cloud1_base_m=1000", clear);
-	if (state_of(cloudy, &s) < 0 || tables_of(moonless, c, n) < 0 || tables_of(clear, a, n) < 0 ||
+	if (probe_state_of(cloudy, &s) < 0 || tables_of(moonless, c, n) < 0 || tables_of(clear, a, n) < 0 ||
 	    tables_of(cloudy, b, m) < 0)
 		goto out;
 	const float *map = eng_cloud_table(eng, STATE_CLOUD_SHADOW, &bytes);
@@ -234,7 +215,7 @@ static void moon_map(void)
 	snprintf(down, sizeof(down),
 		 "sun_elevation_deg=30 moon_elevation_deg=-20 moon_azimuth_deg=200 moon_illuminance_lx=0 "
 		 "cloud1_oktas=8 cloud1_base_m=1000 cloud_seed=9");
-	if (!moon || state_of(down, &s) < 0) {
+	if (!moon || probe_state_of(down, &s) < 0) {
 		free(moon);
 		goto out;
 	}
@@ -267,8 +248,8 @@ static void demand_and_bits(void)
 	struct eng_timing t;
 	char err[512];
 
-	if (state_of("sun_elevation_deg=10", &clear) < 0 ||
-	    state_of("sun_elevation_deg=10 cloud1_oktas=5 cloud1_base_m=1500 cloud1_type=cumulus "
+	if (probe_state_of("sun_elevation_deg=10", &clear) < 0 ||
+	    probe_state_of("sun_elevation_deg=10 cloud1_oktas=5 cloud1_base_m=1500 cloud1_type=cumulus "
 		     "wind_speed_mps=10 cloud_seed=7", &cloudy) < 0)
 		return;
 	CHECK(eng_compute(eng, &clear, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);

@@ -26,6 +26,7 @@
 #include "skyterrain.h"
 #include "state_geom.h"
 #include "terrain.h"
+#include "sky_probe.h"
 #include "test.h"
 #include "vk_or_skip.h"
 
@@ -58,25 +59,6 @@ static int write_ridge(void)
 	return fclose(f);
 }
 
-static int state_of(const char *pairs, struct sky_state *ret)
-{
-	struct sky_state s;
-	char err[256], copy[768];
-
-	state_default(&s);
-	snprintf(copy, sizeof(copy), "%s", pairs);
-	for (char *save, *p = strtok_r(copy, " ", &save); p; p = strtok_r(NULL, " ", &save))
-		if (state_set_pair(&s, p, NULL, err, sizeof(err)) < 0) {
-			FAIL("%s: %s", pairs, err);
-			return -1;
-		}
-	if (state_resolve(&s, ret, NULL, err, sizeof(err)) < 0) {
-		FAIL("%s: %s", pairs, err);
-		return -1;
-	}
-	return 0;
-}
-
 /* The sun's map's 4th channel against skyterrain_ray_hit, ray by ray. */
 static void depths_match(const char *pairs)
 {
@@ -88,7 +70,7 @@ static void depths_match(const char *pairs)
 	float frames[2][16];
 	char err[512];
 
-	if (state_of(pairs, &s) < 0)
+	if (probe_state_of(pairs, &s) < 0)
 		return;
 	CHECK(eng_compute(eng, &s, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
 	size_t bytes = 0;
@@ -159,7 +141,7 @@ static int tables_of(const char *pairs, struct sky_state *s, float *ret[2], size
 	struct eng_timing t;
 	char err[512];
 
-	if (state_of(pairs, s) < 0)
+	if (probe_state_of(pairs, s) < 0)
 		return -1;
 	if (eng_compute(eng, s, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
 		FAIL("%s: %s", pairs, err);
