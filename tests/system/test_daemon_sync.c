@@ -29,8 +29,17 @@
 #include "sync_harness.h"
 
 #define N_SKYD SYNC_N_SKYD
-/* The apply-time switch lands within this across the clients. */
+/* The apply-time switch lands within this across the clients. Under the
+ * sanitizers each daemon's own publication at the apply time (the copy
+ * into the current slot and its checksum, several times slower there)
+ * takes the two cores from the clients' wake-ups at that very instant:
+ * medians of 1.1 to 3.0 ms were seen, so the bound there is the order of
+ * magnitude, and the 2 ms is the plain build's. */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define SPREAD_MAX_NS 8000000ll
+#else
 #define SPREAD_MAX_NS 2000000ll
+#endif
 
 static int failures;
 #define CHECK(cond)                                                                       \
