@@ -18,7 +18,6 @@
  * encoding at the same fixed exposure. */
 #include <math.h>
 #include <png.h>
-#include <poll.h>
 #include <time.h>
 
 #include "daemon_harness.h"
@@ -100,82 +99,13 @@ static long request(const char *line, char *reply, size_t size)
 
 /* ---- restart ---------------------------------------------------------- */
 
-/* A skyrender drawing without end, its output read line by line. */
-struct stream {
-	pid_t pid;
-	int fd;
-	char buf[8192];
-	size_t len;
-	char path[PATH_MAX];	/* of the last frame */
-};
-
-static int stream_start(struct stream *st, const char *pattern)
+static int stream_start(struct frame_stream *st, const char *pattern)
 {
 	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
 			       "--no-terrain", "--size", "48x27", "--yaw", "160", "--pitch", "25",
 			       "--cloud-steps", "16", "--forever", "--interval", "20", "--out", pattern,
 			       NULL };
-	int p[2];
-	if (pipe2(p, O_CLOEXEC) < 0)
-		return -1;
-	st->pid = fork();
-	if (st->pid == 0) {
-		dup2(p[1], 1);
-		execv(argv[0], (char *const *)argv);
-		_exit(127);
-	}
-	close(p[1]);
-	st->fd = p[0];
-	st->len = 0;
-	return 0;
-}
-
-/* The generation of the next "frame N generation G PATH" line (its path
- * into st->path), or -1 when none came within the harness's timeout. */
-static long stream_frame(struct stream *st)
-{
-	for (;;) {
-		char *nl = memchr(st->buf, '\n', st->len);
-		if (nl) {
-			*nl = 0;
-			long g = -2;
-			unsigned long long gen;
-			long n;
-			if (sscanf(st->buf, "frame %ld generation %llu %4095s", &n, &gen, st->path) == 3)
-				g = (long)gen;
-			size_t k = (size_t)(nl - st->buf) + 1;
-			memmove(st->buf, nl + 1, st->len - k);
-			st->len -= k;
-			if (g >= 0)
-				return g;
-			continue;
-		}
-		struct pollfd p = { st->fd, POLLIN, 0 };
-		if (st->len == sizeof(st->buf) || poll(&p, 1, HARNESS_TIMEOUT_MS) <= 0)
-			return -1;
-		ssize_t k = read(st->fd, st->buf + st->len, sizeof(st->buf) - st->len);
-		if (k <= 0)
-			return -1;
-		st->len += (size_t)k;
-	}
-}
-
-static int64_t now_ms(void)
-{
-	struct timespec ts;
-	clock_gettime(CLOCK_MONOTONIC, &ts);
-	return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
-}
-
-/* Reads frames until one drew generation >= gen: that generation, or the
- * last drawn when none did within the harness's timeout. */
-static long stream_until(struct stream *st, long gen)
-{
-	int64_t deadline = now_ms() + HARNESS_TIMEOUT_MS;
-	long g;
-	while ((g = stream_frame(st)) >= 0 && g < gen && now_ms() < deadline)
-		;
-	return g;
+	return frame_stream_start(st, argv, false);
 }
 
 /* The share of pixels of a frame whose value differs from the clear sky
@@ -206,7 +136,7 @@ static size_t frame_bytes_differ(const struct image *a, const struct image *b)
 }
 
 /* Reads the frame st drew last into im (freeing what it held). */
-static void stream_image(const struct stream *st, struct image *im)
+static void stream_image(const struct frame_stream *st, struct image *im)
 {
 	free(im->rgb);
 	im->rgb = NULL;
@@ -239,7 +169,7 @@ static long pass_generation(long after)
 static int case_restart(const char *dir)
 {
 	char pattern[PATH_MAX], before[8192], after[8192];
-	struct stream st;
+	struct frame_stream st;
 	struct image clear = { 0 }, im = { 0 }, last = { 0 };
 	snprintf(pattern, sizeof(pattern), "%s/live-%%04ld.png", dir);
 	CHECK(request("set cloud1_oktas=0", NULL, 0) > 0);
@@ -247,7 +177,7 @@ static int case_restart(const char *dir)
 		FAIL("cannot start skyrender");
 		return 0;
 	}
-	long g0 = stream_frame(&st);
+	long g0 = frame_stream_next(&st, HARNESS_TIMEOUT_MS);
 	stream_image(&st, &clear);	/* no layer drawn: the clear sky */
 
 	/* The layers change under it: each new one drawn. */
@@ -256,7 +186,7 @@ static int case_restart(const char *dir)
 	long g = g0;
 	for (int i = 0; i < 3; i++) {
 		long gi = request(changes[i], NULL, 0);
-		g = stream_until(&st, gi);
+		g = frame_stream_until(&st, gi, HARNESS_TIMEOUT_MS);
 		stream_image(&st, &im);
 		double share = clear.rgb && im.rgb ? cloud_share(&im, &clear) : 0.0;
 		printf("%s: generation %ld drawn %ld, %.2f of the pixels cloud\n", changes[i], gi, g, share);
@@ -269,7 +199,7 @@ static int case_restart(const char *dir)
 	/* skyd stops: the frames go on, the last clouds drawn as they were. */
 	daemon_stop(&d, SIGTERM);
 	for (int i = 0; i < 3; i++) {
-		long gd = stream_frame(&st);
+		long gd = frame_stream_next(&st, HARNESS_TIMEOUT_MS);
 		stream_image(&st, &last);
 		CHECK(gd == g && frame_bytes_differ(&last, &drawn) == 0);
 	}
@@ -280,7 +210,7 @@ static int case_restart(const char *dir)
 	 * end on the scene's; the layers and the frame are the same. */
 	CHECK(daemon_start_in(&d, d.dir, scene_args) == 0);
 	long g2 = pass_generation(g);
-	long drawn2 = stream_until(&st, g2);
+	long drawn2 = frame_stream_until(&st, g2, HARNESS_TIMEOUT_MS);
 	stream_image(&st, &last);
 	layers_of(after, sizeof(after));
 	size_t differ = frame_bytes_differ(&last, &drawn);
@@ -290,11 +220,7 @@ static int case_restart(const char *dir)
 	CHECK(strcmp(before, after) == 0);
 	CHECK(differ == 0);
 
-	kill(st.pid, SIGTERM);
-	int status = 0;
-	waitpid(st.pid, &status, 0);
-	close(st.fd);
-	CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+	CHECK(frame_stream_stop(&st) == 0);
 	free(clear.rgb);
 	free(im.rgb);
 	free(last.rgb);

@@ -253,94 +253,12 @@ static int case_wall(const char *dir)
 	return 0;
 }
 
-/* A skyrender drawing without end, its stdout and stderr read line by
- * line: the frame lines, and the rest kept in log (and echoed). */
-struct stream {
-	pid_t pid;
-	int fd;
-	char buf[8192];
-	size_t len;
-	char log[4096];
-	size_t log_len;
-};
-
-static int stream_start_argv(struct stream *st, const char *const *argv)
-{
-	int p[2];
-	if (pipe2(p, O_CLOEXEC) < 0)
-		return -1;
-	st->pid = fork();
-	if (st->pid == 0) {
-		dup2(p[1], 1);
-		dup2(p[1], 2);
-		execv(argv[0], (char *const *)argv);
-		_exit(127);
-	}
-	close(p[1]);
-	st->fd = p[0];
-	st->len = 0;
-	st->log_len = 0;
-	st->log[0] = 0;
-	return 0;
-}
-
-static int stream_start(struct stream *st, const char *out)
+static int stream_start(struct frame_stream *st, const char *out)
 {
 	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
 			       "--size", "64x36", "--forever", "--interval", "20", "--out", out,
 			       NULL };
-	return stream_start_argv(st, argv);
-}
-
-/* The generation of the next "frame N generation G PATH" line, or -1 when
- * none came within the harness's timeout or skyrender ended. */
-static long stream_frame(struct stream *st)
-{
-	for (;;) {
-		char *nl = memchr(st->buf, '\n', st->len);
-		if (nl) {
-			*nl = 0;
-			long g = strncmp(st->buf, "frame ", 6) == 0 ? generation_of(st->buf) : -2;
-			if (g == -2) {
-				printf("%s\n", st->buf);
-				st->log_len += (size_t)snprintf(st->log + st->log_len,
-					sizeof(st->log) - st->log_len, "%s\n", st->buf);
-				st->log_len = st->log_len < sizeof(st->log) ? st->log_len : sizeof(st->log) - 1;
-			}
-			size_t n = (size_t)(nl - st->buf) + 1;
-			memmove(st->buf, nl + 1, st->len - n);
-			st->len -= n;
-			if (g == -2)
-				continue;
-			return g;
-		}
-		struct pollfd p = { st->fd, POLLIN, 0 };
-		if (st->len == sizeof(st->buf) || poll(&p, 1, HARNESS_TIMEOUT_MS) <= 0)
-			return -1;
-		ssize_t k = read(st->fd, st->buf + st->len, sizeof(st->buf) - st->len);
-		if (k <= 0)
-			return -1;
-		st->len += (size_t)k;
-	}
-}
-
-static int64_t now_ms(void)
-{
-	struct timespec ts;
-	clock_gettime(CLOCK_MONOTONIC, &ts);
-	return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
-}
-
-/* Reads frames until one drew generation >= gen; that generation, or the
- * last one drawn when none did within the harness's timeout (frames keep
- * coming, so a deadline of its own). */
-static long stream_until(struct stream *st, long gen)
-{
-	int64_t deadline = now_ms() + HARNESS_TIMEOUT_MS;
-	long g;
-	while ((g = stream_frame(st)) >= 0 && g < gen && now_ms() < deadline)
-		;
-	return g;
+	return frame_stream_start(st, argv, true);
 }
 
 /* Sends one request to skyd; the generation its reply names, or -1. */
@@ -367,19 +285,19 @@ static long request(const char *line)
 static int case_restart(const char *dir)
 {
 	char out[256];
-	struct stream st;
+	struct frame_stream st;
 	snprintf(out, sizeof(out), "%s/live.png", dir);
 	if (stream_start(&st, out) < 0) {
 		FAIL("cannot start skyrender");
 		return 0;
 	}
-	long g0 = stream_frame(&st);
+	long g0 = frame_stream_next(&st, HARNESS_TIMEOUT_MS);
 	CHECK(g0 > 0);
 
 	/* A new layout (another sky-view size): a new region, new images. */
 	long g1 = request("set skyview_width=48");
 	CHECK(g1 > g0);
-	long g = stream_until(&st, g1);
+	long g = frame_stream_until(&st, g1, HARNESS_TIMEOUT_MS);
 	printf("layout change: generation %ld, skyrender drew %ld\n", g1, g);
 	CHECK(g >= g1);
 
@@ -387,7 +305,7 @@ static int case_restart(const char *dir)
 	daemon_stop(&d, SIGTERM);
 	long down[3];
 	for (int i = 0; i < 3; i++)
-		down[i] = stream_frame(&st);
+		down[i] = frame_stream_next(&st, HARNESS_TIMEOUT_MS);
 	printf("skyd down: frames of generation %ld %ld %ld\n", down[0], down[1], down[2]);
 	CHECK(down[0] >= g1 && down[1] == down[0] && down[2] == down[0]);
 
@@ -404,26 +322,12 @@ static int case_restart(const char *dir)
 			break;
 	}
 	CHECK(g2 > down[0]);
-	g = stream_until(&st, g2);
+	g = frame_stream_until(&st, g2, HARNESS_TIMEOUT_MS);
 	printf("skyd restarted: generation %ld, skyrender drew %ld\n", g2, g);
 	CHECK(g >= g2);
 
-	kill(st.pid, SIGTERM);
-	int status = 0;
-	waitpid(st.pid, &status, 0);
-	close(st.fd);
-	CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+	CHECK(frame_stream_stop(&st) == 0);
 	return 0;
-}
-
-/* Stops a stream's skyrender; CHECKs that it ended well. */
-static void stream_stop(struct stream *st)
-{
-	int status = 0;
-	kill(st->pid, SIGTERM);
-	waitpid(st->pid, &status, 0);
-	close(st->fd);
-	CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
 }
 
 /* How many views `view list` shows of skyrender process pid, and how many
@@ -495,7 +399,7 @@ static double frame_difference(const struct image *a, const struct image *b, int
  * the slot), which each process says it reads. */
 static void panorama_wall(const char *dir)
 {
-	struct stream st[3];
+	struct frame_stream st[3];
 	char out[3][256], tile[3][8];
 	for (int k = 0; k < 3; k++) {
 		snprintf(out[k], sizeof(out[k]), "%s/live-tile%d.png", dir, k);
@@ -504,10 +408,10 @@ static void panorama_wall(const char *dir)
 				       "--size", "96x128", "--yaw", "170", "--pitch", "4", "--fov",
 				       "40", "--grid", "3x1", "--tile", tile[k], "--forever",
 				       "--interval", "20", "--out", out[k], NULL };
-		CHECK(stream_start_argv(&st[k], argv) == 0);
+		CHECK(frame_stream_start(&st[k], argv, true) == 0);
 	}
 	for (int k = 0; k < 3; k++)
-		CHECK(stream_frame(&st[k]) > 0);
+		CHECK(frame_stream_next(&st[k], HARNESS_TIMEOUT_MS) > 0);
 	for (int k = 0; k < 3; k++) {
 		int pano, n = views_of(st[k].pid, "panorama", &pano);
 		printf("tile %d: %d views, %d of form panorama\n", k, n, pano);
@@ -527,23 +431,23 @@ static void panorama_wall(const char *dir)
 	}
 	/* Our views see a wall's arc, not the zenith: an arc of azimuths. */
 	for (int k = 0; k < 3; k++) {
-		stream_frame(&st[k]);
+		frame_stream_next(&st[k], HARNESS_TIMEOUT_MS);
 		CHECK(strstr(st[k].log, "a panorama of an arc") != NULL);
-		stream_stop(&st[k]);
+		CHECK(frame_stream_stop(&st[k]) == 0);
 	}
 }
 
 /* The dome master: one view of form panorama, of the full circle. */
 static void panorama_dome(const char *dir)
 {
-	struct stream st;
+	struct frame_stream st;
 	char out[256];
 	snprintf(out, sizeof(out), "%s/live-dome.png", dir);
 	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
 			       "--size", "96x96", "--fisheye", "--forever", "--interval", "20",
 			       "--out", out, NULL };
-	CHECK(stream_start_argv(&st, argv) == 0);
-	CHECK(stream_frame(&st) > 0);
+	CHECK(frame_stream_start(&st, argv, true) == 0);
+	CHECK(frame_stream_next(&st, HARNESS_TIMEOUT_MS) > 0);
 	int pano, n = views_of(st.pid, "panorama", &pano);
 	printf("dome: %d views, %d of form panorama\n", n, pano);
 	CHECK(n == 1 && pano == 1);
@@ -551,9 +455,9 @@ static void panorama_dome(const char *dir)
 	uint32_t valid = 0;
 	CHECK(slot_views(v, &valid, SKY_SHM_MAX_VIEWS) == 1 && valid == 1);
 	CHECK(v[0].form == SKY_VIEW_PANORAMA && v[0].panorama.full_circle == 1);
-	stream_frame(&st);
+	frame_stream_next(&st, HARNESS_TIMEOUT_MS);
 	CHECK(strstr(st.log, "a panorama of the full circle") != NULL);
-	stream_stop(&st);
+	CHECK(frame_stream_stop(&st) == 0);
 }
 
 /* --aerial volume: the views are volumes (a dome: four), and the frame
@@ -590,24 +494,24 @@ static void volume_option(const char *dir)
  * and draws with the state's camera's volume. */
 static void view_refused(const char *dir)
 {
-	struct stream st[SKY_SHM_MAX_VIEWS];
+	struct frame_stream st[SKY_SHM_MAX_VIEWS];
 	char out[SKY_SHM_MAX_VIEWS][256], path[256], log[8192];
 	for (uint32_t k = 0; k < SKY_SHM_MAX_VIEWS; k++) {
 		snprintf(out[k], sizeof(out[k]), "%s/live-%u.png", dir, k);
 		const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
 				       "--size", "32x18", "--forever", "--interval", "50", "--out",
 				       out[k], NULL };
-		CHECK(stream_start_argv(&st[k], argv) == 0);
+		CHECK(frame_stream_start(&st[k], argv, true) == 0);
 	}
 	for (uint32_t k = 0; k < SKY_SHM_MAX_VIEWS; k++)
-		CHECK(stream_frame(&st[k]) > 0);
+		CHECK(frame_stream_next(&st[k], HARNESS_TIMEOUT_MS) > 0);
 	snprintf(path, sizeof(path), "%s/ninth.png", dir);
 	long g = skyrender_log(path, (const char *const[]){ "--size", "64x36", NULL }, log,
 			       sizeof(log));
 	CHECK(g > 0 && strstr(log, "view add: ") != NULL &&
 	      strstr(log, "aerial perspective 0: the state's camera's volume") != NULL);
 	for (uint32_t k = 0; k < SKY_SHM_MAX_VIEWS; k++)
-		stream_stop(&st[k]);
+		CHECK(frame_stream_stop(&st[k]) == 0);
 }
 
 static int case_panorama(const char *dir)
@@ -691,7 +595,7 @@ static int case_window(const char *dir)
 	pid_t xvfb;
 	int n = xvfb_start(&xvfb);
 	char display[16], out[256];
-	struct stream st;
+	struct frame_stream st;
 	struct image im = { 0 };
 	if (n < 0) {
 		FAIL("Xvfb did not start");
@@ -702,8 +606,8 @@ static int case_window(const char *dir)
 	setenv("DISPLAY", display, 1);
 	const char *argv[] = { SKYRENDER_BINARY, "--socket", d.sock, "--exposure", exposure,
 			       "--size", "64x36", "--window", "--interval", "20", "--out", out, NULL };
-	CHECK(stream_start_argv(&st, argv) == 0);
-	long g = stream_frame(&st), g1 = stream_frame(&st);
+	CHECK(frame_stream_start(&st, argv, true) == 0);
+	long g = frame_stream_next(&st, HARNESS_TIMEOUT_MS), g1 = frame_stream_next(&st, HARNESS_TIMEOUT_MS);
 	CHECK(g > 0 && g1 == g);
 	uint8_t *shown = grab(display, 64, 36);
 	CHECK(shown != NULL);
@@ -718,11 +622,7 @@ static int case_window(const char *dir)
 	}
 	free(shown);
 	free(im.rgb);
-	kill(st.pid, SIGTERM);
-	int status = 0;
-	waitpid(st.pid, &status, 0);
-	close(st.fd);
-	CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+	CHECK(frame_stream_stop(&st) == 0);
 	kill(xvfb, SIGTERM);
 	waitpid(xvfb, NULL, 0);
 	return 0;
@@ -875,7 +775,7 @@ static int case_clouds(const char *dir)
 	clouds_wall(dir);
 	/* Layers changing under a client that draws without end: its frames
 	 * follow every change, and the last one has the new layers. */
-	struct stream st;
+	struct frame_stream st;
 	char out[PATH_MAX];
 	snprintf(out, sizeof(out), "%s/live.png", dir);
 	if (stream_start(&st, out) < 0) {
@@ -883,10 +783,10 @@ static int case_clouds(const char *dir)
 		return 1;
 	}
 	long g1 = request("set metar=\"EGLL 241250Z 27015KT 9999 OVC010 12/06 Q1018\"");
-	CHECK(g1 > g0 && stream_until(&st, g1) >= g1);
+	CHECK(g1 > g0 && frame_stream_until(&st, g1, HARNESS_TIMEOUT_MS) >= g1);
 	long g2 = request("set metar=\"EGLL 241250Z 27015KT 9999 FEW040 12/06 Q1018\"");
-	CHECK(g2 > g1 && stream_until(&st, g2) >= g2);
-	stream_stop(&st);
+	CHECK(g2 > g1 && frame_stream_until(&st, g2, HARNESS_TIMEOUT_MS) >= g2);
+	CHECK(frame_stream_stop(&st) == 0);
 	return 0;
 }
 
