@@ -31,6 +31,11 @@ vec4 cloud_column[SKYCLOUD_MAX_LAYERS];
 // Per layer, per unit of its vertical optical depth: the two-stream's
 // 3/4 (1 - g) and the delta-scaled 1 - g^2 (cloud_reflectance).
 vec2 cloud_slab[SKYCLOUD_MAX_LAYERS];
+// The share of a map's optical depth that takes light off the light's
+// direction: delta-Eddington's 1 - f with f = g^2 (conservative, omega 1),
+// the widest of the layers' (a map does not know which layer a texel's
+// cloud is, so the least forward-peaked one rules).
+float cloud_beam_scale = 1.0;
 // The altitude of the march's step (cloud_at), km.
 float cloud_h_km = 0.0;
 
@@ -53,15 +58,21 @@ void load_clouds()
 		float g = CL.layer[i].type == CLOUD_TYPE_CIRRUS ? 0.75 : 0.85;
 		cloud_slab[i] = vec2(0.75 * (1.0 - g), 1.0 - g * g);
 	}
+	cloud_beam_scale = CLOUD_LAYERS > 0 ? 0.0 : 1.0;
+	for (int i = 0; i < CLOUD_LAYERS; i++)
+		cloud_beam_scale = max(cloud_beam_scale, cloud_slab[i].y);
 }
 
 // The optical depth of one map texel's column at depth d (km from the
 // map's plane): Beer's law in the cloud span, front depth, mean
-// extinction, capped at the column's whole (docs/clouds.md); beyond the
-// terrain's opaque depth the light is gone.
+// extinction, capped at the column's whole (docs/clouds.md), delta-scaled
+// (cloud_beam_scale): the droplets' forward peak, a share g^2 of what they
+// scatter, goes on along the light, so the beam is what the peak leaves in
+// it (docs/clouds.md, "In the tables"); beyond the terrain's opaque depth
+// the light is gone.
 float shadow_texel_tau(vec4 s, float d)
 {
-	float tau = min(s.z, s.y * max(d - s.x, 0.0));
+	float tau = cloud_beam_scale * min(s.z, s.y * max(d - s.x, 0.0));
 	return d > s.w ? 80.0 : tau;
 }
 
@@ -142,8 +153,9 @@ float cloud_reflectance(float tau, vec2 slab, float mu0)
 
 // The light the layers scatter into the air at the step (cloud_at) for a
 // light at cos-zenith mu_l there, per unit of its illuminance: under a
-// layer, what it lets through diffusely (1 - R - exp(-tau / mu), the
-// direct part being the shadow map's) as a uniform radiance from above,
+// layer, what it lets through diffusely (1 - R - exp(-(1 - g^2) tau / mu),
+// the delta-scaled beam, forward peak included, being the shadow map's)
+// as a uniform radiance from above,
 // and the ground's reflection of it from below; over a layer, what the
 // deck (cloud and ground) reflects beyond the ground alone, R (1 - A)^2 /
 // (1 - R A), from below. Each a uniform hemisphere of radiance mu E x / pi,
@@ -161,7 +173,7 @@ vec3 cloud_diffuse_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground)
 		float ta = col.z * above, tb = col.z - ta;
 		if (ta > 0.0) {
 			float r = cloud_reflectance(ta, cloud_slab[i], mu_l);
-			vec3 d = col.w * max(1.0 - r - exp(-ta / mu_l), 0.0) / (1.0 - r * albedo);
+			vec3 d = col.w * max(1.0 - r - exp(-cloud_slab[i].y * ta / mu_l), 0.0) / (1.0 - r * albedo);
 			down += d;
 			up += albedo * d;
 		}

@@ -3,15 +3,17 @@
  *  - under an 8/8 stratocumulus at 1.0-1.4 km with the sun at 40 degrees,
  *    the aerial perspective's in-scattered light at 10 km is below the
  *    clear sky's but far from dark: the sun's single scattering under the
- *    layer passes a column of optical depth ~9 (exp(-9) ~ 1e-4), but a
+ *    layer passes a column of optical depth ~9 (its beam, the forward
+ *    peak kept, exp(-(1 - g^2) 9.3 / 0.77) ~ 0.03), but a
  *    conservative slab lets the light through diffusely (two-stream,
- *    tau 9.3, g 0.85: 1 - R - exp(-tau / mu) = 0.52 of the sun's flux,
+ *    tau 9.3, g 0.85: 1 - R = 0.52 of the sun's flux, 0.034 of it in the
+ *    delta-scaled beam exp(-(1 - g^2) tau / mu),
  *    1 / (1 + 3/4 (1 - g) tau) = 0.49 of the sky's), and the ground
  *    reflects part of it back: the air under the base gets between half
- *    and 0.9 of the clear sky's light (measured 0.736 on lavapipe); the
+ *    and 0.9 of the clear sky's light (measured 0.726 on lavapipe); the
  *    whole slice, whose views that look up reach the air over the deck,
  *    lit from below by its reflection, between 0.6 and 1 (measured
- *    0.854; docs/clouds.md, "In the tables").
+ *    0.841; docs/clouds.md, "In the tables").
  *  - the layers never add more light than a white ground would: every
  *    texel of sky-view and aerial with layers is at most the same sky's
  *    without them over a ground of albedo 1 (the deck reflects and
