@@ -50,9 +50,9 @@ static inline int px(const struct image *im, uint32_t x, uint32_t y, int c)
 	return im->rgb[((size_t)y * im->w + x) * 3 + c];
 }
 
-/* Runs argv to its end with stdout (and stderr too when with_stderr) into
- * out; the exit status or -1. */
-static inline int run(const char *const *argv, bool with_stderr, char *out, size_t size)
+/* Starts argv with its stdout (and stderr too when with_stderr) into a
+ * pipe whose reading end goes to *ret_fd: its pid, or -1. */
+static inline pid_t spawn_piped(const char *const *argv, bool with_stderr, int *ret_fd)
 {
 	int p[2];
 	if (pipe2(p, O_CLOEXEC) < 0)
@@ -66,12 +66,28 @@ static inline int run(const char *const *argv, bool with_stderr, char *out, size
 		_exit(127);
 	}
 	close(p[1]);
+	if (pid < 0) {
+		close(p[0]);
+		return -1;
+	}
+	*ret_fd = p[0];
+	return pid;
+}
+
+/* Runs argv to its end with stdout (and stderr too when with_stderr) into
+ * out; the exit status or -1. */
+static inline int run(const char *const *argv, bool with_stderr, char *out, size_t size)
+{
+	int fd;
+	pid_t pid = spawn_piped(argv, with_stderr, &fd);
+	if (pid < 0)
+		return -1;
 	size_t n = 0;
 	ssize_t k;
-	while ((k = read(p[0], out + n, size - 1 - n)) > 0 && n + 1 < size)
+	while ((k = read(fd, out + n, size - 1 - n)) > 0 && n + 1 < size)
 		n += (size_t)k;
 	out[n] = 0;
-	close(p[0]);
+	close(fd);
 	int status;
 	if (waitpid(pid, &status, 0) < 0 || !WIFEXITED(status))
 		return -1;
@@ -102,19 +118,8 @@ struct frame_stream {
  * st. 0 or -1. */
 static inline int frame_stream_start(struct frame_stream *st, const char *const *argv, bool with_stderr)
 {
-	int p[2];
-	if (pipe2(p, O_CLOEXEC) < 0)
-		return -1;
-	*st = (struct frame_stream){ .fd = p[0] };
-	st->pid = fork();
-	if (st->pid == 0) {
-		dup2(p[1], 1);
-		if (with_stderr)
-			dup2(p[1], 2);
-		execv(argv[0], (char *const *)argv);
-		_exit(127);
-	}
-	close(p[1]);
+	*st = (struct frame_stream){ .fd = -1 };
+	st->pid = spawn_piped(argv, with_stderr, &st->fd);
 	return st->pid < 0 ? -1 : 0;
 }
 
