@@ -8,6 +8,7 @@
 
 #include "daemon_harness.h"
 #include "sky.h"
+#include "sky_set.h"
 #include "test.h"
 
 static const char *const args[] = { HARNESS_SMALL, "preset=mars", "storage=f16",
@@ -47,18 +48,6 @@ static int wait_tables(sky_client *c, uint32_t gen, uint32_t fmt, struct sky_vie
 	return -ETIMEDOUT;
 }
 
-static uint32_t set_and_generation(sky_client *c, const char *line)
-{
-	sky_reply *rep = NULL;
-	uint32_t g = 0;
-	CHECK(sky_request(c, line, &rep) == 0);
-	const char *v = rep ? sky_reply_get(rep, "generation") : NULL;
-	CHECK(v != NULL);
-	if (v)
-		g = (uint32_t)strtoul(v, NULL, 10);
-	sky_reply_free(rep);
-	return g;
-}
 
 /* No stored half of a valid table is infinite or NaN. */
 static void check_finite(const struct sky_view *v)

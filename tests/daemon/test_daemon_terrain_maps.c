@@ -17,6 +17,7 @@
 
 #include "daemon_harness.h"
 #include "sky.h"
+#include "sky_set.h"
 #include "skycloudmarch.h"
 #include "test.h"
 
@@ -66,18 +67,6 @@ static int wait_tables(sky_client *c, uint32_t gen, uint32_t tables, struct sky_
 	return -ETIMEDOUT;
 }
 
-static uint32_t set_and_generation(sky_client *c, const char *line)
-{
-	sky_reply *rep = NULL;
-	uint32_t g = 0;
-	CHECK(sky_request(c, line, &rep) == 0);
-	const char *v = sky_reply_get(rep, "generation");
-	CHECK(v != NULL);
-	if (v)
-		g = (uint32_t)strtoul(v, NULL, 10);
-	sky_reply_free(rep);
-	return g;
-}
 
 /* The sun's map of the view against the ridge, hit by hit. */
 static void ridge_in_map(const struct sky_view *v)

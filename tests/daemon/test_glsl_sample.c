@@ -56,6 +56,7 @@
 
 #include "daemon_harness.h"
 #include "sky.h"
+#include "sky_set.h"
 #include "skysample.h"
 #include "test.h"
 #include "test_glsl_vk.h"
@@ -549,18 +550,6 @@ static void *snapshot_at(sky_client *c, uint32_t gen, uint32_t fmt, struct sky_v
 	return NULL;
 }
 
-static uint32_t set_and_generation(sky_client *c, const char *line)
-{
-	sky_reply *rep = NULL;
-	uint32_t g = 0;
-	CHECK(sky_request(c, line, &rep) == 0);
-	const char *val = rep ? sky_reply_get(rep, "generation") : NULL;
-	CHECK(val != NULL);
-	if (val)
-		g = (uint32_t)strtoul(val, NULL, 10);
-	sky_reply_free(rep);
-	return g;
-}
 
 /* sky_gpu_view_table()'s description of view name: the aerial table's
  * format and sizes for a volume; for a panorama, RGBA32F unscaled with the

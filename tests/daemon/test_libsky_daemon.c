@@ -8,6 +8,7 @@
 
 #include "daemon_harness.h"
 #include "sky.h"
+#include "sky_set.h"
 #include "test.h"
 
 static const char *const small[] = { HARNESS_SMALL, NULL };
@@ -44,18 +45,6 @@ static bool close_rel(double a, double b, double rel)
 	return fabs(a - b) <= rel * fmax(fabs(a), fabs(b)) + 1e-300;
 }
 
-static uint32_t set_and_generation(sky_client *c, const char *line)
-{
-	sky_reply *rep = NULL;
-	uint32_t g = 0;
-	CHECK(sky_request(c, line, &rep) == 0);
-	const char *v = sky_reply_get(rep, "generation");
-	CHECK(v != NULL);
-	if (v)
-		g = (uint32_t)strtoul(v, NULL, 10);
-	sky_reply_free(rep);
-	return g;
-}
 
 static void test_sampling_agrees(sky_client *c)
 {
