@@ -37,6 +37,9 @@ struct pub {
 	/* The next slot while the device writes its tables (pub_claim): its
 	 * sequence odd since then; -1 none. */
 	int32_t claimed;
+	/* The generation pub_publish_ahead also wrote into the next slot,
+	 * which pub_publish_staged makes current; 0 none. */
+	uint64_t staged;
 	struct state_table_quality shape[STATE_N_TABLES];
 	enum state_storage storage;
 	uint32_t max_views;
@@ -526,6 +529,8 @@ static void write_slot(struct pub *p, uint32_t i, const struct sky_state *s,
 	 * is odd already, since before the device wrote its tables. */
 	atomic_store_explicit(seq, odd, memory_order_relaxed);
 	atomic_thread_fence(memory_order_release);
+	if (i == p->next_slot)
+		p->staged = 0;
 	slot->generation = generation;
 	slot->apply_time_ns = apply_time_ns;
 	pub_shm_state(s, lights, &slot->state);
@@ -586,6 +591,7 @@ int pub_claim(struct pub *p, const struct sky_state *s, const struct state_light
 				      memory_order_relaxed);
 		atomic_thread_fence(memory_order_release);
 		p->claimed = (int32_t)i;
+		p->staged = 0;
 	}
 	memset(ret, 0, sizeof(*ret));
 	ret->base = p->map;
@@ -614,23 +620,32 @@ void pub_publish(struct pub *p, const struct sky_state *s, uint32_t valid,
 	pub_publish_at(p, s, NULL, valid, tables, panoramas, rgb_scale_log2, generation, 0);
 }
 
-void pub_publish_at(struct pub *p, const struct sky_state *s, const struct state_lights *lights,
-		    uint32_t valid,
-		    const void *const tables[STATE_N_TABLES], const void *panoramas,
-		    const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
-		    int64_t apply_time_ns)
+/* Makes slot i current as generation and wakes waiters; the ring's next
+ * slot follows it. */
+static void make_current(struct pub *p, uint32_t i, uint64_t generation)
 {
 	struct sky_shm_header *h = p->header;
-	uint32_t i = p->next_slot;
 
-	write_slot(p, i, s, lights, valid, tables, panoramas, rgb_scale_log2, generation,
-		   apply_time_ns);
 	atomic_store_explicit((_Atomic uint32_t *)&h->current_slot, i, memory_order_release);
 	atomic_store_explicit((_Atomic uint32_t *)&h->generation, (uint32_t)generation,
 			      memory_order_release);
 	futex_wake_all(&h->generation);
 	/* The last slot stays spare for apply-time publications. */
 	p->next_slot = (i + 1) % (h->n_slots - 1);
+	p->staged = 0;
+}
+
+void pub_publish_at(struct pub *p, const struct sky_state *s, const struct state_lights *lights,
+		    uint32_t valid,
+		    const void *const tables[STATE_N_TABLES], const void *panoramas,
+		    const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
+		    int64_t apply_time_ns)
+{
+	uint32_t i = p->next_slot;
+
+	write_slot(p, i, s, lights, valid, tables, panoramas, rgb_scale_log2, generation,
+		   apply_time_ns);
+	make_current(p, i, generation);
 }
 
 void pub_publish_ahead(struct pub *p, const struct sky_state *s,
@@ -643,9 +658,22 @@ void pub_publish_ahead(struct pub *p, const struct sky_state *s,
 
 	write_slot(p, h->n_slots - 1, s, lights, valid, tables, panoramas, rgb_scale_log2, generation,
 		   apply_time_ns);
+	/* The next slot too, not current yet: at the apply time the daemon
+	 * only switches to it, instead of copying while the clients wake. */
+	write_slot(p, p->next_slot, s, lights, valid, tables, panoramas, rgb_scale_log2, generation,
+		   apply_time_ns);
+	p->staged = generation;
 	/* The word keeps its value: waiters wake, find the slot ahead and
 	 * sleep again until its apply time. */
 	futex_wake_all(&h->generation);
+}
+
+int pub_publish_staged(struct pub *p, uint64_t generation)
+{
+	if (!generation || p->staged != generation)
+		return -ESTALE;
+	make_current(p, p->next_slot, generation);
+	return 0;
 }
 
 void pub_supersede(struct pub *p)

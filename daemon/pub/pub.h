@@ -92,15 +92,22 @@ void pub_publish_at(struct pub *p, const struct sky_state *s, const struct state
 /* Writes a generation computed ahead of its apply time (CLOCK_REALTIME,
  * > 0) into the spare slot (PUB_SLOTS - 1) without making it current:
  * libsky hands it to clients from apply_time_ns on, while readers that
- * ignore apply times keep the current slot until the daemon publishes the
- * same generation with pub_publish_at at that instant. Wakes futex waiters
- * (the word unchanged) so that they sleep until the apply time instead.
- * Overwrites an earlier slot ahead. lights as pub_publish_at's. */
+ * ignore apply times keep the current slot until the daemon makes the
+ * same generation current at that instant (pub_publish_staged). Writes
+ * it into the next slot as well, not current, so that the instant costs
+ * no copy. Wakes futex waiters (the word unchanged) so that they sleep
+ * until the apply time instead. Overwrites an earlier slot ahead. lights
+ * as pub_publish_at's. */
 void pub_publish_ahead(struct pub *p, const struct sky_state *s,
 		       const struct state_lights *lights, uint32_t valid,
 		       const void *const tables[STATE_N_TABLES], const void *panoramas,
 		       const int32_t rgb_scale_log2[STATE_N_TABLES], uint64_t generation,
 		       int64_t apply_time_ns);
+
+/* Makes the next slot, which pub_publish_ahead wrote with generation,
+ * current, and wakes waiters: no copy. -ESTALE when the next slot no
+ * longer holds it (written or claimed since); then pub_publish_at. */
+int pub_publish_staged(struct pub *p, uint64_t generation);
 
 /* The cloud tables (eng_cloud_table: the coverage table and the shadow
  * maps, each the layout's size) that the next publications copy into

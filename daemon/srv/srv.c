@@ -308,15 +308,20 @@ static void publish(struct srv *s, uint32_t computed, int64_t apply_ns)
 		s->pub_direct = import_region(s, p);
 		new_region = 1;
 	}
-	engine_tables(s, tables, scales);
-	pub_set_cloud_tables(s->pub, eng_cloud_table(s->eng, STATE_CLOUD_COVERAGE, NULL),
-			     eng_cloud_table(s->eng, STATE_CLOUD_SHADOW, NULL));
-	if (s->in_flight_direct)
-		pub_publish_claimed(s->pub, &s->computing.sky, &s->computing.lights, s->eng_valid, scales,
-				    generation, apply_ns);
-	else
-		pub_publish_at(s->pub, &s->computing.sky, &s->computing.lights, s->eng_valid, tables,
-			       eng_panoramas(s->eng, NULL), scales, generation, apply_ns);
+	/* A held computation's slot was written with it (publish_ahead):
+	 * its apply time costs no copy. */
+	if (new_region || apply_ns <= 0 || pub_publish_staged(s->pub, generation) < 0) {
+		engine_tables(s, tables, scales);
+		pub_set_cloud_tables(s->pub, eng_cloud_table(s->eng, STATE_CLOUD_COVERAGE, NULL),
+				     eng_cloud_table(s->eng, STATE_CLOUD_SHADOW, NULL));
+		if (s->in_flight_direct)
+			pub_publish_claimed(s->pub, &s->computing.sky, &s->computing.lights,
+					    s->eng_valid, scales, generation, apply_ns);
+		else
+			pub_publish_at(s->pub, &s->computing.sky, &s->computing.lights, s->eng_valid,
+				       tables, eng_panoramas(s->eng, NULL), scales, generation,
+				       apply_ns);
+	}
 	s->in_flight_direct = 0;
 	s->published_keys = s->computing.keys;
 	s->generation = generation;

@@ -30,11 +30,11 @@
 
 #define N_SKYD SYNC_N_SKYD
 /* The apply-time switch lands within this across the clients. Under the
- * sanitizers each daemon's own publication at the apply time (the copy
- * into the current slot and its checksum, several times slower there)
- * takes the two cores from the clients' wake-ups at that very instant:
- * medians of 1.1 to 3.0 ms were seen, so the bound there is the order of
- * magnitude, and the 2 ms is the plain build's. */
+ * sanitizers, the three instrumented daemons' timers (their own switch,
+ * no copy: the slot was written ahead) and the clients' wake-ups fall on
+ * the same instant on two cores, and the order the scheduler picks is the
+ * spread: medians of 0.5 to 2.1 ms were seen, so the bound there is the
+ * order of magnitude, and the 2 ms is the plain build's. */
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 #define SPREAD_MAX_NS 8000000ll
 #else
