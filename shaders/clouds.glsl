@@ -161,8 +161,9 @@ float cloud_reflectance(float tau, vec2 slab, float mu0)
 // (1 - R A), from below. Each a uniform hemisphere of radiance mu E x / pi,
 // whose mean over the sphere is half of it, scattered as ms_source
 // scatters the ground's bounce: sigma_s plus (below) or less (above) the
-// ground's excess. Each layer alone, over its cover.
-vec3 cloud_diffuse_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground)
+// ground's excess. Each layer alone, over its cover. t_l: the transmittance
+// toward the light there, which the caller has looked up already.
+vec3 cloud_diffuse_source(float mu_l, vec3 t_l, vec3 sigma_s, vec3 ground)
 {
 	if (!(mu_l > 0.0))
 		return vec3(0.0);
@@ -182,6 +183,6 @@ vec3 cloud_diffuse_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground)
 			up += col.w * r * (1.0 - albedo) * (1.0 - albedo) / (1.0 - r * albedo);
 		}
 	}
-	vec3 lit = transmittance_lookup(a, mu_l) * (0.5 * mu_l / PI);
+	vec3 lit = t_l * (0.5 * mu_l / PI);
 	return lit * ((sigma_s - ground) * down + (sigma_s + ground) * up);
 }

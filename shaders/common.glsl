@@ -600,7 +600,7 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 
 // The light the cloud layers scatter into the air at the march's step
 // (clouds.glsl; sky-view and aerial, where CLOUD_LAYERS > 0).
-vec3 cloud_diffuse_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground);
+vec3 cloud_diffuse_source(float mu_l, vec3 t_l, vec3 sigma_s, vec3 ground);
 
 // In-scattered radiance source at a point for one light whose visible
 // fraction is known (light_visible, or disk_visible_mean over a march
@@ -609,11 +609,12 @@ vec3 cloud_diffuse_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground);
 vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground,
 		      vec3 forward, float view_up, Phases ph)
 {
-	vec3 s = visible > 0.0 ? phased * (visible * transmittance_lookup(a, mu_l)) : vec3(0.0);
+	vec3 t_l = transmittance_lookup(a, mu_l);
+	vec3 s = visible > 0.0 ? phased * (visible * t_l) : vec3(0.0);
 	if (MULTISCATTER_ON) {
 		vec3 ms = ms_source(a, mu_l, sigma_s, ground, forward, view_up, ph);
 		if (CLOUD_LAYERS > 0)
-			ms = ms * cloud_ms_open + cloud_diffuse_source(a, mu_l, sigma_s, ground);
+			ms = ms * cloud_ms_open + cloud_diffuse_source(mu_l, t_l, sigma_s, ground);
 		s += ms;
 	}
 	return s * illum;
@@ -769,7 +770,8 @@ void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Pha
 		  float view_up, out vec3 ret_real, out vec3 ret_scaled)
 {
 	int k = max(DELTA_CONST, 0);
-	vec3 t = visible > 0.0 ? visible * transmittance_lookup(a, mu_l) : vec3(0.0);
+	vec3 t_l = transmittance_lookup(a, mu_l);
+	vec3 t = visible > 0.0 ? visible * t_l : vec3(0.0);
 	// The peak's optical depth toward the light, f sigma_D L_D (L_D
 	// DELTA_CONST's column density): T_l' / T_l = exp of it.
 	vec3 depth = delta_removed() * columns_at(a, mu_l)[k];
@@ -780,7 +782,7 @@ void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Pha
 	if (MULTISCATTER_ON) {
 		vec3 ms = ms_source(a, mu_l, ds.sigma_s, ds.ground, ds.forward, view_up, ph);
 		if (CLOUD_LAYERS > 0)
-			ms = ms * cloud_ms_open + cloud_diffuse_source(a, mu_l, ds.sigma_s, ds.ground);
+			ms = ms * cloud_ms_open + cloud_diffuse_source(mu_l, t_l, ds.sigma_s, ds.ground);
 		ret_scaled += ms;
 	}
 	ret_scaled *= illum;
