@@ -16,13 +16,14 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = BINDING_SHADOW) writeonly buffer ShadowTexels { vec4 d[]; } ST;
 
-// Layer l's extinction per km at q: its envelope from the coverage
-// table, bilinear; ret_cover the cover there.
-float envelope_at(int l, vec3 q, out float ret_cover)
+// Layer L's extinction per km at q: its envelope from the coverage
+// table, bilinear; ret_cover the cover there. L, e and k: private copies
+// (as load_params: lavapipe reloads a buffer read inside a loop at every
+// use).
+float envelope_at(SkycloudLayer L, float e, float k, vec3 q, out float ret_cover)
 {
-	float e = CL.FIELD_EXTENT_KM, k = CL.FIELD_TEXELS_PER_KM;
 	float h = skycloud_altitude(P.BOTTOM_RADIUS_KM, q);
-	float hf = (h - CL.layer[l].base_km) * CL.layer[l].inv_thickness_per_km;
+	float hf = (h - L.base_km) * L.inv_thickness_per_km;
 	ret_cover = 0.0;
 	if (!(hf > 0.0 && hf < 1.0))
 		return 0.0;
@@ -31,16 +32,16 @@ float envelope_at(int l, vec3 q, out float ret_cover)
 	int i = min(int(x), CLOUD_W - 2), j = min(int(y), CLOUD_W - 2);
 	float fx = x - float(i), fy = y - float(j);
 	int b = j * CLOUD_W + i;
-	uint ch = CL.layer[l].index & 3u;
+	uint ch = L.index & 3u;
 	float c0 = mix(mix(texelFetch(CloudTex, b)[ch], texelFetch(CloudTex, b + 1)[ch], fx),
 		       mix(texelFetch(CloudTex, b + CLOUD_W)[ch], texelFetch(CloudTex, b + CLOUD_W + 1)[ch], fx), fy);
 	// skycloudmarch.h's skycloud_density_cov: the anvil widens only
 	// where the table has cover.
 	if (!(c0 > 0.0))
 		return 0.0;
-	float c = skycloud_saturate(c0 + CL.layer[l].anvil * hf * hf);
+	float c = skycloud_saturate(c0 + L.anvil * hf * hf);
 	ret_cover = c;
-	return CL.layer[l].extinction_per_km * c * skycloud_profile(CL.layer[l], hf);
+	return L.extinction_per_km * c * skycloud_profile(L, hf);
 }
 
 // The optical depth of the ray's piece over one coverage texel, tau at
@@ -135,17 +136,19 @@ void main()
 	// profile, at most STEPS): a high light crosses a thin layer in a
 	// few, and the gaps between layers cost nothing.
 	float rb = P.BOTTOM_RADIUS_KM, tau = 0.0, front = 1e30, back = 0.0;
-	float across = length(d.xy) * CL.FIELD_TEXELS_PER_KM;
+	float e = CL.FIELD_EXTENT_KM, k_texels = CL.FIELD_TEXELS_PER_KM;
+	float across = length(d.xy) * k_texels;
 	for (int l = 0; l < CLOUD_LAYERS; l++) {
+		SkycloudLayer L = CL.layer[l];
 		float a0, a1, b0, b1, t0 = 0.0, t1 = 0.0;
-		if (skycloud_sphere(rb, CL.layer[l].top_km, o, d, a0, a1)) {
+		if (skycloud_sphere(rb, L.top_km, o, d, a0, a1)) {
 			t0 = max(a0, 0.0);
 			t1 = a1;
 			// Down to the base shell where the ray meets it; a ray that
 			// grazes it crosses the layer once, along its whole chord.
-			if (skycloud_sphere(rb, CL.layer[l].base_km, o, d, b0, b1) && b0 > t0)
+			if (skycloud_sphere(rb, L.base_km, o, d, b0, b1) && b0 > t0)
 				t1 = min(t1, b0);
-			clip_region(o, d, CL.FIELD_EXTENT_KM, t0, t1);
+			clip_region(o, d, e, t0, t1);
 		}
 		if (!(t1 > t0))
 			continue;
@@ -154,7 +157,7 @@ void main()
 		int seg = -1;
 		for (int k = 0; k < n; k++) {
 			float t = t0 + (float(k) + 0.5) * dt;
-			float cover, ext = envelope_at(l, o + t * d, cover);
+			float cover, ext = envelope_at(L, e, k_texels, o + t * d, cover);
 			int texel_k = int(t * across);
 			if (texel_k != seg) {
 				tau += partial_cover_tau(seg_tau, seg_full);
