@@ -17,14 +17,16 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = BINDING_SHADOW) writeonly buffer ShadowTexels { vec4 d[]; } ST;
 
 // Layer L's extinction per km at q: its envelope from the coverage
-// table, bilinear; ret_cover the cover there. L, e and k: private copies
+// table, bilinear; ret_full what it would be at full cover, ret_gap
+// ret_full times the share of the texel without cloud (0 exactly at full
+// cover, which a ratio of sums would round either way). L, e and k: private copies
 // (as load_params: lavapipe reloads a buffer read inside a loop at every
 // use).
-float envelope_at(SkycloudLayer L, float e, float k, vec3 q, out float ret_cover)
+float envelope_at(SkycloudLayer L, float e, float k, vec3 q, out float ret_full, out float ret_gap)
 {
 	float h = skycloud_altitude(P.BOTTOM_RADIUS_KM, q);
 	float hf = (h - L.base_km) * L.inv_thickness_per_km;
-	ret_cover = 0.0;
+	ret_full = ret_gap = 0.0;
 	if (!(hf > 0.0 && hf < 1.0))
 		return 0.0;
 	float x = clamp((q.x + e) * k - 0.5, 0.0, float(CLOUD_W - 1));
@@ -40,24 +42,35 @@ float envelope_at(SkycloudLayer L, float e, float k, vec3 q, out float ret_cover
 	if (!(c0 > 0.0))
 		return 0.0;
 	float c = skycloud_saturate(c0 + L.anvil * hf * hf);
-	ret_cover = c;
-	return L.extinction_per_km * c * skycloud_profile(L, hf);
+	ret_full = L.extinction_per_km * skycloud_profile(L, hf);
+	ret_gap = ret_full * (1.0 - c);
+	return ret_full * c;
 }
 
-// The optical depth of the ray's piece over one coverage texel, tau at
-// the table's cover and tau_full at full cover: the bilinear cover c at a
-// cloud's edge is the share of cloud in the texel, whose edge is sharp
-// (coverage_edge 0.04 of the fBm's spread 0.28), so the piece crosses
-// cloud over that share of the map texel and gap over the rest, 1 - c +
-// c exp(-tau_full) of light through, not exp(-c tau_full). c: the cover
-// along the piece, weighed by the density. The pieces over successive
-// texels meet different parts of the field: their optical depths add.
-float partial_cover_tau(float tau, float tau_full)
+// The ray's piece over one coverage texel, of optical depth tau_full at
+// full cover and gap of it missing where the table's cover c < 1: the
+// bilinear cover at a cloud's edge is the share of cloud in the texel,
+// whose edge is sharp (coverage_edge 0.04 of the fBm's spread 0.28), so
+// the piece crosses cloud over that share of the map texel and gap over
+// the rest, 1 - c + c exp(-tau_full) of light through, not exp(-c
+// tau_full). c: the cover along the piece, weighed by the density. The
+// pieces over successive texels meet different parts of the field: their
+// transmittances multiply, into tr (its mantissa, its power of two in
+// tr_exp2, so that no product underflows), and a fully covered piece's
+// optical depth adds to tau. One logarithm per texel of the map then, not
+// one per piece.
+void add_piece(float tau_full, float gap, inout float tau, inout float tr, inout int tr_exp2)
 {
-	if (!(tau > 0.0))
-		return 0.0;
-	float c = tau / tau_full;
-	return c < 1.0 ? -log(1.0 - c + c * exp(-tau_full)) : tau_full;
+	if (!(tau_full > gap))
+		return;
+	float open = gap / tau_full;	// 1 - c
+	if (open > 0.0) {
+		int e2;
+		tr = frexp(tr * (open + (1.0 - open) * exp(-tau_full)), e2);
+		tr_exp2 += e2;
+	} else {
+		tau += tau_full;
+	}
 }
 
 // The ray o - t l's piece [t0, t1] inside the region's square (its east
@@ -135,7 +148,8 @@ void main()
 	// crosses coverage texels (two a texel, at least four for the
 	// profile, at most STEPS): a high light crosses a thin layer in a
 	// few, and the gaps between layers cost nothing.
-	float rb = P.BOTTOM_RADIUS_KM, tau = 0.0, front = 1e30, back = 0.0;
+	float rb = P.BOTTOM_RADIUS_KM, tau = 0.0, tr = 1.0, front = 1e30, back = 0.0;
+	int tr_exp2 = 0;
 	float e = CL.FIELD_EXTENT_KM, k_texels = CL.FIELD_TEXELS_PER_KM;
 	float across = length(d.xy) * k_texels;
 	for (int l = 0; l < CLOUD_LAYERS; l++) {
@@ -153,26 +167,27 @@ void main()
 		if (!(t1 > t0))
 			continue;
 		int n = clamp(int(ceil(2.0 * (t1 - t0) * across)), 4, STEPS);
-		float dt = (t1 - t0) / float(n), seg_tau = 0.0, seg_full = 0.0;
+		float dt = (t1 - t0) / float(n), seg_full = 0.0, seg_gap = 0.0;
 		int seg = -1;
 		for (int k = 0; k < n; k++) {
 			float t = t0 + (float(k) + 0.5) * dt;
-			float cover, ext = envelope_at(L, e, k_texels, o + t * d, cover);
+			float full, gap, ext = envelope_at(L, e, k_texels, o + t * d, full, gap);
 			int texel_k = int(t * across);
 			if (texel_k != seg) {
-				tau += partial_cover_tau(seg_tau, seg_full);
-				seg_tau = seg_full = 0.0;
+				add_piece(seg_full, seg_gap, tau, tr, tr_exp2);
+				seg_full = seg_gap = 0.0;
 				seg = texel_k;
 			}
 			if (ext > 0.0) {
 				front = min(front, t - 0.5 * dt);
 				back = max(back, t + 0.5 * dt);
-				seg_tau += ext * dt;
-				seg_full += ext / cover * dt;
+				seg_full += full * dt;
+				seg_gap += gap * dt;
 			}
 		}
-		tau += partial_cover_tau(seg_tau, seg_full);
+		add_piece(seg_full, seg_gap, tau, tr, tr_exp2);
 	}
+	tau -= log(tr) + float(tr_exp2) * 0.69314718;
 	// No cloud: (0, 0, 0), which a bilinear filter of the texels blends
 	// into a cloud's edge as the clear it is.
 	vec4 texel = vec4(0.0, 0.0, 0.0, terrain_depth_km(o, d, rb));

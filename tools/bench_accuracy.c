@@ -47,6 +47,8 @@ const struct config acc_configs[] = {
 	{ "Ssteps60", { "skyview_steps=60", "skyview_min_steps=8" }, false },
 	{ "f16", { "storage=f16" }, false },
 	{ "Single", { "multiscatter_dirs=0" }, false },
+	{ "Sh128", { "shadow_width=128" }, false },
+	{ "Sh512", { "shadow_width=512" }, false },
 };
 _Static_assert(sizeof(acc_configs) / sizeof(acc_configs[0]) == N_CONFIGS, "N_CONFIGS");
 

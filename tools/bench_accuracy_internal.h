@@ -57,7 +57,7 @@ struct config {
 };
 
 /* The presets and the one-knob sweeps; the definition's length must match. */
-#define N_CONFIGS 30
+#define N_CONFIGS 32
 #define DEFAULT_CONFIG 1
 extern const struct config acc_configs[];
 
