@@ -38,6 +38,13 @@ vec2 cloud_slab[SKYCLOUD_MAX_LAYERS];
 float cloud_beam_scale = 1.0;
 // The altitude of the march's step (cloud_at), km.
 float cloud_h_km = 0.0;
+// Above this altitude (km), at a point whose ray toward a light goes up,
+// cloud_light is 1 exactly: no caster stands between the point and the
+// light, and the bilinear read's other texels are clear there too. It is
+// the casters' top plus one and a half of the lit maps' largest texel: a
+// neighbouring texel's ray is at most that much lower at the same depth,
+// so its cloud and terrain begin deeper than the point.
+float cloud_ceiling_km = 0.0;
 
 // enum skycloud_type's cirrus: ice, Henyey-Greenstein g 0.75; the water
 // clouds' 0.85 (skycloud_types in proto/skycloud.h).
@@ -61,6 +68,12 @@ void load_clouds()
 	cloud_beam_scale = CLOUD_LAYERS > 0 ? 0.0 : 1.0;
 	for (int i = 0; i < CLOUD_LAYERS; i++)
 		cloud_beam_scale = max(cloud_beam_scale, cloud_slab[i].y);
+	float top = CL.TERRAIN_TOP_KM, texel = 0.0;
+	for (int i = 0; i < CLOUD_LAYERS; i++)
+		top = max(top, cloud_column[i].x);
+	for (int k = 0; k < (MOON_LIT ? 2 : 1); k++)
+		texel = max(texel, max(1.0 / cloud_frame[k].U_TEXELS_PER_KM, 1.0 / cloud_frame[k].V_TEXELS_PER_KM));
+	cloud_ceiling_km = top + 1.5 * texel;
 }
 
 // The optical depth of one map texel's column at depth d (km from the

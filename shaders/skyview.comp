@@ -39,6 +39,112 @@ float over_horizon(StepEnd e, float light_h, float light_z)
 	return e.up_h * light_h + e.up_z * light_z - e.mu_h;
 }
 
+// One invocation's row and columns, shared by the march's steps
+// (march_step): the columns' directions, the lights' phases and
+// horizontal dots, the radiance so far; the row's zenith angle, the ray's
+// part in the shell, its steps, the transmittance along it (real and
+// delta-M scaled), the peak's optical depth and the last step's end.
+vec3 dir[SV_AZ_GROUP], radiance[SV_AZ_GROUP];
+Phases ph_sun[SV_AZ_GROUP], ph_moon[SV_AZ_GROUP];
+float sun_h[SV_AZ_GROUP], moon_h[SV_AZ_GROUP];
+float h0, sin_z, cos_z, len, prev, tau_view;
+int n;
+Entry en;
+vec3 tr, tr_scaled;
+StepEnd ea;
+
+// Step i of the row's march. shadowed: the step reads the shadow maps;
+// march_range says which steps need to, and each loop that calls this
+// with a constant compiles its own copy, without the reads or with them.
+void march_step(int i, const bool shadowed)
+{
+	float a = float(i + 1) / float(n);
+	float next = len * a * a;
+	float dt = next - prev, t = 0.5 * (prev + next), rr;
+	prev = next;
+	float hs = altitude_along(en.h, en.mu, t, rr);
+	// The local vertical: its horizontal part follows each column.
+	float up_h = sin_z * (en.t0 + t) / rr, up_z = (en.ez + cos_z * t) / rr;
+	float sun_z = up_z * P.sun_dir.z, moon_z = up_z * P.moon_dir.z;
+	StepEnd eb = step_end(en, sin_z, cos_z, next);
+	Scatter sc;
+	Medium m = medium_parts(hs, sc);
+	cloud_at(hs);
+	// The view's cos-zenith at the point is the same in every column.
+	float view_up = sin_z * up_h + cos_z * up_z;
+	vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);
+	TAlt ta = t_alt(hs);
+	float e_sun = P.BOTTOM_RADIUS_KM / ta.r * P.SUN_RADIUS_RAD, e_moon = P.BOTTOM_RADIUS_KM / ta.r * P.MOON_RADIUS_RAD;
+	float sun_k = e_sun > 0.0 ? 0.5 / e_sun : 1e30, moon_k = e_moon > 0.0 ? 0.5 / e_moon : 1e30;
+	vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
+	Scaled ds = scaled_step(sc, m, view_up, dt, tau_view);
+	vec3 step_s = vec3(1.0), w_s = vec3(0.0);
+	if (DELTA_CONST >= 0)
+		w_s = tr_scaled * step_weight(m.extinction - ds.removed, dt, step_s);
+	for (int j = 0; j < SV_AZ_GROUP; j++) {
+		vec3 s = vec3(0.0), s_scaled = vec3(0.0);
+		float vis = disk_visible_mean(over_horizon(ea, sun_h[j], P.sun_dir.z),
+					      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
+		// The cloud's shadow at the step's middle (clouds.glsl).
+		vec3 q = vec3(dir[j].xy * (en.t0 + t), h0 + dir[j].z * (en.t0 + t));
+		if (SHADOW_W > 0 && shadowed)
+			vis *= cloud_light(0, q);
+		march_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, sc, ph_sun[j], m, ground,
+			     forward, ds, view_up, s, s_scaled);
+		if (MOON_LIT) {
+			vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
+						over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
+			if (SHADOW_W > 0 && shadowed)
+				vis *= cloud_light(1, q);
+			march_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, sc, ph_moon[j], m,
+				     ground, forward, ds, view_up, s, s_scaled);
+		}
+		radiance[j] += w * s;
+		if (DELTA_CONST >= 0)
+			radiance[j] += w_s * s_scaled;
+	}
+	if (DELTA_CONST >= 0)
+		tr_scaled *= step_s;
+	ea = eb;
+	tr *= step_t;
+}
+
+// The lowest light's cosine to the local vertical over the row's columns
+// at a point of the ray whose local vertical is (up_h along the column,
+// up_z): each light's horizontal part may point anywhere in azimuth.
+float lowest_light(float up_h, float up_z)
+{
+	float lo = up_z * P.sun_dir.z - abs(up_h) * length(P.sun_dir.xy);
+	if (MOON_LIT)
+		lo = min(lo, up_z * P.moon_dir.z - abs(up_h) * length(P.moon_dir.xy));
+	return lo;
+}
+
+// The steps [ret_lo, ret_hi) of the row's march that read the shadow
+// maps: every step whose middle is below the casters' ceiling or sees a
+// light near or below its local horizontal, where the light's ray may
+// pass under the casters (clouds.glsl, cloud_ceiling_km). Elsewhere
+// cloud_light is 1 exactly. The middles are march_step's, to the bit.
+void march_range(out int ret_lo, out int ret_hi)
+{
+	ret_lo = n;
+	ret_hi = 0;
+	if (SHADOW_W == 0)
+		return;
+	float p = 0.0;
+	for (int i = 0; i < n; i++) {
+		float a = float(i + 1) / float(n);
+		float next = len * a * a, t = 0.5 * (p + next), rr;
+		p = next;
+		float hs = altitude_along(en.h, en.mu, t, rr);
+		float up_h = sin_z * (en.t0 + t) / rr, up_z = (en.ez + cos_z * t) / rr;
+		if (!(hs > cloud_ceiling_km) || !(lowest_light(up_h, up_z) > 0.01)) {
+			ret_lo = min(ret_lo, i);
+			ret_hi = i + 1;
+		}
+	}
+}
+
 void main()
 {
 	load_params();
@@ -50,7 +156,7 @@ void main()
 	// take all of them: every workgroup gets half of each.
 	int py = interleaved_row(gy, OUT_H);
 
-	float h0 = P.OBSERVER_KM;
+	h0 = P.OBSERVER_KM;
 	// The row's direction from angles that keep their bits: the horizon's
 	// angle from the nadir, beta = atan(Rb / rho), rather than acos of its
 	// cosine, and the angle from the nadir for rays that point down. From
@@ -59,7 +165,6 @@ void main()
 	float beta = atan(P.BOTTOM_RADIUS_KM, safe_sqrt(rho2(max(h0, 0.0)))), th = PI - beta;
 	float x = clamp(tex_to_unit((float(py) + 0.5) / float(OUT_H), OUT_H), 0.0, 1.0);
 	bool sky = x < 0.5;
-	float sin_z, cos_z;
 	if (sky) {
 		float a = 1.0 - 2.0 * x, zenith = th * (1.0 - a * a);
 		if (zenith <= 0.5 * PI) {
@@ -75,12 +180,9 @@ void main()
 		sin_z = sin(nadir);
 		cos_z = -cos(nadir);
 	}
-	vec3 dir[SV_AZ_GROUP], radiance[SV_AZ_GROUP];
-	Phases ph_sun[SV_AZ_GROUP], ph_moon[SV_AZ_GROUP];
 	// The lights' cosine to the local vertical at a step is
 	// up_h * dot(across, light.xy) + up_z * light.z, with across the column's
 	// horizontal unit vector: the dots are per column, up_h and up_z per step.
-	float sun_h[SV_AZ_GROUP], moon_h[SV_AZ_GROUP];
 	for (int j = 0; j < SV_AZ_GROUP; j++) {
 		float az = 2.0 * PI * (float(min(x0 + j, OUT_W - 1)) + 0.5) / float(OUT_W);
 		vec2 across = vec2(sin(az), cos(az));
@@ -94,70 +196,28 @@ void main()
 		radiance[j] = vec3(0.0);
 	}
 
-	vec3 tr = vec3(1.0);
-	vec3 tr_scaled = vec3(1.0);	// through the delta-M scaled medium (delta_source)
-	float tau_view = 0.0;		// the peak's optical depth along it (scaled_step)
-	Entry en;
+	tr = vec3(1.0);
+	tr_scaled = vec3(1.0);	// through the delta-M scaled medium (delta_source)
+	tau_view = 0.0;		// the peak's optical depth along it (scaled_step)
 	if (ray_in_shell(h0, dir[0], en)) {
-		float len = en.len;
+		len = en.len;
 		float n_f = ceil(mix(P.SKYVIEW_MIN_STEPS, float(STEPS), clamp(len / 100.0, 0.0, 1.0)));
-		int n = max(int(n_f), 1);
+		n = max(int(n_f), 1);
 		// The visible part of each light's disk is averaged over each step
 		// (disk_visible_mean) from the light's height over the local horizon
 		// at the step's two ends.
-		StepEnd ea = step_end(en, sin_z, cos_z, 0.0);
-		float prev = 0.0;
-		for (int i = 0; i < n; i++) {
-			float a = float(i + 1) / float(n);
-			float next = len * a * a;
-			float dt = next - prev, t = 0.5 * (prev + next), rr;
-			prev = next;
-			float hs = altitude_along(en.h, en.mu, t, rr);
-			// The local vertical: its horizontal part follows each column.
-			float up_h = sin_z * (en.t0 + t) / rr, up_z = (en.ez + cos_z * t) / rr;
-			float sun_z = up_z * P.sun_dir.z, moon_z = up_z * P.moon_dir.z;
-			StepEnd eb = step_end(en, sin_z, cos_z, next);
-			Scatter sc;
-			Medium m = medium_parts(hs, sc);
-			cloud_at(hs);
-			// The view's cos-zenith at the point is the same in every column.
-			float view_up = sin_z * up_h + cos_z * up_z;
-			vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);
-			TAlt ta = t_alt(hs);
-			float e_sun = P.BOTTOM_RADIUS_KM / ta.r * P.SUN_RADIUS_RAD, e_moon = P.BOTTOM_RADIUS_KM / ta.r * P.MOON_RADIUS_RAD;
-			float sun_k = e_sun > 0.0 ? 0.5 / e_sun : 1e30, moon_k = e_moon > 0.0 ? 0.5 / e_moon : 1e30;
-			vec3 step_t, w = tr * step_weight(m.extinction, dt, step_t);
-			Scaled ds = scaled_step(sc, m, view_up, dt, tau_view);
-			vec3 step_s = vec3(1.0), w_s = vec3(0.0);
-			if (DELTA_CONST >= 0)
-				w_s = tr_scaled * step_weight(m.extinction - ds.removed, dt, step_s);
-			for (int j = 0; j < SV_AZ_GROUP; j++) {
-				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
-				float vis = disk_visible_mean(over_horizon(ea, sun_h[j], P.sun_dir.z),
-							      over_horizon(eb, sun_h[j], P.sun_dir.z), e_sun, sun_k);
-				// The cloud's shadow at the step's middle (clouds.glsl).
-				vec3 q = vec3(dir[j].xy * (en.t0 + t), h0 + dir[j].z * (en.t0 + t));
-				if (SHADOW_W > 0)
-					vis *= cloud_light(0, q);
-				march_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, sc, ph_sun[j], m, ground,
-					     forward, ds, view_up, s, s_scaled);
-				if (MOON_LIT) {
-					vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
-								over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
-					if (SHADOW_W > 0)
-						vis *= cloud_light(1, q);
-					march_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, sc, ph_moon[j], m,
-						     ground, forward, ds, view_up, s, s_scaled);
-				}
-				radiance[j] += w * s;
-				if (DELTA_CONST >= 0)
-					radiance[j] += w_s * s_scaled;
-			}
-			if (DELTA_CONST >= 0)
-				tr_scaled *= step_s;
-			ea = eb;
-			tr *= step_t;
-		}
+		ea = step_end(en, sin_z, cos_z, 0.0);
+		prev = 0.0;
+		// A row's columns share its steps' altitudes: the steps that read
+		// the shadow maps are a range, the same for all of them.
+		int lo, hi, i = 0;
+		march_range(lo, hi);
+		for (; i < lo; i++)
+			march_step(i, false);
+		for (; i < hi; i++)
+			march_step(i, true);
+		for (; i < n; i++)
+			march_step(i, false);
 	}
 	float tr_mean = (tr.r + tr.g + tr.b) / 3.0;
 	// Night-sky floor: L_z (1 + c (1 - mu)) over the sky, its airlight (1 - T) toward the ground.
