@@ -200,7 +200,10 @@ void main()
 			if (exp_in_layer(k, 1))
 				ea1[k] = exp(lay1[k].y * h);
 		}
-		for (int i = 0; i < STEPS; i++) {
+		// do-while: lavapipe ends a for loop with one more step, every
+		// lane off (STEPS >= 1).
+		int i = 0;
+		do {
 			float t = float(i + 1) * dt;
 			float excess = excess0 + t * (t + two_r_mu);
 			float hb = excess / (sqrt(rb2 + max(excess, 0.0)) + rb);
@@ -219,7 +222,7 @@ void main()
 				column[k] += clamp(e + l.z * hm + l.w, 0.0, 1.0);
 			}
 			ha = hb;
-		}
+		} while (++i < STEPS);
 		for (int k = 0; k < N_CONST; k++)
 			if ((EXP_MASK & (1 << k)) != 0)
 				column[k] *= dt;

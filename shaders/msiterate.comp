@@ -119,7 +119,10 @@ void main()
 	for (int j = 0; j < MS_SUN_GROUP; j++)
 		first[j] = vec3(0.0);
 	TAlt ground_alt = t_alt(0.0);
-	for (int k = lane; k < n_dirs; k += MS_LANES) {
+	// do-while: lavapipe ends a for loop with one more pass, every lane
+	// off (lane < MS_LANES <= n_dirs).
+	int k = lane;
+	do {
 		vec2 ring = cell_ring(k);
 		float wk = cell_weight(ring);
 		vec3 dir = cell_direction(k, ring);
@@ -129,7 +132,10 @@ void main()
 			t_end = tg;
 		float dt = t_end / float(STEPS);
 		vec3 tr = vec3(1.0), absorbed = vec3(0.0);
-		for (int s = 0; s < STEPS; s++) {
+		// do-while: lavapipe ends a for loop with one more step, every
+		// lane off (STEPS >= 1).
+		int s = 0;
+		do {
 			float t = (float(s) + 0.5) * dt, rr;
 			float hs = altitude_along(h, dir.z, t, rr);
 			vec4 dens = densities(hs);
@@ -141,7 +147,7 @@ void main()
 				gathered[j] += ws * ms_read_quadratic(cr, dot(up, sun[j]));
 			absorbed += w * absorption;
 			tr *= step_t;
-		}
+		} while (++s < STEPS);
 		// The cell's solid angle over the mean cell's (as multiscatter.comp).
 		tr *= wk;
 		absorbed *= wk;
@@ -158,7 +164,7 @@ void main()
 		}
 		sum_escape += tr - returned + absorbed;
 		sum_returned += returned;
-	}
+	} while ((k += MS_LANES) < n_dirs);
 	// The wide grain: the sums over every lane's cells.
 	if (MS_LANES > 1) {
 		float v[MS_PARTS];

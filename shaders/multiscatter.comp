@@ -95,7 +95,8 @@ void cell_phases(vec3 sun[MS_SUN_GROUP], int lane)
 	for (int i = 0; i < 4; i++)
 		for (int j = 0; j < MS_SUN_GROUP; j++)
 			total[i][j] = 0.0;
-	for (int k = lane; k < MS_MARCHED; k += MS_LANES) {
+	int k = lane;	// do-while, as in main()
+	do {
 		vec4 cp, ct, xy2;
 		vec2 ring = cell_ring(k);
 		float wk = cell_weight(ring);
@@ -115,7 +116,7 @@ void cell_phases(vec3 sun[MS_SUN_GROUP], int lane)
 				total[i][j] += wk * c;
 			}
 		}
-	}
+	} while ((k += MS_LANES) < MS_MARCHED);
 	if (MS_LANES > 1) {
 		float v[MS_PARTS];
 		for (int i = 0; i < 4; i++)
@@ -215,7 +216,10 @@ void march_cells(int k0, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_s
 	vec3 l2[MS_TOGETHER * MS_SUN_GROUP];
 	for (int j = 0; j < MS_TOGETHER * MS_SUN_GROUP; j++)
 		l2[j] = vec3(0.0);
-	for (int s = 0; s < STEPS; s++) {
+	// do-while: lavapipe runs one more step, every lane off, to end a
+	// for loop (STEPS >= 1).
+	int s = 0;
+	do {
 		float t = (float(s) + 0.5) * dt, rr;
 		float hs = altitude_along(h, dir[0].z, t, rr);
 		vec4 dens = densities(hs);
@@ -231,7 +235,7 @@ void march_cells(int k0, float h, float r0, vec3 sun[MS_SUN_GROUP], mat4x3 ext_s
 		absorbed += w * absorption;
 		transfer += w * scattering;
 		tr *= step_t;
-	}
+	} while (++s < STEPS);
 	for (int c = 0; c < MS_TOGETHER; c++) {
 		vec3 l2_cell[MS_SUN_GROUP];
 		for (int j = 0; j < MS_SUN_GROUP; j++)
@@ -373,8 +377,12 @@ void main()
 	sum_escape = vec3(0.0);
 	sum_returned = vec3(0.0);
 	sum_transfer = mat3(0.0);
-	for (int k = lane; k < MS_MARCHED; k += MS_LANES * MS_TOGETHER)
+	// do-while: lavapipe ends a for loop with one more pass, every lane
+	// off, here a whole group of directions (lane < MS_LANES <= MS_MARCHED).
+	int k = lane;
+	do
 		march_cells(k, h, r0, sun, ext_scaled, scattering_of, absorption_of);
+	while ((k += MS_LANES * MS_TOGETHER) < MS_MARCHED);
 	if (MS_LANES > 1) {
 		reduce_cells(lane);
 		if (lane != 0)

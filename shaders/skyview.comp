@@ -129,8 +129,6 @@ void march_range(out int ret_lo, out int ret_hi)
 {
 	ret_lo = n;
 	ret_hi = 0;
-	if (SHADOW_W == 0)
-		return;
 	float p = 0.0;
 	for (int i = 0; i < n; i++) {
 		float a = float(i + 1) / float(n);
@@ -209,15 +207,24 @@ void main()
 		ea = step_end(en, sin_z, cos_z, 0.0);
 		prev = 0.0;
 		// A row's columns share its steps' altitudes: the steps that read
-		// the shadow maps are a range, the same for all of them.
-		int lo, hi, i = 0;
-		march_range(lo, hi);
-		for (; i < lo; i++)
-			march_step(i, false);
-		for (; i < hi; i++)
-			march_step(i, true);
-		for (; i < n; i++)
-			march_step(i, false);
+		// the shadow maps are a range, the same for all of them. Each loop
+		// costs lavapipe one step more than it runs (its last test comes
+		// after a step with every lane off), so a clear sky keeps one.
+		int i = 0;
+		if (SHADOW_W == 0) {
+			do
+				march_step(i++, false);
+			while (i < n);
+		} else {
+			int lo, hi;
+			march_range(lo, hi);
+			for (; i < lo; i++)
+				march_step(i, false);
+			for (; i < hi; i++)
+				march_step(i, true);
+			for (; i < n; i++)
+				march_step(i, false);
+		}
 	}
 	float tr_mean = (tr.r + tr.g + tr.b) / 3.0;
 	// Night-sky floor: L_z (1 + c (1 - mu)) over the sky, its airlight (1 - T) toward the ground.
