@@ -168,8 +168,10 @@ void main()
 			continue;
 		int n = clamp(int(ceil(2.0 * (t1 - t0) * across)), 4, STEPS);
 		float dt = (t1 - t0) / float(n), seg_full = 0.0, seg_gap = 0.0;
-		int seg = -1;
-		for (int k = 0; k < n; k++) {
+		int seg = -1, k = 0;
+		// do-while: lavapipe ends a for loop with one more step, every
+		// lane off (n >= 4).
+		do {
 			float t = t0 + (float(k) + 0.5) * dt;
 			float full, gap, ext = envelope_at(L, e, k_texels, o + t * d, full, gap);
 			int texel_k = int(t * across);
@@ -184,7 +186,7 @@ void main()
 				seg_full += full * dt;
 				seg_gap += gap * dt;
 			}
-		}
+		} while (++k < n);
 		add_piece(seg_full, seg_gap, tau, tr, tr_exp2);
 	}
 	tau -= log(tr) + float(tr_exp2) * 0.69314718;

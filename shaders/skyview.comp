@@ -218,10 +218,18 @@ void main()
 		} else {
 			int lo, hi;
 			march_range(lo, hi);
+			// The middle loop runs at least once (a do-while): a row that
+			// needs no map reads the maps at its last step, where they
+			// read 1 exactly.
+			if (hi <= lo) {
+				lo = n - 1;
+				hi = n;
+			}
 			for (; i < lo; i++)
 				march_step(i, false);
-			for (; i < hi; i++)
-				march_step(i, true);
+			do
+				march_step(i++, true);
+			while (i < hi);
 			for (; i < n; i++)
 				march_step(i, false);
 		}
