@@ -115,10 +115,7 @@ void main()
 		prev_depth = depth;
 		if (b > a) {
 			float dt = (b - a) / float(STEPS);
-			// do-while: lavapipe ends a for loop with one more step,
-			// every lane off (STEPS >= 1).
-			int i = 0;
-			do {
+			for (int i = 0; i < STEPS; i++) {
 				float t = a + (float(i) + 0.5) * dt, rr;
 				float hs = altitude_along(en.h, en.mu, t - t0, rr);
 				vec3 up = vec3(dir.xy * t, en.ez + dir.z * (t - t0)) / rr;
@@ -152,7 +149,7 @@ void main()
 					tr_scaled *= step_s;
 				}
 				tr *= step_t;
-			} while (++i < STEPS);
+			}
 		}
 		store_slice(panorama, out_base, k, int(pano_w * pano_h), col, px, slice_texel(radiance, tr));
 	}
