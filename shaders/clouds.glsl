@@ -176,7 +176,9 @@ float cloud_reflectance(float tau, vec2 slab, float mu0)
 // scatters the ground's bounce: sigma_s plus (below) or less (above) the
 // ground's excess. Each layer alone, over its cover. t_l: the transmittance
 // toward the light there, which the caller has looked up already.
-vec3 cloud_diffuse_source(float mu_l, vec3 t_l, vec3 sigma_s, vec3 ground)
+// over_all: a constant, true where the step is above every layer's top, so that no
+// layer is above it and the light from above is compiled out.
+vec3 cloud_diffuse_source(float mu_l, vec3 t_l, vec3 sigma_s, vec3 ground, bool over_all)
 {
 	if (!(mu_l > 0.0))
 		return vec3(0.0);
@@ -185,7 +187,7 @@ vec3 cloud_diffuse_source(float mu_l, vec3 t_l, vec3 sigma_s, vec3 ground)
 		vec4 col = cloud_column[i];
 		float above = skycloud_saturate((col.x - cloud_h_km) * col.y);
 		float ta = col.z * above, tb = col.z - ta;
-		if (ta > 0.0) {
+		if (!over_all && ta > 0.0) {
 			float r = cloud_reflectance(ta, cloud_slab[i], mu_l);
 			vec3 d = col.w * max(1.0 - r - exp(-cloud_slab[i].y * ta / mu_l), 0.0) / (1.0 - r * albedo);
 			down += d;

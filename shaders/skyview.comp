@@ -56,6 +56,8 @@ StepEnd ea;
 // Step i of the row's march. shadowed: the step reads the shadow maps;
 // march_range says which steps need to, and each loop that calls this
 // with a constant compiles its own copy, without the reads or with them.
+// A step that needs none is above the casters' ceiling, so above every
+// layer's top: its copy leaves out the layers' light from above too.
 void march_step(int i, const bool shadowed)
 {
 	float a = float(i + 1) / float(n);
@@ -69,7 +71,14 @@ void march_step(int i, const bool shadowed)
 	StepEnd eb = step_end(en, sin_z, cos_z, next);
 	Scatter sc;
 	Medium m = medium_parts(hs, sc);
-	cloud_at(hs);
+	// A step that does not read the maps is above every layer's top
+	// (march_range): the sky above it is open, no layer sends light down.
+	if (shadowed) {
+		cloud_at(hs);
+	} else {
+		cloud_ms_open = 1.0;
+		cloud_h_km = hs;
+	}
 	// The view's cos-zenith at the point is the same in every column.
 	float view_up = sin_z * up_h + cos_z * up_z;
 	vec3 ground = ground_scattering(sc, ground_excess(view_up)), forward = forward_scattering(sc);
@@ -90,14 +99,14 @@ void march_step(int i, const bool shadowed)
 		if (SHADOW_W > 0 && shadowed)
 			vis *= cloud_light(0, q);
 		march_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, sc, ph_sun[j], m, ground,
-			     forward, ds, view_up, s, s_scaled);
+			     forward, ds, view_up, !shadowed, s, s_scaled);
 		if (MOON_LIT) {
 			vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
 						over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
 			if (SHADOW_W > 0 && shadowed)
 				vis *= cloud_light(1, q);
 			march_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, sc, ph_moon[j], m,
-				     ground, forward, ds, view_up, s, s_scaled);
+				     ground, forward, ds, view_up, !shadowed, s, s_scaled);
 		}
 		radiance[j] += w * s;
 		if (DELTA_CONST >= 0)
