@@ -53,6 +53,27 @@ Entry en;
 vec3 tr, tr_scaled;
 StepEnd ea;
 
+// Step i of the row's march from distance from_km on: its end, its
+// middle, the middle's altitude and its local vertical (its horizontal
+// part along the row's columns, up_h, and its vertical part, up_z). One
+// function for march_step and march_range, so that both see the same
+// middles to the bit.
+struct StepMid {
+	float next, t, hs, up_h, up_z;
+};
+
+StepMid step_mid(int i, float from_km)
+{
+	StepMid m;
+	float a = float(i + 1) / float(n), rr;
+	m.next = len * a * a;
+	m.t = 0.5 * (from_km + m.next);
+	m.hs = altitude_along(en.h, en.mu, m.t, rr);
+	m.up_h = sin_z * (en.t0 + m.t) / rr;
+	m.up_z = (en.ez + cos_z * m.t) / rr;
+	return m;
+}
+
 // Step i of the row's march. shadowed: the step reads the shadow maps;
 // march_range says which steps need to, and each loop that calls this
 // with a constant compiles its own copy, without the reads or with them.
@@ -60,13 +81,10 @@ StepEnd ea;
 // layer's top: its copy leaves out the layers' light from above too.
 void march_step(int i, const bool shadowed)
 {
-	float a = float(i + 1) / float(n);
-	float next = len * a * a;
-	float dt = next - prev, t = 0.5 * (prev + next), rr;
+	StepMid mid = step_mid(i, prev);
+	float next = mid.next, dt = next - prev, t = mid.t, hs = mid.hs;
+	float up_h = mid.up_h, up_z = mid.up_z;
 	prev = next;
-	float hs = altitude_along(en.h, en.mu, t, rr);
-	// The local vertical: its horizontal part follows each column.
-	float up_h = sin_z * (en.t0 + t) / rr, up_z = (en.ez + cos_z * t) / rr;
 	float sun_z = up_z * P.sun_dir.z, moon_z = up_z * P.moon_dir.z;
 	StepEnd eb = step_end(en, sin_z, cos_z, next);
 	Scatter sc;
@@ -133,19 +151,16 @@ float lowest_light(float up_h, float up_z)
 // maps: every step whose middle is below the casters' ceiling or sees a
 // light near or below its local horizontal, where the light's ray may
 // pass under the casters (clouds.glsl, cloud_ceiling_km). Elsewhere
-// cloud_light is 1 exactly. The middles are march_step's, to the bit.
+// cloud_light is 1 exactly.
 void march_range(out int ret_lo, out int ret_hi)
 {
 	ret_lo = n;
 	ret_hi = 0;
 	float p = 0.0;
 	for (int i = 0; i < n; i++) {
-		float a = float(i + 1) / float(n);
-		float next = len * a * a, t = 0.5 * (p + next), rr;
-		p = next;
-		float hs = altitude_along(en.h, en.mu, t, rr);
-		float up_h = sin_z * (en.t0 + t) / rr, up_z = (en.ez + cos_z * t) / rr;
-		if (!(hs > cloud_ceiling_km) || !(lowest_light(up_h, up_z) > 0.01)) {
+		StepMid mid = step_mid(i, p);
+		p = mid.next;
+		if (!(mid.hs > cloud_ceiling_km) || !(lowest_light(mid.up_h, mid.up_z) > 0.01)) {
 			ret_lo = min(ret_lo, i);
 			ret_hi = i + 1;
 		}
