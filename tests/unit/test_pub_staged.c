@@ -4,41 +4,16 @@
  * copy. A slot written or claimed since is no longer the staged one. No
  * GPU: tables are bytes. */
 #include <errno.h>
-#include <stdlib.h>
-#include <string.h>
 
 #include "pub.h"
+#include "pub_kit.h"
 #include "skysample.h"
 #include "test.h"
-
-static void set(struct sky_state *s, const char *pair)
-{
-	char err[256];
-	if (state_set_pair(s, pair, NULL, err, sizeof(err)) < 0)
-		FAIL("%s", err);
-}
-
-/* Tables of the layout of s, every byte fill. */
-static void tables_of(const struct sky_state *s, int fill, const void *ret[STATE_N_TABLES])
-{
-	for (int t = 0; t < STATE_N_TABLES; t++) {
-		size_t n = state_table_bytes(s, (enum state_table)t) * (t == STATE_AERIAL ? 2 : 1);
-		void *b = malloc(n);
-		memset(b, fill, n);
-		ret[t] = b;
-	}
-}
-
-static const struct sky_shm_slot *slot_at(const struct sky_shm_header *h, uint32_t i)
-{
-	return (const struct sky_shm_slot *)((const uint8_t *)h + h->header_bytes +
-					     (uint64_t)i * h->slot_bytes);
-}
 
 /* The current slot holds generation g, whole, with skyview bytes fill. */
 static void check_current(const struct sky_shm_header *h, uint32_t g, int fill)
 {
-	const struct sky_shm_slot *c = slot_at(h, h->current_slot);
+	const struct sky_shm_slot *c = pub_kit_slot(h, h->current_slot);
 	CHECK_EQ(h->generation, g);
 	CHECK_EQ(c->generation, g);
 	CHECK_EQ(c->seq & 1u, 0);
@@ -48,19 +23,14 @@ static void check_current(const struct sky_shm_header *h, uint32_t g, int fill)
 
 int main(void)
 {
-	static const char *const small[] = { "transmittance_width=8", "transmittance_height=4",
-		"multiscatter_width=8", "multiscatter_height=4", "skyview_width=8",
-		"skyview_height=4", "aerial_width=8", "aerial_height=4", "aerial_depth=2" };
 	struct sky_state s;
 	struct pub *p = NULL;
 	struct eng_target target;
 	const void *t1[STATE_N_TABLES], *t2[STATE_N_TABLES];
 
-	state_default(&s);
-	for (size_t i = 0; i < sizeof(small) / sizeof(small[0]); i++)
-		set(&s, small[i]);
-	tables_of(&s, 0x11, t1);
-	tables_of(&s, 0x22, t2);
+	pub_kit_small_state(&s, "skyview_width=8");
+	pub_kit_tables(&s, 0x11, t1);
+	pub_kit_tables(&s, 0x22, t2);
 	CHECK_EQ(pub_new(&s, 0, &p), 0);
 	if (!p)
 		return test_report("test_pub_staged");
@@ -74,13 +44,13 @@ int main(void)
 	pub_publish_ahead(p, &s, NULL, STATE_ALL_TABLES, t2, NULL, NULL, 3, 1000);
 	check_current(h, 2, 0x11);
 	CHECK_EQ(h->current_slot, cur);
-	CHECK_EQ(slot_at(h, h->n_slots - 1)->generation, 3);
-	CHECK_EQ(slot_at(h, h->n_slots - 1)->apply_time_ns, 1000);
+	CHECK_EQ(pub_kit_slot(h, h->n_slots - 1)->generation, 3);
+	CHECK_EQ(pub_kit_slot(h, h->n_slots - 1)->apply_time_ns, 1000);
 	CHECK_EQ(pub_publish_staged(p, 4), -ESTALE);
 	CHECK_EQ(pub_publish_staged(p, 3), 0);
 	check_current(h, 3, 0x22);
 	CHECK(h->current_slot != cur && h->current_slot != h->n_slots - 1);
-	CHECK_EQ(slot_at(h, h->current_slot)->apply_time_ns, 1000);
+	CHECK_EQ(pub_kit_slot(h, h->current_slot)->apply_time_ns, 1000);
 	CHECK_EQ(pub_publish_staged(p, 3), -ESTALE);
 
 	/* Overwritten before its time: the next publication is current, the
@@ -97,9 +67,7 @@ int main(void)
 	check_current(h, 5, 0x22);
 
 	pub_free(p);
-	for (int i = 0; i < STATE_N_TABLES; i++) {
-		free((void *)t1[i]);
-		free((void *)t2[i]);
-	}
+	pub_kit_tables_free(t1);
+	pub_kit_tables_free(t2);
 	return test_report("test_pub_staged");
 }

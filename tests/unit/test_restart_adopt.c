@@ -4,56 +4,15 @@
  * that died and a slot published ahead are emptied, the current slot stays
  * readable; a region sealed against writes is refused, one of another
  * layout is superseded and its count handed on. No GPU: tables are bytes. */
+#include <errno.h>
 #include <fcntl.h>
-#include <stdlib.h>
-#include <string.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
 #include "pub.h"
+#include "pub_kit.h"
 #include "skysample.h"
 #include "test.h"
-
-static void set(struct sky_state *s, const char *pair)
-{
-	char err[256];
-	if (state_set_pair(s, pair, NULL, err, sizeof(err)) < 0)
-		FAIL("%s", err);
-}
-
-static void small_state(struct sky_state *s, const char *skyview_width)
-{
-	static const char *const small[] = { "transmittance_width=8", "transmittance_height=4",
-		"multiscatter_width=8", "multiscatter_height=4", "skyview_height=4",
-		"aerial_width=8", "aerial_height=4", "aerial_depth=2" };
-	state_default(s);
-	for (size_t i = 0; i < sizeof(small) / sizeof(small[0]); i++)
-		set(s, small[i]);
-	set(s, skyview_width);
-}
-
-/* Tables of the layout of s, every byte fill. */
-static void tables_of(const struct sky_state *s, int fill, const void *ret[STATE_N_TABLES])
-{
-	for (int t = 0; t < STATE_N_TABLES; t++) {
-		size_t n = state_table_bytes(s, (enum state_table)t) * (t == STATE_AERIAL ? 2 : 1);
-		void *b = malloc(n);
-		memset(b, fill, n);
-		ret[t] = b;
-	}
-}
-
-static void tables_free(const void *t[STATE_N_TABLES])
-{
-	for (int i = 0; i < STATE_N_TABLES; i++)
-		free((void *)t[i]);
-}
-
-static const struct sky_shm_slot *slot_at(const struct sky_shm_header *h, uint32_t i)
-{
-	return (const struct sky_shm_slot *)((const uint8_t *)h + h->header_bytes +
-					     (uint64_t)i * h->slot_bytes);
-}
 
 int main(void)
 {
@@ -62,10 +21,10 @@ int main(void)
 	const void *t1[STATE_N_TABLES], *t2[STATE_N_TABLES];
 	uint64_t gen = 0;
 
-	small_state(&s, "skyview_width=8");
-	small_state(&other, "skyview_width=16");
-	tables_of(&s, 0x11, t1);
-	tables_of(&s, 0x22, t2);
+	pub_kit_small_state(&s, "skyview_width=8");
+	pub_kit_small_state(&other, "skyview_width=16");
+	pub_kit_tables(&s, 0x11, t1);
+	pub_kit_tables(&s, 0x22, t2);
 
 	/* The first skyd: generations 1..5, the last ahead of its time. */
 	CHECK_EQ(pub_new_adoptable(&s, 0, &a), 0);
@@ -84,7 +43,7 @@ int main(void)
 	/* It dies while writing the slot after the current one. */
 	struct sky_shm_header *w = (struct sky_shm_header *)pub_header(a);
 	uint32_t torn = (cur + 1) % (PUB_SLOTS - 1);
-	((struct sky_shm_slot *)slot_at(w, torn))->seq |= 1u;
+	((struct sky_shm_slot *)pub_kit_slot(w, torn))->seq |= 1u;
 	pub_free(a);
 
 	/* The next skyd adopts it: torn and spare slots emptied, the current
@@ -94,17 +53,17 @@ int main(void)
 	if (!b)
 		return test_report("test_restart_adopt");
 	CHECK(pub_header(b) != NULL && pub_bytes(b) == bytes);
-	CHECK(r->current_slot == cur && slot_at(r, cur)->generation == 4 &&
-	      (slot_at(r, cur)->seq & 1u) == 0 && slot_at(r, cur)->valid_tables == STATE_ALL_TABLES);
-	CHECK_EQ(skysample_slot_checksum(r, slot_at(r, cur)), slot_at(r, cur)->checksum);
-	CHECK((slot_at(r, torn)->seq & 1u) == 0 && slot_at(r, torn)->valid_tables == 0);
-	CHECK_EQ(skysample_slot_checksum(r, slot_at(r, torn)), slot_at(r, torn)->checksum);
-	CHECK(slot_at(r, PUB_SLOTS - 1)->apply_time_ns == 0 &&
-	      slot_at(r, PUB_SLOTS - 1)->generation == 0);
+	CHECK(r->current_slot == cur && pub_kit_slot(r, cur)->generation == 4 &&
+	      (pub_kit_slot(r, cur)->seq & 1u) == 0 && pub_kit_slot(r, cur)->valid_tables == STATE_ALL_TABLES);
+	CHECK_EQ(skysample_slot_checksum(r, pub_kit_slot(r, cur)), pub_kit_slot(r, cur)->checksum);
+	CHECK((pub_kit_slot(r, torn)->seq & 1u) == 0 && pub_kit_slot(r, torn)->valid_tables == 0);
+	CHECK_EQ(skysample_slot_checksum(r, pub_kit_slot(r, torn)), pub_kit_slot(r, torn)->checksum);
+	CHECK(pub_kit_slot(r, PUB_SLOTS - 1)->apply_time_ns == 0 &&
+	      pub_kit_slot(r, PUB_SLOTS - 1)->generation == 0);
 	/* It writes into the memory the reader has mapped. */
 	pub_publish(b, &s, STATE_ALL_TABLES, t2, NULL, NULL, gen + 1);
 	CHECK(r->generation == 6 && r->current_slot != cur);
-	const struct sky_shm_slot *n = slot_at(r, r->current_slot);
+	const struct sky_shm_slot *n = pub_kit_slot(r, r->current_slot);
 	CHECK(n->generation == 6 && (n->seq & 1u) == 0);
 	CHECK_EQ(((const uint8_t *)n)[r->tables[STATE_SKYVIEW].offset], 0x22);
 	CHECK_EQ(skysample_slot_checksum(r, n), n->checksum);
@@ -132,7 +91,7 @@ int main(void)
 	munmap((void *)r, bytes);
 	pub_free(b);
 	pub_free(strict);
-	tables_free(t1);
-	tables_free(t2);
+	pub_kit_tables_free(t1);
+	pub_kit_tables_free(t2);
 	return test_report("test_restart_adopt");
 }
