@@ -86,6 +86,9 @@ struct skycloud_scene {
 	 * coverage (5 octaves of noise a step). */
 	const struct skysample_table *coverage;
 	double extent_km;
+	/* The field's move since the coverage table was made (the slot's
+	 * table_shift_km): field coordinates (x, y) read it at (x, y) - shift. */
+	double table_shift_km[2];
 	/* Sky irradiance on a horizontal surface, lx (sky_sample_ambient),
 	 * scattered as isotropic skylight (E / pi): the first order of the
 	 * sky's light, which the multi-scattering table leaves out; 0 for
@@ -160,12 +163,15 @@ static inline int skycloud_scene_from_slot(const struct sky_shm_clouds *c,
 		ret->albedo[i] = c->layers[i].albedo;
 	}
 	ret->extent_km = c->extent_km;
+	ret->table_shift_km[0] = c->table_shift_km[0];
+	ret->table_shift_km[1] = c->table_shift_km[1];
 	ret->diffusion = 1;
 	return n;
 }
 
 /* The coverage table's texture coordinate of field coordinates (x, y) km
- * (before the wind's offset: the table is computed with it). */
+ * (before the wind's offset: the table is computed with it), less the
+ * table's shift (struct skycloud_scene's table_shift_km). */
 static inline void skycloud_table_uv(double extent_km, double x, double y, double ret_uv[2])
 {
 	ret_uv[0] = 0.5 + 0.5 * x / extent_km;
@@ -363,7 +369,7 @@ static inline double skycloud_march_density(const struct skycloud_scene *sc, con
 	double cov[4] = { 0.0, 0.0, 0.0, 0.0 }, sum = 0.0;
 	if (sc->coverage) {
 		double uv[2];
-		skycloud_table_uv(sc->extent_km, p[0], p[1], uv);
+		skycloud_table_uv(sc->extent_km, p[0] - sc->table_shift_km[0], p[1] - sc->table_shift_km[1], uv);
 		if (uv[0] >= 0.0 && uv[0] <= 1.0 && uv[1] >= 0.0 && uv[1] <= 1.0)
 			skysample_bilinear(sc->coverage, uv[0], uv[1], 0, 0, cov);
 	}

@@ -52,7 +52,7 @@ enum sky_ack {
  * control socket with a "layout:" line (PROTOCOL.md).
  */
 #define SKY_SHM_MAGIC 0x31594b53u	/* "SKY1" little-endian */
-#define SKY_SHM_LAYOUT_VERSION 7u
+#define SKY_SHM_LAYOUT_VERSION 8u
 #define SKY_SHM_MAX_TABLES 6u
 #define SKY_SHM_MIN_SLOTS 3u
 /* Views (`view add`): at most this many, each with its aerial perspective
@@ -153,6 +153,12 @@ struct sky_shm_clouds {
 	double extent_km;		/* half-width of the square region around the observer */
 	double offset_km[2];		/* the wind's offset (east, north), subtracted from
 					 * field coordinates before the noise */
+	/* The wind's move since the tables were made (east, north km): the
+	 * coverage table holds the field at offset_km - table_shift_km, so
+	 * field coordinates (x, y) read it at (x, y) - table_shift_km. The
+	 * shadow rows below include it already. skyd keeps the tables while
+	 * the wind carries the field within a few shadow texels. */
+	double table_shift_km[2];
 	double period_km;		/* the field repeats every period_km (SKYCLOUD_PERIOD_KM) */
 	double placed_utc_s;		/* the simulated second it was placed for; NaN: still */
 	/* The cloud's transmittance from the observer toward the sun and the
@@ -229,7 +235,7 @@ struct sky_shm_slot {
 	uint32_t n_views;		/* views[0 .. n_views) describe this slot's views */
 	uint32_t valid_views;		/* bit i: view i's volume or panorama is valid */
 	struct sky_shm_view views[SKY_SHM_MAX_VIEWS];
-	struct sky_shm_clouds clouds;	/* layout 7 */
+	struct sky_shm_clouds clouds;	/* layout 7; table_shift_km: 8 */
 };
 
 struct sky_shm_header {

@@ -497,6 +497,8 @@ static void fill_clouds(const struct rvk *r, const struct rvk_upload *up, bool h
 	u->scene[3][2] = (float)sc.n_layers;
 	u->scene[3][3] = (float)sc.extent_km;
 	vec4(u->scene[4], up->ambient_lx, sc.diffusion);
+	u->scene[5][0] = (float)sc.table_shift_km[0];
+	u->scene[5][1] = (float)sc.table_shift_km[1];
 	has_map = has_map && (up->clouds->shadow_lights & 1u);
 	for (int c = 0; c < 4; c++) {
 		u->sun[0][c] = up->state[0]->sun[c];

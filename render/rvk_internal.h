@@ -63,7 +63,7 @@ struct rvk_frame_ubo {
 	 * shadow map's frame, and x: the march's steps (0: no clouds), y:
 	 * light steps (0: the shadow map). */
 	struct { struct skycloud_layer l; float pad[2]; } layers[SKYCLOUD_MAX_LAYERS];
-	float scene[5][4];
+	float scene[6][4];
 	float sun[6][4];
 	float clouds[4];
 };

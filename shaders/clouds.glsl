@@ -15,6 +15,7 @@ layout(std430, binding = BINDING_CLOUDS) readonly buffer CloudBlock {
 	vec4 terrain;
 	uvec4 terrain_size;
 	ShadowFrame frame[2];
+	vec4 shift;	// xy: the field's move since the maps were made, km
 } CL;
 layout(binding = BINDING_CLOUD_TEX) uniform samplerBuffer CloudTex;
 layout(binding = BINDING_SHADOW_TEX) uniform samplerBuffer ShadowTex;
@@ -54,8 +55,15 @@ void load_clouds()
 {
 	if (SHADOW_W == 0)
 		return;
-	cloud_frame[0] = CL.frame[0];
-	cloud_frame[1] = CL.frame[1];
+	// The maps hold the field where the tables placed it; it has moved
+	// on by shift since: a point reads the map where it was then.
+	vec3 shift = vec3(CL.shift.xy, 0.0);
+	for (int k = 0; k < 2; k++) {
+		cloud_frame[k] = CL.frame[k];
+		cloud_frame[k].u.w += dot(cloud_frame[k].u.xyz, shift);
+		cloud_frame[k].v.w += dot(cloud_frame[k].v.xyz, shift);
+		cloud_frame[k].l.w += dot(cloud_frame[k].l.xyz, shift);
+	}
 	for (int i = 0; i < CLOUD_LAYERS; i++)
 		cloud_column[i] = vec4(CL.layer[i].top_km, CL.layer[i].inv_thickness_per_km,
 				       CL.layer[i].extinction_per_km * (CL.layer[i].top_km - CL.layer[i].base_km) *

@@ -196,7 +196,8 @@
  * (proto/skycloud.h's struct skycloud_layer, float build, 72 bytes each;
  * SPEC_CLOUD_LAYERS of them are read), the field's place, then a shadow
  * map's frame per light, sun then moon (eng_clouds.c, docs/clouds.md,
- * "Shadow maps"). A map's texel (i, j) is the light's ray through
+ * "Shadow maps"), and the field's move since the maps were made (vec4
+ * shift: east, north km). A map's texel (i, j) is the light's ray through
  * u U_MIN_KM + (i + 0.5) / U_TEXELS_PER_KM along u, likewise along v,
  * and PLANE_KM along l: depths are counted from there toward -l. */
 #define SKY_SHADOW_FRAME_MEMBERS(V)                                              \
@@ -210,7 +211,7 @@
 #define U_TEXELS_PER_KM scale[0]
 #define V_TEXELS_PER_KM scale[1]
 /* The field's place (the block's vec4 field). */
-#define FIELD_OFFSET_EAST_KM field[0]	/* the wind's offset (clouds.offset_km) */
+#define FIELD_OFFSET_EAST_KM field[0]	/* the tables' offset (state_cloud_table_offset_km) */
 #define FIELD_OFFSET_NORTH_KM field[1]
 #define FIELD_EXTENT_KM field[2]	/* the region's half-width */
 #define FIELD_TEXELS_PER_KM field[3]	/* the coverage table's: cloud_width / (2 extent) */

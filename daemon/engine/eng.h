@@ -225,8 +225,9 @@ const void *eng_panoramas(const struct eng *e, size_t *ret_bytes);
  * the sun's then the moon's). NULL while none holds the state's field (a
  * clear sky). Valid until the next eng_submit or eng_free. */
 const void *eng_cloud_table(const struct eng *e, int t, size_t *ret_bytes);
-/* A shadow map's frame as the passes use it (sky_params.h's
- * SKY_SHADOW_FRAME_MEMBERS: u, v, l and scale, 4 floats each), for the
+/* A shadow map's frame as the sky marches read it (sky_params.h's
+ * SKY_SHADOW_FRAME_MEMBERS: u, v, l and scale, 4 floats each; the
+ * field's shift since the maps were made included), for the
  * sun (0) and the moon (1, zero while it lights nothing) of s lit by
  * lights; returns the layers drawn (0: all zero). */
 int eng_cloud_frames(const struct sky_state *s, const struct state_lights *lights,

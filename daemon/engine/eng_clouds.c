@@ -15,7 +15,7 @@
 
 _Static_assert(sizeof(struct skycloud_layer) == 72 &&
 	       offsetof(struct gpu_clouds, field) == 288 && offsetof(struct gpu_clouds, terrain) == 304 &&
-	       offsetof(struct gpu_clouds, frame) == 336,
+	       offsetof(struct gpu_clouds, frame) == 336 && offsetof(struct gpu_clouds, shift_km) == 464,
 	       "struct gpu_clouds is clouds.glsl's CloudBlock in std430");
 
 /* The frame of a light's map: the box of skycloud_shadow_box_of (the one
@@ -97,8 +97,12 @@ int eng_fill_clouds(const struct sky_state *s, const struct state_lights *lights
 	for (int i = 0; i < n; i++)
 		top = fmax(top, ret->layer[i].top_km);
 	if (n > 0) {
-		ret->FIELD_OFFSET_EAST_KM = (float)s->clouds.offset_km[0];
-		ret->FIELD_OFFSET_NORTH_KM = (float)s->clouds.offset_km[1];
+		double at[2], shift[2];
+		state_cloud_table_offset_km(s, at, shift);
+		ret->FIELD_OFFSET_EAST_KM = (float)at[0];
+		ret->FIELD_OFFSET_NORTH_KM = (float)at[1];
+		ret->shift_km[0] = (float)shift[0];
+		ret->shift_km[1] = (float)shift[1];
 		ret->FIELD_EXTENT_KM = (float)e;
 		ret->FIELD_TEXELS_PER_KM = (float)(s->quality.cloud_width / (2.0 * e));
 		texel_km = 2.0 * e / s->quality.cloud_width;
@@ -136,11 +140,17 @@ uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct g
 		return mask & ~(uint32_t)STATE_CLOUD_TABLES;
 	/* Sky-view and aerial read the maps: what they were made from must
 	 * be this state's, whatever the caller asked. The coverage table
-	 * depends on the layers and the field's place, the maps on it and
-	 * the lights' frames too. */
+	 * depends on the layers and the tables' place of the field, the maps
+	 * on it and the lights' frames too; the shift is the readers'. Tables
+	 * made from this state's are kept, whatever the caller asked: a wind
+	 * step within the field's cell moves only the readers. */
 	bool field = !e->clouds_valid || memcmp(c, &e->clouds_key, offsetof(struct gpu_clouds, terrain));
 	bool frames = field || memcmp(c->terrain, e->clouds_key.terrain,
-				      sizeof(*c) - offsetof(struct gpu_clouds, terrain));
+				      offsetof(struct gpu_clouds, shift_km) - offsetof(struct gpu_clouds, terrain));
+	if (!field)
+		mask &= ~STATE_BIT(STATE_CLOUD_COVERAGE);
+	if (!frames)
+		mask &= ~STATE_BIT(STATE_CLOUD_SHADOW);
 	if ((mask & readers) && field)
 		mask |= STATE_CLOUD_TABLES;
 	if ((mask & readers) && frames)
@@ -282,5 +292,10 @@ int eng_cloud_frames(const struct sky_state *s, const struct state_lights *light
 
 	_Static_assert(sizeof(c.frame[0]) == sizeof(ret[0]), "a frame is 16 floats");
 	memcpy(ret, c.frame, sizeof(c.frame));
+	/* As the readers take them: where the field was when the maps were
+	 * made (clouds.glsl, load_clouds). */
+	for (int k = 0; k < 2; k++)
+		for (int a = 0; a < 3; a++)
+			ret[k][4 * a + 3] += ret[k][4 * a] * c.shift_km[0] + ret[k][4 * a + 1] * c.shift_km[1];
 	return n;
 }

@@ -101,6 +101,11 @@ struct gpu_clouds {
 						 * field's hash: a new field is a
 						 * new block */
 	struct gpu_shadow_frame frame[2];	/* sun, moon */
+	/* The field's move since the tables' offset (FIELD_OFFSET_*), east
+	 * and north km, and 0, 0: the maps' readers shift by it
+	 * (state_cloud_table_offset_km). Not part of what the tables are
+	 * made from. */
+	float shift_km[4];
 };
 
 /* Specialization constants, by constant_id (SPEC_* in sky_params.h). */

@@ -466,6 +466,8 @@ static void cloud_block(const struct sky_state *s, const struct state_lights *li
 	ret->extent_km = state_cloud_extent_km(s);
 	ret->offset_km[0] = s->clouds.offset_km[0];
 	ret->offset_km[1] = s->clouds.offset_km[1];
+	double at[2];
+	state_cloud_table_offset_km(s, at, ret->table_shift_km);
 	ret->period_km = SKYCLOUD_PERIOD_KM;
 	ret->placed_utc_s = s->clouds.utc_s;
 	for (int i = 0; i < n; i++) {

@@ -37,7 +37,7 @@ static const struct state_quality quality_presets[N_QUALITY_PRESETS] = {
 		       [STATE_AERIAL] = TABLE_Q(16, 16, 16, 1) },
 		.multiscatter_dirs = 2, .skyview_min_steps = 4, .aerial_range_km = 128.0,
 		.aerial_spacing = STATE_SQUARED, .storage = STATE_F16,
-		.cloud_width = 128, .shadow_width = 128,
+		.cloud_width = 128, .shadow_width = 128, .cloud_cell_texels = 2.0,
 	},
 	[QUALITY_MEDIUM] = {
 		.t = { [STATE_TRANSMITTANCE] = TABLE_Q(256, 64, 1, 40),
@@ -46,7 +46,7 @@ static const struct state_quality quality_presets[N_QUALITY_PRESETS] = {
 		       [STATE_AERIAL] = TABLE_Q(32, 32, 32, 1) },
 		.multiscatter_dirs = 64, .skyview_min_steps = 4, .aerial_range_km = 128.0,
 		.aerial_spacing = STATE_SQUARED, .storage = STATE_F32,
-		.cloud_width = 256, .shadow_width = 256,
+		.cloud_width = 256, .shadow_width = 256, .cloud_cell_texels = 2.0,
 	},
 	[QUALITY_HIGH] = {
 		.t = { [STATE_TRANSMITTANCE] = TABLE_Q(256, 64, 1, 60),
@@ -55,7 +55,7 @@ static const struct state_quality quality_presets[N_QUALITY_PRESETS] = {
 		       [STATE_AERIAL] = TABLE_Q(48, 48, 32, 2) },
 		.multiscatter_dirs = 64, .skyview_min_steps = 6, .aerial_range_km = 128.0,
 		.aerial_spacing = STATE_SQUARED, .storage = STATE_F32,
-		.cloud_width = 256, .shadow_width = 256,
+		.cloud_width = 256, .shadow_width = 256, .cloud_cell_texels = 2.0,
 	},
 	[QUALITY_ULTRA] = {
 		.t = { [STATE_TRANSMITTANCE] = TABLE_Q(512, 128, 1, 80),
@@ -64,7 +64,7 @@ static const struct state_quality quality_presets[N_QUALITY_PRESETS] = {
 		       [STATE_AERIAL] = TABLE_Q(64, 64, 64, 2) },
 		.multiscatter_dirs = 64, .skyview_min_steps = 8, .aerial_range_km = 128.0,
 		.aerial_spacing = STATE_SQUARED, .storage = STATE_F32,
-		.cloud_width = 512, .shadow_width = 512,
+		.cloud_width = 512, .shadow_width = 512, .cloud_cell_texels = 2.0,
 	},
 };
 

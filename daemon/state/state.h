@@ -108,6 +108,9 @@ struct state_quality {
 	enum state_moment multiscatter_delta;
 	uint32_t cloud_width;		/* texels of the cloud coverage table, square */
 	uint32_t shadow_width;		/* texels of a cloud shadow map, square */
+	/* How far the wind carries the field, in shadow texels, before its
+	 * tables are remade (state_cloud_table_offset_km); 0: at every move. */
+	double cloud_cell_texels;
 };
 
 /* Who drives a light: the key=value of its angles (manual) or the clock. */
@@ -422,6 +425,14 @@ int state_cloud_layers_double(const struct sky_state *s, struct skycloudd_layer 
 /* The wind's offset of the field placed at clouds.utc_s (0, 0 when it is
  * NAN), east and north km. */
 void state_cloud_offset_km(const struct sky_state *s, double ret_km[2]);
+/* Where the field's tables (the coverage table, the shadow maps) place
+ * it: the effective state's clouds.offset_km on a lattice of
+ * quality.cloud_cell_texels shadow texels, so that the tables stay while
+ * the wind carries the field within a cell and their readers shift by the
+ * rest (ret_shift_km = offset - table offset; docs/clouds.md, "The wind
+ * between the tables"). With a height field the maps hold the terrain,
+ * which stays: the lattice is off, the shift 0; likewise with a cell of 0. */
+void state_cloud_table_offset_km(const struct sky_state *s, double ret_km[2], double ret_shift_km[2]);
 /* `get clouds`: each layer (cover, base, top, type, drawn), the wind,
  * the seed, the region and the field's offset. */
 void state_describe_clouds(const struct sky_state *s, state_emit_fn fn, void *ctx);

@@ -114,6 +114,18 @@ void state_cloud_offset_km(const struct sky_state *s, double ret_km[2])
 					s->clouds.utc_s, ret_km);
 }
 
+void state_cloud_table_offset_km(const struct sky_state *s, double ret_km[2], double ret_shift_km[2])
+{
+	double cell_km = s->quality.cloud_cell_texels * 2.0 * state_cloud_extent_km(s) / s->quality.shadow_width;
+	bool lattice = cell_km > 0.0 && !state_terrain_set(s);
+
+	for (int k = 0; k < 2; k++) {
+		double o = s->clouds.offset_km[k];
+		ret_km[k] = lattice ? floor(o / cell_km) * cell_km : o;
+		ret_shift_km[k] = o - ret_km[k];
+	}
+}
+
 /* ---- the keys' hooks ---- */
 
 /* A cloud key changes no table while no layer is drawn, before or after. */

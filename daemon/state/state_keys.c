@@ -265,6 +265,9 @@ static const struct state_key keys[] = {
 	{ .name = "shadow_width", INTEGER(quality.shadow_width, 16, 2048), FROM_PRESET,
 	  .dirty = STATE_BIT(STATE_CLOUD_SHADOW) | LIGHTS, .set = state_set_cloud_key,
 	  .unit = "texels", .doc = "size of a cloud shadow map over the field's region (square)" },
+	{ .name = "cloud_cell_texels", NUMBER(quality.cloud_cell_texels, 0, 64), FROM_PRESET, .dirty = CLOUDS,
+	  .set = state_set_cloud_key, .unit = "texels",
+	  .doc = "shadow texels the wind carries the field before its tables are remade (0: every move)" },
 
 	/* ---- the site and the clock's settings: refraction only changes
 	 * the reported direction, never the tables ---- */

@@ -60,6 +60,7 @@ struct SkycloudScene {
 				// w: the coverage table's half-width km (0: the field's own coverage)
 	vec4 ambient;		// rgb: sky irradiance lx, scattered as E / pi; w: 1 the light
 				// diffused through the layers in place of the octaves past the first
+	vec4 table;		// xy: the coverage table's shift km (table_shift_km), zw: 0
 };
 
 // struct skycloud_light: dir.xyz toward the light, dir.w 1 when it has a
@@ -173,7 +174,7 @@ float skycloud_march_density(SkycloudLayer layers[SKYCLOUD_MAX_LAYERS], Skycloud
 	vec4 cov = vec4(0.0);
 	bool table = sc.field.w > 0.0;
 	if (table) {
-		vec2 uv = skycloud_table_uv(sc.field.w, p.xy);
+		vec2 uv = skycloud_table_uv(sc.field.w, p.xy - sc.table.xy);
 		if (uv.x >= 0.0 && uv.x <= 1.0 && uv.y >= 0.0 && uv.y <= 1.0)
 			cov = sky_read_2d(coverage, uv, false, 1.0);
 	}

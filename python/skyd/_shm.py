@@ -1,7 +1,7 @@
 """The shared memory: the sealed memfd mapped read-only, its header checked,
 seqlock snapshots of the newest slot, and the futex wait on its generation.
 
-The layout is proto/skyproto.h's (layout 7, uv mapping 4): the offsets below
+The layout is proto/skyproto.h's (layout 8, uv mapping 4): the offsets below
 are those of its structs on every Linux ABI skyd runs on (natural alignment,
 no packing); the tests compare them with the C compiler's offsetof.
 """
@@ -21,7 +21,7 @@ import numpy as np
 from ._wire import ProtocolError
 
 MAGIC = 0x31594B53            # "SKY1" little-endian
-LAYOUT_VERSION = 7
+LAYOUT_VERSION = 8
 UV_MAPPING_VERSION = 4        # SKYMAP_VERSION
 MAX_TABLES = 6
 MIN_SLOTS = 3
@@ -56,8 +56,8 @@ SLOT_N_VIEWS = 448
 SLOT_VALID_VIEWS = 452
 SLOT_VIEWS = 456
 SLOT_CLOUDS = 2120
-SLOT_BYTES = 2696
-CLOUDS_BYTES = 576
+SLOT_BYTES = 2712
+CLOUDS_BYTES = 592
 STATE_BYTES = 416
 VIEW_BYTES = 208
 

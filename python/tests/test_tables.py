@@ -236,8 +236,8 @@ def test_another_layout_is_refused_clearly():
     assert region.tables == {} and region.n_slots == 3
     region.close()
     with pytest.raises(skyd.LayoutError) as e:
-        skyd.Region(_fake_region(layout=8))
-    assert "layout 8" in str(e.value) and "reads layout 7" in str(e.value)
+        skyd.Region(_fake_region(layout=9))
+    assert "layout 9" in str(e.value) and "reads layout 8" in str(e.value)
     with pytest.raises(skyd.LayoutError) as e:
         skyd.Region(_fake_region(uv=5))
     assert "uv mapping 5" in str(e.value)

@@ -10,6 +10,11 @@
  *   skyctl   skyrender's frame with a layer against `skyctl render` of the
  *            same view and generation (libsky's CPU march) on the sky
  *            pixels;
+ *   cell     the wind within a cell of the tables' lattice keeps the
+ *            coverage table and the shadow maps, byte for byte, and moves
+ *            their readers: the slot's table_shift_km and shadow rows
+ *            follow the field; a step across a cell's edge remakes them
+ *            at the next lattice point;
  *   truth    libsky's march (the GLSL library's function, skyrender's
  *            pixels to a level: test_render_clouds) against the path
  *            tracer's picture of the same scene in 64 directions through
@@ -20,6 +25,7 @@
 #include <png.h>
 #include <time.h>
 
+#include "skycloud.h"	/* the float build, before media.h's double one */
 #include "daemon_harness.h"
 #include "dump.h"
 #include "frame_kit.h"
@@ -348,6 +354,158 @@ static sky_client *subscribe_all(void)
 	return NULL;
 }
 
+/* ---- cell ------------------------------------------------------------- */
+
+/* What a slot says of the cloud field: its block and its cloud tables. */
+struct cloud_copy {
+	struct sky_shm_clouds c;
+	float *cov, *map;
+	size_t cov_bytes, map_bytes;
+	uint32_t cov_w;
+};
+
+static void cloud_copy_free(struct cloud_copy *k)
+{
+	free(k->cov);
+	free(k->map);
+	memset(k, 0, sizeof(*k));
+}
+
+/* The newest slot of c from generation g on, with its cloud tables. */
+static int copy_clouds(sky_client *c, long g, struct cloud_copy *ret)
+{
+	const uint32_t cloud = SKY_TABLE_BIT(SKY_TABLE_CLOUD) | SKY_TABLE_BIT(SKY_TABLE_SHADOW);
+	uint32_t seen = 0;
+	struct sky_view v;
+	cloud_copy_free(ret);
+	while (sky_wait(c, seen, HARNESS_TIMEOUT_MS, &seen) >= 0) {
+		if (sky_view_begin(c, &v) < 0)
+			continue;
+		const struct sky_shm_table *tc = &v.header->tables[SKY_TABLE_CLOUD];
+		const struct sky_shm_table *ts = &v.header->tables[SKY_TABLE_SHADOW];
+		bool ready = (long)v.generation >= g && (v.valid_tables & cloud) == cloud;
+		if (ready) {
+			ret->c = v.slot->clouds;
+			ret->cov_bytes = tc->bytes;
+			ret->map_bytes = ts->bytes;
+			ret->cov_w = tc->width;
+			ret->cov = malloc(tc->bytes);
+			ret->map = malloc(ts->bytes);
+			if (ret->cov && ret->map) {
+				memcpy(ret->cov, (const char *)v.slot_base + tc->offset, tc->bytes);
+				memcpy(ret->map, (const char *)v.slot_base + ts->offset, ts->bytes);
+			}
+		}
+		if (sky_view_end(c, &v) && ready && ret->cov && ret->map)
+			return 0;
+		cloud_copy_free(ret);
+	}
+	FAIL("no slot of generation %ld with the cloud tables", g);
+	return -1;
+}
+
+/* Sets the field's time to utc_s (the lights held); the generation. */
+static long field_at(double utc_s)
+{
+	static const char *const lights[] = { LIGHTS, NULL };
+	char line[1024], t[32];
+	time_t when = (time_t)utc_s;
+	struct tm tm;
+	strftime(t, sizeof(t), "%Y-%m-%dT%H:%M:%SZ", gmtime_r(&when, &tm));
+	snprintf(line, sizeof(line), "set utc=%s", t);
+	for (int i = 0; lights[i]; i++)
+		snprintf(line + strlen(line), sizeof(line) - strlen(line), " %s", lights[i]);
+	return request(line, NULL, 0);
+}
+
+/* The mean |table - the field's coverage at offset_km| over every fourth
+ * texel of layer 1's channel (cloud.comp's texel centres). */
+static double coverage_error(const struct cloud_copy *k, double east_km, double north_km)
+{
+	const float off[2] = { (float)east_km, (float)north_km };
+	struct skycloud_layer L;
+	double sum = 0.0;
+	long n = 0;
+	memcpy(&L, &k->c.layers[0], sizeof(L));
+	float e = (float)k->c.extent_km, step = 2.0f * e / (float)k->cov_w;
+	for (uint32_t j = 0; j < k->cov_w; j += 4)
+		for (uint32_t i = 0; i < k->cov_w; i += 4, n++) {
+			float x = -e + ((float)i + 0.5f) * step, y = -e + ((float)j + 0.5f) * step;
+			sum += fabs(k->cov[4 * (j * k->cov_w + i) + L.index] - skycloud_coverage(&L, x, y, off));
+		}
+	return sum / (double)n;
+}
+
+static int case_cell(const char *dir)
+{
+	(void)dir;
+	struct cloud_copy a = { 0 }, b = { 0 };
+	char reply[8192], v[256];
+	const double speed_km_s = 0.01, t0 = 1718971200.0;	/* 2024-06-21T12:00:00Z */
+	sky_client *client = subscribe_all();
+	CHECK(request("set wind_dir_deg=270 wind_speed_mps=10", NULL, 0) > 0);
+	CHECK(client && copy_clouds(client, field_at(t0), &a) == 0);
+	if (!a.cov)
+		return 0;
+	request("get shadow_width", reply, sizeof(reply));
+	double width = strtod(reply_value(reply, "shadow_width", v, sizeof(v)) ? v : "nan", NULL);
+	double cell_km = 2.0 * 2.0 * a.c.extent_km / width;
+	/* A step across the next edge of the lattice: the tables remade where
+	 * the field's offset falls on it, the shift what is left. */
+	double t1 = t0 + ceil((cell_km - a.c.table_shift_km[0]) / speed_km_s) + 1.0;
+	long g1 = field_at(t1);
+	CHECK(copy_clouds(client, g1, &b) == 0);
+	request("status", reply, sizeof(reply));
+	reply_value(reply, "tables_computed", v, sizeof(v));
+	printf("cell %.4f km; at +%.0f s: offset %.4f km, shift %.4f km, computed %s\n", cell_km, t1 - t0,
+	       b.c.offset_km[0], b.c.table_shift_km[0], v);
+	double placed = b.c.offset_km[0] - b.c.table_shift_km[0];
+	CHECK(strstr(v, "cloud") && strstr(v, "shadow"));
+	CHECK(b.c.table_shift_km[0] >= 0.0 && b.c.table_shift_km[0] < 2.0 * speed_km_s);
+	CHECK(fabs(placed / cell_km - round(placed / cell_km)) < 1e-9 && b.c.table_shift_km[1] == 0.0);
+	CHECK(memcmp(a.map, b.map, a.map_bytes) != 0);
+
+	/* Within the cell, half of it further: the same tables, the readers
+	 * moved by the field's move. */
+	double t2 = t1 + floor(0.5 * cell_km / speed_km_s);
+	long g2 = field_at(t2);
+	struct cloud_copy c = { 0 };
+	CHECK(copy_clouds(client, g2, &c) == 0);
+	if (!c.cov || !b.cov)
+		return 0;
+	request("status", reply, sizeof(reply));
+	reply_value(reply, "tables_computed", v, sizeof(v));
+	double moved = c.c.offset_km[0] - b.c.offset_km[0];
+	printf("at +%.0f s: offset %.4f km (moved %.4f), shift %.4f km, computed %s\n", t2 - t0, c.c.offset_km[0],
+	       moved, c.c.table_shift_km[0], v);
+	CHECK(!strstr(v, "cloud") && !strstr(v, "shadow") && strstr(v, "skyview"));
+	CHECK(fabs(moved - speed_km_s * (t2 - t1)) < 1e-6);
+	CHECK(fabs(c.c.table_shift_km[0] - b.c.table_shift_km[0] - moved) < 1e-9);
+	CHECK(c.cov_bytes == b.cov_bytes && memcmp(c.cov, b.cov, c.cov_bytes) == 0);
+	CHECK(c.map_bytes == b.map_bytes && memcmp(c.map, b.map, c.map_bytes) == 0);
+	/* The coverage table is the field where the tables placed it, not
+	 * where the wind has it now. */
+	double at_table = coverage_error(&c, c.c.offset_km[0] - c.c.table_shift_km[0], c.c.offset_km[1]);
+	double at_wind = coverage_error(&c, c.c.offset_km[0], c.c.offset_km[1]);
+	printf("coverage table against the field: %.2e at the tables' place, %.2e at the wind's\n", at_table,
+	       at_wind);
+	CHECK(at_table < 1e-5 && at_wind > 100.0 * at_table && at_wind > 1e-3);
+	/* A point of the air reads the map where the field was when it was
+	 * made: the rows moved by the field's move. */
+	for (int k = 0; k < 1; k++) {
+		const double *ru = c.c.shadow_row_u[k], *rv = c.c.shadow_row_v[k], *rd = c.c.shadow_row_depth[k];
+		const double *su = b.c.shadow_row_u[k], *sv = b.c.shadow_row_v[k], *sd = b.c.shadow_row_depth[k];
+		CHECK(fabs(ru[3] - (su[3] - su[0] * moved)) < 1e-5 && ru[0] == su[0] && ru[1] == su[1]);
+		CHECK(fabs(rv[3] - (sv[3] - sv[0] * moved)) < 1e-5 && rv[0] == sv[0]);
+		CHECK(fabs(rd[3] - (sd[3] - sd[0] * moved)) < 1e-3 && rd[0] == sd[0]);
+	}
+	cloud_copy_free(&a);
+	cloud_copy_free(&b);
+	cloud_copy_free(&c);
+	sky_disconnect(client);
+	return 0;
+}
+
 /* ---- skyctl ----------------------------------------------------------- */
 
 /* The clouds' transmittance toward the unit direction dir3 in the newest
@@ -581,9 +739,10 @@ int main(int argc, char **argv)
 	int (*fn)(const char *) = !strcmp(which, "restart") ? case_restart :
 				   !strcmp(which, "wind") ? case_wind :
 				   !strcmp(which, "skyctl") ? case_skyctl :
+				   !strcmp(which, "cell") ? case_cell :
 				   !strcmp(which, "truth") ? case_truth : NULL;
 	if (!fn) {
-		fprintf(stderr, "usage: test_cloud_clients restart|wind|skyctl|truth\n");
+		fprintf(stderr, "usage: test_cloud_clients restart|wind|cell|skyctl|truth\n");
 		return 2;
 	}
 	harness_need_device();

@@ -62,7 +62,7 @@
  * SkycloudLight, SkyState. */
 struct gpu_scene {
 	struct skycloud_layer layers[SKYCLOUD_MAX_LAYERS];
-	float sc[5][4];
+	float sc[6][4];
 	float li[6][4];
 	float sky[13][4];
 };
@@ -139,6 +139,10 @@ struct world {
 static void make_world(const struct scene_def *s, uint32_t seed, struct world *w)
 {
 	const float off[2] = { 311.5f, 907.25f };
+	/* The table made before the wind's last move (the slot's
+	 * table_shift_km): both marches must read it shifted. */
+	const double shift[2] = { 0.3125, -0.1875 };
+	const float table_off[2] = { (float)(off[0] - shift[0]), (float)(off[1] - shift[1]) };
 	for (int i = 0; i < s->n; i++)
 		skycloud_layer_init(&w->layers[i], s->l[i].type, s->l[i].cover, s->l[i].base_km, s->l[i].top_km, seed,
 				    (uint32_t)i);
@@ -153,7 +157,7 @@ static void make_world(const struct scene_def *s, uint32_t seed, struct world *w
 				float x = (float)(-EXTENT + (i + 0.5) * 2.0 * EXTENT / COV_N);
 				float y = (float)(-EXTENT + (j + 0.5) * 2.0 * EXTENT / COV_N);
 				cov_texels[4 * (j * COV_N + i) + k] =
-					k < s->n ? skycloud_coverage(&w->layers[k], x, y, off) : 0.0f;
+					k < s->n ? skycloud_coverage(&w->layers[k], x, y, table_off) : 0.0f;
 			}
 	memset(&w->li, 0, sizeof(w->li));
 	double e = s->sun_el_deg * SKYMAP_PI / 180.0, a = 2.4;
@@ -171,6 +175,8 @@ static void make_world(const struct scene_def *s, uint32_t seed, struct world *w
 	if (s->table) {
 		w->sc.coverage = &cov_t;
 		w->sc.extent_km = EXTENT;
+		w->sc.table_shift_km[0] = shift[0];
+		w->sc.table_shift_km[1] = shift[1];
 	}
 	for (int j = 0; j < MAP_N; j++)
 		for (int i = 0; i < MAP_N; i++)
@@ -200,6 +206,7 @@ static void pack_scene(const struct world *w, struct gpu_scene *g)
 	for (int c = 0; c < 3; c++) {
 		g->sc[4][c] = (float)w->sc.ambient_lx[c];
 		g->sc[4][3] = (float)w->sc.diffusion;
+		g->sc[5][c % 2] = (float)w->sc.table_shift_km[c % 2];
 		g->li[0][c] = (float)w->li.dir[c];
 		g->li[1][c] = (float)w->li.illuminance_lx[c];
 	}
@@ -400,7 +407,7 @@ int main(int argc, char **argv)
 		return 77;
 	}
 	printf("device: %s\n", g.device_name);
-	CHECK_EQ(sizeof(struct gpu_scene), 672);
+	CHECK_EQ(sizeof(struct gpu_scene), 688);
 	make_sky_tables();
 	if (argc > 1 && strcmp(argv[1], "--bench") == 0) {
 		int scene = argc > 2 ? atoi(argv[2]) : 0;
