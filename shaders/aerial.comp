@@ -132,14 +132,18 @@ void main()
 				vec3 q = vec3(dir.xy * t, h0 + dir.z * t);
 				if (SHADOW_W > 0)
 					vis *= cloud_step(q, hs);
+				if (CLOUD_LAYERS > 0)
+					cloud_diffuse_at(mu_l, false);
 				march_source(ta, mu_l, vis, P.sun_illum.rgb, sc, ph_sun, m, ground, forward, ds, view_up,
-					     false, s, s_scaled);
+					     s, s_scaled);
 				if (MOON_LIT) {
 					mu_l = dot(up, moon_dir);
 					vis = light_visible(ta, mu_l, P.MOON_RADIUS_RAD) *
 					      (SHADOW_W > 0 ? cloud_light(1, q) : 1.0);
+					if (CLOUD_LAYERS > 0)
+						cloud_diffuse_at(mu_l, false);
 					march_source(ta, mu_l, vis, P.moon_illum.rgb, sc, ph_moon, m, ground, forward, ds,
-						     view_up, false, s, s_scaled);
+						     view_up, s, s_scaled);
 				}
 				vec3 step_t;
 				radiance += tr * s * step_weight(m.extinction, dt, step_t);

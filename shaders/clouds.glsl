@@ -164,11 +164,13 @@ float cloud_step(vec3 q, float h)
 // (slab: cloud_slab's) for a beam at cos-zenith mu0 > 0: the
 // delta-Eddington two-stream (Joseph, Wiscombe and Weinman 1976; Meador
 // and Weaver 1980, the conservative case), held in [0, 1] (Eddington's
-// goes slightly negative for a thin slab under a high light).
-float cloud_reflectance(float tau, vec2 slab, float mu0)
+// goes slightly negative for a thin slab under a high light). beam: the
+// delta-scaled beam it lets through, exp(-slab.y tau / mu0), which the
+// caller has too.
+float cloud_reflectance(float tau, vec2 slab, float mu0, float beam)
 {
 	float gt = slab.x * tau;
-	float r = (gt + (0.5 - 0.75 * mu0) * (1.0 - exp(-slab.y * tau / mu0))) / (1.0 + gt);
+	float r = (gt + (0.5 - 0.75 * mu0) * (1.0 - beam)) / (1.0 + gt);
 	return clamp(r, 0.0, 1.0);
 }
 
@@ -182,30 +184,48 @@ float cloud_reflectance(float tau, vec2 slab, float mu0)
 // (1 - R A), from below. Each a uniform hemisphere of radiance mu E x / pi,
 // whose mean over the sphere is half of it, scattered as ms_source
 // scatters the ground's bounce: sigma_s plus (below) or less (above) the
-// ground's excess. Each layer alone, over its cover. t_l: the transmittance
-// toward the light there, which the caller has looked up already.
-// over_all: a constant, true where the step is above every layer's top, so that no
-// layer is above it and the light from above is compiled out.
-vec3 cloud_diffuse_source(float mu_l, vec3 t_l, vec3 sigma_s, vec3 ground, bool over_all)
+// ground's excess. Each layer alone, over its cover.
+//
+// cloud_diffuse_at sets the layers' terms (cloud_down, cloud_up: the
+// shares from above and from below) for the light at the step;
+// cloud_diffuse_source scales them by the light there. A sky-view
+// invocation's columns share their steps, and their lights' cos-zenith
+// differs by the tilt of the local vertical along the rays (a hundredth at
+// 100 km): it sets the terms once a step for the columns' mean.
+// over_all: a constant, true where the step is above every layer's top,
+// so that no layer is above it and the light from above is compiled out.
+void cloud_diffuse_at(float mu_l, bool over_all)
 {
+	cloud_down = vec3(0.0);
+	cloud_up = vec3(0.0);
 	if (!(mu_l > 0.0))
-		return vec3(0.0);
-	vec3 albedo = GROUND_BLACK ? vec3(0.0) : P.albedo.rgb, down = vec3(0.0), up = vec3(0.0);
+		return;
+	vec3 albedo = GROUND_BLACK ? vec3(0.0) : P.albedo.rgb;
 	for (int i = 0; i < CLOUD_LAYERS; i++) {
 		vec4 col = cloud_column[i];
 		float above = skycloud_saturate((col.x - cloud_h_km) * col.y);
 		float ta = col.z * above, tb = col.z - ta;
 		if (!over_all && ta > 0.0) {
-			float r = cloud_reflectance(ta, cloud_slab[i], mu_l);
-			vec3 d = col.w * max(1.0 - r - exp(-cloud_slab[i].y * ta / mu_l), 0.0) / (1.0 - r * albedo);
-			down += d;
-			up += albedo * d;
+			float beam = exp(-cloud_slab[i].y * ta / mu_l);
+			float r = cloud_reflectance(ta, cloud_slab[i], mu_l, beam);
+			vec3 d = col.w * max(1.0 - r - beam, 0.0) / (1.0 - r * albedo);
+			cloud_down += d;
+			cloud_up += albedo * d;
 		}
 		if (tb > 0.0) {
-			float r = cloud_reflectance(tb, cloud_slab[i], mu_l);
-			up += col.w * r * (1.0 - albedo) * (1.0 - albedo) / (1.0 - r * albedo);
+			float r = cloud_reflectance(tb, cloud_slab[i], mu_l, exp(-cloud_slab[i].y * tb / mu_l));
+			cloud_up += col.w * r * (1.0 - albedo) * (1.0 - albedo) / (1.0 - r * albedo);
 		}
 	}
+}
+
+// The layers' light at the step for the light at cos-zenith mu_l, from
+// cloud_diffuse_at's terms. t_l: the transmittance toward the light
+// there, which the caller has looked up already.
+vec3 cloud_diffuse_source(float mu_l, vec3 t_l, vec3 sigma_s, vec3 ground)
+{
+	if (!(mu_l > 0.0))
+		return vec3(0.0);
 	vec3 lit = t_l * (0.5 * mu_l / PI);
-	return lit * ((sigma_s - ground) * down + (sigma_s + ground) * up);
+	return lit * ((sigma_s - ground) * cloud_down + (sigma_s + ground) * cloud_up);
 }

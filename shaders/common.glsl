@@ -599,22 +599,25 @@ vec3 ms_source(TAlt a, float mu_l, vec3 sigma_s, vec3 ground, vec3 forward, floa
 }
 
 // The light the cloud layers scatter into the air at the march's step
-// (clouds.glsl; sky-view and aerial, where CLOUD_LAYERS > 0).
-vec3 cloud_diffuse_source(float mu_l, vec3 t_l, vec3 sigma_s, vec3 ground, bool above);
+// for the light being added, from its layers' terms there (cloud_down,
+// cloud_up: clouds.glsl's cloud_diffuse_at, which the march calls before
+// each light's march_source; sky-view and aerial, where CLOUD_LAYERS > 0).
+vec3 cloud_down = vec3(0.0), cloud_up = vec3(0.0);
+vec3 cloud_diffuse_source(float mu_l, vec3 t_l, vec3 sigma_s, vec3 ground);
 
 // In-scattered radiance source at a point for one light whose visible
 // fraction is known (light_visible, or disk_visible_mean over a march
 // step): single scattering through each constituent's phase plus the
 // higher orders (ms_source).
 vec3 light_source_lit(TAlt a, float mu_l, float visible, vec3 illum, vec3 phased, vec3 sigma_s, vec3 ground,
-		      vec3 forward, float view_up, Phases ph, bool above)
+		      vec3 forward, float view_up, Phases ph)
 {
 	vec3 t_l = transmittance_lookup(a, mu_l);
 	vec3 s = visible > 0.0 ? phased * (visible * t_l) : vec3(0.0);
 	if (MULTISCATTER_ON) {
 		vec3 ms = ms_source(a, mu_l, sigma_s, ground, forward, view_up, ph);
 		if (CLOUD_LAYERS > 0)
-			ms = ms * cloud_ms_open + cloud_diffuse_source(mu_l, t_l, sigma_s, ground, above);
+			ms = ms * cloud_ms_open + cloud_diffuse_source(mu_l, t_l, sigma_s, ground);
 		s += ms;
 	}
 	return s * illum;
@@ -767,7 +770,7 @@ float delta_peak_phase(float mu_l, float tau, Phases ph)
 // phased: the real phase-weighted scattering, sc and ph its parts;
 // ds: the scaled medium at the step (scaled_step()).
 void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Phases ph, vec3 phased, Scaled ds,
-		  float view_up, bool above, out vec3 ret_real, out vec3 ret_scaled)
+		  float view_up, out vec3 ret_real, out vec3 ret_scaled)
 {
 	int k = max(DELTA_CONST, 0);
 	vec3 t_l = transmittance_lookup(a, mu_l);
@@ -782,7 +785,7 @@ void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Pha
 	if (MULTISCATTER_ON) {
 		vec3 ms = ms_source(a, mu_l, ds.sigma_s, ds.ground, ds.forward, view_up, ph);
 		if (CLOUD_LAYERS > 0)
-			ms = ms * cloud_ms_open + cloud_diffuse_source(mu_l, t_l, ds.sigma_s, ds.ground, above);
+			ms = ms * cloud_ms_open + cloud_diffuse_source(mu_l, t_l, ds.sigma_s, ds.ground);
 		ret_scaled += ms;
 	}
 	ret_scaled *= illum;
@@ -792,18 +795,18 @@ void delta_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Pha
 // The sky-view and aerial marches' source for one light, added to real
 // (weighed by the view's transmittance) and, with delta-M, to scaled (by the
 // scaled one): light_source_lit, or delta_source where DELTA_CONST is set.
-// above: a constant, true where the point is above every cloud layer's
-// top (the layers' diffuse light then comes from below only).
+// With cloud layers, cloud_down and cloud_up hold this light's layer terms
+// at the step (cloud_diffuse_at).
 void march_source(TAlt a, float mu_l, float visible, vec3 illum, Scatter sc, Phases ph, Medium m, vec3 ground,
-		  vec3 forward, Scaled ds, float view_up, bool above, inout vec3 real, inout vec3 scaled)
+		  vec3 forward, Scaled ds, float view_up, inout vec3 real, inout vec3 scaled)
 {
 	vec3 p = phased(sc, ph);
 	if (DELTA_CONST >= 0) {
 		vec3 r, rs;
-		delta_source(a, mu_l, visible, illum, sc, ph, p, ds, view_up, above, r, rs);
+		delta_source(a, mu_l, visible, illum, sc, ph, p, ds, view_up, r, rs);
 		real += r;
 		scaled += rs;
 	} else {
-		real += light_source_lit(a, mu_l, visible, illum, p, m.scattering, ground, forward, view_up, ph, above);
+		real += light_source_lit(a, mu_l, visible, illum, p, m.scattering, ground, forward, view_up, ph);
 	}
 }

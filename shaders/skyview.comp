@@ -47,6 +47,7 @@ float over_horizon(StepEnd e, float light_h, float light_z)
 vec3 dir[SV_AZ_GROUP], radiance[SV_AZ_GROUP];
 Phases ph_sun[SV_AZ_GROUP], ph_moon[SV_AZ_GROUP];
 float sun_h[SV_AZ_GROUP], moon_h[SV_AZ_GROUP];
+float sun_h_mean, moon_h_mean;	// over the columns: the layers' light (cloud_diffuse_at)
 float h0, sin_z, cos_z, len, prev, tau_view;
 int n;
 Entry en;
@@ -108,6 +109,18 @@ void march_step(int i, const bool shadowed)
 	vec3 step_s = vec3(1.0), w_s = vec3(0.0);
 	if (DELTA_CONST >= 0)
 		w_s = tr_scaled * step_weight(m.extinction - ds.removed, dt, step_s);
+	// The layers' light for the columns' mean light (clouds.glsl).
+	vec3 sun_down = vec3(0.0), sun_up = vec3(0.0), moon_down = vec3(0.0), moon_up = vec3(0.0);
+	if (CLOUD_LAYERS > 0) {
+		cloud_diffuse_at(up_h * sun_h_mean + sun_z, !shadowed);
+		sun_down = cloud_down;
+		sun_up = cloud_up;
+		if (MOON_LIT) {
+			cloud_diffuse_at(up_h * moon_h_mean + moon_z, !shadowed);
+			moon_down = cloud_down;
+			moon_up = cloud_up;
+		}
+	}
 	for (int j = 0; j < SV_AZ_GROUP; j++) {
 		vec3 s = vec3(0.0), s_scaled = vec3(0.0);
 		float vis = disk_visible_mean(over_horizon(ea, sun_h[j], P.sun_dir.z),
@@ -116,15 +129,19 @@ void march_step(int i, const bool shadowed)
 		vec3 q = vec3(dir[j].xy * (en.t0 + t), h0 + dir[j].z * (en.t0 + t));
 		if (SHADOW_W > 0 && shadowed)
 			vis *= cloud_light(0, q);
+		cloud_down = sun_down;
+		cloud_up = sun_up;
 		march_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, sc, ph_sun[j], m, ground,
-			     forward, ds, view_up, !shadowed, s, s_scaled);
+			     forward, ds, view_up, s, s_scaled);
 		if (MOON_LIT) {
 			vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
 						over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
 			if (SHADOW_W > 0 && shadowed)
 				vis *= cloud_light(1, q);
+			cloud_down = moon_down;
+			cloud_up = moon_up;
 			march_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, sc, ph_moon[j], m,
-				     ground, forward, ds, view_up, !shadowed, s, s_scaled);
+				     ground, forward, ds, view_up, s, s_scaled);
 		}
 		radiance[j] += w * s;
 		if (DELTA_CONST >= 0)
@@ -216,6 +233,12 @@ void main()
 			moon_h[j] = dot(across, P.moon_dir.xy);
 		}
 		radiance[j] = vec3(0.0);
+	}
+	sun_h_mean = moon_h_mean = 0.0;
+	for (int j = 0; j < SV_AZ_GROUP; j++) {
+		sun_h_mean += sun_h[j] / float(SV_AZ_GROUP);
+		if (MOON_LIT)
+			moon_h_mean += moon_h[j] / float(SV_AZ_GROUP);
 	}
 
 	tr = vec3(1.0);
