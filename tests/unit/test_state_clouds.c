@@ -62,6 +62,8 @@ static void test_keys(void)
 	CHECK_EQ(set_r(&s, "cloud_seed=4294967296", NULL), -ERANGE);
 	CHECK_EQ(set_r(&s, "cloud_extent_km=513", NULL), -ERANGE);
 	CHECK_EQ(set_r(&s, "cloud_width=8", NULL), -ERANGE);
+	CHECK_EQ(set_r(&s, "cloud_cell_texels=-1", NULL), -ERANGE);
+	CHECK_EQ(set_r(&s, "cloud_cell_texels=65", NULL), -ERANGE);
 	/* The ends of every range are taken. */
 	set(&s, "cloud_seed=4294967295");
 	set(&s, "wind_dir_deg=360");
@@ -69,6 +71,8 @@ static void test_keys(void)
 	set(&s, "cloud_extent_km=512");
 	set(&s, "cloud1_base_m=0");
 	set(&s, "cloud1_top_m=20000");
+	set(&s, "cloud_cell_texels=0");
+	set(&s, "cloud_cell_texels=64");
 	CHECK_EQ(s.clouds.seed, 4294967295u);
 	/* The fraction is the oktas in eighths. */
 	set(&s, "cloud3_fraction=0.75");
@@ -297,6 +301,35 @@ static void test_placement(void)
 	CHECK_NEAR(drive_field_speed_km_s(&s), 0.6, 1e-12);
 }
 
+/* The tables' place of the field: the offset on the lattice of
+ * cloud_cell_texels shadow texels, the shift what is left; a cell of 0
+ * places them where the field is. */
+static void test_table_place(void)
+{
+	struct sky_state s;
+	double at[2], shift[2];
+
+	state_default(&s);
+	set(&s, "cloud1_oktas=4");
+	set(&s, "cloud1_base_m=1000");
+	set(&s, "cloud_extent_km=64");
+	set(&s, "shadow_width=256");
+	double cell = 2.0 * 2.0 * 64.0 / 256.0;		/* 2 texels of 0.5 km */
+	s.clouds.offset_km[0] = 10.3;
+	s.clouds.offset_km[1] = 1023.9;
+	state_cloud_table_offset_km(&s, at, shift);
+	CHECK_EQ(at[0], 10.0);
+	CHECK_EQ(at[1], 1023.0);
+	CHECK_NEAR(shift[0], 0.3, 1e-12);
+	CHECK_NEAR(shift[1], 0.9, 1e-12);
+	CHECK(shift[0] >= 0.0 && shift[0] < cell && shift[1] >= 0.0 && shift[1] < cell);
+	set(&s, "cloud_cell_texels=0");
+	state_cloud_table_offset_km(&s, at, shift);
+	CHECK_EQ(at[0], 10.3);
+	CHECK_EQ(shift[0], 0.0);
+	CHECK_EQ(shift[1], 0.0);
+}
+
 int main(void)
 {
 	test_keys();
@@ -305,5 +338,6 @@ int main(void)
 	test_tops_and_region();
 	test_metar();
 	test_placement();
+	test_table_place();
 	return test_report("test_state_clouds");
 }
