@@ -55,29 +55,33 @@
 
 static struct eng *eng;
 
-/* Sky-view and aerial perspective of pairs as floats (malloc'd). */
-static int tables_of(const char *pairs, float *ret[2], size_t ret_n[2])
+/* Sky-view and aerial perspective of s as floats (malloc'd). */
+static int tables_of_state(const struct sky_state *s, float *ret[2], size_t ret_n[2])
 {
-	struct sky_state s;
 	struct eng_timing t;
 	char err[512];
-
-	if (probe_state_of(pairs, &s) < 0)
-		return -1;
-	if (eng_compute(eng, &s, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
-		FAIL("%s: %s", pairs, err);
+	if (eng_compute(eng, s, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
+		FAIL("%s", err);
 		return -1;
 	}
 	for (int k = 0; k < 2; k++) {
 		size_t bytes;
 		const void *p = eng_table(eng, k == 0 ? STATE_SKYVIEW : STATE_AERIAL, &bytes);
-		ret[k] = malloc(bytes);
-		if (!ret[k] || !p)
+		ret[k] = p ? malloc(bytes) : NULL;
+		if (!ret[k])
 			return -1;
 		memcpy(ret[k], p, bytes);
 		ret_n[k] = bytes / sizeof(float);
 	}
 	return 0;
+}
+
+/* The same of pairs. */
+static int tables_of(const char *pairs, float *ret[2], size_t ret_n[2])
+{
+	struct sky_state s;
+
+	return probe_state_of(pairs, &s) < 0 ? -1 : tables_of_state(&s, ret, ret_n);
 }
 
 /* Every radiance value of the cloudy tables at most the bound's (the
@@ -260,27 +264,6 @@ static double rel_l1(const float *a, const float *b, size_t n)
 			m += fabs((double)b[i]);
 		}
 	return m > 0.0 ? d / m : 0.0;
-}
-
-/* Sky-view and aerial perspective of s as floats (malloc'd). */
-static int tables_of_state(const struct sky_state *s, float *ret[2], size_t ret_n[2])
-{
-	struct eng_timing t;
-	char err[512];
-	if (eng_compute(eng, s, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
-		FAIL("%s", err);
-		return -1;
-	}
-	for (int k = 0; k < 2; k++) {
-		size_t bytes;
-		const void *p = eng_table(eng, k == 0 ? STATE_SKYVIEW : STATE_AERIAL, &bytes);
-		ret[k] = p ? malloc(bytes) : NULL;
-		if (!ret[k])
-			return -1;
-		memcpy(ret[k], p, bytes);
-		ret_n[k] = bytes / sizeof(float);
-	}
-	return 0;
 }
 
 static void kept_maps_read_shifted(void)
