@@ -1,7 +1,8 @@
 /* sky_probe.h - a scene's sky-view table from the model or the engine, and
  * its luminance in a direction as a client samples it: what the tests of
  * the multi-scattering terms (test_moment, test_delta) compare; and a
- * state from key=value pairs (the shadow tests). */
+ * state from key=value pairs and its sky-view and aerial perspective (the
+ * shadow tests). */
 #ifndef SKYD_SKY_PROBE_H
 #define SKYD_SKY_PROBE_H
 
@@ -132,6 +133,33 @@ static inline float *probe_engine_sky(void *arg, const struct sky_state *s)
 		abort();
 	memcpy(f, texels, bytes);
 	return f;
+}
+
+/* Every table of s from the engine e, then its sky-view and aerial
+ * perspective as float32 texels (ret[0], ret[1]: free()) and their float
+ * counts; the computation's wall time in *ret_ms if not NULL. 0, or -1
+ * (a FAIL said why where the engine refused). */
+static inline int probe_sky_aerial(struct eng *e, const struct sky_state *s, float *ret[2], size_t ret_n[2],
+				   double *ret_ms)
+{
+	struct eng_timing t;
+	char err[512];
+	if (eng_compute(e, s, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
+		FAIL("eng_compute: %s", err);
+		return -1;
+	}
+	if (ret_ms)
+		*ret_ms = t.total_ms;
+	for (int k = 0; k < 2; k++) {
+		size_t bytes;
+		const void *p = eng_table(e, k == 0 ? STATE_SKYVIEW : STATE_AERIAL, &bytes);
+		ret[k] = p ? malloc(bytes) : NULL;
+		if (!ret[k])
+			return -1;
+		memcpy(ret[k], p, bytes);
+		ret_n[k] = bytes / sizeof(float);
+	}
+	return 0;
 }
 
 typedef float *probe_sky_fn(void *arg, const struct sky_state *s);

@@ -58,22 +58,7 @@ static struct eng *eng;
 /* Sky-view and aerial perspective of s as floats (malloc'd). */
 static int tables_of_state(const struct sky_state *s, float *ret[2], size_t ret_n[2])
 {
-	struct eng_timing t;
-	char err[512];
-	if (eng_compute(eng, s, STATE_ALL_TABLES, &t, err, sizeof(err)) < 0) {
-		FAIL("%s", err);
-		return -1;
-	}
-	for (int k = 0; k < 2; k++) {
-		size_t bytes;
-		const void *p = eng_table(eng, k == 0 ? STATE_SKYVIEW : STATE_AERIAL, &bytes);
-		ret[k] = p ? malloc(bytes) : NULL;
-		if (!ret[k])
-			return -1;
-		memcpy(ret[k], p, bytes);
-		ret_n[k] = bytes / sizeof(float);
-	}
-	return 0;
+	return probe_sky_aerial(eng, s, ret, ret_n, NULL);
 }
 
 /* The same of pairs. */
