@@ -151,10 +151,13 @@ uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct g
 		mask &= ~STATE_BIT(STATE_CLOUD_COVERAGE);
 	if (!frames)
 		mask &= ~STATE_BIT(STATE_CLOUD_SHADOW);
-	if ((mask & readers) && field)
-		mask |= STATE_CLOUD_TABLES;
 	if ((mask & readers) && frames)
 		mask |= STATE_BIT(STATE_CLOUD_SHADOW);
+	/* The maps are made from the coverage table, and the key is set with
+	 * the maps: a new field's maps need its table, and a new table its
+	 * maps. */
+	if ((mask & STATE_BIT(STATE_CLOUD_SHADOW)) && field)
+		mask |= STATE_BIT(STATE_CLOUD_COVERAGE);
 	if (mask & STATE_BIT(STATE_CLOUD_COVERAGE))
 		mask |= STATE_BIT(STATE_CLOUD_SHADOW);
 	/* The terrain alone casts: the maps, no coverage table. */
