@@ -64,6 +64,11 @@ uint64_t eng_pipelines_created(const struct eng *e)
 	return e->pipelines_created;
 }
 
+int eng_pipelines_ordered(const struct eng *e)
+{
+	return e->compiling ? e->deferred.orders : 0;
+}
+
 int eng_event_fd(const struct eng *e)
 {
 	return e->event_fd;

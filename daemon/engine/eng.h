@@ -182,6 +182,11 @@ void eng_f16_range(const struct eng *e, const struct sky_state *s, uint32_t mask
 /* Compute pipelines created since eng_new: one per specialization variant
  * of a pass, cached (up to 32 per pass), so a repeat adds none. */
 uint64_t eng_pipelines_created(const struct eng *e);
+/* The pipelines the submitted computation waits for: a variant not seen
+ * before is compiled on the waiter thread (seconds on lavapipe), not in
+ * eng_submit, and the computation is submitted by eng_complete once they
+ * are made. 0 from then on. */
+int eng_pipelines_ordered(const struct eng *e);
 
 /* An eventfd that becomes readable when the submitted work has finished. */
 int eng_event_fd(const struct eng *e);

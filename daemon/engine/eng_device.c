@@ -1,6 +1,7 @@
 /* eng_device.c - the engine's device: the Vulkan loader and instance, the
  * choice of device, its memory and buffers, the descriptor set, and the
- * waiter thread that turns the fence into an eventfd. */
+ * waiter thread that makes the ordered pipelines and turns the fence into
+ * an eventfd. */
 #include "eng_internal.h"
 
 #include <dlfcn.h>
@@ -324,8 +325,10 @@ static void *waiter_main(void *arg)
 			pthread_cond_wait(&e->cond, &e->lock);
 		if (e->quit)
 			break;
+		bool compiling = e->compiling;
 		pthread_mutex_unlock(&e->lock);
-		VkResult r = e->vk.vkWaitForFences(e->dev, 1, &e->fence, VK_TRUE, UINT64_MAX);
+		VkResult r = compiling ? eng_make_orders(e)
+				       : e->vk.vkWaitForFences(e->dev, 1, &e->fence, VK_TRUE, UINT64_MAX);
 		pthread_mutex_lock(&e->lock);
 		e->wait_result = r;
 		e->pending = false;

@@ -100,6 +100,10 @@ void eng_host_release(struct eng *e, void *base)
 	 * signalled for it and for eng_complete. */
 	if (writing)
 		e->vk.vkWaitForFences(e->dev, 1, &e->fence, VK_TRUE, UINT64_MAX);
+	/* A computation waiting for its pipelines writes the host copies
+	 * instead: another region may come to the same address. */
+	if (e->compiling && e->deferred.has_target && e->deferred.target.base == base)
+		e->deferred.has_target = false;
 	region_free(e, r);
 }
 

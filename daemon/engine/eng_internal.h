@@ -118,6 +118,12 @@ struct pipeline {
 	VkPipeline pipe;
 };
 
+/* A variant a plan lacks, made on the waiter thread (eng_make_orders). */
+struct pipeline_order {
+	int shader;
+	struct spec key;
+};
+
 
 struct gpu_buffer {
 	VkBuffer buf;
@@ -182,6 +188,20 @@ struct eng {
 	struct pipeline pipes[SHADER_COUNT][MAX_PIPELINES];
 	int n_pipes[SHADER_COUNT];
 	uint64_t pipelines_created;
+	/* A new variant takes lavapipe seconds to compile: a plan that lacks
+	 * one orders it, the waiter thread makes the orders (compiling: the
+	 * job in flight), and eng_complete then submits the deferred call. */
+	struct pipeline_order orders[N_PASSES + 1];
+	int n_orders;
+	bool compiling;
+	struct {
+		struct sky_state s;
+		struct state_lights lights;
+		uint32_t mask;
+		struct eng_target target;
+		bool has_target;
+		int orders;
+	} deferred;
 	/* eng_use_cache_dir: the pipelines' cache and its file, written when
 	 * pipelines_created passed pipelines_saved. */
 	VkPipelineCache pipeline_cache;
@@ -335,8 +355,9 @@ void eng_free_tables(struct eng *e);
 void eng_record_image_layouts(struct eng *e);
 
 /* eng_pass.c: the passes. */
-/* Fills params and pl for s and mask, creating the pipelines it lacks;
- * -EINVAL where a dispatch exceeds the device's limits. */
+/* Fills params and pl for s and mask, ordering the pipelines it lacks
+ * (e->orders: pl is not to be recorded while there are any); -EINVAL
+ * where a dispatch exceeds the device's limits. */
 int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
 		  uint32_t mask, struct gpu_params *params, struct plan *pl, char *err,
 		  size_t err_size);
@@ -346,6 +367,9 @@ void eng_record_passes(struct eng *e, const struct sky_state *s, const struct pl
 /* The GPU time of each pass of pl from the timestamps, into t. */
 int eng_pass_times(struct eng *e, const struct plan *pl, struct eng_timing *t, char *err,
 		   size_t err_size);
+/* Makes the ordered pipelines and clears the orders; on the waiter
+ * thread, while nothing else touches the pipelines. */
+VkResult eng_make_orders(struct eng *e);
 /* Destroys the cached pipelines. */
 void eng_free_pipelines(struct eng *e);
 

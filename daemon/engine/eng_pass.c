@@ -346,42 +346,58 @@ static const struct pass_row pass_rows[N_PASSES] = {
 			plan_pack, NULL },
 };
 
-static int get_pipeline(struct eng *e, int shader, const struct spec *key, VkPipeline *ret,
-			char *err, size_t err_size)
+/* The pipeline of shader with key into *ret, or VK_NULL_HANDLE with the
+ * variant ordered. */
+static void get_pipeline(struct eng *e, int shader, const struct spec *key, VkPipeline *ret)
 {
-	int rc = 0;
+	*ret = VK_NULL_HANDLE;
 	for (int i = 0; i < e->n_pipes[shader]; i++)
 		if (!memcmp(&e->pipes[shader][i].key, key, sizeof(*key))) {
 			*ret = e->pipes[shader][i].pipe;
-			return 0;
+			return;
 		}
-	if (e->n_pipes[shader] == MAX_PIPELINES) {
+	for (int i = 0; i < e->n_orders; i++)
+		if (e->orders[i].shader == shader && !memcmp(&e->orders[i].key, key, sizeof(*key)))
+			return;
+	e->orders[e->n_orders++] = (struct pipeline_order){ shader, *key };
+}
+
+static VkResult make_pipeline(struct eng *e, const struct pipeline_order *o)
+{
+	if (e->n_pipes[o->shader] == MAX_PIPELINES) {
 		/* Evict the oldest variant; no work is in flight here. */
-		e->vk.vkDestroyPipeline(e->dev, e->pipes[shader][0].pipe, NULL);
-		memmove(&e->pipes[shader][0], &e->pipes[shader][1],
-			sizeof(e->pipes[shader][0]) * (MAX_PIPELINES - 1));
-		e->n_pipes[shader]--;
+		e->vk.vkDestroyPipeline(e->dev, e->pipes[o->shader][0].pipe, NULL);
+		memmove(&e->pipes[o->shader][0], &e->pipes[o->shader][1],
+			sizeof(e->pipes[o->shader][0]) * (MAX_PIPELINES - 1));
+		e->n_pipes[o->shader]--;
 	}
 	VkSpecializationMapEntry map[N_SPEC];
 	for (uint32_t i = 0; i < N_SPEC; i++)
 		map[i] = (VkSpecializationMapEntry){ i, i * 4, 4 };
 	/* Every constant for every pass: Vulkan ignores the ids a shader does
 	 * not declare. */
-	VkSpecializationInfo si = { N_SPEC, map, sizeof(key->v), key->v };
+	VkSpecializationInfo si = { N_SPEC, map, sizeof(o->key.v), o->key.v };
 	VkComputePipelineCreateInfo ci = { .sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO,
 		.stage = { .sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-			   .stage = VK_SHADER_STAGE_COMPUTE_BIT, .module = e->modules[shader],
+			   .stage = VK_SHADER_STAGE_COMPUTE_BIT, .module = e->modules[o->shader],
 			   .pName = "main", .pSpecializationInfo = &si },
 		.layout = e->pipe_layout };
 	VkPipeline p;
-	VK_TRY(e->vk.vkCreateComputePipelines(e->dev, e->pipeline_cache, 1, &ci, NULL, &p));
+	VkResult r = e->vk.vkCreateComputePipelines(e->dev, e->pipeline_cache, 1, &ci, NULL, &p);
+	if (r != VK_SUCCESS)
+		return r;
 	e->pipelines_created++;
-	e->pipes[shader][e->n_pipes[shader]].key = *key;
-	e->pipes[shader][e->n_pipes[shader]].pipe = p;
-	e->n_pipes[shader]++;
-	*ret = p;
-fail:
-	return rc;
+	e->pipes[o->shader][e->n_pipes[o->shader]++] = (struct pipeline){ o->key, p };
+	return VK_SUCCESS;
+}
+
+VkResult eng_make_orders(struct eng *e)
+{
+	VkResult r = VK_SUCCESS;
+	for (int i = 0; i < e->n_orders && r == VK_SUCCESS; i++)
+		r = make_pipeline(e, &e->orders[i]);
+	e->n_orders = 0;
+	return r;
 }
 
 void eng_free_pipelines(struct eng *e)
@@ -414,6 +430,7 @@ int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_l
 	int rc = 0;
 
 	memset(pl, 0, sizeof(*pl));
+	e->n_orders = 0;
 	pl->mask = mask;
 	pl->last_table = -1;
 	for (int t = 0; t < STATE_N_TABLES; t++)
@@ -437,13 +454,15 @@ int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_l
 			continue;
 		rc = check_groups(e, p, run, err, err_size);
 		if (rc == 0 && pass_rows[p].shader >= 0)
-			rc = get_pipeline(e, pass_rows[p].shader, &run->key, &run->pipe, err, err_size);
+			get_pipeline(e, pass_rows[p].shader, &run->key, &run->pipe);
 	}
 	if (rc == 0 && pl->run[PASS_MSITERATE].on) {
 		struct spec later = pl->run[PASS_MSITERATE].key;
 		later.v[SPEC_ITER_FIRST] = 0;
-		rc = get_pipeline(e, SHADER_MSITERATE, &later, &pl->iterate_later, err, err_size);
+		get_pipeline(e, SHADER_MSITERATE, &later, &pl->iterate_later);
 	}
+	if (rc < 0)
+		e->n_orders = 0;
 	return rc;
 }
 

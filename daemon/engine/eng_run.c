@@ -1,7 +1,8 @@
 /* eng_run.c - running a computation: its plan (eng_pass.c) recorded into
  * the one command buffer with the copies of its published tables
  * (eng_host.c), one submission, and completion through the waiter thread's
- * eventfd. */
+ * eventfd. A plan that lacks pipelines waits for the waiter thread to make
+ * them first. */
 #include "eng_internal.h"
 
 #include <errno.h>
@@ -34,6 +35,28 @@ static int record(struct eng *e, const struct sky_state *s, const struct plan *p
 	VK_TRY(e->vk.vkEndCommandBuffer(e->cmd));
 fail:
 	return rc;
+}
+
+/* Hands the plan's orders to the waiter thread; eng_complete submits the
+ * call again once they are made. The caller's inputs are copied: they may
+ * change before then. */
+static void defer(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		  uint32_t mask, const struct eng_target *target)
+{
+	e->deferred.s = *s;
+	e->deferred.lights = *lights;
+	e->deferred.mask = mask;
+	e->deferred.orders = e->n_orders;
+	e->deferred.has_target = target != NULL;
+	if (target)
+		e->deferred.target = *target;
+	pthread_mutex_lock(&e->lock);
+	e->compiling = true;
+	e->in_flight_mask = mask;
+	e->pending = true;
+	e->finished = false;
+	pthread_cond_signal(&e->cond);
+	pthread_mutex_unlock(&e->lock);
 }
 
 int eng_submit(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
@@ -76,6 +99,10 @@ int eng_submit_to(struct eng *e, const struct sky_state *s, const struct state_l
 	rc = eng_make_plan(e, s, lights, mask, &params, pl, err, err_size);
 	if (rc < 0)
 		return rc;
+	if (e->n_orders > 0) {
+		defer(e, s, lights, mask, target);
+		return 0;
+	}
 	mask = pl->mask;	/* with the cloud tables its reads need */
 	if (s->quality.storage == STATE_F16) {
 		struct gpu_pack pack;
@@ -155,6 +182,20 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 	clock_gettime(CLOCK_MONOTONIC, &now);
 	while (read(e->event_fd, &count, sizeof(count)) == sizeof(count))
 		;
+	if (e->compiling) {
+		pthread_mutex_lock(&e->lock);
+		e->compiling = e->finished = false;
+		pthread_mutex_unlock(&e->lock);
+		e->deferred.orders = 0;
+		if (wr != VK_SUCCESS) {
+			vkcheck_describe(err, err_size, "vkCreateComputePipelines", wr, __FILE_NAME__,
+					 __LINE__);
+			return wr == VK_ERROR_OUT_OF_HOST_MEMORY ? -ENOMEM : -EIO;
+		}
+		rc = eng_submit_to(e, &e->deferred.s, &e->deferred.lights, e->deferred.mask,
+				   e->deferred.has_target ? &e->deferred.target : NULL, err, err_size);
+		return rc < 0 ? rc : -EAGAIN;
+	}
 
 	struct eng_timing t = { .computed = mask, .total_ms = elapsed_ms(&e->submit_time, &now),
 		.columns = e->flight.run[PASS_COLUMNS].on };
