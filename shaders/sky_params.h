@@ -50,7 +50,9 @@
 #define SPEC_CLOUD_W 31		/* the coverage table's (cloud_width), 0 without clouds */
 #define SPEC_MS_UNIFORM 32	/* aerial perspective reads multi-scattering through
 				 * the uniform block at BINDING_MULTISCATTER_UBO */
-#define SPEC_COUNT 33
+#define SPEC_SV_EYE_UNDER 33	/* sky-view: the observer is under the casters' top
+				 * (skyview.comp's march from its first step) */
+#define SPEC_COUNT 34
 
 /* Bindings of the one descriptor set. The tables are storage buffers in
  * state_table order; transmittance and multi-scattering are read again

@@ -164,6 +164,7 @@ struct plan {
 	uint32_t aerial_march, aerial_resample;
 	int last_table;
 	int n_clouds;			/* layers drawn: SPEC_CLOUD_LAYERS */
+	bool eye_under;			/* SPEC_SV_EYE_UNDER */
 	struct gpu_clouds clouds;	/* the block, as eng_fill_clouds made it */
 };
 

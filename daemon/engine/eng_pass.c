@@ -135,6 +135,7 @@ static void plan_skyview(struct eng *e, const struct sky_state *s, const struct 
 {
 	r->on = pl->mask & STATE_BIT(STATE_SKYVIEW);
 	r->key = eng_pass_spec(base, s, STATE_SKYVIEW, &e->grain);
+	r->key.v[SPEC_SV_EYE_UNDER] = pl->eye_under;
 	table_groups(s, STATE_SKYVIEW, e->grain.sv_az_group, r);
 }
 
@@ -422,6 +423,16 @@ static int check_groups(const struct eng *e, int p, const struct pass_run *run, 
 	return 0;
 }
 
+/* Whether the observer (km) is under the casters' top: the terrain's
+ * highest texel or a drawn layer's top. */
+static bool eye_under_casters(const struct gpu_clouds *c, int n_clouds, float observer_km)
+{
+	float top_km = c->TERRAIN_TOP_KM;
+	for (int i = 0; i < n_clouds; i++)
+		top_km = fmaxf(top_km, c->layer[i].top_km);
+	return observer_km < top_km;
+}
+
 int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
 		  uint32_t mask, struct gpu_params *params, struct plan *pl, char *err,
 		  size_t err_size)
@@ -442,6 +453,8 @@ int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_l
 	base.v[SPEC_CLOUD_LAYERS] = pl->n_clouds;
 	base.v[SPEC_SHADOW_W] = eng_shadow_casters(s) ? (int32_t)s->quality.shadow_width : 0;
 	base.v[SPEC_CLOUD_W] = pl->n_clouds ? (int32_t)s->quality.cloud_width : 0;
+	pl->eye_under = base.v[SPEC_SHADOW_W] > 0 && eye_under_casters(&pl->clouds, pl->n_clouds,
+								       params->OBSERVER_KM);
 	memcpy(e->clouds.map, &pl->clouds, sizeof(pl->clouds));
 	/* The column pass's key compares the uniform block as uploaded. */
 	memcpy(e->params.map, params, sizeof(*params));
