@@ -12,7 +12,7 @@
 #include "clouds.glsl"
 
 layout(constant_id = SPEC_SV_AZ_GROUP) const int SV_AZ_GROUP = 12;
-layout(constant_id = SPEC_SV_EYE_UNDER) const bool EYE_UNDER = false;
+layout(constant_id = SPEC_SV_EYE_UNDER) const bool SV_EYE_UNDER = false;
 layout(local_size_x = 8, local_size_y = 8) in;
 
 // The local vertical (its horizontal part along the row's columns, up_h,
@@ -277,7 +277,7 @@ void main()
 			// its first step on: without the first loop, which would cost
 			// lavapipe a step with every lane off. A step before lo that
 			// reads them reads 1 exactly, and no layer is above it.
-			if (!EYE_UNDER) {
+			if (!SV_EYE_UNDER) {
 				for (; i < lo; i++)
 					march_step(i, false);
 			}

@@ -254,6 +254,20 @@ static void emit(struct sense *s)
 	s->fn(s->ctx, &st);
 }
 
+/* A follower's sky is its controller's: a reading of its own would part
+ * it from the others until the next replicated change. 1, with the
+ * reason noted, where this skyd follows. */
+static int note_follower(struct sense *s)
+{
+	char who[256] = "";
+
+	if (srv_may_change(s->srv, who, sizeof(who)))
+		return 0;
+	snprintf(s->st.not_applied, sizeof(s->st.not_applied),
+		 "this skyd follows controller %s: only its readings change the sky", who);
+	return 1;
+}
+
 /* next, built from the served state, as the readings' change. Returns 1
  * when it was made. */
 static int apply(struct sense *s, const struct sky_state *next, uint32_t dirty)
@@ -262,13 +276,8 @@ static int apply(struct sense *s, const struct sky_state *next, uint32_t dirty)
 	uint64_t generation;
 	uint32_t all;
 
-	/* A follower's sky is its controller's: a reading of its own would
-	 * part it from the others until the next replicated change. */
-	if (!srv_may_change(s->srv, err, sizeof(err))) {
-		snprintf(s->st.not_applied, sizeof(s->st.not_applied),
-			 "this skyd follows controller %s: only its readings change the sky", err);
+	if (note_follower(s))
 		return 0;
-	}
 	int r = srv_apply(s->srv, next, dirty, &generation, &all, err, sizeof(err));
 
 	if (r < 0) {
@@ -315,7 +324,10 @@ static int eval_cloud(struct sense *s, enum cause cause)
 	}
 	if (clear_sky(s, cause == CAUSE_PUBLISHED, &lights_lx, &night_lx) < 0) {
 		s->waiting = 1;
-		NOTE("waiting for the tables: the clear sky is read from them");
+		/* With the tables a follower's reading would change nothing
+		 * either: that is the reason to give. */
+		if (!note_follower(s))
+			NOTE("waiting for the tables: the clear sky is read from them");
 		return 0;
 	}
 	s->waiting = 0;

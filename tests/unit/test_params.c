@@ -277,6 +277,7 @@ static const struct named_id spec_ids[] = {
 	{ "PACK_MASK", SPEC_PACK_MASK }, { "MS_LANES", SPEC_MS_LANES },
 	{ "LOOKUP_IMAGES", SPEC_LOOKUP_IMAGES }, { "MS_UNIFORM", SPEC_MS_UNIFORM },
 	{ "CLOUD_LAYERS", SPEC_CLOUD_LAYERS }, { "SHADOW_W", SPEC_SHADOW_W }, { "CLOUD_W", SPEC_CLOUD_W },
+	{ "SV_EYE_UNDER", SPEC_SV_EYE_UNDER },
 	/* layout(local_size_x_id, local_size_y_id): glslang leaves the
 	 * workgroup size's constants without a name. */
 	{ "", SPEC_LOCAL_X }, { "", SPEC_LOCAL_Y },
