@@ -655,6 +655,10 @@ static int run_daemon(const struct options *o, struct svc_reload *reload,
 	if (r == 0) {
 		svc_reload_attach(reload, d.srv, d.notify, d.ctl);
 		log_info("listening on %s, protocol %s", d.path, SKY_PROTO_VERSION);
+		/* Ready once the initial demand's pipelines are made (seconds on
+		 * lavapipe): the first clients, and a sensor's first transfers,
+		 * then meet a skyd that is not compiling. */
+		eng_wait_orders(d.eng);
 		svc_notify_ready(d.notify);
 		r = loop_run(d.loop);
 		if (r < 0)

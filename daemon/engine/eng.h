@@ -187,6 +187,9 @@ uint64_t eng_pipelines_created(const struct eng *e);
  * eng_submit, and the computation is submitted by eng_complete once they
  * are made. 0 from then on. */
 int eng_pipelines_ordered(const struct eng *e);
+/* Blocks until the pipelines ordered are made; the completion stays for
+ * eng_complete, which then submits the computation. */
+void eng_wait_orders(const struct eng *e);
 
 /* An eventfd that becomes readable when the submitted work has finished. */
 int eng_event_fd(const struct eng *e);

@@ -225,6 +225,13 @@ fail:
 	return rc;
 }
 
+void eng_wait_orders(const struct eng *e)
+{
+	struct pollfd p = { .fd = e->event_fd, .events = POLLIN };
+	while (e->compiling && poll(&p, 1, -1) < 0 && errno == EINTR)
+		;
+}
+
 void eng_set_view_sharing(struct eng *e, int share)
 {
 	e->share_views = share != 0;

@@ -335,6 +335,10 @@ static void run_elevation(void)
 
 	if (start(&c, args) < 0)
 		return;
+	/* The tables first, as a sensor in use finds them: the capture's
+	 * three readings are all there is, and the curve is refined from the
+	 * tables only while a reading is fresh. */
+	CHECK(horizontal_lx(&c) > 0.0);
 	CHECK(request(&c, "set sensor_mode=elevation") == 0);
 	int from = 0;
 	for (int k = 0; k < 3; k++) {
