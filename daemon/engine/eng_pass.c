@@ -474,8 +474,6 @@ int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_l
 		later.v[SPEC_ITER_FIRST] = 0;
 		get_pipeline(e, SHADER_MSITERATE, &later, &pl->iterate_later);
 	}
-	if (rc < 0)
-		e->n_orders = 0;
 	return rc;
 }
 

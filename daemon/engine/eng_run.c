@@ -186,7 +186,6 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 		pthread_mutex_lock(&e->lock);
 		e->compiling = e->finished = false;
 		pthread_mutex_unlock(&e->lock);
-		e->deferred.orders = 0;
 		if (wr != VK_SUCCESS) {
 			vkcheck_describe(err, err_size, "vkCreateComputePipelines", wr, __FILE_NAME__,
 					 __LINE__);
