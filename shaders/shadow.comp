@@ -13,6 +13,7 @@
 #include "clouds.glsl"
 #include "terrain.glsl"
 
+layout(constant_id = SPEC_TERRAIN) const bool TERRAIN = false;
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = BINDING_SHADOW) writeonly buffer ShadowTexels { vec4 d[]; } ST;
 
@@ -191,8 +192,10 @@ void main()
 	}
 	tau -= log(tr) + float(tr_exp2) * 0.69314718;
 	// No cloud: (0, 0, 0), which a bilinear filter of the texels blends
-	// into a cloud's edge as the clear it is.
-	vec4 texel = vec4(0.0, 0.0, 0.0, terrain_depth_km(o, d, rb));
+	// into a cloud's edge as the clear it is. Without a height field the
+	// terrain's march is compiled out: lavapipe would run its code with
+	// every lane off.
+	vec4 texel = vec4(0.0, 0.0, 0.0, TERRAIN ? terrain_depth_km(o, d, rb) : SKY_SHADOW_NO_TERRAIN_KM);
 	if (tau > 0.0)
 		texel.xyz = vec3(front, tau / (back - front), tau);
 	ST.d[(px.z * SHADOW_W + px.y) * SHADOW_W + px.x] = texel;

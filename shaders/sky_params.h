@@ -52,7 +52,8 @@
 				 * the uniform block at BINDING_MULTISCATTER_UBO */
 #define SPEC_SV_EYE_UNDER 33	/* sky-view: the observer is under the casters' top
 				 * (skyview.comp's march from its first step) */
-#define SPEC_COUNT 34
+#define SPEC_TERRAIN 34		/* the shadow maps: a height field casts (terrain=) */
+#define SPEC_COUNT 35
 
 /* Bindings of the one descriptor set. The tables are storage buffers in
  * state_table order; transmittance and multi-scattering are read again

@@ -291,6 +291,7 @@ static struct spec cloud_spec(const struct sky_state *s, const struct plan *pl)
 	k.v[SPEC_CLOUD_W] = (int32_t)s->quality.cloud_width;
 	k.v[SPEC_SHADOW_W] = (int32_t)s->quality.shadow_width;
 	k.v[SPEC_STEPS] = SHADOW_STEPS;
+	k.v[SPEC_TERRAIN] = pl->clouds.TERRAIN_HALF_KM > 0.0f;
 	return k;
 }
 

@@ -278,6 +278,7 @@ static const struct named_id spec_ids[] = {
 	{ "LOOKUP_IMAGES", SPEC_LOOKUP_IMAGES }, { "MS_UNIFORM", SPEC_MS_UNIFORM },
 	{ "CLOUD_LAYERS", SPEC_CLOUD_LAYERS }, { "SHADOW_W", SPEC_SHADOW_W }, { "CLOUD_W", SPEC_CLOUD_W },
 	{ "SV_EYE_UNDER", SPEC_SV_EYE_UNDER },
+	{ "TERRAIN", SPEC_TERRAIN },
 	/* layout(local_size_x_id, local_size_y_id): glslang leaves the
 	 * workgroup size's constants without a name. */
 	{ "", SPEC_LOCAL_X }, { "", SPEC_LOCAL_Y },
