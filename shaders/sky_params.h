@@ -53,7 +53,17 @@
 #define SPEC_SV_EYE_UNDER 33	/* sky-view: the observer is under the casters' top
 				 * (skyview.comp's march from its first step) */
 #define SPEC_TERRAIN 34		/* the shadow maps: a height field casts (terrain=) */
-#define SPEC_COUNT 35
+#define SPEC_SV_KEPT 35		/* sky-view: the maps' light at its steps computed,
+				 * computed and kept, or read as kept (SV_KEPT_*) */
+#define SPEC_COUNT 36
+
+/* SPEC_SV_KEPT's values: sky-view computes the light the maps let
+ * through at each step that reads them, computes it and keeps it at
+ * BINDING_SV_LIGHT, or reads it as kept there by a computation of the
+ * same maps and rays (eng_clouds.c, eng_sv_kept). */
+#define SV_KEPT_OFF 0
+#define SV_KEPT_WRITE 1
+#define SV_KEPT_READ 2
 
 /* Bindings of the one descriptor set. The tables are storage buffers in
  * state_table order; transmittance and multi-scattering are read again
@@ -88,7 +98,8 @@
 					 * as a uniform block of SKY_MS_UNIFORM_TEXELS
 					 * vec4s (SPEC_MS_UNIFORM) */
 #define SKY_MS_UNIFORM_TEXELS 1024	/* 16 KiB, the least maxUniformBufferRange */
-#define BINDING_COUNT 24
+#define BINDING_SV_LIGHT 24		/* sky-view's kept light per step (SPEC_SV_KEPT) */
+#define BINDING_COUNT 25
 
 /* The aerial jobs at BINDING_VIEWS (eng_fill_views, aerial.comp,
  * aerial_resample.comp): a head whose first word is the number of march

@@ -13,7 +13,16 @@
 
 layout(constant_id = SPEC_SV_AZ_GROUP) const int SV_AZ_GROUP = 12;
 layout(constant_id = SPEC_SV_EYE_UNDER) const bool SV_EYE_UNDER = false;
+layout(constant_id = SPEC_SV_KEPT) const int SV_KEPT = SV_KEPT_OFF;
 layout(local_size_x = 8, local_size_y = 8) in;
+
+// The maps' light at each step of each column that reads them, sun and
+// moon: the same maps, lights' frames and rays give the same light to the
+// bit, so a change that keeps them all (the sun moving within its map's
+// cell) reads it back rather than four texels and four exponentials
+// (SPEC_SV_KEPT). By row, step, light and column of the invocation, then
+// invocation along the row: neighbouring lanes touch neighbouring words.
+layout(std430, binding = BINDING_SV_LIGHT) buffer SkyviewLight { float d[]; } SL;
 
 // The local vertical (its horizontal part along the row's columns, up_h,
 // and its vertical part, up_z) and the horizon's cosine at distance t along
@@ -51,6 +60,7 @@ float sun_h[SV_AZ_GROUP], moon_h[SV_AZ_GROUP];
 float sun_h_mean, moon_h_mean;	// over the columns: the layers' light (cloud_diffuse_at)
 float h0, sin_z, cos_z, len, prev, tau_view;
 int n;
+int kept_row, kept_lane, kept_lanes;	// kept_light's: row, invocation, invocations a row
 Entry en;
 vec3 tr, tr_scaled;
 StepEnd ea;
@@ -74,6 +84,20 @@ StepMid step_mid(int i, float from_km)
 	m.up_h = sin_z * (en.t0 + m.t) / rr;
 	m.up_z = (en.ez + cos_z * m.t) / rr;
 	return m;
+}
+
+// The light (0 sun, 1 moon) the maps let through at step i of the
+// invocation's column j, at q: computed, kept as well, or read as kept
+// (SV_KEPT).
+float kept_light(int light, int j, int i, vec3 q)
+{
+	int at = (((kept_row * STEPS + i) * 2 + light) * SV_AZ_GROUP + j) * kept_lanes + kept_lane;
+	if (SV_KEPT == SV_KEPT_READ)
+		return SL.d[at];
+	float lit = cloud_light(light, q);
+	if (SV_KEPT == SV_KEPT_WRITE)
+		SL.d[at] = lit;
+	return lit;
 }
 
 // Step i of the row's march. shadowed: the step reads the shadow maps;
@@ -129,7 +153,7 @@ void march_step(int i, const bool shadowed)
 		// The cloud's shadow at the step's middle (clouds.glsl).
 		vec3 q = vec3(dir[j].xy * (en.t0 + t), h0 + dir[j].z * (en.t0 + t));
 		if (SHADOW_W > 0 && shadowed)
-			vis *= cloud_light(0, q);
+			vis *= kept_light(0, j, i, q);
 		cloud_down = sun_down;
 		cloud_up = sun_up;
 		march_source(ta, up_h * sun_h[j] + sun_z, vis, P.sun_illum.rgb, sc, ph_sun[j], m, ground,
@@ -138,7 +162,7 @@ void march_step(int i, const bool shadowed)
 			vis = disk_visible_mean(over_horizon(ea, moon_h[j], P.moon_dir.z),
 						over_horizon(eb, moon_h[j], P.moon_dir.z), e_moon, moon_k);
 			if (SHADOW_W > 0 && shadowed)
-				vis *= cloud_light(1, q);
+				vis *= kept_light(1, j, i, q);
 			cloud_down = moon_down;
 			cloud_up = moon_up;
 			march_source(ta, up_h * moon_h[j] + moon_z, vis, P.moon_illum.rgb, sc, ph_moon[j], m,
@@ -154,14 +178,18 @@ void march_step(int i, const bool shadowed)
 	tr *= step_t;
 }
 
-// The lowest light's cosine to the local vertical over the row's columns
-// at a point of the ray whose local vertical is (up_h along the column,
-// up_z): each light's horizontal part may point anywhere in azimuth.
+// The lowest maps' light's cosine to the local vertical over the row's
+// columns at a point of the ray whose local vertical is (up_h along the
+// column, up_z): each light's horizontal part may point anywhere in
+// azimuth. The maps' lights, not the lights: what the maps are read for,
+// and the same while a light moves within its map's cell, so that the
+// steps that read them are too (kept_light).
 float lowest_light(float up_h, float up_z)
 {
-	float lo = up_z * P.sun_dir.z - abs(up_h) * length(P.sun_dir.xy);
+	vec3 sun = cloud_frame[0].l.xyz, moon = cloud_frame[1].l.xyz;
+	float lo = up_z * sun.z - abs(up_h) * length(sun.xy);
 	if (MOON_LIT)
-		lo = min(lo, up_z * P.moon_dir.z - abs(up_h) * length(P.moon_dir.xy));
+		lo = min(lo, up_z * moon.z - abs(up_h) * length(moon.xy));
 	return lo;
 }
 
@@ -195,6 +223,9 @@ void main()
 	// Rows below the horizon end on the ground after a few steps, rows above
 	// take all of them: every workgroup gets half of each.
 	int py = interleaved_row(gy, OUT_H);
+	kept_row = py;
+	kept_lane = int(gl_GlobalInvocationID.x);
+	kept_lanes = int(gl_NumWorkGroups.x * gl_WorkGroupSize.x);
 
 	h0 = P.OBSERVER_KM;
 	// The row's direction from angles that keep their bits: the horizon's

@@ -52,6 +52,10 @@ struct eng_timing {
 	int columns;
 	double columns_ms;		/* its GPU time (timestamps; the pass writes
 					 * the transmittance texels too), else 0 */
+	/* 1 when sky-view read the light the shadow maps let through at its
+	 * steps as an earlier computation kept it: the same maps, lights'
+	 * frames, field and rays (a light that moved within its map's cell). */
+	int skyview_light_kept;
 };
 
 /* Lists the Vulkan devices, at most max of them, into ret (may be NULL when

@@ -228,6 +228,46 @@ static int ensure_terrain(struct eng *e, const struct sky_state *s, bool *rebind
 	return rc;
 }
 
+/* Sky-view's light kept per step (BINDING_SV_LIGHT): two floats (sun,
+ * moon) per step of each column its invocations march (the row's
+ * invocations, 8 a workgroup, times sv_az_group columns each), 0 where
+ * nothing casts or where that is over SV_LIGHT_MAX_BYTES (3.3 MB at the
+ * default quality). */
+#define SV_LIGHT_MAX_BYTES (64u << 20)
+
+static uint64_t sv_light_bytes(const struct eng *e, const struct sky_state *s)
+{
+	const struct state_table_quality *q = &s->quality.t[STATE_SKYVIEW];
+	uint64_t group = e->grain.sv_az_group, lanes = (q->width + 8 * group - 1) / (8 * group) * 8;
+	uint64_t bytes = lanes * group * q->height * q->steps * 2 * sizeof(float);
+
+	return eng_shadow_casters(s) && bytes <= SV_LIGHT_MAX_BYTES ? bytes : 0;
+}
+
+int eng_sv_kept(const struct eng *e, const struct sky_state *s, struct plan *pl,
+		const struct spec *key)
+{
+	uint64_t bytes = sv_light_bytes(e, s);
+
+	if (!key->v[SPEC_SHADOW_W] || !bytes || e->sv_light.bytes != bytes)
+		return SV_KEPT_OFF;
+	pl->sv_key.spec = *key;
+	pl->sv_key.spec.v[SPEC_SV_KEPT] = 0;
+	pl->sv_keyed = true;
+	/* Maps remade from the same block are the same maps; kept light is
+	 * read only where they were not remade all the same. */
+	if (e->sv_light_valid && !pl->run[PASS_SHADOW].on &&
+	    !memcmp(&pl->sv_key, &e->sv_light_key, sizeof(pl->sv_key)))
+		return SV_KEPT_READ;
+	/* Kept where the last sky-view had this key too: a light that
+	 * stays in its cell for more than one change. A change that moves
+	 * the field (the wind), crosses a cell or moves the observer would
+	 * pay the writes for nothing; the one after it, in the same cell,
+	 * keeps the light for those that follow. */
+	return e->sv_last_valid && !memcmp(&pl->sv_key, &e->sv_last, sizeof(pl->sv_key)) ? SV_KEPT_WRITE
+											 : SV_KEPT_OFF;
+}
+
 int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
 		      size_t err_size)
 {
@@ -258,6 +298,15 @@ int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, ch
 		e->clouds_valid = false;
 		*rebind = true;
 	}
+	uint64_t sv_bytes = sv_light_bytes(e, s);
+	sv_bytes = sv_bytes ? sv_bytes : 16;
+	if (rc == 0 && (!e->sv_light.buf || e->sv_light.bytes != sv_bytes)) {
+		eng_buffer_free(e, &e->sv_light);
+		rc = eng_buffer_new(e, sv_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+				    VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, &e->sv_light, err, err_size);
+		e->sv_light_valid = false;
+		*rebind = true;
+	}
 	if (rc == 0)
 		rc = ensure_terrain(e, s, rebind, err, err_size);
 	return rc;
@@ -269,7 +318,9 @@ void eng_free_clouds(struct eng *e)
 	cloud_buffer_free(e, &e->shadow, &e->shadow_view);
 	eng_buffer_free(e, &e->clouds);
 	eng_buffer_free(e, &e->terrain);
+	eng_buffer_free(e, &e->sv_light);
 	e->terrain_hash = 0;
+	e->sv_light_valid = false;
 }
 
 const void *eng_cloud_table(const struct eng *e, int t, size_t *ret_bytes)

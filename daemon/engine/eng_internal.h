@@ -155,6 +155,17 @@ struct pass_run {
  * densities it leaves, the iteration's later steps' pipeline and count,
  * the aerial jobs (eng_fill_views) and the last table of mask, which the
  * pack pass's time counts in. */
+/* What sky-view's kept light (BINDING_SV_LIGHT) is of: its pass's
+ * constants (SPEC_SV_KEPT aside), the planet and the observer, its fewest
+ * steps, and the cloud block whole: the maps' layers, field and lights'
+ * frames, and the field's shift since the maps. */
+struct sv_light_key {
+	struct spec spec;
+	float planet[4];
+	float min_steps;
+	struct gpu_clouds clouds;
+};
+
 struct plan {
 	uint32_t mask;
 	struct pass_run run[N_PASSES];
@@ -166,6 +177,8 @@ struct plan {
 	int n_clouds;			/* layers drawn: SPEC_CLOUD_LAYERS */
 	bool eye_under;			/* SPEC_SV_EYE_UNDER */
 	struct gpu_clouds clouds;	/* the block, as eng_fill_clouds made it */
+	struct sv_light_key sv_key;	/* sky-view's, its SPEC_SV_KEPT chosen by it */
+	bool sv_keyed;			/* sv_key holds sky-view's key (it reads maps) */
 };
 
 struct eng {
@@ -301,6 +314,13 @@ struct eng {
 	uint64_t terrain_hash;
 	bool clouds_valid;
 	struct gpu_clouds clouds_key;
+	/* Sky-view's light per step (SPEC_SV_KEPT), 16 bytes where it is not
+	 * kept; sv_light_valid: it holds what sv_light_key gives. sv_last:
+	 * the key of the last sky-view computed with casters, if
+	 * sv_last_valid. */
+	struct gpu_buffer sv_light;
+	bool sv_light_valid, sv_last_valid;
+	struct sv_light_key sv_light_key, sv_last;
 
 	/* Host memory the device writes published tables into
 	 * (eng_host_import, eng_host.c), and where the computation in flight
@@ -389,6 +409,12 @@ uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct g
 int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
 		      size_t err_size);
 void eng_free_clouds(struct eng *e);
+/* SPEC_SV_KEPT for the sky-view pass of pl with constants key: off where
+ * no map is read or the light is too large to keep, read where the kept
+ * light is of this computation's maps and rays, write otherwise. */
+int eng_sv_kept(const struct eng *e, const struct sky_state *s, struct plan *pl,
+		const struct spec *key);
+
 
 /* eng_host.c: imported host memory. */
 /* Records the copies of the published tables (after the passes) into

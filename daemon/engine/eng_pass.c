@@ -136,6 +136,7 @@ static void plan_skyview(struct eng *e, const struct sky_state *s, const struct 
 	r->on = pl->mask & STATE_BIT(STATE_SKYVIEW);
 	r->key = eng_pass_spec(base, s, STATE_SKYVIEW, &e->grain);
 	r->key.v[SPEC_SV_EYE_UNDER] = pl->eye_under;
+	r->key.v[SPEC_SV_KEPT] = eng_sv_kept(e, s, pl, &r->key);
 	table_groups(s, STATE_SKYVIEW, e->grain.sv_az_group, r);
 }
 
@@ -457,6 +458,9 @@ int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_l
 	pl->eye_under = base.v[SPEC_SHADOW_W] > 0 && eye_under_casters(&pl->clouds, pl->n_clouds,
 								       params->OBSERVER_KM);
 	memcpy(e->clouds.map, &pl->clouds, sizeof(pl->clouds));
+	memcpy(pl->sv_key.planet, params->planet, sizeof(pl->sv_key.planet));
+	pl->sv_key.min_steps = params->SKYVIEW_MIN_STEPS;
+	pl->sv_key.clouds = pl->clouds;
 	/* The column pass's key compares the uniform block as uploaded. */
 	memcpy(e->params.map, params, sizeof(*params));
 	eng_fill_views(s, &e->aplan, e->panorama_offset / 16, e->views.map, &pl->aerial_march,

@@ -130,6 +130,15 @@ int eng_submit_to(struct eng *e, const struct sky_state *s, const struct state_l
 		e->clouds_key = pl->clouds;
 		e->clouds_valid = true;
 	}
+	if (pl->run[PASS_SKYVIEW].on && pl->sv_keyed) {
+		e->sv_last = pl->sv_key;
+		e->sv_last_valid = true;
+	}
+	if (pl->run[PASS_SKYVIEW].on && pl->run[PASS_SKYVIEW].key.v[SPEC_SV_KEPT] == SV_KEPT_WRITE) {
+		/* Invalidated again if the computation fails (eng_complete). */
+		e->sv_light_key = pl->sv_key;
+		e->sv_light_valid = true;
+	}
 	if (pl->run[PASS_LOOKUP_IMAGES].on)
 		e->images_valid = true;
 	else if (mask & ENG_LOOKUP_TABLES)
@@ -197,13 +206,15 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 	}
 
 	struct eng_timing t = { .computed = mask, .total_ms = elapsed_ms(&e->submit_time, &now),
-		.columns = e->flight.run[PASS_COLUMNS].on };
+		.columns = e->flight.run[PASS_COLUMNS].on,
+		.skyview_light_kept = e->flight.run[PASS_SKYVIEW].on &&
+				      e->flight.run[PASS_SKYVIEW].key.v[SPEC_SV_KEPT] == SV_KEPT_READ };
 	pthread_mutex_lock(&e->lock);
 	e->finished = false;
 	e->has_target = false;
 	pthread_mutex_unlock(&e->lock);
 	if (wr != VK_SUCCESS)
-		e->columns_valid = e->images_valid = e->clouds_valid = false;
+		e->columns_valid = e->images_valid = e->clouds_valid = e->sv_light_valid = false;
 	VK_TRY(wr);
 	rc = invalidate(e, mask, err, err_size);
 	if (rc < 0)

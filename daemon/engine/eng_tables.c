@@ -60,6 +60,8 @@ static void bind_buffers(struct eng *e)
 			bi[i] = (VkDescriptorBufferInfo){ e->shadow.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_TERRAIN)
 			bi[i] = (VkDescriptorBufferInfo){ e->terrain.buf, 0, VK_WHOLE_SIZE };
+		else if (i == BINDING_SV_LIGHT)
+			bi[i] = (VkDescriptorBufferInfo){ e->sv_light.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_MULTISCATTER_UBO)
 			bi[i] = (VkDescriptorBufferInfo){ e->table[STATE_MULTISCATTER].buf, 0, e->ms_uniform_bytes };
 		else if (i > 0)

@@ -38,6 +38,11 @@
  *    aerial perspective closer to those of maps made where the field is
  *    (cloud_cell_texels=0) than the same maps read where they were made
  *    (docs/clouds.md, "The wind between the tables").
+ *  - a light that moves within its map's cell keeps the maps, and sky-view
+ *    reads the light they let through at its steps as kept: the same bits
+ *    as a fresh engine's, the sun alone and with the moon lit; the wind's
+ *    shift within the tables' cell reads the maps elsewhere, and the kept
+ *    light is not read.
  *  - a clear sky runs no cloud pass: no cloud table, no shadow map.
  *  - the cloud and shadow tables are the same bits from a second engine,
  *    also where that engine had another field and only the maps are asked
@@ -302,6 +307,60 @@ static void kept_maps_read_shifted(void)
 	}
 }
 
+/* Sky-view of s from a fresh engine and from eng, which computed the
+ * state before; kept: whether eng's read its light as kept. */
+static void skyview_as_fresh(const struct sky_state *s, int kept)
+{
+	struct eng_timing t;
+	char err[512];
+	size_t a_bytes = 0, b_bytes = 0;
+
+	CHECK(eng_compute(eng, s, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(t.skyview_light_kept, kept);
+	CHECK_EQ(t.computed & STATE_BIT(STATE_CLOUD_SHADOW), 0u);
+	struct eng *fresh = vk_or_skip();
+	CHECK(eng_compute(fresh, s, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(t.skyview_light_kept, 0);
+	const void *a = eng_table(eng, STATE_SKYVIEW, &a_bytes), *b = eng_table(fresh, STATE_SKYVIEW, &b_bytes);
+	CHECK(a && b && a_bytes == b_bytes && a_bytes > 0);
+	if (a && b && a_bytes == b_bytes)
+		CHECK(memcmp(a, b, a_bytes) == 0);
+	eng_free(fresh);
+}
+
+static void kept_light_bits(void)
+{
+	static const char *const lights[] = { "", "moon_elevation_deg=40 moon_azimuth_deg=200 moon_illuminance_lx=0.25 " };
+	static const char *const suns[] = { "20", "20.05", "20" };
+	const char *layers = "cloud1_oktas=5 cloud1_base_m=1000 cloud2_oktas=3 cloud2_base_m=4000 "
+			     "cloud2_type=altostratus";
+	struct eng_timing t;
+	struct sky_state s;
+	char pairs[512], err[512];
+
+	for (int i = 0; i < 2; i++) {
+		/* 20 and 20.05 degrees: one cell of the sun's grid (a cell is
+		 * about 1.3 degrees of elevation here). The first computation
+		 * keeps nothing (the field's standing is not known yet), the
+		 * second keeps the light, the third reads it. */
+		for (int k = 0; k < 3; k++) {
+			snprintf(pairs, sizeof(pairs), "sun_elevation_deg=%s %s%s", suns[k], lights[i], layers);
+			if (probe_state_of(pairs, &s) < 0)
+				return;
+			if (k < 2) {
+				CHECK(eng_compute(eng, &s, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+				CHECK_EQ(t.skyview_light_kept, 0);
+			} else {
+				skyview_as_fresh(&s, 1);
+			}
+		}
+		/* The wind a tenth of a coverage texel on: the maps kept, read
+		 * shifted, the kept light not read. */
+		s.clouds.offset_km[0] += 0.2;
+		skyview_as_fresh(&s, 0);
+	}
+}
+
 static void demand_and_bits(void)
 {
 	struct sky_state clear, cloudy;
@@ -353,6 +412,7 @@ int main(void)
 		       "altitude_km=6 sun_elevation_deg=20 cloud1_oktas=6 cloud1_base_m=1000");
 	moon_map();
 	kept_maps_read_shifted();
+	kept_light_bits();
 	demand_and_bits();
 	eng_free(eng);
 	return test_report("test_cloud_shadow");

@@ -278,7 +278,7 @@ static const struct named_id spec_ids[] = {
 	{ "LOOKUP_IMAGES", SPEC_LOOKUP_IMAGES }, { "MS_UNIFORM", SPEC_MS_UNIFORM },
 	{ "CLOUD_LAYERS", SPEC_CLOUD_LAYERS }, { "SHADOW_W", SPEC_SHADOW_W }, { "CLOUD_W", SPEC_CLOUD_W },
 	{ "SV_EYE_UNDER", SPEC_SV_EYE_UNDER },
-	{ "TERRAIN", SPEC_TERRAIN },
+	{ "TERRAIN", SPEC_TERRAIN }, { "SV_KEPT", SPEC_SV_KEPT },
 	/* layout(local_size_x_id, local_size_y_id): glslang leaves the
 	 * workgroup size's constants without a name. */
 	{ "", SPEC_LOCAL_X }, { "", SPEC_LOCAL_Y },
@@ -304,6 +304,7 @@ static const struct named_id bindings[] = {
 	{ "CloudBlock", BINDING_CLOUDS }, { "CloudTexels", BINDING_CLOUD }, { "CloudTex", BINDING_CLOUD_TEX },
 	{ "ShadowTexels", BINDING_SHADOW }, { "ShadowTex", BINDING_SHADOW_TEX },
 	{ "TerrainTexels", BINDING_TERRAIN }, { "MultiscatterBlock", BINDING_MULTISCATTER_UBO },
+	{ "SkyviewLight", BINDING_SV_LIGHT },
 };
 
 static const struct named_id *find(const struct named_id *list, size_t n, const char *name)
