@@ -95,6 +95,11 @@ void main()
 	}
 
 	Phases ph_sun = ray_phases(dir, sun_dir), ph_moon = ray_phases(dir, moon_dir);
+	// The job's eye frame in the observer's, where the shadow maps are
+	// read (clouds.glsl): a view elsewhere marches from its own ground
+	// point, under its own part of the field.
+	mat3 eye_site = mat3(VB.job[z].site_east, VB.job[z].site_north, VB.job[z].site_up);
+	vec3 eye_ground = vec3(VB.job[z].ground_east_km, VB.job[z].ground_north_km, VB.job[z].ground_up_km);
 	Entry en;
 	bool inside = ray_in_shell(h0, dir, en);
 	float t0 = en.t0, t1 = en.t0 + en.len;
@@ -128,8 +133,8 @@ void main()
 				vec3 s = vec3(0.0), s_scaled = vec3(0.0);
 				float mu_l = dot(up, sun_dir);
 				float vis = light_visible(ta, mu_l, P.SUN_RADIUS_RAD);
-				// The clouds (clouds.glsl), the eye over the observer's ground point.
-				vec3 q = vec3(dir.xy * t, h0 + dir.z * t);
+				// The clouds (clouds.glsl): the point in the observer's frame.
+				vec3 q = eye_ground + eye_site * vec3(dir.xy * t, h0 + dir.z * t);
 				if (SHADOW_W > 0)
 					vis *= cloud_step(q, hs);
 				if (CLOUD_LAYERS > 0)

@@ -140,7 +140,12 @@
 	V3(moon) U(kind)		/* the moon likewise; AERIAL_JOB_* of a  \
 					 * march job */                          \
 	U(panorama_texel)		/* a resample job's panorama */          \
-	U(pad0) U(pad1) U(pad2)
+	U(pad0) U(pad1) U(pad2)						         \
+	V3(site_east) F(ground_east_km)	/* a march job's eye frame in the        \
+					 * observer's (east, north, up from the  \
+					 * ground under it): its local east */   \
+	V3(site_north) F(ground_north_km) /* north; where its ground point is */ \
+	V3(site_up) F(ground_up_km)	/* up (what the shadow maps are read in) */
 
 /* The uniform block (std140, vec4s only, so that C's float[4] matches).
  * X-lists: V(name) a vec4, A(name, n) an array of n vec4, S(name, n) an

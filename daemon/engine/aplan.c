@@ -98,12 +98,19 @@ static void camera_of(const struct sky_state *s, const struct state_lights *ligh
 	if (ret->east_km == 0.0 && ret->north_km == 0.0) {
 		memcpy(ret->sun, sun, sizeof(ret->sun));
 		memcpy(ret->moon, moon, sizeof(ret->moon));
+		for (int k = 0; k < 3; k++)
+			ret->site[k][k] = 1.0;
 		return;
 	}
-	double m[3][3];
-	view_frame(s->clock.lat_deg, s->atmo.bottom_radius_km, ret->east_km, ret->north_km, m);
+	double m[3][3], rb = s->atmo.bottom_radius_km;
+	view_frame(s->clock.lat_deg, rb, ret->east_km, ret->north_km, m);
 	rotate(m, sun, ret->sun);
 	rotate(m, moon, ret->moon);
+	/* Row r of m is the eye's axis r in the site's frame; its ground
+	 * point is rb up there less rb up at the site. */
+	memcpy(ret->site, m, sizeof(m));
+	for (int k = 0; k < 3; k++)
+		ret->ground_km[k] = rb * m[2][k] - (k == 2 ? rb : 0.0);
 }
 
 static bool same_eye(const struct aplan_camera *a, const struct aplan_camera *b)

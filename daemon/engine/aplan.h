@@ -20,6 +20,9 @@
  * position, its frame, and the lights in its eye's local frame. */
 struct aplan_camera {
 	double h_km, east_km, north_km;
+	/* The eye's local axes (east, north, up: rows) and its ground point in
+	 * the observer's frame, km from the ground under the observer. */
+	double site[3][3], ground_km[3];
 	double fwd[3], right[3], up[3];
 	double tan_half, aspect;
 	double sun[3], moon[3];

@@ -220,6 +220,12 @@ static void put_lights(struct gpu_aerial_job *job, const struct aplan_camera *v,
 	job->out_texel = out_texel;
 	put3(job->moon, v->moon);
 	job->kind = kind;
+	put3(job->site_east, v->site[0]);
+	put3(job->site_north, v->site[1]);
+	put3(job->site_up, v->site[2]);
+	job->ground_east_km = (float)v->ground_km[0];
+	job->ground_north_km = (float)v->ground_km[1];
+	job->ground_up_km = (float)v->ground_km[2];
 }
 
 void eng_fill_views(const struct sky_state *s, const struct aplan *p, uint64_t pano_base,
