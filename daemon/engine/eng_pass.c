@@ -474,6 +474,14 @@ int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_l
 		if (rc == 0 && pass_rows[p].shader >= 0)
 			get_pipeline(e, pass_rows[p].shader, &run->key, &run->pipe);
 	}
+	if (rc == 0 && pl->run[PASS_SKYVIEW].on && pl->run[PASS_SKYVIEW].key.v[SPEC_SV_KEPT] == SV_KEPT_WRITE) {
+		/* The next change in the cell reads what this one keeps: its
+		 * variant is made with this one's, one wait for both. */
+		struct spec later = pl->run[PASS_SKYVIEW].key;
+		VkPipeline read;
+		later.v[SPEC_SV_KEPT] = SV_KEPT_READ;
+		get_pipeline(e, SHADER_SKYVIEW, &later, &read);
+	}
 	if (rc == 0 && pl->run[PASS_MSITERATE].on) {
 		struct spec later = pl->run[PASS_MSITERATE].key;
 		later.v[SPEC_ITER_FIRST] = 0;

@@ -160,14 +160,21 @@ static void layers_of(char *out, size_t size)
 }
 
 /* Until skyd's generation passes after: alternates the sun between 31 and
- * 30 degrees, ending at 30 (the scene's); the last generation, or -1. */
+ * 30 degrees, ending at 30 (the scene's); the last generation, or -1. A
+ * deadline, not a count of requests: a new skyd makes its pipelines first
+ * (seconds under a sanitizer), and no generation passes meanwhile. */
 static long pass_generation(long after)
 {
-	long g = -1;
-	for (int i = 0; i < 2000 && (g <= after || i % 2); i++) {
+	struct timespec t0, t;
+	long g = -1, ms = 0;
+
+	clock_gettime(CLOCK_MONOTONIC, &t0);
+	for (int i = 0; ms < HARNESS_TIMEOUT_MS && (g <= after || i % 2); i++) {
 		g = request(i % 2 ? "set sun_elevation_deg=30" : "set sun_elevation_deg=31", NULL, 0);
 		if (g < 0)
 			return -1;
+		clock_gettime(CLOCK_MONOTONIC, &t);
+		ms = (long)(t.tv_sec - t0.tv_sec) * 1000 + (t.tv_nsec - t0.tv_nsec) / 1000000;
 	}
 	return g;
 }
