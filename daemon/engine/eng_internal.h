@@ -151,10 +151,6 @@ struct pass_run {
 	uint32_t groups[3];
 };
 
-/* What one computation runs: a pass_run per pass, the key of the column
- * densities it leaves, the iteration's later steps' pipeline and count,
- * the aerial jobs (eng_fill_views) and the last table of mask, which the
- * pack pass's time counts in. */
 /* What sky-view's kept light (BINDING_SV_LIGHT) is of: its pass's
  * constants (SPEC_SV_KEPT aside), the planet and the observer, its fewest
  * steps, and the cloud block whole: the maps' layers, field and lights'
@@ -166,6 +162,10 @@ struct sv_light_key {
 	struct gpu_clouds clouds;
 };
 
+/* What one computation runs: a pass_run per pass, the key of the column
+ * densities it leaves, the iteration's later steps' pipeline and count,
+ * the aerial jobs (eng_fill_views) and the last table of mask, which the
+ * pack pass's time counts in. */
 struct plan {
 	uint32_t mask;
 	struct pass_run run[N_PASSES];
@@ -414,7 +414,6 @@ void eng_free_clouds(struct eng *e);
  * light is of this computation's maps and rays, write otherwise. */
 int eng_sv_kept(const struct eng *e, const struct sky_state *s, struct plan *pl,
 		const struct spec *key);
-
 
 /* eng_host.c: imported host memory. */
 /* Records the copies of the published tables (after the passes) into

@@ -37,6 +37,17 @@ static void set(struct sky_state *s, const char *pair)
 		FAIL("%s", err);
 }
 
+/* The sun at el_deg, az_deg (either sign) as the state's keys. */
+static void set_sun(struct sky_state *s, double el_deg, double az_deg)
+{
+	char pair[64];
+
+	snprintf(pair, sizeof(pair), "sun_elevation_deg=%.17g", el_deg);
+	set(s, pair);
+	snprintf(pair, sizeof(pair), "sun_azimuth_deg=%.17g", az_deg < 0 ? az_deg + 360 : az_deg);
+	set(s, pair);
+}
+
 /* The aerial volumes of s (the state's camera, then each view) as float32
  * values (a float16 table decoded with its scale), marched one by one
  * (share 0) or shared per eye point (share 1). */
@@ -274,7 +285,6 @@ static void sun_there(double lat_deg, double radius_km, double east_km, double n
 static void position(void)
 {
 	struct sky_state s, there;
-	char pair[64];
 	double el, az;
 
 	state_default(&s);
@@ -294,10 +304,7 @@ static void position(void)
 
 	there = s;
 	there.n_views = 0;
-	snprintf(pair, sizeof(pair), "sun_elevation_deg=%.17g", el);
-	set(&there, pair);
-	snprintf(pair, sizeof(pair), "sun_azimuth_deg=%.17g", az < 0 ? az + 360 : az);
-	set(&there, pair);
+	set_sun(&there, el, az);
 	/* The site's angles, as the clock hands them to the state, are
 	 * float32 directions in the engine: a few ulps. */
 	float *moved = aerial(&s, 1), *local = aerial(&there, 1);
@@ -356,16 +363,12 @@ static void cloud_position(void)
 	static const char *const keys[] = { "lat_deg=45", "cloud1_oktas=5", "cloud1_base_m=1200",
 					    "cloud1_type=stratocumulus" };
 	struct sky_state s, there;
-	char pair[64];
 	double el, az, near[3];
 
 	state_default(&s);
 	for (size_t i = 0; i < sizeof(keys) / sizeof(keys[0]); i++)
 		set(&s, keys[i]);
-	snprintf(pair, sizeof(pair), "sun_elevation_deg=%.17g", el0);
-	set(&s, pair);
-	snprintf(pair, sizeof(pair), "sun_azimuth_deg=%.17g", az0);
-	set(&s, pair);
+	set_sun(&s, el0, az0);
 	add_wall(&s, 1, 5, 60);
 	s.views[0].camera.yaw_deg = 230;
 	s.camera = s.views[0].camera;
@@ -374,10 +377,7 @@ static void cloud_position(void)
 
 	there = s;
 	there.n_views = 0;
-	snprintf(pair, sizeof(pair), "sun_elevation_deg=%.17g", el);
-	set(&there, pair);
-	snprintf(pair, sizeof(pair), "sun_azimuth_deg=%.17g", az < 0 ? az + 360 : az);
-	set(&there, pair);
+	set_sun(&there, el, az);
 	const struct state_table_quality *q = &s.quality.t[STATE_AERIAL];
 	size_t per = (size_t)q->width * q->height * q->depth;
 	float *moved = aerial(&s, 0);
