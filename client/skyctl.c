@@ -698,6 +698,7 @@ static void usage(FILE *f)
 		fprintf(f, "  %s\n", cmds[i].usage);
 	fprintf(f, "\nThe socket is --socket, else $XDG_RUNTIME_DIR/skyd/control, else "
 		   "/run/skyd/control.\n"
+		   "The timeout is --timeout, else $SKYCTL_TIMEOUT_MS, else 10000 ms.\n"
 		   "Replies print as 'key: value' lines on stdout; a refusal prints its ACK line on "
 		   "stderr.\n\n"
 		   "Exit status:\n"
@@ -706,22 +707,36 @@ static void usage(FILE *f)
 		   "  2  usage error, or skyd cannot be reached\n");
 }
 
+/* A wait in milliseconds, -1 (forever) to INT_MAX; -EINVAL otherwise. */
+static int parse_timeout_ms(const char *s, int *ret_ms)
+{
+	char *end;
+	errno = 0;
+	long t = strtol(s, &end, 10);
+	if (!*s || *end || errno || t < -1 || t > INT_MAX)
+		return -EINVAL;
+	*ret_ms = (int)t;
+	return 0;
+}
+
 int main(int argc, char **argv)
 {
 	struct opts o = { .socket = NULL, .timeout_ms = 10000 };
+	const char *env_timeout = getenv("SKYCTL_TIMEOUT_MS");
 	int i = 1;
 	setlocale(LC_ALL, "C");
+	if (env_timeout && parse_timeout_ms(env_timeout, &o.timeout_ms) < 0) {
+		fprintf(stderr, "skyctl: bad SKYCTL_TIMEOUT_MS '%s'\n", env_timeout);
+		return EXIT_USAGE;
+	}
 	for (; i < argc && argv[i][0] == '-'; i++) {
 		if ((strcmp(argv[i], "--socket") == 0 || strcmp(argv[i], "-s") == 0) && i + 1 < argc) {
 			o.socket = argv[++i];
 		} else if (strcmp(argv[i], "--timeout") == 0 && i + 1 < argc) {
-			char *end;
-			long t = strtol(argv[++i], &end, 10);
-			if (*end || t < -1 || t > INT_MAX) {
+			if (parse_timeout_ms(argv[++i], &o.timeout_ms) < 0) {
 				fprintf(stderr, "skyctl: bad timeout '%s'\n", argv[i]);
 				return EXIT_USAGE;
 			}
-			o.timeout_ms = (int)t;
 		} else if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
 			usage(stdout);
 			return EXIT_OK;

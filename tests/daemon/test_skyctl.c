@@ -1,11 +1,14 @@
 /* test_skyctl.c - skyctl as a user runs it, against the real skyd on a
  * private socket: every verb, the exit codes 0 / 1 / 2, batch from stdin,
- * watch, dump and render (a PNG of the right size). */
+ * watch, dump and render (a PNG of the right size), the timeout from
+ * SKYCTL_TIMEOUT_MS. */
 #include <poll.h>
 #include <sys/stat.h>
+#include <time.h>
 
 #include "daemon_harness.h"
 #include "sky.h"
+#include "skyproto.h"
 #include "test.h"
 
 static const char *const small[] = { HARNESS_SMALL, NULL };
@@ -250,6 +253,55 @@ static void test_dump_and_render(void)
 	}
 }
 
+static int64_t now_ms(void)
+{
+	struct timespec t;
+	clock_gettime(CLOCK_MONOTONIC, &t);
+	return (int64_t)t.tv_sec * 1000 + t.tv_nsec / 1000000;
+}
+
+/* SKYCTL_TIMEOUT_MS is the default of --timeout: against a peer that
+ * greets and never answers, ping gives up after it, well before skyctl's
+ * own 10 s; a value that is not a number is a usage error. */
+static void test_timeout_env(void)
+{
+	static struct run r;
+	struct sockaddr_un a = { .sun_family = AF_UNIX };
+	const char *path = a.sun_path;
+	if ((size_t)snprintf(a.sun_path, sizeof(a.sun_path), "%s.mute", d.sock) >= sizeof(a.sun_path)) {
+		FAIL("%s.mute: too long for a socket's path", d.sock);
+		return;
+	}
+	int l = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+	CHECK(l >= 0 && bind(l, (struct sockaddr *)&a, sizeof(a)) == 0 && listen(l, 1) == 0);
+	pid_t pid = fork();
+	if (pid == 0) {
+		int s = accept(l, NULL, NULL);
+		char buf[256];
+		(void)!write(s, "OK skyd " SKY_PROTO_VERSION "\n", strlen("OK skyd " SKY_PROTO_VERSION "\n"));
+		while (read(s, buf, sizeof(buf)) > 0)
+			;
+		_exit(0);
+	}
+	close(l);
+	setenv("SKYCTL_TIMEOUT_MS", "300", 1);
+	int64_t t0 = now_ms();
+	RUN(&r, NULL, "--socket", path, "ping");
+	int64_t took_ms = now_ms() - t0;
+	expect(&r, 1, NULL, "ping a mute peer, SKYCTL_TIMEOUT_MS=300");
+	if (!strstr(r.err, "timed out") || took_ms >= 5000)
+		FAIL("ping a mute peer: %lld ms, stderr '%s'; expected 'timed out' after 300 ms",
+		     (long long)took_ms, r.err);
+	setenv("SKYCTL_TIMEOUT_MS", "soon", 1);
+	RUN(&r, NULL, "ping");
+	expect(&r, 2, NULL, "SKYCTL_TIMEOUT_MS=soon");
+	CHECK(strstr(r.err, "SKYCTL_TIMEOUT_MS") != NULL);
+	unsetenv("SKYCTL_TIMEOUT_MS");
+	kill(pid, SIGTERM);	/* if skyctl never came, the peer still waits in accept */
+	waitpid(pid, NULL, 0);
+	unlink(path);
+}
+
 int main(void)
 {
 	harness_need_device();
@@ -272,6 +324,7 @@ int main(void)
 	sky_disconnect(c);
 	test_watch();
 	test_dump_and_render();
+	test_timeout_env();
 	daemon_cleanup(&d);
 	return test_report("test_skyctl");
 }
