@@ -17,6 +17,7 @@
 #include <sys/syscall.h>
 #include <sys/un.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "eng.h"
@@ -24,6 +25,14 @@
 #ifndef HARNESS_TIMEOUT_MS
 #define HARNESS_TIMEOUT_MS 60000
 #endif
+
+/* Now on the monotonic clock, in milliseconds: for the tests' deadlines. */
+static inline int64_t harness_now_ms(void)
+{
+	struct timespec t;
+	clock_gettime(CLOCK_MONOTONIC, &t);
+	return (int64_t)t.tv_sec * 1000 + t.tv_nsec / 1000000;
+}
 
 /* Small tables: these tests are about the service, not the tables. */
 #define HARNESS_SMALL                                                             \

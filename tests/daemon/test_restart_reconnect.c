@@ -18,22 +18,15 @@ struct events {
 	uint64_t userdata;
 };
 
-static long long now_ms(void)
-{
-	struct timespec ts;
-	clock_gettime(CLOCK_MONOTONIC, &ts);
-	return ts.tv_sec * 1000LL + ts.tv_nsec / 1000000;
-}
-
 /* Dispatches for up to ms (polling the socket, or every 10 ms while there
  * is none), counting events; stops early at a reconnection when until is
  * set. */
 static void pump(sky_client *c, struct events *ev, int ms, bool until)
 {
-	long long end = now_ms() + ms;
+	int64_t end = harness_now_ms() + ms;
 	int before = ev->reconnected;
 
-	while (now_ms() < end && !(until && ev->reconnected > before)) {
+	while (harness_now_ms() < end && !(until && ev->reconnected > before)) {
 		struct sky_event e;
 		int fd = sky_get_fd(c);
 		struct pollfd p = { fd, POLLIN, 0 };
@@ -66,10 +59,10 @@ static bool all_tables(sky_client *c)
 /* Waits in sky_wait() (and in nothing else) until every table is there. */
 static bool wait_all_tables(sky_client *c)
 {
-	long long end = now_ms() + HARNESS_TIMEOUT_MS;
+	int64_t end = harness_now_ms() + HARNESS_TIMEOUT_MS;
 	uint32_t seen = 0;
 
-	while (now_ms() < end) {
+	while (harness_now_ms() < end) {
 		if (sky_header(c) && all_tables(c))
 			return true;
 		int r = sky_wait(c, seen, 200, &seen);
@@ -113,7 +106,7 @@ int main(void)
 	CHECK(sky_get_fd(c) == -ENOTCONN);
 	CHECK(daemon_start_in(&d, d.dir, small) == 0);
 
-	long long end;
+	int64_t end;
 	pump(c, &ev, HARNESS_TIMEOUT_MS, true);
 	CHECK(ev.reconnected == 1 && ev.userdata == 1);
 	CHECK(ev.hangups == 0 && ev.layouts == 0);
@@ -122,8 +115,8 @@ int main(void)
 	/* The client that only waits comes back inside sky_wait(): a new
 	 * region, which no futex wake announces. */
 	uint32_t seen = __atomic_load_n(&old_w->generation, __ATOMIC_ACQUIRE);
-	end = now_ms() + HARNESS_TIMEOUT_MS;
-	while (sky_header(w) == old_w && now_ms() < end)
+	end = harness_now_ms() + HARNESS_TIMEOUT_MS;
+	while (sky_header(w) == old_w && harness_now_ms() < end)
 		(void)sky_wait(w, seen, 200, &seen);
 	CHECK(sky_header(w) != old_w);
 	CHECK(wait_all_tables(w));
@@ -133,8 +126,8 @@ int main(void)
 	CHECK(sky_request(c, "set sun_elevation_deg=33", &rep) == 0);
 	sky_reply_free(rep);
 	int changed = ev.changed;
-	end = now_ms() + HARNESS_TIMEOUT_MS;
-	while (ev.changed == changed && now_ms() < end)
+	end = harness_now_ms() + HARNESS_TIMEOUT_MS;
+	while (ev.changed == changed && harness_now_ms() < end)
 		pump(c, &ev, 50, false);
 	CHECK(ev.changed > changed);
 	CHECK(ev.reconnected == 1 && ev.hangups == 0 && ev.layouts == 0);

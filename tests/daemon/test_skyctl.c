@@ -4,7 +4,6 @@
  * SKYCTL_TIMEOUT_MS. */
 #include <poll.h>
 #include <sys/stat.h>
-#include <time.h>
 
 #include "daemon_harness.h"
 #include "sky.h"
@@ -253,13 +252,6 @@ static void test_dump_and_render(void)
 	}
 }
 
-static int64_t now_ms(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (int64_t)t.tv_sec * 1000 + t.tv_nsec / 1000000;
-}
-
 /* SKYCTL_TIMEOUT_MS is the default of --timeout: against a peer that
  * greets and never answers, ping gives up after it, well before skyctl's
  * own 10 s; a value that is not a number is a usage error. */
@@ -285,9 +277,9 @@ static void test_timeout_env(void)
 	}
 	close(l);
 	setenv("SKYCTL_TIMEOUT_MS", "300", 1);
-	int64_t t0 = now_ms();
+	int64_t t0 = harness_now_ms();
 	RUN(&r, NULL, "--socket", path, "ping");
-	int64_t took_ms = now_ms() - t0;
+	int64_t took_ms = harness_now_ms() - t0;
 	expect(&r, 1, NULL, "ping a mute peer, SKYCTL_TIMEOUT_MS=300");
 	if (!strstr(r.err, "timed out") || took_ms >= 5000)
 		FAIL("ping a mute peer: %lld ms, stderr '%s'; expected 'timed out' after 300 ms",
