@@ -352,11 +352,17 @@ static int report(const struct run *r, const char *device_name, double total_s)
 	struct summary s;
 	acc_summarize(r->sc, r->res, r->n_sc, DEFAULT_CONFIG, false, &s);
 	printf("device: %s\n", r->device);
-	printf("default preset over %d scenes: day %.2f %% (max %.2f), horizon %.2f %% (max %.2f), "
-	       "twilight %.2f %% (max %.2f); tables %.1f ms; truth %.0f s, total %.0f s\n",
-	       s.n_scenes, 100 * s.mean[0], 100 * s.max_mean[0], 100 * s.mean[1],
-	       100 * s.max_mean[1], 100 * s.mean[2], 100 * s.max_mean[2], s.time_ms, r->gt_s,
-	       total_s);
+	/* A category no scene has views in (the shadowed scenes alone have
+	 * none by day) reads "none", not 0 %. */
+	printf("default preset over %d scenes:", s.n_scenes);
+	for (int k = 0; k < 3; k++) {
+		if (s.n_cat[k])
+			printf(" %s %.2f %% (max %.2f)%s", acc_cat_names[k], 100 * s.mean[k], 100 * s.max_mean[k],
+			       k < 2 ? "," : ";");
+		else
+			printf(" %s none%s", acc_cat_names[k], k < 2 ? "," : ";");
+	}
+	printf(" tables %.1f ms; truth %.0f s, total %.0f s\n", s.time_ms, r->gt_s, total_s);
 	if (s.n_cat[CAT_LIT] + s.n_cat[CAT_SHADOW] + s.n_cat[CAT_SHAFTS]) {
 		int n_sh = 0, n_un = 0;
 		for (size_t i = 0; i < r->n_sc; i++) {
@@ -369,9 +375,9 @@ static int report(const struct run *r, const char *device_name, double total_s)
 		       100 * s.mean[CAT_SHADOW], 100 * s.max_mean[CAT_SHADOW], 100 * s.mean[CAT_SHAFTS],
 		       100 * s.max_mean[CAT_SHAFTS]);
 		if (n_un)
-			printf("shadowed scenes: %d of %d skipped by the limits: their tables are the same "
-			       "without the clouds and terrain (no shadow in the tables yet); the figures "
-			       "above are what leaving the shadows out costs\n", n_un, n_sh);
+			printf("shadowed scenes: in %d of %d the tables are the same without the clouds "
+			       "and terrain: they have lost the shadows, and the figures above are what "
+			       "leaving them out costs\n", n_un, n_sh);
 	}
 	printf("report: %s/accuracy.md, %s/accuracy.csv, %s/directions.csv\n", o->out, o->out, o->out);
 	if (o->limits) {
