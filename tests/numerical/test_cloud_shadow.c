@@ -21,7 +21,8 @@
  *    for an overcast, a broken layer at low sun and a layer below an
  *    observer in flight. The clear sky over its own ground is no bound:
  *    the air over a deck is brighter than over the ground, as the path
- *    tracer's is (docs/accuracy.md, "Shadowed scenes").
+ *    tracer's is (docs/findings/shaders.md,
+ *    "The shadowed scenes against the tracer").
  *  - the moon's map: with the sun 30 degrees down and the moon up and lit
  *    under the overcast, the moon's map (z = 1) holds the layer over most
  *    of its texels (those whose ray crosses the region: 62 % on lavapipe)
