@@ -22,6 +22,7 @@ layout(binding = BINDING_SHADOW_TEX) uniform samplerBuffer ShadowTex;
 
 layout(constant_id = SPEC_SHADOW_W) const int SHADOW_W = 1;	// a shadow map's width
 layout(constant_id = SPEC_CLOUD_W) const int CLOUD_W = 1;	// the coverage table's
+layout(constant_id = SPEC_CLOUD_PHASES) const int CLOUD_PHASES = CLOUD_PHASES_ONE;
 
 // Private copies, made once per invocation by load_clouds() (as
 // load_params(): lavapipe reloads a buffer read inside a loop at every
@@ -34,9 +35,12 @@ vec4 cloud_column[SKYCLOUD_MAX_LAYERS];
 vec2 cloud_slab[SKYCLOUD_MAX_LAYERS];
 // The share of a map's optical depth that takes light off the light's
 // direction: delta-Eddington's 1 - f with f = g^2 (conservative, omega 1),
-// the widest of the layers' (a map does not know which layer a texel's
-// cloud is, so the least forward-peaked one rules).
+// the widest of the layers' where a map does not tell their clouds apart
+// (CLOUD_PHASES_ONE). With ice and water layers one above the other, the
+// map keeps each texel's ice depth too (shadow_texel_tau): the scales of
+// the phase above (met first from the light) and below.
 float cloud_beam_scale = 1.0;
+float cloud_scale_over = 1.0, cloud_scale_under = 1.0;
 // The altitude of the march's step (cloud_at), km.
 float cloud_h_km = 0.0;
 // Above this altitude (km), at a point whose ray toward a light goes up,
@@ -76,6 +80,11 @@ void load_clouds()
 	cloud_beam_scale = CLOUD_LAYERS > 0 ? 0.0 : 1.0;
 	for (int i = 0; i < CLOUD_LAYERS; i++)
 		cloud_beam_scale = max(cloud_beam_scale, cloud_slab[i].y);
+	if (CLOUD_PHASES != CLOUD_PHASES_ONE) {
+		float ice = 1.0 - 0.75 * 0.75, water = 1.0 - 0.85 * 0.85;
+		cloud_scale_over = CLOUD_PHASES == CLOUD_PHASES_ICE_OVER ? ice : water;
+		cloud_scale_under = CLOUD_PHASES == CLOUD_PHASES_ICE_OVER ? water : ice;
+	}
 	float top = CL.TERRAIN_TOP_KM, texel = 0.0;
 	for (int i = 0; i < CLOUD_LAYERS; i++)
 		top = max(top, cloud_column[i].x);
@@ -95,6 +104,35 @@ float shadow_texel_tau(vec4 s, float d)
 {
 	float tau = cloud_beam_scale * min(s.z, s.y * max(d - s.x, 0.0));
 	return d > s.w ? 80.0 : tau;
+}
+
+// Map texel i's ice optical depth (CLOUD_PHASES, sky_params.h).
+float shadow_texel_ice(int i)
+{
+	return texelFetch(ShadowTex, 2 * SHADOW_W * SHADOW_W + i / 4)[i & 3];
+}
+
+// shadow_texel_tau with ice and water layers one above the other: the
+// light meets the upper phase's whole depth (over: the texel's ice depth,
+// or the rest) before the lower's, so up to depth d the column holds
+// min(over, tau) of the upper and the rest of the lower, each scaled by
+// its own 1 - g^2.
+float shadow_texel_tau2(vec4 s, float ice, float d)
+{
+	float tau = min(s.z, s.y * max(d - s.x, 0.0));
+	float over = CLOUD_PHASES == CLOUD_PHASES_ICE_OVER ? ice : max(s.z - ice, 0.0);
+	float upper = min(over, tau);
+	tau = cloud_scale_over * upper + cloud_scale_under * (tau - upper);
+	return d > s.w ? 80.0 : tau;
+}
+
+// The transmittance of map texel i at depth d.
+float shadow_texel_light(int i, float d)
+{
+	vec4 s = texelFetch(ShadowTex, i);
+	if (CLOUD_PHASES == CLOUD_PHASES_ONE)
+		return exp(-shadow_texel_tau(s, d));
+	return exp(-shadow_texel_tau2(s, shadow_texel_ice(i), d));
 }
 
 // The share of light (0 sun, 1 moon) the cloud lets through at q (km,
@@ -117,10 +155,10 @@ float cloud_light(int light, vec3 q)
 	float fx = x - float(i), fy = y - float(j);
 	float d = f.PLANE_KM - dot(q, f.l.xyz);
 	int base = light * SHADOW_W * SHADOW_W + j * SHADOW_W + i;
-	float t00 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base), d));
-	float t10 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base + 1), d));
-	float t01 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W), d));
-	float t11 = exp(-shadow_texel_tau(texelFetch(ShadowTex, base + SHADOW_W + 1), d));
+	float t00 = shadow_texel_light(base, d);
+	float t10 = shadow_texel_light(base + 1, d);
+	float t01 = shadow_texel_light(base + SHADOW_W, d);
+	float t11 = shadow_texel_light(base + SHADOW_W + 1, d);
 	return mix(mix(t00, t10, fx), mix(t01, t11, fx), fy);
 }
 

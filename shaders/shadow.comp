@@ -6,7 +6,8 @@
 // cover taken as that share of the texel clouded. RGBA32F = (front depth
 // km from the map's plane, mean extinction per km over the cloud span, the
 // column's optical depth, the terrain's opaque depth or
-// SKY_SHADOW_NO_TERRAIN_KM).
+// SKY_SHADOW_NO_TERRAIN_KM). With ice and water layers one above the other
+// (CLOUD_PHASES), each texel's ice optical depth too, after the two maps.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
@@ -151,6 +152,9 @@ void main()
 	// few, and the gaps between layers cost nothing.
 	float rb = P.BOTTOM_RADIUS_KM, tau = 0.0, tr = 1.0, front = 1e30, back = 0.0;
 	int tr_exp2 = 0;
+	// The ice layers' own share, accumulated alike (CLOUD_PHASES).
+	float tau_ice = 0.0, tr_ice = 1.0;
+	int tr_ice_exp2 = 0;
 	float e = CL.FIELD_EXTENT_KM, k_texels = CL.FIELD_TEXELS_PER_KM;
 	float across = length(d.xy) * k_texels;
 	for (int l = 0; l < CLOUD_LAYERS; l++) {
@@ -167,6 +171,7 @@ void main()
 		}
 		if (!(t1 > t0))
 			continue;
+		bool ice = CLOUD_PHASES != CLOUD_PHASES_ONE && L.type == CLOUD_TYPE_CIRRUS;
 		int n = clamp(int(ceil(2.0 * (t1 - t0) * across)), 4, STEPS);
 		float dt = (t1 - t0) / float(n), seg_full = 0.0, seg_gap = 0.0;
 		int seg = -1, k = 0;
@@ -178,6 +183,8 @@ void main()
 			int texel_k = int(t * across);
 			if (texel_k != seg) {
 				add_piece(seg_full, seg_gap, tau, tr, tr_exp2);
+				if (ice)
+					add_piece(seg_full, seg_gap, tau_ice, tr_ice, tr_ice_exp2);
 				seg_full = seg_gap = 0.0;
 				seg = texel_k;
 			}
@@ -189,6 +196,8 @@ void main()
 			}
 		} while (++k < n);
 		add_piece(seg_full, seg_gap, tau, tr, tr_exp2);
+		if (ice)
+			add_piece(seg_full, seg_gap, tau_ice, tr_ice, tr_ice_exp2);
 	}
 	tau -= log(tr) + float(tr_exp2) * 0.69314718;
 	// No cloud: (0, 0, 0), which a bilinear filter of the texels blends
@@ -198,5 +207,10 @@ void main()
 	vec4 texel = vec4(0.0, 0.0, 0.0, TERRAIN ? terrain_depth_km(o, d, rb) : SKY_SHADOW_NO_TERRAIN_KM);
 	if (tau > 0.0)
 		texel.xyz = vec3(front, tau / (back - front), tau);
-	ST.d[(px.z * SHADOW_W + px.y) * SHADOW_W + px.x] = texel;
+	int at = (px.z * SHADOW_W + px.y) * SHADOW_W + px.x;
+	ST.d[at] = texel;
+	if (CLOUD_PHASES != CLOUD_PHASES_ONE) {
+		tau_ice -= log(tr_ice) + float(tr_ice_exp2) * 0.69314718;
+		ST.d[2 * SHADOW_W * SHADOW_W + at / 4][at & 3] = min(tau_ice, texel.z);
+	}
 }

@@ -55,7 +55,18 @@
 #define SPEC_TERRAIN 34		/* the shadow maps: a height field casts (terrain=) */
 #define SPEC_SV_KEPT 35		/* sky-view: the maps' light at its steps computed,
 				 * computed and kept, or read as kept (SV_KEPT_*) */
-#define SPEC_COUNT 36
+#define SPEC_CLOUD_PHASES 36	/* the maps' beam: the layers' phases and their
+				 * order (CLOUD_PHASES_*; clouds.glsl) */
+#define SPEC_COUNT 37
+
+/* SPEC_CLOUD_PHASES's values: every layer of one phase (or ice and water
+ * layers at overlapping heights: the larger 1 - g^2 for all), or ice
+ * layers all above the water layers, or all below them. With two phases
+ * the shadow pass also keeps each texel's ice optical depth, after the
+ * two maps: texel i's at component i % 4 of vec4 2 W^2 + i / 4. */
+#define CLOUD_PHASES_ONE 0
+#define CLOUD_PHASES_ICE_OVER 1
+#define CLOUD_PHASES_WATER_OVER 2
 
 /* SPEC_SV_KEPT's values: sky-view computes the light the maps let
  * through at each step that reads them, computes it and keeps it at

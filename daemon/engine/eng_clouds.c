@@ -274,7 +274,11 @@ int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, ch
 	bool drawn = state_clouds_drawn(s) > 0;
 	uint64_t cw = drawn ? s->quality.cloud_width : 1;
 	uint64_t sw = eng_shadow_casters(s) ? s->quality.shadow_width : 1;
-	uint64_t cloud_texels = cw * cw, shadow_texels = 2 * sw * sw;
+	/* The two maps, then each texel's ice optical depth, four a texel
+	 * (SPEC_CLOUD_PHASES; kept whatever the layers, so that a new layer's
+	 * type does not remake the buffer). */
+	uint64_t cloud_texels = cw * cw, shadow_texels = 2 * sw * sw + (2 * sw * sw + 3) / 4;
+	e->shadow_map_bytes = 2 * sw * sw * 16;
 	int rc = 0;
 
 	if (!e->clouds.buf) {
@@ -334,7 +338,7 @@ const void *eng_cloud_table(const struct eng *e, int t, size_t *ret_bytes)
 	if (t == STATE_CLOUD_COVERAGE && !(e->clouds_key.FIELD_EXTENT_KM > 0.0f))
 		return NULL;
 	if (ret_bytes)
-		*ret_bytes = (size_t)b->bytes;
+		*ret_bytes = (size_t)(b == &e->shadow ? e->shadow_map_bytes : b->bytes);
 	return b->map;
 }
 

@@ -308,6 +308,7 @@ struct eng {
 	 * clouds_key gives. */
 	struct gpu_buffer clouds, cloud, shadow;
 	VkBufferView cloud_view, shadow_view;
+	uint64_t shadow_map_bytes;	/* the two maps, before the ice depths */
 	/* BINDING_TERRAIN: the field's texels as uploaded, terrain_hash
 	 * names them (0: the dummy). */
 	struct gpu_buffer terrain;

@@ -314,7 +314,7 @@ struct spec eng_pass_spec(const struct spec *base, const struct sky_state *s, in
 					       SKY_MS_UNIFORM_TEXELS;
 	} else {
 		/* Only the sky's marches read the clouds. */
-		k.v[SPEC_CLOUD_LAYERS] = k.v[SPEC_SHADOW_W] = k.v[SPEC_CLOUD_W] = 0;
+		k.v[SPEC_CLOUD_LAYERS] = k.v[SPEC_SHADOW_W] = k.v[SPEC_CLOUD_W] = k.v[SPEC_CLOUD_PHASES] = 0;
 	}
 	return k;
 }

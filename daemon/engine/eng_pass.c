@@ -22,6 +22,7 @@
  * pipelines' cache from the pass's id and shader. */
 #include "eng_internal.h"
 
+#include <math.h>
 #include <string.h>
 
 /* What passes read and write, for the barriers between them. */
@@ -281,6 +282,28 @@ static void record_iteration(struct eng *e, const struct sky_state *s, const str
  * two a coverage texel its piece crosses, at least four (shadow.comp). */
 #define SHADOW_STEPS 32
 
+/* SPEC_CLOUD_PHASES for the n drawn layers of c: whether ice (cirrus) and
+ * water layers are both drawn, and which lies above the other. Where
+ * their heights overlap, CLOUD_PHASES_ONE: the larger 1 - g^2 for all. */
+static int32_t cloud_phases(const struct gpu_clouds *c, int n)
+{
+	float ice_lo = INFINITY, ice_hi = -INFINITY, water_lo = INFINITY, water_hi = -INFINITY;
+	for (int i = 0; i < n; i++) {
+		const struct skycloud_layer *L = &c->layer[i];
+		bool ice = L->type == SKYCLOUD_CIRRUS;
+		float *lo = ice ? &ice_lo : &water_lo, *hi = ice ? &ice_hi : &water_hi;
+		*lo = fminf(*lo, L->base_km);
+		*hi = fmaxf(*hi, L->top_km);
+	}
+	if (!(ice_lo < INFINITY) || !(water_lo < INFINITY))
+		return CLOUD_PHASES_ONE;
+	if (ice_lo >= water_hi)
+		return CLOUD_PHASES_ICE_OVER;
+	if (water_lo >= ice_hi)
+		return CLOUD_PHASES_WATER_OVER;
+	return CLOUD_PHASES_ONE;
+}
+
 /* The cloud passes' constants: the layers and the tables' sizes, nothing
  * of the atmosphere (shadow.comp reads the planet's radius from the
  * uniform block), so that a change of the sky alone reuses them. */
@@ -293,6 +316,7 @@ static struct spec cloud_spec(const struct sky_state *s, const struct plan *pl)
 	k.v[SPEC_SHADOW_W] = (int32_t)s->quality.shadow_width;
 	k.v[SPEC_STEPS] = SHADOW_STEPS;
 	k.v[SPEC_TERRAIN] = pl->clouds.TERRAIN_HALF_KM > 0.0f;
+	k.v[SPEC_CLOUD_PHASES] = cloud_phases(&pl->clouds, pl->n_clouds);
 	return k;
 }
 
@@ -455,6 +479,7 @@ int eng_make_plan(struct eng *e, const struct sky_state *s, const struct state_l
 	base.v[SPEC_CLOUD_LAYERS] = pl->n_clouds;
 	base.v[SPEC_SHADOW_W] = eng_shadow_casters(s) ? (int32_t)s->quality.shadow_width : 0;
 	base.v[SPEC_CLOUD_W] = pl->n_clouds ? (int32_t)s->quality.cloud_width : 0;
+	base.v[SPEC_CLOUD_PHASES] = base.v[SPEC_SHADOW_W] ? cloud_phases(&pl->clouds, pl->n_clouds) : 0;
 	pl->eye_under = base.v[SPEC_SHADOW_W] > 0 && eye_under_casters(&pl->clouds, pl->n_clouds,
 								       params->OBSERVER_KM);
 	memcpy(e->clouds.map, &pl->clouds, sizeof(pl->clouds));

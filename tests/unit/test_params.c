@@ -279,6 +279,7 @@ static const struct named_id spec_ids[] = {
 	{ "CLOUD_LAYERS", SPEC_CLOUD_LAYERS }, { "SHADOW_W", SPEC_SHADOW_W }, { "CLOUD_W", SPEC_CLOUD_W },
 	{ "SV_EYE_UNDER", SPEC_SV_EYE_UNDER },
 	{ "TERRAIN", SPEC_TERRAIN }, { "SV_KEPT", SPEC_SV_KEPT },
+	{ "CLOUD_PHASES", SPEC_CLOUD_PHASES },
 	/* layout(local_size_x_id, local_size_y_id): glslang leaves the
 	 * workgroup size's constants without a name. */
 	{ "", SPEC_LOCAL_X }, { "", SPEC_LOCAL_Y },
