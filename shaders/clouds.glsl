@@ -35,10 +35,9 @@ vec4 cloud_column[SKYCLOUD_MAX_LAYERS];
 vec2 cloud_slab[SKYCLOUD_MAX_LAYERS];
 // The share of a map's optical depth that takes light off the light's
 // direction: delta-Eddington's 1 - f with f = g^2 (conservative, omega 1),
-// the widest of the layers' where a map does not tell their clouds apart
-// (CLOUD_PHASES_ONE). With ice and water layers one above the other, the
-// map keeps each texel's ice depth too (shadow_texel_tau): the scales of
-// the phase above (met first from the light) and below.
+// the layers' one phase (CLOUD_PHASES_ONE). With ice and water layers,
+// the map keeps each texel's ice depth too (shadow_texel_tau2): the
+// scales of the phase above (met first from the light) and below.
 float cloud_beam_scale = 1.0;
 float cloud_scale_over = 1.0, cloud_scale_under = 1.0;
 // The altitude of the march's step (cloud_at), km.

@@ -59,9 +59,8 @@
 				 * order (CLOUD_PHASES_*; clouds.glsl) */
 #define SPEC_COUNT 37
 
-/* SPEC_CLOUD_PHASES's values: every layer of one phase (or ice and water
- * layers at overlapping heights: the larger 1 - g^2 for all), or ice
- * layers all above the water layers, or all below them. With two phases
+/* SPEC_CLOUD_PHASES's values: every layer of one phase, or ice and water
+ * layers with the ice's top higher, or the water's. With two phases
  * the shadow pass also keeps each texel's ice optical depth, after the
  * two maps: texel i's at component i % 4 of vec4 2 W^2 + i / 4. */
 #define CLOUD_PHASES_ONE 0

@@ -283,25 +283,20 @@ static void record_iteration(struct eng *e, const struct sky_state *s, const str
 #define SHADOW_STEPS 32
 
 /* SPEC_CLOUD_PHASES for the n drawn layers of c: whether ice (cirrus) and
- * water layers are both drawn, and which lies above the other. Where
- * their heights overlap, CLOUD_PHASES_ONE: the larger 1 - g^2 for all. */
+ * water layers are both drawn, and which lies above the other: the one
+ * whose top is higher, where their heights overlap. Below every layer the
+ * order does not matter (the whole of each is above); inside, a point
+ * reads the upper's depth first. */
 static int32_t cloud_phases(const struct gpu_clouds *c, int n)
 {
-	float ice_lo = INFINITY, ice_hi = -INFINITY, water_lo = INFINITY, water_hi = -INFINITY;
+	float ice_top = -INFINITY, water_top = -INFINITY;
 	for (int i = 0; i < n; i++) {
-		const struct skycloud_layer *L = &c->layer[i];
-		bool ice = L->type == SKYCLOUD_CIRRUS;
-		float *lo = ice ? &ice_lo : &water_lo, *hi = ice ? &ice_hi : &water_hi;
-		*lo = fminf(*lo, L->base_km);
-		*hi = fmaxf(*hi, L->top_km);
+		float *top = c->layer[i].type == SKYCLOUD_CIRRUS ? &ice_top : &water_top;
+		*top = fmaxf(*top, c->layer[i].top_km);
 	}
-	if (!(ice_lo < INFINITY) || !(water_lo < INFINITY))
+	if (!(ice_top > -INFINITY) || !(water_top > -INFINITY))
 		return CLOUD_PHASES_ONE;
-	if (ice_lo >= water_hi)
-		return CLOUD_PHASES_ICE_OVER;
-	if (water_lo >= ice_hi)
-		return CLOUD_PHASES_WATER_OVER;
-	return CLOUD_PHASES_ONE;
+	return ice_top >= water_top ? CLOUD_PHASES_ICE_OVER : CLOUD_PHASES_WATER_OVER;
 }
 
 /* The cloud passes' constants: the layers and the tables' sizes, nothing
