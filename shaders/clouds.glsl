@@ -36,7 +36,7 @@ vec2 cloud_slab[SKYCLOUD_MAX_LAYERS];
 // The share of a map's optical depth that takes light off the light's
 // direction: delta-Eddington's 1 - f with f = g^2 (conservative, omega 1),
 // the layers' one phase (CLOUD_PHASES_ONE). With ice and water layers,
-// the map keeps each texel's ice depth too (shadow_texel_tau2): the
+// the map keeps each texel's ice depth too (shadow_texel_tau): the
 // scales of the phase above (met first from the light) and below.
 float cloud_beam_scale = 1.0;
 float cloud_scale_over = 1.0, cloud_scale_under = 1.0;
@@ -79,10 +79,12 @@ void load_clouds()
 	cloud_beam_scale = CLOUD_LAYERS > 0 ? 0.0 : 1.0;
 	for (int i = 0; i < CLOUD_LAYERS; i++)
 		cloud_beam_scale = max(cloud_beam_scale, cloud_slab[i].y);
-	if (CLOUD_PHASES != CLOUD_PHASES_ONE) {
-		float ice = 1.0 - 0.75 * 0.75, water = 1.0 - 0.85 * 0.85;
-		cloud_scale_over = CLOUD_PHASES == CLOUD_PHASES_ICE_OVER ? ice : water;
-		cloud_scale_under = CLOUD_PHASES == CLOUD_PHASES_ICE_OVER ? water : ice;
+	for (int i = 0; CLOUD_PHASES != CLOUD_PHASES_ONE && i < CLOUD_LAYERS; i++) {
+		bool over = (CL.layer[i].type == CLOUD_TYPE_CIRRUS) == (CLOUD_PHASES == CLOUD_PHASES_ICE_OVER);
+		if (over)
+			cloud_scale_over = cloud_slab[i].y;
+		else
+			cloud_scale_under = cloud_slab[i].y;
 	}
 	float top = CL.TERRAIN_TOP_KM, texel = 0.0;
 	for (int i = 0; i < CLOUD_LAYERS; i++)
@@ -99,39 +101,33 @@ void load_clouds()
 // scatter, goes on along the light, so the beam is what the peak leaves in
 // it (docs/clouds.md, "In the tables"); beyond the terrain's opaque depth
 // the light is gone.
-float shadow_texel_tau(vec4 s, float d)
-{
-	float tau = cloud_beam_scale * min(s.z, s.y * max(d - s.x, 0.0));
-	return d > s.w ? 80.0 : tau;
-}
-
-// Map texel i's ice optical depth (CLOUD_PHASES, sky_params.h).
-float shadow_texel_ice(int i)
-{
-	return texelFetch(ShadowTex, 2 * SHADOW_W * SHADOW_W + i / 4)[i & 3];
-}
-
-// shadow_texel_tau with ice and water layers one above the other: the
-// light meets the upper phase's whole depth (over: the texel's ice depth,
-// or the rest) before the lower's, so up to depth d the column holds
-// min(over, tau) of the upper and the rest of the lower, each scaled by
-// its own 1 - g^2.
-float shadow_texel_tau2(vec4 s, float ice, float d)
+//
+// With ice and water layers (CLOUD_PHASES), ice is the texel's ice depth:
+// the light meets the upper phase's whole depth (the ice's, or the rest)
+// before the lower's, so up to depth d the column holds min(that, tau) of
+// the upper and the rest of the lower, each scaled by its own 1 - g^2.
+float shadow_texel_tau(vec4 s, float ice, float d)
 {
 	float tau = min(s.z, s.y * max(d - s.x, 0.0));
-	float over = CLOUD_PHASES == CLOUD_PHASES_ICE_OVER ? ice : max(s.z - ice, 0.0);
-	float upper = min(over, tau);
-	tau = cloud_scale_over * upper + cloud_scale_under * (tau - upper);
+	if (CLOUD_PHASES == CLOUD_PHASES_ONE) {
+		// The scale first: written tau * scale, lavapipe's code rounds
+		// the tables of one phase differently in their last bits.
+		tau = cloud_beam_scale * tau;
+	} else {
+		float upper = min(CLOUD_PHASES == CLOUD_PHASES_ICE_OVER ? ice : max(s.z - ice, 0.0), tau);
+		tau = cloud_scale_over * upper + cloud_scale_under * (tau - upper);
+	}
 	return d > s.w ? 80.0 : tau;
 }
 
-// The transmittance of map texel i at depth d.
+// The transmittance of map texel i at depth d; the ice depths follow the
+// two maps (CLOUD_PHASES, sky_params.h).
 float shadow_texel_light(int i, float d)
 {
-	vec4 s = texelFetch(ShadowTex, i);
-	if (CLOUD_PHASES == CLOUD_PHASES_ONE)
-		return exp(-shadow_texel_tau(s, d));
-	return exp(-shadow_texel_tau2(s, shadow_texel_ice(i), d));
+	float ice = 0.0;
+	if (CLOUD_PHASES != CLOUD_PHASES_ONE)
+		ice = texelFetch(ShadowTex, 2 * SHADOW_W * SHADOW_W + i / 4)[i & 3];
+	return exp(-shadow_texel_tau(texelFetch(ShadowTex, i), ice, d));
 }
 
 // The share of light (0 sun, 1 moon) the cloud lets through at q (km,

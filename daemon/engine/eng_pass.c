@@ -311,7 +311,6 @@ static struct spec cloud_spec(const struct sky_state *s, const struct plan *pl)
 	k.v[SPEC_SHADOW_W] = (int32_t)s->quality.shadow_width;
 	k.v[SPEC_STEPS] = SHADOW_STEPS;
 	k.v[SPEC_TERRAIN] = pl->clouds.TERRAIN_HALF_KM > 0.0f;
-	k.v[SPEC_CLOUD_PHASES] = cloud_phases(&pl->clouds, pl->n_clouds);
 	return k;
 }
 
@@ -331,9 +330,10 @@ static void plan_shadow(struct eng *e, const struct sky_state *s, const struct s
 			struct plan *pl, struct pass_run *r)
 {
 	(void)e;
-	(void)base;
 	r->on = eng_shadow_casters(s) && (pl->mask & STATE_BIT(STATE_CLOUD_SHADOW));
 	r->key = cloud_spec(s, pl);
+	/* The ice depths are the shadow pass's alone of the cloud passes. */
+	r->key.v[SPEC_CLOUD_PHASES] = base->v[SPEC_CLOUD_PHASES];
 	r->groups[0] = r->groups[1] = div_up(s->quality.shadow_width, 8);
 	r->groups[2] = s->moon.illuminance_lx > 0.0 ? 2 : 1;
 }
