@@ -203,14 +203,15 @@ void march_range(out int ret_lo, out int ret_hi)
 	ret_lo = n;
 	ret_hi = 0;
 	float p = 0.0;
-	for (int i = 0; i < n; i++) {
+	int i = 0;
+	do {
 		StepMid mid = step_mid(i, p);
 		p = mid.next;
 		if (!(mid.hs > cloud_ceiling_km) || !(lowest_light(mid.up_h, mid.up_z) > 0.01)) {
 			ret_lo = min(ret_lo, i);
 			ret_hi = i + 1;
 		}
-	}
+	} while (++i < n);
 }
 
 void main()
@@ -286,9 +287,11 @@ void main()
 		ea = step_end(en, sin_z, cos_z, 0.0);
 		prev = 0.0;
 		// A row's columns share its steps' altitudes: the steps that read
-		// the shadow maps are a range, the same for all of them. Each loop
-		// costs lavapipe one step more than it runs (its last test comes
-		// after a step with every lane off), so a clear sky keeps one.
+		// the shadow maps are a range, the same for all of them. A for
+		// loop costs lavapipe one step more than it runs (its last test
+		// comes after a step with every lane off), so a clear sky keeps
+		// one do-while, and the loops around the range are do-whiles
+		// behind a test of the row's own count.
 		int i = 0;
 		if (SHADOW_W == 0) {
 			do
@@ -308,15 +311,19 @@ void main()
 			// its first step on: without the first loop, which would cost
 			// lavapipe a step with every lane off. A step before lo that
 			// reads them reads 1 exactly, and no layer is above it.
-			if (!SV_EYE_UNDER) {
-				for (; i < lo; i++)
-					march_step(i, false);
+			if (!SV_EYE_UNDER && i < lo) {
+				do
+					march_step(i++, false);
+				while (i < lo);
 			}
 			do
 				march_step(i++, true);
 			while (i < hi);
-			for (; i < n; i++)
-				march_step(i, false);
+			if (i < n) {
+				do
+					march_step(i++, false);
+				while (i < n);
+			}
 		}
 	}
 	float tr_mean = (tr.r + tr.g + tr.b) / 3.0;
