@@ -325,27 +325,21 @@ static int wind_row(struct bench *b, bool in_cell)
  * a run. With clouds or terrain most steps stay in the light's map's cell
  * and some cross one (5 of the 80 steps of --runs 10 with the two layers
  * of docs/performance.md), so the row's mean is what the clock's changes
- * cost; without, every step costs the same. The first step starts from
- * tables made at SWEEP_FROM_DEG. */
+ * cost; without, every step costs the same. Run r puts the sun at
+ * SWEEP_FROM_DEG + (r + 1) threshold, from tables made at run -1's. */
 static int sweep_row(struct bench *b, const char *scene, uint32_t demand)
 {
 	struct sky_state keep = b->s;
 	int runs = b->runs;
-	char pair[64], err[256];
 	double ms, cpu_ms;
 
-	/* From the sweep's first place, its tables made (not timed). */
-	snprintf(pair, sizeof(pair), "sun_elevation_deg=%.6f", SWEEP_FROM_DEG);
-	if (state_set_pair(&b->s, pair, NULL, err, sizeof(err)) < 0) {
-		fprintf(stderr, "skybench: %s\n", err);
-		return -EINVAL;
-	}
-	int rc = timed(b->e, &b->s, state_closure(demand) | STATE_CLOUD_TABLES, &ms, &cpu_ms, NULL, NULL);
-	if (rc < 0)
-		return rc;
+	/* From the sweep's first place (run -1), every table made, not timed. */
 	b->sweep = true;
+	change_mask(b, NULL, -1, demand);
+	int rc = timed(b->e, &b->s, state_closure(demand) | STATE_CLOUD_TABLES, &ms, &cpu_ms, NULL, NULL);
 	b->runs = runs * SWEEP_STEPS_PER_RUN;
-	rc = row(b, scene, NULL, demand, REF_FRAME, NULL);
+	if (rc == 0)
+		rc = row(b, scene, NULL, demand, REF_FRAME, NULL);
 	b->sweep = false;
 	b->runs = runs;
 	b->s = keep;
