@@ -56,6 +56,10 @@ struct eng_timing {
 	 * steps as an earlier computation kept it: the same maps, lights'
 	 * frames, field and rays (a light that moved within its map's cell). */
 	int skyview_light_kept;
+	/* 1 when the cloud tables were made ahead for this computation's
+	 * layers, field and lights (eng_submit_ahead), and taken instead of
+	 * running the cloud passes. */
+	int clouds_ahead;
 };
 
 /* Lists the Vulkan devices, at most max of them, into ret (may be NULL when
@@ -122,6 +126,25 @@ uint64_t eng_max_table_bytes(const struct eng *e);
  * -EINVAL on a bad state, or -EIO on a device error (err says which). */
 int eng_submit(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
 	       uint32_t mask, char *err, size_t err_size);
+
+/* The cloud tables made ahead (docs/clouds.md, "Maps made ahead"): the
+ * engine holds a second set of the coverage table and the shadow maps,
+ * which eng_submit_ahead fills for a state the clock is about to reach
+ * while the device would idle; a later computation whose layers, field
+ * and lights' cells are that state's binds it instead of running the
+ * cloud passes, the same bits as if it had run them. Which set holds the
+ * cloud tables of s lit by lights (NULL: computed): the bound one (also
+ * where s casts nothing), the one made ahead, or neither. */
+enum eng_clouds_made { ENG_CLOUDS_NONE, ENG_CLOUDS_BOUND, ENG_CLOUDS_AHEAD };
+enum eng_clouds_made eng_clouds_made(const struct eng *e, const struct sky_state *s,
+				     const struct state_lights *lights);
+/* Starts making the cloud tables of s into the spare set, the bound
+ * tables kept: a computation like eng_submit's (eng_complete ends it; its
+ * timing's computed holds the cloud tables), which publishes nothing.
+ * Returns 0 when started, 1 when there is nothing to make (eng_clouds_made
+ * is not NONE, or nothing was computed yet), else as eng_submit. */
+int eng_submit_ahead(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		     char *err, size_t err_size);
 
 /* Where a computation's published tables go: into host memory that
  * eng_host_import imported, which the device writes itself (the

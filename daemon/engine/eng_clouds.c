@@ -144,8 +144,8 @@ uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct g
 	 * on it and the lights' frames too; the shift is the readers'. Tables
 	 * made from this state's are kept, whatever the caller asked: a wind
 	 * step within the field's cell moves only the readers. */
-	bool field = !e->clouds_valid || memcmp(c, &e->clouds_key, offsetof(struct gpu_clouds, terrain));
-	bool frames = field || memcmp(c->terrain, e->clouds_key.terrain,
+	bool field = !e->ct.valid || memcmp(c, &e->ct.key, offsetof(struct gpu_clouds, terrain));
+	bool frames = field || memcmp(c->terrain, e->ct.key.terrain,
 				      offsetof(struct gpu_clouds, shift_km) - offsetof(struct gpu_clouds, terrain));
 	if (!field)
 		mask &= ~STATE_BIT(STATE_CLOUD_COVERAGE);
@@ -191,6 +191,13 @@ static void cloud_buffer_free(struct eng *e, struct gpu_buffer *b, VkBufferView 
 		e->vk.vkDestroyBufferView(e->dev, *view, NULL);
 	*view = VK_NULL_HANDLE;
 	eng_buffer_free(e, b);
+}
+
+static void set_free(struct eng *e, struct cloud_set *c)
+{
+	cloud_buffer_free(e, &c->cloud, &c->cloud_view);
+	cloud_buffer_free(e, &c->shadow, &c->shadow_view);
+	c->valid = false;
 }
 
 /* BINDING_TERRAIN: the field of s, its 16-bit texels packed two a word,
@@ -290,18 +297,23 @@ int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, ch
 		memset(e->clouds.map, 0, sizeof(struct gpu_clouds));
 		*rebind = true;
 	}
-	if (!e->cloud.buf || e->cloud.bytes != cloud_texels * 16) {
-		cloud_buffer_free(e, &e->cloud, &e->cloud_view);
-		rc = cloud_buffer_new(e, cloud_texels, &e->cloud, &e->cloud_view, err, err_size);
-		e->clouds_valid = false;
+	if (!e->ct.cloud.buf || e->ct.cloud.bytes != cloud_texels * 16) {
+		cloud_buffer_free(e, &e->ct.cloud, &e->ct.cloud_view);
+		rc = cloud_buffer_new(e, cloud_texels, &e->ct.cloud, &e->ct.cloud_view, err, err_size);
+		e->ct.valid = false;
 		*rebind = true;
 	}
-	if (rc == 0 && (!e->shadow.buf || e->shadow.bytes != shadow_texels * 16)) {
-		cloud_buffer_free(e, &e->shadow, &e->shadow_view);
-		rc = cloud_buffer_new(e, shadow_texels, &e->shadow, &e->shadow_view, err, err_size);
-		e->clouds_valid = false;
+	if (rc == 0 && (!e->ct.shadow.buf || e->ct.shadow.bytes != shadow_texels * 16)) {
+		cloud_buffer_free(e, &e->ct.shadow, &e->ct.shadow_view);
+		rc = cloud_buffer_new(e, shadow_texels, &e->ct.shadow, &e->ct.shadow_view, err, err_size);
+		e->ct.valid = false;
 		*rebind = true;
 	}
+	/* A set made ahead for other sizes is dropped (made again at the
+	 * next eng_submit_ahead, in the bound set's sizes). */
+	if (!e->ahead_flight && e->ct_ahead.cloud.buf &&
+	    (e->ct_ahead.cloud.bytes != cloud_texels * 16 || e->ct_ahead.shadow.bytes != shadow_texels * 16))
+		set_free(e, &e->ct_ahead);
 	uint64_t sv_bytes = sv_light_bytes(e, s);
 	sv_bytes = sv_bytes ? sv_bytes : 16;
 	if (rc == 0 && (!e->sv_light.buf || e->sv_light.bytes != sv_bytes)) {
@@ -318,8 +330,8 @@ int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, ch
 
 void eng_free_clouds(struct eng *e)
 {
-	cloud_buffer_free(e, &e->cloud, &e->cloud_view);
-	cloud_buffer_free(e, &e->shadow, &e->shadow_view);
+	set_free(e, &e->ct);
+	set_free(e, &e->ct_ahead);
 	eng_buffer_free(e, &e->clouds);
 	eng_buffer_free(e, &e->terrain);
 	eng_buffer_free(e, &e->sv_light);
@@ -329,16 +341,16 @@ void eng_free_clouds(struct eng *e)
 
 const void *eng_cloud_table(const struct eng *e, int t, size_t *ret_bytes)
 {
-	const struct gpu_buffer *b = t == STATE_CLOUD_COVERAGE ? &e->cloud
-				     : t == STATE_CLOUD_SHADOW ? &e->shadow : NULL;
+	const struct gpu_buffer *b = t == STATE_CLOUD_COVERAGE ? &e->ct.cloud
+				     : t == STATE_CLOUD_SHADOW ? &e->ct.shadow : NULL;
 
-	if (!b || !b->map || !e->clouds_valid)
+	if (!b || !b->map || !e->ct.valid)
 		return NULL;
 	/* The terrain alone casts: the coverage buffer is the dummy. */
-	if (t == STATE_CLOUD_COVERAGE && !(e->clouds_key.FIELD_EXTENT_KM > 0.0f))
+	if (t == STATE_CLOUD_COVERAGE && !(e->ct.key.FIELD_EXTENT_KM > 0.0f))
 		return NULL;
 	if (ret_bytes)
-		*ret_bytes = (size_t)(b == &e->shadow ? e->shadow_map_bytes : b->bytes);
+		*ret_bytes = (size_t)(b == &e->ct.shadow ? e->shadow_map_bytes : b->bytes);
 	return b->map;
 }
 
@@ -356,4 +368,68 @@ int eng_cloud_frames(const struct sky_state *s, const struct state_lights *light
 		for (int a = 0; a < 3; a++)
 			ret[k][4 * a + 3] += ret[k][4 * a] * c.shift_km[0] + ret[k][4 * a + 1] * c.shift_km[1];
 	return n;
+}
+
+/* Whether set c holds the tables of block b: the same layers, field,
+ * terrain and lights' frames (the shift is the readers'). */
+static bool set_holds(const struct cloud_set *c, const struct gpu_clouds *b)
+{
+	return c->valid && !memcmp(b, &c->key, offsetof(struct gpu_clouds, shift_km));
+}
+
+static void swap_sets(struct eng *e)
+{
+	struct cloud_set t = e->ct;
+
+	e->ct = e->ct_ahead;
+	e->ct_ahead = t;
+	e->clouds_rebind = true;
+}
+
+enum eng_clouds_made eng_clouds_made(const struct eng *e, const struct sky_state *s,
+				     const struct state_lights *lights)
+{
+	struct gpu_clouds b;
+	struct state_lights own;
+
+	if (!eng_shadow_casters(s))
+		return ENG_CLOUDS_BOUND;
+	if (!lights) {
+		state_lights_of(s, &own);
+		lights = &own;
+	}
+	eng_fill_clouds(s, lights, &b);
+	return set_holds(&e->ct, &b) ? ENG_CLOUDS_BOUND : set_holds(&e->ct_ahead, &b) ? ENG_CLOUDS_AHEAD
+										: ENG_CLOUDS_NONE;
+}
+
+bool eng_take_ahead(struct eng *e, const struct sky_state *s, const struct state_lights *lights)
+{
+	if (!e->ct_ahead.valid || eng_clouds_made(e, s, lights) != ENG_CLOUDS_AHEAD)
+		return false;
+	swap_sets(e);
+	return true;
+}
+
+void eng_end_ahead(struct eng *e)
+{
+	if (!e->ahead_flight)
+		return;
+	e->ahead_flight = false;
+	swap_sets(e);
+}
+
+int eng_submit_ahead(struct eng *e, const struct sky_state *s, const struct state_lights *lights,
+		     char *err, size_t err_size)
+{
+	if (!e->ct.valid || eng_clouds_made(e, s, lights) != ENG_CLOUDS_NONE)
+		return 1;
+	/* The passes write the bound set: the spare one is bound while
+	 * they run, the last computation's tables kept aside. */
+	swap_sets(e);
+	e->ahead_flight = true;
+	int rc = eng_submit_to(e, s, lights, STATE_CLOUD_TABLES, NULL, err, err_size);
+	if (rc < 0)
+		eng_end_ahead(e);
+	return rc;
 }

@@ -132,6 +132,16 @@ struct gpu_buffer {
 	VkDeviceSize bytes;
 };
 
+/* The cloud tables of one block: the coverage table and the shadow maps
+ * (sun then moon, then the ice depths) with their lookups; valid: they
+ * hold what key gives (its lanes before shift_km). */
+struct cloud_set {
+	struct gpu_buffer cloud, shadow;
+	VkBufferView cloud_view, shadow_view;
+	bool valid;
+	struct gpu_clouds key;
+};
+
 /* What the column densities depend on: the shell's geometry, the density
  * profiles of the constituents in the shaders, the table's size and steps
  * (the column pass's specialization). Coefficients are not in it. */
@@ -302,19 +312,23 @@ struct eng {
 	 * step, then L2 as float32 RGBA per texel. */
 	struct gpu_buffer ms_iterate;
 
-	/* The cloud passes (eng_clouds.c): the block, the coverage table and
-	 * the shadow maps (sun then moon) with their lookups, one texel each
-	 * while no layer is drawn. clouds_valid: the tables hold what
-	 * clouds_key gives. */
-	struct gpu_buffer clouds, cloud, shadow;
-	VkBufferView cloud_view, shadow_view;
+	/* The cloud passes (eng_clouds.c): the block, and the cloud tables
+	 * the passes read and publish (ct, bound), one texel each while no
+	 * layer is drawn. ct_ahead: a second set, made for a state the clock
+	 * is about to reach (eng_submit_ahead) or left by the last swap;
+	 * ahead_flight: the computation in flight makes it (the sets
+	 * swapped until it completes); took_ahead: the one in flight took it
+	 * (eng_timing.clouds_ahead); clouds_rebind: the descriptors name the
+	 * other set. */
+	struct gpu_buffer clouds;
+	struct cloud_set ct, ct_ahead;
+	bool ahead_flight, took_ahead, clouds_rebind;
+	bool resubmitting;		/* eng_complete submits a deferred call */
 	uint64_t shadow_map_bytes;	/* the two maps, before the ice depths */
 	/* BINDING_TERRAIN: the field's texels as uploaded, terrain_hash
 	 * names them (0: the dummy). */
 	struct gpu_buffer terrain;
 	uint64_t terrain_hash;
-	bool clouds_valid;
-	struct gpu_clouds clouds_key;
 	/* Sky-view's light per step (SPEC_SV_KEPT), 16 bytes where it is not
 	 * kept; sv_light_valid: it holds what sv_light_key gives. sv_last:
 	 * the key of the last sky-view computed with casters, if
@@ -410,6 +424,11 @@ uint32_t eng_cloud_mask(struct eng *e, const struct sky_state *s, const struct g
 int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, char *err,
 		      size_t err_size);
 void eng_free_clouds(struct eng *e);
+/* Before a computation of s: where the set made ahead holds s's block
+ * and the bound one does not, swaps them: true. */
+bool eng_take_ahead(struct eng *e, const struct sky_state *s, const struct state_lights *lights);
+/* After a computation made ahead, failed or not: the bound set back. */
+void eng_end_ahead(struct eng *e);
 /* SPEC_SV_KEPT for the sky-view pass of pl with constants key: off where
  * no map is read or the light is too large to keep, read where the kept
  * light is of this computation's maps and rays, write otherwise. */

@@ -85,8 +85,16 @@ int eng_submit_to(struct eng *e, const struct sky_state *s, const struct state_l
 		state_lights_of(s, &own);
 		lights = &own;
 	}
-	/* The plan of this computation: the buffers' sizes and the jobs. */
-	aplan_make_lit(s, lights, e->share_views, &e->aplan);
+	/* The plan of this computation: the buffers' sizes and the jobs (a
+	 * computation made ahead computes no aerial perspective and keeps
+	 * the last one's), and the cloud tables made ahead for s bound. */
+	if (!e->ahead_flight) {
+		aplan_make_lit(s, lights, e->share_views, &e->aplan);
+		if (!e->resubmitting)
+			e->took_ahead = false;
+		if (eng_take_ahead(e, s, lights))
+			e->took_ahead = true;
+	}
 	rc = eng_check_limits(e, s, err, err_size);
 	if (rc == 0)
 		rc = eng_ensure_tables(e, s, &lost, err, err_size);
@@ -127,8 +135,8 @@ int eng_submit_to(struct eng *e, const struct sky_state *s, const struct state_l
 	}
 	if (pl->run[PASS_SHADOW].on) {
 		/* Invalidated again if the computation fails (eng_complete). */
-		e->clouds_key = pl->clouds;
-		e->clouds_valid = true;
+		e->ct.key = pl->clouds;
+		e->ct.valid = true;
 	}
 	if (pl->run[PASS_SKYVIEW].on && pl->sv_keyed) {
 		e->sv_last = pl->sv_key;
@@ -196,25 +204,33 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 		e->compiling = e->finished = false;
 		pthread_mutex_unlock(&e->lock);
 		if (wr != VK_SUCCESS) {
+			eng_end_ahead(e);
 			vkcheck_describe(err, err_size, "vkCreateComputePipelines", wr, __FILE_NAME__,
 					 __LINE__);
 			return wr == VK_ERROR_OUT_OF_HOST_MEMORY ? -ENOMEM : -EIO;
 		}
+		e->resubmitting = true;
 		rc = eng_submit_to(e, &e->deferred.s, &e->deferred.lights, e->deferred.mask,
 				   e->deferred.has_target ? &e->deferred.target : NULL, err, err_size);
+		e->resubmitting = false;
+		if (rc < 0)
+			eng_end_ahead(e);
 		return rc < 0 ? rc : -EAGAIN;
 	}
 
 	struct eng_timing t = { .computed = mask, .total_ms = elapsed_ms(&e->submit_time, &now),
 		.columns = e->flight.run[PASS_COLUMNS].on,
 		.skyview_light_kept = e->flight.run[PASS_SKYVIEW].on &&
-				      e->flight.run[PASS_SKYVIEW].key.v[SPEC_SV_KEPT] == SV_KEPT_READ };
+				      e->flight.run[PASS_SKYVIEW].key.v[SPEC_SV_KEPT] == SV_KEPT_READ,
+		.clouds_ahead = e->took_ahead && !e->ahead_flight };
+	e->took_ahead = false;
 	pthread_mutex_lock(&e->lock);
 	e->finished = false;
 	e->has_target = false;
 	pthread_mutex_unlock(&e->lock);
 	if (wr != VK_SUCCESS)
-		e->columns_valid = e->images_valid = e->clouds_valid = e->sv_light_valid = false;
+		e->columns_valid = e->images_valid = e->ct.valid = e->sv_light_valid = false;
+	eng_end_ahead(e);
 	VK_TRY(wr);
 	rc = invalidate(e, mask, err, err_size);
 	if (rc < 0)

@@ -32,7 +32,7 @@ static void bind_buffers(struct eng *e)
 			continue;
 		}
 		if (i == BINDING_CLOUD_TEX || i == BINDING_SHADOW_TEX) {
-			w[i].pTexelBufferView = i == BINDING_CLOUD_TEX ? &e->cloud_view : &e->shadow_view;
+			w[i].pTexelBufferView = i == BINDING_CLOUD_TEX ? &e->ct.cloud_view : &e->ct.shadow_view;
 			continue;
 		}
 		if (i == BINDING_TRANSMITTANCE_IMG || i == BINDING_MULTISCATTER_IMG) {
@@ -55,9 +55,9 @@ static void bind_buffers(struct eng *e)
 		else if (i == BINDING_CLOUDS)
 			bi[i] = (VkDescriptorBufferInfo){ e->clouds.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_CLOUD)
-			bi[i] = (VkDescriptorBufferInfo){ e->cloud.buf, 0, VK_WHOLE_SIZE };
+			bi[i] = (VkDescriptorBufferInfo){ e->ct.cloud.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_SHADOW)
-			bi[i] = (VkDescriptorBufferInfo){ e->shadow.buf, 0, VK_WHOLE_SIZE };
+			bi[i] = (VkDescriptorBufferInfo){ e->ct.shadow.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_TERRAIN)
 			bi[i] = (VkDescriptorBufferInfo){ e->terrain.buf, 0, VK_WHOLE_SIZE };
 		else if (i == BINDING_SV_LIGHT)
@@ -315,8 +315,9 @@ int eng_ensure_tables(struct eng *e, const struct sky_state *s, uint32_t *ret_lo
 		rc = eng_ensure_clouds(e, s, &rebind, err, err_size);
 	if (rc < 0)
 		return rc;
-	if (rebind)
+	if (rebind || e->clouds_rebind)
 		bind_buffers(e);
+	e->clouds_rebind = false;
 	*ret_lost = lost;
 	return rc;
 }

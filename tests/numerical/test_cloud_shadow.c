@@ -44,6 +44,11 @@
  *    as a fresh engine's, the sun alone and with the moon lit; the wind's
  *    shift within the tables' cell reads the maps elsewhere, and the kept
  *    light is not read.
+ *  - the cloud tables made ahead (eng_submit_ahead) for a light in the
+ *    next cell of its grid leave the bound tables as they were; the change
+ *    that reaches that cell takes them without a cloud pass, and its
+ *    sky-view, aerial perspective and cloud tables are a fresh engine's
+ *    bits; the tables it left are taken back when the light returns.
  *  - ice and water: each phase's beam takes its own 1 - g^2, so a
  *    stratus beside a thin cirrus, above it or around it, reads as beside
  *    a like altostratus but for that layer's own light (mixed_phases).
@@ -401,6 +406,77 @@ static void kept_light_bits(void)
 	}
 }
 
+/* Table t of eng and of other: the same bits. */
+static void same_table(struct eng *other, int t)
+{
+	size_t a_bytes = 0, b_bytes = 0;
+	const void *a = t < STATE_N_TABLES ? eng_table(eng, (enum state_table)t, &a_bytes)
+					   : eng_cloud_table(eng, t, &a_bytes);
+	const void *b = t < STATE_N_TABLES ? eng_table(other, (enum state_table)t, &b_bytes)
+					   : eng_cloud_table(other, t, &b_bytes);
+
+	CHECK(a && b && a_bytes == b_bytes && a_bytes > 16);
+	if (a && b && a_bytes == b_bytes)
+		CHECK(memcmp(a, b, a_bytes) == 0);
+}
+
+static void made_ahead(void)
+{
+	static const int tables[] = { STATE_SKYVIEW, STATE_AERIAL, STATE_CLOUD_COVERAGE, STATE_CLOUD_SHADOW };
+	const char *layers = "moon_elevation_deg=40 moon_azimuth_deg=200 moon_illuminance_lx=0.25 "
+			     "cloud1_oktas=5 cloud1_base_m=1000 cloud2_oktas=3 cloud2_base_m=4000 "
+			     "cloud2_type=altostratus";
+	const uint32_t lit = STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
+	struct sky_state now, next;
+	struct eng_timing t;
+	char pairs[512], err[512];
+	size_t bytes = 0;
+
+	/* 20 and 22 degrees: the next cell of the sun's grid but one (a
+	 * cell is about 1.3 degrees of elevation here). */
+	snprintf(pairs, sizeof(pairs), "sun_elevation_deg=20 %s", layers);
+	if (probe_state_of(pairs, &now) < 0)
+		return;
+	snprintf(pairs, sizeof(pairs), "sun_elevation_deg=22 %s", layers);
+	if (probe_state_of(pairs, &next) < 0)
+		return;
+	CHECK(eng_compute(eng, &now, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	const void *shadow = eng_cloud_table(eng, STATE_CLOUD_SHADOW, &bytes);
+	void *before = shadow ? malloc(bytes) : NULL;
+	CHECK(before != NULL);
+	if (!before)
+		return;
+	memcpy(before, shadow, bytes);
+	CHECK_EQ(eng_clouds_made(eng, &now, NULL), ENG_CLOUDS_BOUND);
+	CHECK_EQ(eng_clouds_made(eng, &next, NULL), ENG_CLOUDS_NONE);
+	CHECK_EQ(eng_submit_ahead(eng, &next, NULL, err, sizeof(err)), 0);
+	CHECK(eng_wait(eng, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(t.computed & STATE_BIT(STATE_CLOUD_SHADOW), (uint32_t)STATE_BIT(STATE_CLOUD_SHADOW));
+	CHECK_EQ(t.computed & lit, 0u);
+	CHECK_EQ(eng_clouds_made(eng, &next, NULL), ENG_CLOUDS_AHEAD);
+	CHECK_EQ(eng_submit_ahead(eng, &next, NULL, err, sizeof(err)), 1);
+	/* The bound tables are the last computation's still. */
+	shadow = eng_cloud_table(eng, STATE_CLOUD_SHADOW, &bytes);
+	CHECK(shadow && memcmp(shadow, before, bytes) == 0);
+	free(before);
+
+	CHECK(eng_compute(eng, &next, lit, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(t.clouds_ahead, 1);
+	CHECK_EQ(t.computed & STATE_CLOUD_TABLES, 0u);
+	struct eng *fresh = vk_or_skip();
+	CHECK(eng_compute(fresh, &next, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	for (size_t i = 0; i < sizeof(tables) / sizeof(tables[0]); i++)
+		same_table(fresh, tables[i]);
+	/* Back: the tables the swap left are taken again. */
+	CHECK_EQ(eng_clouds_made(eng, &now, NULL), ENG_CLOUDS_AHEAD);
+	CHECK(eng_compute(eng, &now, lit, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(t.clouds_ahead, 1);
+	CHECK(eng_compute(fresh, &now, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	for (size_t i = 0; i < sizeof(tables) / sizeof(tables[0]); i++)
+		same_table(fresh, tables[i]);
+	eng_free(fresh);
+}
+
 static void demand_and_bits(void)
 {
 	struct sky_state clear, cloudy;
@@ -453,6 +529,7 @@ int main(void)
 	moon_map();
 	kept_maps_read_shifted();
 	kept_light_bits();
+	made_ahead();
 	mixed_phases();
 	demand_and_bits();
 	eng_free(eng);
