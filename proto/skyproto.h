@@ -11,7 +11,7 @@
 #include <stdint.h>
 
 /* Text protocol: greeting "OK skyd <SKY_PROTO_VERSION>". */
-#define SKY_PROTO_VERSION "7"
+#define SKY_PROTO_VERSION "7.1"
 #define SKY_PROTO_LINE_MAX 4096		/* bytes per request line, newline included */
 
 /* ACK codes: "ACK [code] {verb} message". */

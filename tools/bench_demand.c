@@ -38,8 +38,14 @@ struct bench {
 	bool wall_only;			/* --wall: the views' rows only */
 	bool march_views;		/* --march-views: no panorama (the reference) */
 	const double *field_utc_s;	/* non-NULL: a wind step's pair of field times */
-	bool sweep;			/* the sun's elevation goes up by the clock's
-					 * threshold at each run (sweep_row) */
+	/* The clock's moves, one a run (sweep_row): the sun's elevation up
+	 * by the clock's threshold, or the field on by the wind's, from
+	 * wind_utc_s[0] by wind_utc_s[1] a move. */
+	enum { SWEEP_NONE, SWEEP_SUN, SWEEP_WIND } sweep;
+	double wind_utc_s[2];
+	/* Before each run, its cloud tables made ahead as the daemon makes
+	 * them while the device idles (eng_submit_ahead), not timed. */
+	bool ahead;
 };
 
 struct result {
@@ -51,6 +57,10 @@ struct result {
 	double gpu_ms;			/* median GPU time of the tables computed */
 	double mean_ms;			/* over the runs: a sweep's cost per step */
 	int shadow_runs;		/* runs that remade the shadow maps */
+	int took_runs;			/* runs that took cloud tables made ahead */
+	double took_ms;			/* their mean */
+	int made;			/* cloud tables made ahead (b->ahead) */
+	double made_ms;			/* their mean wall time */
 };
 
 static int cmp_double(const void *a, const void *b)
@@ -74,7 +84,12 @@ static uint32_t change_mask(struct bench *b, const char *const pairs[2], int run
 		state_cloud_offset_km(&b->s, b->s.clouds.offset_km);
 		return (STATE_CLOUD_TABLES | S | A) & state_closure(demand);
 	}
-	if (b->sweep) {
+	if (b->sweep == SWEEP_WIND) {
+		b->s.clouds.utc_s = b->wind_utc_s[0] + (run + 1) * b->wind_utc_s[1];
+		state_cloud_offset_km(&b->s, b->s.clouds.offset_km);
+		return (STATE_CLOUD_TABLES | S | A) & state_closure(demand);
+	}
+	if (b->sweep == SWEEP_SUN) {
 		char pair[64];
 		snprintf(pair, sizeof(pair), "sun_elevation_deg=%.6f",
 			 SWEEP_FROM_DEG + (run + 1) * b->s.clock.threshold_deg);
@@ -110,7 +125,7 @@ static double cpu_now_ms(void)
  * and, if ret_gpu_ms, the GPU time of its tables (timestamps): the wall
  * time less the GPU time is what a computation pays whatever its size. */
 static int timed(struct eng *e, const struct sky_state *s, uint32_t mask, double *ret_ms,
-		 double *ret_cpu_ms, double *ret_gpu_ms, int *ret_computed)
+		 double *ret_cpu_ms, double *ret_gpu_ms, int *ret_computed, int *ret_took)
 {
 	char err[512];
 	struct eng_timing t;
@@ -127,11 +142,33 @@ static int timed(struct eng *e, const struct sky_state *s, uint32_t mask, double
 	}
 	*ret_cpu_ms = cpu_now_ms() - cpu0;
 	*ret_ms = t.total_ms;
+	if (ret_took)
+		*ret_took = t.clouds_ahead;
 	for (int i = 0; i < STATE_N_ALL_TABLES && ret_computed; i++)
 		ret_computed[i] += (t.computed & STATE_BIT(i)) != 0;
 	for (int i = 0; i < STATE_N_TABLES && ret_gpu_ms; i++)
 		if (t.computed & STATE_BIT(i))
 			*ret_gpu_ms += t.table_ms[i];
+	return 0;
+}
+
+/* The cloud tables of b's state made ahead, if the engine holds them in
+ * neither set: *ret_ms gets the computation's wall time, or 0. */
+static int made_ahead(struct bench *b, double *ret_ms)
+{
+	char err[512];
+	struct eng_timing t;
+	int rc = eng_submit_ahead(b->e, &b->s, NULL, err, sizeof(err));
+
+	*ret_ms = 0.0;
+	if (rc == 0)
+		rc = eng_wait(b->e, &t, err, sizeof(err));
+	if (rc < 0) {
+		fprintf(stderr, "skybench: %s\n", err);
+		return -EIO;
+	}
+	if (rc == 0)
+		*ret_ms = t.total_ms;
 	return 0;
 }
 
@@ -143,8 +180,10 @@ static int measure(struct bench *b, const char *const pairs[2], uint32_t demand,
 	double *ratio = calloc((size_t)b->runs, sizeof(double));
 	double *gpu = calloc((size_t)b->runs, sizeof(double));
 	double *cpu_ratio = calloc((size_t)b->runs, sizeof(double));
+	double *made = calloc((size_t)b->runs, sizeof(double));
+	int *took = calloc((size_t)b->runs, sizeof(int));
 	struct sky_state one = b->s;
-	int rc = ms && ratio && gpu && cpu_ratio ? 0 : -ENOMEM;
+	int rc = ms && ratio && gpu && cpu_ratio && made && took ? 0 : -ENOMEM;
 
 	int computed[STATE_N_ALL_TABLES] = { 0 };	/* runs that computed each table */
 
@@ -155,13 +194,15 @@ static int measure(struct bench *b, const char *const pairs[2], uint32_t demand,
 			/* From scratch: the column densities too, as an
 			 * atmosphere change needs. */
 			eng_forget_columns(b->ref_e);
-			rc = timed(b->ref_e, &b->s, ALL, &ref_ms, &ref_cpu_ms, NULL, NULL);
+			rc = timed(b->ref_e, &b->s, ALL, &ref_ms, &ref_cpu_ms, NULL, NULL, NULL);
 		}
 		else if (ref == REF_ONE_VIEW)
-			rc = timed(b->ref_e, &one, A, &ref_ms, &ref_cpu_ms, NULL, NULL);
+			rc = timed(b->ref_e, &one, A, &ref_ms, &ref_cpu_ms, NULL, NULL, NULL);
 		uint32_t mask = change_mask(b, pairs, i, demand);
+		if (rc == 0 && b->ahead)
+			rc = made_ahead(b, &made[i]);
 		if (rc == 0)
-			rc = timed(b->e, &b->s, mask, &ms[i], &cpu_ms, &gpu[i], computed);
+			rc = timed(b->e, &b->s, mask, &ms[i], &cpu_ms, &gpu[i], computed, &took[i]);
 		ratio[i] = ref_ms > 0.0 ? ms[i] / ref_ms : 0.0;
 		cpu_ratio[i] = ref_cpu_ms > 0.0 ? cpu_ms / ref_cpu_ms : 0.0;
 	}
@@ -176,10 +217,20 @@ static int measure(struct bench *b, const char *const pairs[2], uint32_t demand,
 		ret->p90_ms = ms[b->runs - 1 - b->runs / 10];
 		ret->gpu_ms = median(gpu, b->runs);
 		ret->shadow_runs = computed[STATE_CLOUD_SHADOW];
-		ret->mean_ms = 0.0;
-		for (int i = 0; i < b->runs; i++)
+		ret->mean_ms = ret->took_ms = ret->made_ms = 0.0;
+		ret->took_runs = ret->made = 0;
+		for (int i = 0; i < b->runs; i++) {
 			ret->mean_ms += ms[i] / b->runs;
+			ret->took_runs += took[i];
+			ret->took_ms += took[i] ? ms[i] : 0.0;
+			ret->made += made[i] > 0.0;
+			ret->made_ms += made[i];
+		}
+		ret->took_ms /= ret->took_runs ? ret->took_runs : 1;
+		ret->made_ms /= ret->made ? ret->made : 1;
 	}
+	free(took);
+	free(made);
 	free(cpu_ratio);
 	free(gpu);
 	free(ms);
@@ -195,7 +246,7 @@ static int row(struct bench *b, const char *scene, const char *const pairs[2], u
 	       enum ref ref, const char *goal)
 {
 	struct result r;
-	char names[80], ratio[48], cpu[24] = "-", mean[64];
+	char names[80], ratio[48], cpu[24] = "-", mean[192];
 	int rc = measure(b, pairs, demand, ref, &r);
 
 	if (rc < 0)
@@ -203,7 +254,11 @@ static int row(struct bench *b, const char *scene, const char *const pairs[2], u
 	if (!goal) {
 		int n = snprintf(mean, sizeof(mean), "mean %.3f ms over %d steps", r.mean_ms, b->runs);
 		if (eng_shadow_casters(&b->s))
-			snprintf(mean + n, sizeof(mean) - (size_t)n, ", %d remade the maps", r.shadow_runs);
+			n += snprintf(mean + n, sizeof(mean) - (size_t)n, ", %d remade the maps", r.shadow_runs);
+		if (b->ahead)
+			snprintf(mean + n, sizeof(mean) - (size_t)n,
+				 ", %d took them made ahead (mean %.3f ms); made ahead %d times, mean %.3f ms, not counted",
+				 r.took_runs, r.took_ms, r.made, r.made_ms);
 		goal = mean;
 	}
 	state_format_all_tables(r.mask, names, sizeof(names));
@@ -320,27 +375,44 @@ static int wind_row(struct bench *b, bool in_cell)
 	return rc;
 }
 
-/* A clock animation (srv/drive.c): the sun climbs by clock_threshold_deg
- * at each change, from SWEEP_FROM_DEG on, over SWEEP_STEPS_PER_RUN steps
- * a run. With clouds or terrain most steps stay in the light's map's cell
- * and some cross one (5 of the 80 steps of --runs 10 with the two layers
- * of docs/performance.md), so the row's mean is what the clock's changes
- * cost; without, every step costs the same. Run r puts the sun at
- * SWEEP_FROM_DEG + (r + 1) threshold, from tables made at run -1's. */
-static int sweep_row(struct bench *b, const char *scene, uint32_t demand)
+/* A clock animation (srv/drive.c), one move a run: SWEEP_SUN, the sun
+ * climbs by clock_threshold_deg at each move, from SWEEP_FROM_DEG on;
+ * SWEEP_WIND, the lights stay and a 10 m/s westerly carries the field a
+ * quarter of a shadow texel a move (DRIVE_FIELD_TEXEL_SHARE), from half a
+ * move past a cell's edge of the tables' lattice. SWEEP_STEPS_PER_RUN moves
+ * a run of --runs. With clouds or terrain most moves keep the cloud tables
+ * and some cross a cell (5 of the sun's 80 moves of --runs 10 with the
+ * two layers of docs/performance.md, one of the wind's 8), so the row's
+ * mean is what the clock's changes cost; ahead: with the cloud tables of
+ * each move made ahead as the daemon makes them (not timed). Without
+ * casters every move costs the same. Run r is move r + 1, from tables
+ * made at move 0. */
+static int sweep_row(struct bench *b, const char *scene, uint32_t demand, int sweep, bool ahead)
 {
 	struct sky_state keep = b->s;
 	int runs = b->runs;
 	double ms, cpu_ms;
 
+	if (sweep == SWEEP_WIND) {
+		double texel_km = 2.0 * state_cloud_extent_km(&b->s) / b->s.quality.shadow_width;
+		double cell_km = b->s.quality.cloud_cell_texels * texel_km, step_km = 0.25 * texel_km;
+		double speed_km_s = 10.0e-3;
+		b->s.clouds.wind_dir_deg = 270.0;
+		b->s.clouds.wind_speed_mps = 1e3 * speed_km_s;
+		b->wind_utc_s[0] = (3.0 * cell_km + 0.5 * step_km) / speed_km_s;
+		b->wind_utc_s[1] = step_km / speed_km_s;
+	}
 	/* From the sweep's first place (run -1), every table made, not timed. */
-	b->sweep = true;
+	b->sweep = sweep;
 	change_mask(b, NULL, -1, demand);
-	int rc = timed(b->e, &b->s, state_closure(demand) | STATE_CLOUD_TABLES, &ms, &cpu_ms, NULL, NULL);
+	int rc = timed(b->e, &b->s, state_closure(demand) | STATE_CLOUD_TABLES, &ms, &cpu_ms, NULL, NULL,
+		       NULL);
 	b->runs = runs * SWEEP_STEPS_PER_RUN;
+	b->ahead = ahead;
 	if (rc == 0)
 		rc = row(b, scene, NULL, demand, REF_FRAME, NULL);
-	b->sweep = false;
+	b->sweep = SWEEP_NONE;
+	b->ahead = false;
 	b->runs = runs;
 	b->s = keep;
 	return rc;
@@ -447,9 +519,18 @@ int bench_demand_main(int argc, char **argv)
 		add_views(&b.s, 0, SKY_VIEW_VOLUME);
 	/* A clock animation: one time-of-day step per 60 Hz frame. */
 	if (rc == 0 && !b.wall_only)
-		rc = sweep_row(&b, "clock animation step, full scene", ALL);
+		rc = sweep_row(&b, "clock animation step, full scene", ALL, SWEEP_SUN, false);
 	if (rc == 0 && !b.wall_only)
-		rc = sweep_row(&b, "clock animation step, sky-view dome", S);
+		rc = sweep_row(&b, "clock animation step, sky-view dome", S, SWEEP_SUN, false);
+	/* The same moves with the cloud tables made ahead (docs/clouds.md,
+	 * "Maps made ahead"), and the wind's. */
+	bool casters = eng_shadow_casters(&b.s), drawn = state_clouds_drawn(&b.s) > 0;
+	if (rc == 0 && !b.wall_only && casters)
+		rc = sweep_row(&b, "clock animation step, full scene, maps made ahead", ALL, SWEEP_SUN, true);
+	if (rc == 0 && !b.wall_only && drawn)
+		rc = sweep_row(&b, "wind steps of the clock, full scene", ALL, SWEEP_WIND, false);
+	if (rc == 0 && !b.wall_only && drawn)
+		rc = sweep_row(&b, "wind steps of the clock, maps made ahead", ALL, SWEEP_WIND, true);
 	eng_free(b.ref_e);
 	eng_free(b.e);
 	return rc < 0 ? 1 : 0;

@@ -51,6 +51,8 @@ int ctl_cmd_status(struct client *c, const struct proto_request *req, struct rep
 	ctl_reply_add(r, "computations: %llu\nfailures: %llu\n", (unsigned long long)st.computations,
 		  (unsigned long long)st.failures);
 	ctl_reply_add(r, "column_passes: %llu\n", (unsigned long long)st.column_passes);
+	ctl_reply_add(r, "clouds_made_ahead: %llu\nclouds_taken_ahead: %llu\n",
+		      (unsigned long long)st.clouds_made_ahead, (unsigned long long)st.clouds_taken_ahead);
 	ctl_reply_add(r, "last_error: %s\n", st.last_error[0] ? st.last_error : "none");
 	ctl_reply_add(r, "storage_warning: %s\n", st.storage_warning[0] ? st.storage_warning : "none");
 	ctl_reply_add(r, "device: %s\ndevice_type: %s\n", d->name, d->type_name);

@@ -132,24 +132,34 @@ static void take_reference(struct drive *d, const struct sky_state *s,
 	d->ref_mono_s = mono_s;
 }
 
+double drive_move_interval_s(const struct sky_state *s)
+{
+	const struct state_clock *c = &s->clock;
+	double field_km_s = drive_field_speed_km_s(s), interval_s = INFINITY;
+
+	if (isnan(c->anchor_utc_s) || c->rate == 0.0)
+		return 0.0;
+	if (c->sun_mode == STATE_CLOCK || c->moon_mode == STATE_CLOCK)
+		interval_s = c->threshold_deg / (DRIVE_MAX_SPEED_DEG_PER_H / 3600.0 * fabs(c->rate));
+	if (field_km_s > 0.0)
+		interval_s = fmin(interval_s, drive_field_threshold_km(s) / field_km_s);
+	return isfinite(interval_s) ? interval_s : 0.0;
+}
+
 /* Half the real time in which the fastest light could cover the threshold,
  * or the wind the cloud field's, so that no move overshoots it by more
  * than half; within the cadence. */
 static void arm(struct drive *d, const struct sky_state *s, double mono_s)
 {
 	const struct state_clock *c = &s->clock;
-	double speed_deg_s = DRIVE_MAX_SPEED_DEG_PER_H / 3600.0 * fabs(c->rate);
-	int lights = c->sun_mode == STATE_CLOCK || c->moon_mode == STATE_CLOCK;
-	double field_km_s = drive_field_speed_km_s(s);
+	double interval_s = drive_move_interval_s(s);
 
 	d->armed_mono_s = -1.0;
-	if ((!lights && !(field_km_s > 0.0)) || isnan(c->anchor_utc_s) || c->rate == 0.0) {
+	if (!(interval_s > 0.0)) {
 		loop_timer_arm(d->timer, 0);
 		return;
 	}
-	double delay_s = lights ? 0.5 * c->threshold_deg / speed_deg_s : DRIVE_MAX_TICK_S;
-	if (field_km_s > 0.0)
-		delay_s = fmin(delay_s, 0.5 * drive_field_threshold_km(s) / field_km_s);
+	double delay_s = 0.5 * interval_s;
 	if (c->cadence_s > 0.0)
 		delay_s = fmin(delay_s, fmax(c->cadence_s - (mono_s - d->ref_mono_s), 0.0));
 	delay_s = fmin(fmax(delay_s, DRIVE_MIN_TICK_S), DRIVE_MAX_TICK_S);

@@ -72,6 +72,11 @@ void drive_field(struct sky_state *s, double mono_s, uint32_t *ret_dirty);
 double drive_field_speed_km_s(const struct sky_state *s);
 double drive_field_threshold_km(const struct sky_state *s);
 
+/* The fewest real seconds between two of the clock's moves of s: its
+ * lights' threshold at the fastest a light moves, or the field's at its
+ * wind, whichever is sooner; 0 while the clock moves neither. */
+double drive_move_interval_s(const struct sky_state *s);
+
 /* A move of the clock's lights: next is the served state with the lights
  * where the clock has them now, lights their directions (state_lights_of),
  * dirty the tables that invalidates (state_set's mask). */

@@ -17,6 +17,10 @@
 
 /* Four slots of the region must fit in memory beside everything else. */
 #define SRV_MAX_REGION_BYTES (2ull << 30)
+/* How many of the clock's next moves look_ahead looks at: a cell of the
+ * lights' grid is some ten moves wide at the default threshold, a cell of
+ * the field's lattice eight (docs/clouds.md, "Maps made ahead"). */
+#define SRV_AHEAD_MOVES 32
 
 /* A state as srv serves it: the keys as set (what get shows, what
  * listeners hear of), and once resolved what the tables and the slot get
@@ -66,6 +70,11 @@ struct srv {
 	struct served computing;
 	struct sky_state published_keys;
 	int in_flight;
+	/* The computation in flight makes cloud tables ahead (look_ahead):
+	 * it publishes nothing. ahead_worth: the last computation kept its
+	 * cloud tables or took them made ahead, so the light or the field
+	 * stays more than a move in a cell and the next one can be foreseen. */
+	int ahead_in_flight, ahead_worth;
 	uint32_t in_flight_mask;
 	uint64_t in_flight_generation;
 
@@ -124,7 +133,7 @@ void srv_status(const struct srv *s, struct srv_status *ret)
 	ret->clock_changes = ds.changes;
 	ret->clock_next_tick_s = ds.next_tick_s;
 	ret->generation = s->generation;
-	ret->computing = s->in_flight;
+	ret->computing = s->in_flight && !s->ahead_in_flight;
 	ret->pending = s->pending;
 	ret->published_valid = pub_current(s->pub, NULL)->valid_tables;
 	ret->publish_direct = s->pub_direct;
@@ -474,6 +483,47 @@ static void kick(struct srv *s)
 	s->in_flight_direct = direct;
 }
 
+/* The cloud tables the clock's next moves will need, made while the
+ * device would idle (docs/clouds.md, "Maps made ahead"): the served state
+ * as the clock moves it, one move after another, up to the first whose
+ * tables the engine's bound set does not hold; made ahead unless the spare
+ * set holds them already. Only while sky-view or aerial perspective is
+ * wanted (they read the maps), nothing waits, and the clock's moves stay
+ * in cells (ahead_worth): where each move crosses cells (a light a few
+ * degrees high), the next move may skip the one foreseen. */
+static void look_ahead(struct srv *s)
+{
+	const uint32_t readers = STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
+	double step_s = drive_move_interval_s(&s->cur.keys), mono_s;
+	char err[256] = "";
+
+	if (s->in_flight || s->pending || !s->ahead_worth || !(step_s > 0.0) ||
+	    !eng_shadow_casters(&s->cur.sky) || !(srv_tables_needed(s) & readers))
+		return;
+	struct served *f = malloc(sizeof(*f));
+	if (!f)
+		return;
+	simclock_read_clocks(NULL, &mono_s);
+	for (int k = 1; k <= SRV_AHEAD_MOVES; k++) {
+		f->keys = s->cur.keys;
+		if (drive_lights(&f->keys, mono_s + k * step_s, NULL, err, sizeof(err)) < 0 ||
+		    prepare(s, f, NULL, err, sizeof(err)) < 0)
+			break;
+		enum eng_clouds_made made = eng_clouds_made(s->eng, &f->sky, &f->lights);
+		if (made == ENG_CLOUDS_BOUND)
+			continue;
+		if (made == ENG_CLOUDS_NONE &&
+		    eng_submit_ahead(s->eng, &f->sky, &f->lights, err, sizeof(err)) == 0) {
+			s->in_flight = s->ahead_in_flight = 1;
+		} else if (err[0]) {
+			log_warning("cloud tables ahead: %s", err);
+			s->ahead_worth = 0;
+		}
+		break;
+	}
+	free(f);
+}
+
 static void eng_ready(void *ctx, uint32_t events)
 {
 	struct srv *s = ctx;
@@ -487,6 +537,17 @@ static void eng_ready(void *ctx, uint32_t events)
 	if (r == -EAGAIN)
 		return;
 	s->in_flight = 0;
+	if (s->ahead_in_flight) {
+		s->ahead_in_flight = 0;
+		if (r < 0) {
+			log_warning("cloud tables ahead: %s", err[0] ? err : strerror(-r));
+			s->ahead_worth = 0;
+		} else {
+			s->st.clouds_made_ahead++;
+		}
+		kick(s);
+		return;
+	}
 	s->st.computations++;
 	if (r < 0) {
 		s->in_flight_direct = 0;
@@ -499,6 +560,8 @@ static void eng_ready(void *ctx, uint32_t events)
 		s->st.last_computed = timing.computed ? timing.computed : s->in_flight_mask;
 		s->st.last_total_ms = timing.total_ms;
 		s->st.column_passes += (uint64_t)timing.columns;
+		s->st.clouds_taken_ahead += (uint64_t)timing.clouds_ahead;
+		s->ahead_worth = timing.clouds_ahead || !(timing.computed & STATE_BIT(STATE_CLOUD_SHADOW));
 		for (int t = 0; t < STATE_N_TABLES; t++)
 			if (s->st.last_computed & STATE_BIT(t))
 				s->st.table_ms[t] = timing.table_ms[t];
@@ -507,6 +570,7 @@ static void eng_ready(void *ctx, uint32_t events)
 			return;
 	}
 	kick(s);
+	look_ahead(s);
 }
 
 void srv_set_sync(struct srv *s, const struct srv_sync *sync)

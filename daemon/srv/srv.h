@@ -64,6 +64,8 @@ struct srv_status {
 	uint32_t needed;		/* demand with its dependencies */
 	uint64_t computations, failures;
 	uint64_t column_passes;		/* computations that ran transmittance's column pass */
+	uint64_t clouds_made_ahead;	/* cloud tables made ahead of the clock (look_ahead) */
+	uint64_t clouds_taken_ahead;	/* computations that took them instead of the cloud passes */
 	char last_error[256];		/* "" when the last computation succeeded */
 	char storage_warning[192];	/* float16 broke in the last computation; "" when not */
 	int publish_direct;		/* the device writes the current region's slots itself

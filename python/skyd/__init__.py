@@ -3,7 +3,7 @@
 skyd computes the lookup tables of a physically based sky (transmittance,
 multi-scattering, sky-view, aerial perspective) and publishes them in
 shared memory; a text protocol on a Unix socket steers it. This package
-speaks that protocol (proto/PROTOCOL.md, protocol 7) and maps the shared
+speaks that protocol (proto/PROTOCOL.md, protocol 7.1) and maps the shared
 memory read-only (layout 8), with nothing beyond the standard library and
 numpy.
 

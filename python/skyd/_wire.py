@@ -13,7 +13,7 @@ import math
 import numbers
 import re
 
-PROTOCOL_VERSION = "7"
+PROTOCOL_VERSION = "7.1"
 LINE_MAX = 4096          # bytes per request line, newline included
 ARGS_MAX = 128           # arguments per request line
 EVENT_KINDS = ("changed", "layout", "failed", "sensor")

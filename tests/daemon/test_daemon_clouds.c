@@ -4,7 +4,10 @@
  * sun as before while a layer with a base switches that factor off; bad
  * cloud keys are refused with the usual ACK codes and change nothing; and
  * the field drifts with the simulated clock, backwards too, and stops
- * when it is frozen; changed: events name the cloud tables computed. */
+ * when it is frozen; changed: events name the cloud tables computed; and
+ * while the clock runs, the cloud tables its next moves need are made
+ * ahead and taken, for the wind's field and for the sun, and not while it
+ * is frozen. */
 #include <math.h>
 
 #include "daemon_harness.h"
@@ -183,6 +186,59 @@ static void test_drift(struct conn *c, struct conn *ev)
 	CHECK(has("clock_next_tick_s: none\n"));
 }
 
+/* Waits for the clock's moves until status counts more than taken
+ * computations that took cloud tables made ahead (at most 400 moves). */
+static int wait_taken_ahead(struct conn *c, struct conn *ev, uint64_t taken)
+{
+	for (int k = 0; k < 400; k++) {
+		CHECK(conn_request(c, "status", reply, sizeof(reply)) == 0);
+		if (reply_u64(reply, "clouds_taken_ahead") > taken)
+			return 1;
+		if (conn_wait_generation(ev, reply_u64(reply, "generation") + 1) != 0)
+			return 0;
+	}
+	return 0;
+}
+
+/* The cloud tables made ahead of the clock (docs/clouds.md, "Maps made
+ * ahead"), with a reader of sky-view, which reads the maps. */
+static void test_ahead(struct conn *c, struct conn *ev, struct conn *tab)
+{
+	uint64_t made, taken;
+
+	CHECK(conn_request(tab, "subscribe tables=skyview", reply, sizeof(reply)) == 0);
+	/* The wind carries the field across the tables' lattice: one move in
+	 * eight crosses a cell. */
+	change(c, ev, "set sun_mode=manual sun_elevation_deg=30 moon_mode=manual cloud1_oktas=4 "
+		      "cloud1_base_m=1500 wind_dir_deg=270 wind_speed_mps=10 "
+		      "utc=2024-06-21T12:00:00Z time_rate=300");
+	CHECK(conn_request(c, "status", reply, sizeof(reply)) == 0);
+	taken = reply_u64(reply, "clouds_taken_ahead");
+	CHECK(wait_taken_ahead(c, ev, taken));
+	/* The sun on the clock, no wind: its light crosses a cell of the
+	 * maps' grid every ten moves or so. */
+	change(c, ev, "set wind_speed_mps=0 sun_mode=clock lat_deg=39.74 lon_deg=-105.18 "
+		      "utc=2024-06-21T14:30:00Z time_rate=120");
+	CHECK(conn_request(c, "status", reply, sizeof(reply)) == 0);
+	taken = reply_u64(reply, "clouds_taken_ahead");
+	CHECK(wait_taken_ahead(c, ev, taken));
+	CHECK(conn_request(c, "status", reply, sizeof(reply)) == 0);
+	made = reply_u64(reply, "clouds_made_ahead");
+	taken = reply_u64(reply, "clouds_taken_ahead");
+	printf("clock running: cloud tables made ahead %llu times, taken %llu\n", (unsigned long long)made,
+	       (unsigned long long)taken);
+	CHECK(made >= taken && taken >= 2);
+	/* Frozen: nothing is made ahead, a jump of the clock included. */
+	change(c, ev, "set time_rate=0");
+	CHECK(conn_request(c, "status", reply, sizeof(reply)) == 0);
+	made = reply_u64(reply, "clouds_made_ahead");
+	change(c, ev, "set utc=2024-06-21T16:00:00Z");
+	change(c, ev, "set sun_mode=manual sun_elevation_deg=35");
+	CHECK(conn_request(c, "status", reply, sizeof(reply)) == 0);
+	CHECK_EQ(reply_u64(reply, "clouds_made_ahead"), made);
+	CHECK(conn_request(tab, "unsubscribe", reply, sizeof(reply)) == 0);
+}
+
 int main(void)
 {
 	struct daemon d = { 0 };
@@ -203,10 +259,12 @@ int main(void)
 	CHECK(conn_open(&tab, d.sock) == 0);
 	CHECK(conn_request(&tab, "subscribe tables=skyview,cloud,shadow", reply, sizeof(reply)) == 0);
 	test_metar(&c, &ev);
-	conn_close(&tab);
+	CHECK(conn_request(&tab, "unsubscribe", reply, sizeof(reply)) == 0);
 	test_light_factor(&c, &ev);
 	test_refusals(&c);
 	test_drift(&c, &ev);
+	test_ahead(&c, &ev, &tab);
+	conn_close(&tab);
 
 	conn_close(&c);
 	conn_close(&ev);
