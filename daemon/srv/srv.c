@@ -4,6 +4,7 @@
 #include "srv.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -75,6 +76,11 @@ struct srv {
 	 * cloud tables or took them made ahead, so the light or the field
 	 * stays more than a move in a cell and the next one can be foreseen. */
 	int ahead_in_flight, ahead_worth;
+	/* The lights of the last computation, and their move from the one
+	 * before (lights_moved: not zero), which look_ahead repeats when no
+	 * clock moves them: a client that steps the time by its keys. */
+	struct state_lights last_lights, lights_step;
+	int have_last_lights, lights_moved;
 	uint32_t in_flight_mask;
 	uint64_t in_flight_generation;
 
@@ -483,23 +489,68 @@ static void kick(struct srv *s)
 	s->in_flight_direct = direct;
 }
 
-/* The cloud tables the clock's next moves will need, made while the
- * device would idle (docs/clouds.md, "Maps made ahead"): the served state
- * as the clock moves it, one move after another, up to the first whose
- * tables the engine's bound set does not hold; made ahead unless the spare
- * set holds them already. Only while sky-view or aerial perspective is
- * wanted (they read the maps), nothing waits, and the clock's moves stay
- * in cells (ahead_worth): where each move crosses cells (a light a few
- * degrees high), the next move may skip the one foreseen. */
+/* Whether the engine holds the cloud tables of sky lit by lights in its
+ * bound set (1: look further); if not, makes them ahead unless its spare
+ * set has them (0). */
+static int ahead_of(struct srv *s, const struct sky_state *sky, const struct state_lights *lights)
+{
+	char err[256] = "";
+	enum eng_clouds_made made = eng_clouds_made(s->eng, sky, lights);
+
+	if (made == ENG_CLOUDS_BOUND)
+		return 1;
+	if (made == ENG_CLOUDS_NONE && eng_submit_ahead(s->eng, sky, lights, err, sizeof(err)) == 0) {
+		s->in_flight = s->ahead_in_flight = 1;
+	} else if (err[0]) {
+		log_warning("cloud tables ahead: %s", err);
+		s->ahead_worth = 0;
+	}
+	return 0;
+}
+
+/* The light moved by k steps of step from at, into ret (a unit vector). */
+static void light_ahead(const double at[3], const double step[3], int k, double ret[3])
+{
+	double n = 0.0;
+
+	for (int i = 0; i < 3; i++) {
+		ret[i] = at[i] + k * step[i];
+		n += ret[i] * ret[i];
+	}
+	n = n > 0.0 ? 1.0 / sqrt(n) : 0.0;
+	for (int i = 0; i < 3; i++)
+		ret[i] *= n;
+}
+
+/* The cloud tables the next changes will need, made while the device
+ * would idle (docs/clouds.md, "Maps made ahead"): the served state as its
+ * clock moves it, one move after another, or, with no clock running, with
+ * the lights' last move repeated (a client that steps the time by its
+ * keys), up to the first whose tables the engine's bound set does not
+ * hold; made ahead unless the spare set holds them already. Only while
+ * sky-view or aerial perspective is wanted (they read the maps), nothing
+ * waits, and the moves stay in cells (ahead_worth): where each move
+ * crosses cells (a light a few degrees high), the next one may skip the
+ * cell foreseen. */
 static void look_ahead(struct srv *s)
 {
 	const uint32_t readers = STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
 	double step_s = drive_move_interval_s(&s->cur.keys), mono_s;
 	char err[256] = "";
 
-	if (s->in_flight || s->pending || !s->ahead_worth || !(step_s > 0.0) ||
+	if (s->in_flight || s->pending || !s->ahead_worth || !(step_s > 0.0 || s->lights_moved) ||
 	    !eng_shadow_casters(&s->cur.sky) || !(srv_tables_needed(s) & readers))
 		return;
+	if (!(step_s > 0.0)) {
+		struct state_lights l;
+		for (int k = 1; k <= SRV_AHEAD_MOVES; k++) {
+			light_ahead(s->cur.lights.sun, s->lights_step.sun, k, l.sun);
+			light_ahead(s->cur.lights.moon, s->lights_step.moon, k, l.moon);
+			if (!ahead_of(s, &s->cur.sky, &l))
+				break;
+		}
+		return;
+	}
 	struct served *f = malloc(sizeof(*f));
 	if (!f)
 		return;
@@ -507,21 +558,25 @@ static void look_ahead(struct srv *s)
 	for (int k = 1; k <= SRV_AHEAD_MOVES; k++) {
 		f->keys = s->cur.keys;
 		if (drive_lights(&f->keys, mono_s + k * step_s, NULL, err, sizeof(err)) < 0 ||
-		    prepare(s, f, NULL, err, sizeof(err)) < 0)
+		    prepare(s, f, NULL, err, sizeof(err)) < 0 || !ahead_of(s, &f->sky, &f->lights))
 			break;
-		enum eng_clouds_made made = eng_clouds_made(s->eng, &f->sky, &f->lights);
-		if (made == ENG_CLOUDS_BOUND)
-			continue;
-		if (made == ENG_CLOUDS_NONE &&
-		    eng_submit_ahead(s->eng, &f->sky, &f->lights, err, sizeof(err)) == 0) {
-			s->in_flight = s->ahead_in_flight = 1;
-		} else if (err[0]) {
-			log_warning("cloud tables ahead: %s", err);
-			s->ahead_worth = 0;
-		}
-		break;
 	}
 	free(f);
+}
+
+/* Keeps the lights of the computation just made and their move. */
+static void note_lights(struct srv *s)
+{
+	const struct state_lights *l = &s->computing.lights;
+
+	s->lights_moved = 0;
+	for (int i = 0; i < 3 && s->have_last_lights; i++) {
+		s->lights_step.sun[i] = l->sun[i] - s->last_lights.sun[i];
+		s->lights_step.moon[i] = l->moon[i] - s->last_lights.moon[i];
+		s->lights_moved |= s->lights_step.sun[i] != 0.0 || s->lights_step.moon[i] != 0.0;
+	}
+	s->last_lights = *l;
+	s->have_last_lights = 1;
 }
 
 static void eng_ready(void *ctx, uint32_t events)
@@ -562,6 +617,7 @@ static void eng_ready(void *ctx, uint32_t events)
 		s->st.column_passes += (uint64_t)timing.columns;
 		s->st.clouds_taken_ahead += (uint64_t)timing.clouds_ahead;
 		s->ahead_worth = timing.clouds_ahead || !(timing.computed & STATE_BIT(STATE_CLOUD_SHADOW));
+		note_lights(s);
 		for (int t = 0; t < STATE_N_TABLES; t++)
 			if (s->st.last_computed & STATE_BIT(t))
 				s->st.table_ms[t] = timing.table_ms[t];
