@@ -77,15 +77,11 @@ static uint32_t change_mask(struct bench *b, const char *const pairs[2], int run
 	uint32_t dirty = 0;
 	char err[256];
 
-	if (b->field_utc_s) {
+	if (b->field_utc_s || b->sweep == SWEEP_WIND) {
 		/* As the clock places the field (srv/drive.c): its tables and
 		 * the sky tables its shadows reach. */
-		b->s.clouds.utc_s = b->field_utc_s[run % 2];
-		state_cloud_offset_km(&b->s, b->s.clouds.offset_km);
-		return (STATE_CLOUD_TABLES | S | A) & state_closure(demand);
-	}
-	if (b->sweep == SWEEP_WIND) {
-		b->s.clouds.utc_s = b->wind_utc_s[0] + (run + 1) * b->wind_utc_s[1];
+		b->s.clouds.utc_s = b->field_utc_s ? b->field_utc_s[run % 2]
+						   : b->wind_utc_s[0] + (run + 1) * b->wind_utc_s[1];
 		state_cloud_offset_km(&b->s, b->s.clouds.offset_km);
 		return (STATE_CLOUD_TABLES | S | A) & state_closure(demand);
 	}
@@ -347,25 +343,37 @@ static const char *const camera[2] = { "camera_yaw_deg=170", "camera_yaw_deg=171
  * and aerial perspective. */
 static const char *const field[2] = { "cloud_seed=1", "cloud_seed=2" };
 
-/* A wind step as the clock makes one (srv/drive.c): a 10 m/s westerly
- * carries the field a quarter of a shadow texel (DRIVE_FIELD_TEXEL_SHARE),
- * the lights stay. in_cell: both places in one cell of the tables'
+/* The clock's wind (srv/drive.c): a westerly of WIND_KM_S, which each of
+ * its moves carries a quarter of a shadow texel (DRIVE_FIELD_TEXEL_SHARE),
+ * set in b's state; ret_cell_km gets a cell of the tables' lattice
+ * (state_cloud_table_offset_km, cloud_cell_texels), ret_step_km a move. */
+#define WIND_KM_S 10.0e-3
+
+static void westerly(struct bench *b, double *ret_cell_km, double *ret_step_km)
+{
+	double texel_km = 2.0 * state_cloud_extent_km(&b->s) / b->s.quality.shadow_width;
+
+	*ret_cell_km = b->s.quality.cloud_cell_texels * texel_km;
+	*ret_step_km = 0.25 * texel_km;
+	b->s.clouds.wind_dir_deg = 270.0;
+	b->s.clouds.wind_speed_mps = 1e3 * WIND_KM_S;
+}
+
+/* A wind step as the clock makes one, the lights staying. in_cell: both places in one cell of the tables'
  * lattice (state_cloud_table_offset_km, cloud_cell_texels), so that
  * the tables stay and only their readers move; otherwise the pair
  * straddles a cell's edge and the tables are redone, once in eight steps. */
 static int wind_row(struct bench *b, bool in_cell)
 {
 	struct sky_state keep = b->s;
-	double texel_km = 2.0 * state_cloud_extent_km(&b->s) / b->s.quality.shadow_width;
-	double cell_km = b->s.quality.cloud_cell_texels * texel_km, step_km = 0.25 * texel_km;
-	double speed_km_s = 10.0e-3;
+	double cell_km, step_km;
+
+	westerly(b, &cell_km, &step_km);
 	/* East of the origin by whole cells and a part: the pair's first
 	 * place, a quarter into a cell, or half a step before its edge. */
 	double east_km = 3.0 * cell_km + (in_cell ? 0.25 * cell_km : cell_km - 0.5 * step_km);
-	double utc_s[2] = { east_km / speed_km_s, (east_km + step_km) / speed_km_s };
+	double utc_s[2] = { east_km / WIND_KM_S, (east_km + step_km) / WIND_KM_S };
 
-	b->s.clouds.wind_dir_deg = 270.0;
-	b->s.clouds.wind_speed_mps = 1e3 * speed_km_s;
 	b->field_utc_s = utc_s;
 	int rc = row(b, in_cell ? "wind step within the tables' cell (sky-view, aerial)"
 				: "wind step across a cell (cloud, shadow, sky-view, aerial)",
@@ -394,13 +402,10 @@ static int sweep_row(struct bench *b, const char *scene, uint32_t demand, int sw
 	double ms, cpu_ms;
 
 	if (sweep == SWEEP_WIND) {
-		double texel_km = 2.0 * state_cloud_extent_km(&b->s) / b->s.quality.shadow_width;
-		double cell_km = b->s.quality.cloud_cell_texels * texel_km, step_km = 0.25 * texel_km;
-		double speed_km_s = 10.0e-3;
-		b->s.clouds.wind_dir_deg = 270.0;
-		b->s.clouds.wind_speed_mps = 1e3 * speed_km_s;
-		b->wind_utc_s[0] = (3.0 * cell_km + 0.5 * step_km) / speed_km_s;
-		b->wind_utc_s[1] = step_km / speed_km_s;
+		double cell_km, step_km;
+		westerly(b, &cell_km, &step_km);
+		b->wind_utc_s[0] = (3.0 * cell_km + 0.5 * step_km) / WIND_KM_S;
+		b->wind_utc_s[1] = step_km / WIND_KM_S;
 	}
 	/* From the sweep's first place (run -1), every table made, not timed. */
 	b->sweep = sweep;

@@ -352,13 +352,26 @@ static void mixed_phases(void)
 	}
 }
 
+/* Table t of eng and of other: the same bits. */
+static void same_table(struct eng *other, int t)
+{
+	size_t a_bytes = 0, b_bytes = 0;
+	const void *a = t < STATE_N_TABLES ? eng_table(eng, (enum state_table)t, &a_bytes)
+					   : eng_cloud_table(eng, t, &a_bytes);
+	const void *b = t < STATE_N_TABLES ? eng_table(other, (enum state_table)t, &b_bytes)
+					   : eng_cloud_table(other, t, &b_bytes);
+
+	CHECK(a && b && a_bytes == b_bytes && a_bytes > 16);
+	if (a && b && a_bytes == b_bytes)
+		CHECK(memcmp(a, b, a_bytes) == 0);
+}
+
 /* Sky-view of s from a fresh engine and from eng, which computed the
  * state before; kept: whether eng's read its light as kept. */
 static void skyview_as_fresh(const struct sky_state *s, int kept)
 {
 	struct eng_timing t;
 	char err[512];
-	size_t a_bytes = 0, b_bytes = 0;
 
 	CHECK(eng_compute(eng, s, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
 	CHECK_EQ(t.skyview_light_kept, kept);
@@ -366,10 +379,7 @@ static void skyview_as_fresh(const struct sky_state *s, int kept)
 	struct eng *fresh = vk_or_skip();
 	CHECK(eng_compute(fresh, s, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
 	CHECK_EQ(t.skyview_light_kept, 0);
-	const void *a = eng_table(eng, STATE_SKYVIEW, &a_bytes), *b = eng_table(fresh, STATE_SKYVIEW, &b_bytes);
-	CHECK(a && b && a_bytes == b_bytes && a_bytes > 0);
-	if (a && b && a_bytes == b_bytes)
-		CHECK(memcmp(a, b, a_bytes) == 0);
+	same_table(fresh, STATE_SKYVIEW);
 	eng_free(fresh);
 }
 
@@ -404,20 +414,6 @@ static void kept_light_bits(void)
 		s.clouds.offset_km[0] += 0.2;
 		skyview_as_fresh(&s, 0);
 	}
-}
-
-/* Table t of eng and of other: the same bits. */
-static void same_table(struct eng *other, int t)
-{
-	size_t a_bytes = 0, b_bytes = 0;
-	const void *a = t < STATE_N_TABLES ? eng_table(eng, (enum state_table)t, &a_bytes)
-					   : eng_cloud_table(eng, t, &a_bytes);
-	const void *b = t < STATE_N_TABLES ? eng_table(other, (enum state_table)t, &b_bytes)
-					   : eng_cloud_table(other, t, &b_bytes);
-
-	CHECK(a && b && a_bytes == b_bytes && a_bytes > 16);
-	if (a && b && a_bytes == b_bytes)
-		CHECK(memcmp(a, b, a_bytes) == 0);
 }
 
 static void made_ahead(void)
@@ -502,13 +498,8 @@ static void demand_and_bits(void)
 	CHECK(eng_compute(other, &seed8, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
 	CHECK(eng_compute(other, &cloudy, STATE_BIT(STATE_CLOUD_SHADOW), &t, err, sizeof(err)) == 0);
 	CHECK_EQ(t.computed & STATE_CLOUD_TABLES, (uint32_t)STATE_CLOUD_TABLES);
-	for (int k = STATE_CLOUD_COVERAGE; k <= STATE_CLOUD_SHADOW; k++) {
-		size_t a_bytes = 0, b_bytes = 0;
-		const void *a = eng_cloud_table(eng, k, &a_bytes), *b = eng_cloud_table(other, k, &b_bytes);
-		CHECK(a && b && a_bytes == b_bytes && a_bytes > 16);
-		if (a && b && a_bytes == b_bytes)
-			CHECK(memcmp(a, b, a_bytes) == 0);
-	}
+	for (int k = STATE_CLOUD_COVERAGE; k <= STATE_CLOUD_SHADOW; k++)
+		same_table(other, k);
 	eng_free(other);
 	/* Back to clear: the tables go. */
 	CHECK(eng_compute(eng, &clear, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
