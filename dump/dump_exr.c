@@ -179,6 +179,24 @@ static exr_result_t exr_write_part_header(exr_context_t ctx, const struct dump_t
 	return rv;
 }
 
+/* The library's compression, then its output kept only where it is
+ * smaller than the chunk's raw bytes. A reader takes a chunk whose size is
+ * the raw size for raw data, but OpenEXRCore 3.1 keeps a chunk that
+ * compressed to exactly that size compressed: such a chunk read back as
+ * noise. Its buffer holds at least the raw bytes (exr_compress_max_buffer_size). */
+static exr_result_t exr_compress_or_keep(exr_encode_pipeline_t *enc)
+{
+	exr_result_t (*compress)(exr_encode_pipeline_t *) = enc->encoding_user_data;
+	exr_result_t rv = compress(enc);
+
+	if (rv == EXR_ERR_SUCCESS && enc->compressed_bytes >= enc->packed_bytes &&
+	    enc->compressed_buffer != enc->packed_buffer) {
+		memcpy(enc->compressed_buffer, enc->packed_buffer, enc->packed_bytes);
+		enc->compressed_bytes = enc->packed_bytes;
+	}
+	return rv;
+}
+
 /* Every scanline chunk of t, lines scanlines at a time, staged as float32
  * RGBA in stage (room for lines rows). */
 static exr_result_t exr_write_chunks(exr_context_t ctx, int part, const struct dump_table *t,
@@ -206,6 +224,10 @@ static exr_result_t exr_write_chunks(exr_context_t ctx, int part, const struct d
 		if (!enc_ready) {
 			enc_ready = true;
 			rv = exr_encoding_choose_default_routines(ctx, part, &enc);
+			if (enc.compress_fn) {
+				enc.encoding_user_data = (void *)enc.compress_fn;
+				enc.compress_fn = exr_compress_or_keep;
+			}
 		}
 		if (rv == EXR_ERR_SUCCESS)
 			rv = exr_encoding_run(ctx, part, &enc);

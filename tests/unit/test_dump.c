@@ -141,6 +141,49 @@ static void test_exr_3d_f32(void)
 	}
 }
 
+/* Chunks on the edge of compressing: random bits with a few more zeros
+ * from chunk to chunk (one more every 32 chunks of 16 scanlines), so that
+ * ZIP's output crosses the chunk's raw size of 8 KiB, and some chunks
+ * compress to exactly that size, which OpenEXRCore 3.1 kept compressed
+ * and every reader then took for raw (dump_exr.c, exr_compress_or_keep;
+ * with Debian 12's zlib, several of these). Every bit comes back. */
+enum { WE = 32, CHUNK_LINES = 16, EDGE_CHUNKS = 1024 };
+
+static void test_exr_edge_of_compression(void)
+{
+	size_t per_chunk = (size_t)WE * CHUNK_LINES * 4, n = per_chunk * EDGE_CHUNKS, bad = 0;
+	float *t = malloc(n * sizeof(float)), *back = NULL;
+	struct dump_table table = { "edge", WE, CHUNK_LINES * EDGE_CHUNKS, 1, SKY_FORMAT_RGBA32F, t, 0 };
+	struct dump_exr_info info;
+	const char *path = in_dir("edge.exr");
+	uint64_t x = 88172645463325252ull;
+	char err[256] = "";
+
+	if (!t) {
+		FAIL("out of memory");
+		return;
+	}
+	for (size_t c = 0; c < EDGE_CHUNKS; c++)
+		for (size_t i = 0; i < per_chunk; i++) {
+			x ^= x << 13;
+			x ^= x >> 7;
+			x ^= x << 17;
+			t[c * per_chunk + i] = i < 10 + c / 32 ? 0.0f : bits_float((uint32_t)x);
+		}
+	CHECK_EQ(dump_exr(path, &table, err, sizeof(err)), 0);
+	if (dump_read_exr(path, &info, &back, err, sizeof(err)) != 0) {
+		FAIL("dump_read_exr: %s", err);
+		free(t);
+		return;
+	}
+	for (size_t i = 0; i < n; i++)
+		bad += !same_bits(back[i], t[i]);
+	if (bad)
+		FAIL("%zu of %zu floats differ after the round trip", bad, n);
+	free(back);
+	free(t);
+}
+
 /* binary16 in, float32 out, every value exact. */
 static void test_exr_2d_f16(void)
 {
@@ -572,6 +615,7 @@ int main(void)
 	}
 	test_exr_3d_f32();
 	test_exr_2d_f16();
+	test_exr_edge_of_compression();
 	test_png_orientation();
 	test_json();
 	test_json_misuse();
