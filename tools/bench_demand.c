@@ -362,9 +362,16 @@ static void westerly(struct bench *b, double *ret_cell_km, double *ret_step_km)
 /* A wind step as the clock makes one, the lights staying. in_cell: both places in one cell of the tables'
  * lattice (state_cloud_table_offset_km, cloud_cell_texels), so that
  * the tables stay and only their readers move; otherwise the pair
- * straddles a cell's edge and the tables are redone, once in eight steps. */
-static int wind_row(struct bench *b, bool in_cell)
+ * straddles a cell's edge and the tables are redone, once in eight steps.
+ * dome: sky-view alone is read (a planetarium), not aerial perspective. */
+static int wind_row(struct bench *b, bool in_cell, bool dome)
 {
+	static const char *const scenes[2][2] = {
+		{ "wind step across a cell (cloud, shadow, sky-view, aerial)",
+		  "wind step within the tables' cell (sky-view, aerial)" },
+		{ "wind step across a cell, sky-view dome (cloud, shadow, sky-view)",
+		  "wind step within the tables' cell, sky-view dome (sky-view)" },
+	};
 	struct sky_state keep = b->s;
 	double cell_km, step_km;
 
@@ -375,9 +382,8 @@ static int wind_row(struct bench *b, bool in_cell)
 	double utc_s[2] = { east_km / WIND_KM_S, (east_km + step_km) / WIND_KM_S };
 
 	b->field_utc_s = utc_s;
-	int rc = row(b, in_cell ? "wind step within the tables' cell (sky-view, aerial)"
-				: "wind step across a cell (cloud, shadow, sky-view, aerial)",
-		     NULL, ALL | STATE_CLOUD_TABLES, REF_FRAME, "<= 20 % of a frame");
+	int rc = row(b, scenes[dome][in_cell], NULL, (dome ? S : ALL) | STATE_CLOUD_TABLES, REF_FRAME,
+		     "<= 20 % of a frame");
 	b->field_utc_s = NULL;
 	b->s = keep;
 	return rc;
@@ -448,10 +454,12 @@ static int other_rows(struct bench *b)
 	if (rc == 0 && state_clouds_drawn(&b->s))
 		rc = row(b, "new field (cloud_seed): cloud, shadow, sky-view, aerial", field,
 			 ALL | STATE_CLOUD_TABLES, REF_FRAME, "");
-	if (rc == 0 && state_clouds_drawn(&b->s))
-		rc = wind_row(b, true);
-	if (rc == 0 && state_clouds_drawn(&b->s))
-		rc = wind_row(b, false);
+	for (int dome = 0; dome < 2; dome++) {
+		if (rc == 0 && state_clouds_drawn(&b->s))
+			rc = wind_row(b, true, dome);
+		if (rc == 0 && state_clouds_drawn(&b->s))
+			rc = wind_row(b, false, dome);
+	}
 	return rc;
 }
 
@@ -536,6 +544,9 @@ int bench_demand_main(int argc, char **argv)
 		rc = sweep_row(&b, "wind steps of the clock, full scene", ALL, SWEEP_WIND, false);
 	if (rc == 0 && !b.wall_only && drawn)
 		rc = sweep_row(&b, "wind steps of the clock, maps made ahead", ALL, SWEEP_WIND, true);
+	if (rc == 0 && !b.wall_only && drawn)
+		rc = sweep_row(&b, "wind steps of the clock, sky-view dome, maps made ahead", S, SWEEP_WIND,
+			       true);
 	eng_free(b.ref_e);
 	eng_free(b.e);
 	return rc < 0 ? 1 : 0;
