@@ -79,6 +79,38 @@ static int run(struct eng *e, const struct sky_state *s, uint32_t mask, int runs
 	return 0;
 }
 
+/* The cloud passes where layers are drawn: a new field at each run
+ * (cloud_seed alternating), so that the coverage table and the shadow maps
+ * are both remade; their own GPU times (timestamps), which sky-view's row
+ * counts as well. */
+static int cloud_rows(struct eng *e, const struct sky_state *base, int runs)
+{
+	double *ms[2] = { calloc(runs, sizeof(double)), calloc(runs, sizeof(double)) };
+	static const char *const labels[2] = { "cloud (GPU time)", "shadow (GPU time)" };
+	struct sky_state s = *base;
+	struct eng_timing t;
+	char err[512];
+	int rc = ms[0] && ms[1] ? 0 : -ENOMEM;
+
+	for (int i = 0; i < runs && rc == 0; i++) {
+		s.clouds.seed = base->clouds.seed + 1 + (uint32_t)(i % 2);
+		rc = eng_compute(e, &s, STATE_BIT(STATE_SKYVIEW), &t, err, sizeof(err));
+		if (rc < 0)
+			fprintf(stderr, "skybench: %s\n", err);
+		ms[0][i] = t.cloud_ms;
+		ms[1][i] = t.shadow_ms;
+	}
+	for (int k = 0; k < 2 && rc == 0; k++) {
+		double med, lo, hi;
+		summarize(ms[k], runs, &med, &lo, &hi);
+		printf("%-32s median %8.3f ms   p10 %8.3f   p90 %8.3f   (%d runs)\n", labels[k], med, lo, hi,
+		       runs);
+	}
+	free(ms[0]);
+	free(ms[1]);
+	return rc;
+}
+
 static int perf(int argc, char **argv)
 {
 	struct sky_state s;
@@ -131,6 +163,8 @@ static int perf(int argc, char **argv)
 			 "skyview + aerial (wall)", false, false);
 	if (rc == 0)
 		rc = run(e, &s, STATE_ALL_TABLES, runs, "whole set (wall)", false, true);
+	if (rc == 0 && state_clouds_drawn(&s))
+		rc = cloud_rows(e, &s, runs);
 	eng_free(e);
 	return rc < 0 ? 1 : 0;
 }
@@ -139,7 +173,8 @@ static void usage(FILE *f)
 {
 	fprintf(f, "usage: skybench perf [--runs N] [--device SEL] [key=value ...]\n"
 		   "  perf   times each table, sky-view + aerial perspective, and the whole set, each\n"
-		   "         from scratch (transmittance with its column densities; also with them kept)\n"
+		   "         from scratch (transmittance with its column densities; also with them kept),\n"
+		   "         and with cloud layers the coverage and shadow passes\n"
 		   "       skybench stability --markdown FILE\n"
 		   "  stability  the stiff cases of docs/physics.md: invariants and precision as markdown\n"
 		   "       skybench demand [--runs N] [--markdown] [key=value ...]\n"

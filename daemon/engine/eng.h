@@ -52,6 +52,9 @@ struct eng_timing {
 	int columns;
 	double columns_ms;		/* its GPU time (timestamps; the pass writes
 					 * the transmittance texels too), else 0 */
+	/* The cloud passes' GPU times (timestamps), else 0: the coverage
+	 * table's and the shadow maps'; sky-view's table_ms counts them too. */
+	double cloud_ms, shadow_ms;
 	/* 1 when sky-view read the light the shadow maps let through at its
 	 * steps as an earlier computation kept it: the same maps, lights'
 	 * frames, field and rays (a light that moved within its map's cell). */

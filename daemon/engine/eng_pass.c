@@ -565,6 +565,10 @@ int eng_pass_times(struct eng *e, const struct plan *pl, struct eng_timing *t, c
 		int table = pass_rows[p].table >= 0 ? pass_rows[p].table : pl->last_table;
 		if (p == PASS_COLUMNS)
 			t->columns_ms = ms;
+		else if (p == PASS_CLOUD)
+			t->cloud_ms = ms;
+		else if (p == PASS_SHADOW)
+			t->shadow_ms = ms;
 		if (table >= 0)
 			t->table_ms[table] += ms;
 	}
