@@ -95,8 +95,10 @@ static int cloud_rows(struct eng *e, const struct sky_state *base, int runs)
 	for (int i = 0; i < runs && rc == 0; i++) {
 		s.clouds.seed = base->clouds.seed + 1 + (uint32_t)(i % 2);
 		rc = eng_compute(e, &s, STATE_BIT(STATE_SKYVIEW), &t, err, sizeof(err));
-		if (rc < 0)
+		if (rc < 0) {
 			fprintf(stderr, "skybench: %s\n", err);
+			break;
+		}
 		ms[0][i] = t.cloud_ms;
 		ms[1][i] = t.shadow_ms;
 	}
