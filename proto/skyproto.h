@@ -149,7 +149,8 @@ struct sky_shm_cloud_layer {
  * shadow maps' frames and shadow_lights. */
 struct sky_shm_clouds {
 	uint32_t n_layers;		/* layers[0 .. n_layers) */
-	uint32_t shadow_lights;		/* bit 0: the sun's map is valid, bit 1: the moon's */
+	uint32_t shadow_lights;		/* bit 0: the sun's map is valid, bit 1: the moon's
+					 * (its slice zeros where not) */
 	double extent_km;		/* half-width of the square region around the observer */
 	double offset_km[2];		/* the wind's offset (east, north), subtracted from
 					 * field coordinates before the noise */

@@ -197,7 +197,7 @@ static void set_free(struct eng *e, struct cloud_set *c)
 {
 	cloud_buffer_free(e, &c->cloud, &c->cloud_view);
 	cloud_buffer_free(e, &c->shadow, &c->shadow_view);
-	c->valid = false;
+	c->valid = c->moon_zero = false;
 }
 
 /* BINDING_TERRAIN: the field of s, its 16-bit texels packed two a word,
@@ -306,7 +306,7 @@ int eng_ensure_clouds(struct eng *e, const struct sky_state *s, bool *rebind, ch
 	if (rc == 0 && (!e->ct.shadow.buf || e->ct.shadow.bytes != shadow_texels * 16)) {
 		cloud_buffer_free(e, &e->ct.shadow, &e->ct.shadow_view);
 		rc = cloud_buffer_new(e, shadow_texels, &e->ct.shadow, &e->ct.shadow_view, err, err_size);
-		e->ct.valid = false;
+		e->ct.valid = e->ct.moon_zero = false;
 		*rebind = true;
 	}
 	/* A set made ahead for other sizes is dropped (made again at the

@@ -134,11 +134,12 @@ struct gpu_buffer {
 
 /* The cloud tables of one block: the coverage table and the shadow maps
  * (sun then moon, then the ice depths) with their lookups; valid: they
- * hold what key gives (its lanes before shift_km). */
+ * hold what key gives (its lanes before shift_km). moon_zero: the moon's
+ * map is all zeros, as an unlit moon leaves it (record_shadow). */
 struct cloud_set {
 	struct gpu_buffer cloud, shadow;
 	VkBufferView cloud_view, shadow_view;
-	bool valid;
+	bool valid, moon_zero;
 	struct gpu_clouds key;
 };
 

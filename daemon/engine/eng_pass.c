@@ -338,6 +338,28 @@ static void plan_shadow(struct eng *e, const struct sky_state *s, const struct s
 	r->groups[2] = s->moon.illuminance_lx > 0.0 ? 2 : 1;
 }
 
+/* The maps. An unlit moon's is not drawn; its slice is cleared instead,
+ * once, so that the table holds the same bits on every host whatever the
+ * set held before: a moonlit map, or nothing yet. */
+static void record_shadow(struct eng *e, const struct sky_state *s, const struct plan *pl,
+			  const struct pass_run *run)
+{
+	(void)s;
+	(void)pl;
+	e->vk.vkCmdBindPipeline(e->cmd, VK_PIPELINE_BIND_POINT_COMPUTE, run->pipe);
+	e->vk.vkCmdDispatch(e->cmd, run->groups[0], run->groups[1], run->groups[2]);
+	if (run->groups[2] > 1 || e->ct.moon_zero)
+		return;
+	/* The fill and the dispatch write disjoint slices; the passes after
+	 * read the table, the host reads it after the final barrier. */
+	const VkMemoryBarrier to_read = { .sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+		.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT, .dstAccessMask = VK_ACCESS_SHADER_READ_BIT };
+	VkDeviceSize slice_bytes = e->shadow_map_bytes / 2;
+	e->vk.vkCmdFillBuffer(e->cmd, e->ct.shadow.buf, slice_bytes, slice_bytes, 0);
+	e->vk.vkCmdPipelineBarrier(e->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+				   0, 1, &to_read, 0, NULL, 0, NULL);
+}
+
 /* The passes in recording order (enum pass). */
 static const struct pass_row pass_rows[N_PASSES] = {
 	[PASS_COLUMNS] = { "columns", SHADER_COLUMNS, STATE_TRANSMITTANCE, 0,
@@ -357,7 +379,7 @@ static const struct pass_row pass_rows[N_PASSES] = {
 	/* Counted with sky-view, whose change made them. */
 	[PASS_CLOUD] = { "cloud", SHADER_CLOUD, STATE_SKYVIEW, 0, RES_CLOUD, plan_cloud, NULL },
 	[PASS_SHADOW] = { "shadow", SHADER_SHADOW, STATE_SKYVIEW, RES_CLOUD, RES_SHADOW, plan_shadow,
-			  NULL },
+			  record_shadow },
 	[PASS_SKYVIEW] = { "skyview", SHADER_SKYVIEW, STATE_SKYVIEW, RES_LOOKUPS | RES_SHADOW,
 			   RES_SKYVIEW | RES_PACK, plan_skyview, NULL },
 	[PASS_AERIAL] = { "aerial", SHADER_AERIAL, STATE_AERIAL, RES_LOOKUPS | RES_SHADOW,

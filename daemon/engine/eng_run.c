@@ -137,6 +137,7 @@ int eng_submit_to(struct eng *e, const struct sky_state *s, const struct state_l
 		/* Invalidated again if the computation fails (eng_complete). */
 		e->ct.key = pl->clouds;
 		e->ct.valid = true;
+		e->ct.moon_zero = pl->run[PASS_SHADOW].groups[2] < 2;
 	}
 	if (pl->run[PASS_SKYVIEW].on && pl->sv_keyed) {
 		e->sv_last = pl->sv_key;
@@ -229,7 +230,7 @@ int eng_complete(struct eng *e, struct eng_timing *ret, char *err, size_t err_si
 	e->has_target = false;
 	pthread_mutex_unlock(&e->lock);
 	if (wr != VK_SUCCESS)
-		e->columns_valid = e->images_valid = e->ct.valid = e->sv_light_valid = false;
+		e->columns_valid = e->images_valid = e->ct.valid = e->ct.moon_zero = e->sv_light_valid = false;
 	eng_end_ahead(e);
 	VK_TRY(wr);
 	rc = invalidate(e, mask, err, err_size);
