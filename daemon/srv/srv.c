@@ -608,6 +608,8 @@ static void eng_ready(void *ctx, uint32_t events)
 		s->in_flight_direct = 0;
 		s->dirty |= s->in_flight_mask;
 		s->eng_valid &= ~s->in_flight_mask;
+		/* Nothing is made ahead of tables that were not published. */
+		s->ahead_worth = 0;
 		fail(s, s->in_flight_generation, err[0] ? err : strerror(-r));
 	} else {
 		/* The engine adds the cloud tables its reads need. */
