@@ -42,7 +42,11 @@ struct drive {
 
 void drive_field(struct sky_state *s, double mono_s, uint32_t *ret_dirty)
 {
-	double utc_s = floor(state_clock_utc_s(s, mono_s));
+	drive_field_at(s, floor(state_clock_utc_s(s, mono_s)), ret_dirty);
+}
+
+void drive_field_at(struct sky_state *s, double utc_s, uint32_t *ret_dirty)
+{
 	double want = state_clouds_drawn(s) && s->clouds.wind_speed_mps > 0.0 ? utc_s : NAN;
 
 	if (memcmp(&want, &s->clouds.utc_s, sizeof(want)) == 0)

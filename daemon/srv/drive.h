@@ -61,10 +61,15 @@ int drive_lights(struct sky_state *s, double mono_s, uint32_t *ret_dirty, char *
 
 /* Places the cloud field of s at the simulated time of monotonic time
  * mono_s, in whole seconds (clouds.utc_s), while it moves: a layer drawn,
- * a wind and a time; NAN else. Whole seconds, so that machines whose
- * clocks agree to a fraction of a second place it alike. ret_dirty, if not
- * NULL, gets the field's tables ORed in when the placement changed. */
+ * a wind and a time; NAN else. ret_dirty, if not NULL, gets the field's
+ * tables ORed in when the placement changed. Two clocks that agree to a
+ * fraction of a second can still floor to different seconds: a follower
+ * takes the controller's placement as it is (drive_field_at). */
 void drive_field(struct sky_state *s, double mono_s, uint32_t *ret_dirty);
+
+/* The same with the placement given: utc_s (whole seconds) while the field
+ * moves, NAN else. */
+void drive_field_at(struct sky_state *s, double utc_s, uint32_t *ret_dirty);
 
 /* How far the wind moves the field of s in km per real second while the
  * clock runs (0 while it stands still), and the distance that calls for a

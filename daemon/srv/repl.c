@@ -73,7 +73,9 @@ static void on_state(void *ctx, const struct sky_state *candidate, const struct 
 	memcpy(next->views, cur->views, sizeof(next->views));
 	dirty = state_diff(cur, next);
 	srv_set_next_apply_time(r->srv, h->apply_time_ns);
+	srv_set_next_field(r->srv, h->cloud_placed_sent, h->cloud_placed_utc_s);
 	int e = srv_apply(r->srv, next, dirty, &shown, &dirty, err, sizeof(err));
+	srv_set_next_field(r->srv, 0, NAN);
 	srv_set_next_apply_time(r->srv, 0);
 	free(next);
 	if (e < 0) {

@@ -97,6 +97,8 @@ struct srv {
 	 * until hold_timer makes it the current slot. */
 	struct srv_sync sync;
 	int64_t next_apply_ns;		/* for the next change; 0 none */
+	int next_field_given;		/* the next change's placement: srv_set_next_field */
+	double next_field_utc_s;
 	int64_t pending_apply_ns;
 	int64_t in_flight_apply_ns;
 	int held;
@@ -738,8 +740,17 @@ static int64_t place_field(struct srv *s, struct sky_state *keys, double real_s,
 
 	if (!at_ns && s->sync.apply_time_ns)
 		at_ns = s->sync.apply_time_ns(s->sync.ctx);
-	drive_field(keys, mono_s + (at_ns ? (double)at_ns / 1e9 - real_s : 0.0), dirty);
+	if (s->next_field_given)
+		drive_field_at(keys, s->next_field_utc_s, dirty);
+	else
+		drive_field(keys, mono_s + (at_ns ? (double)at_ns / 1e9 - real_s : 0.0), dirty);
 	return at_ns;
+}
+
+void srv_set_next_field(struct srv *s, int given, double utc_s)
+{
+	s->next_field_given = given;
+	s->next_field_utc_s = utc_s;
 }
 
 int srv_apply(struct srv *s, const struct sky_state *next, uint32_t dirty,

@@ -189,6 +189,12 @@ int srv_may_change(const struct srv *s, char *who, size_t who_size);
  * Changes that coalesce with it keep the newest instant. */
 void srv_set_next_apply_time(struct srv *s, int64_t apply_time_ns);
 
+/* The next change (srv_apply) takes the cloud field's placement utc_s
+ * (sky_state.clouds.utc_s: whole seconds, NAN where the field stands)
+ * rather than placing it at its apply instant: a follower takes its
+ * controller's. given 0: it places the field itself again. */
+void srv_set_next_field(struct srv *s, int given, double utc_s);
+
 /* The tables some client needs: the demand and its dependencies under the
  * newest state. Only these are ever computed; a change to any other table
  * only marks it stale (it leaves the published slots until asked for). */

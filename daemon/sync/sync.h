@@ -77,6 +77,12 @@ struct sync_msg_header {
 	uint64_t sequence;		/* this controller's number of the state, >= 1, increasing */
 	uint64_t generation;		/* the controller's generation that shows it, >= 1 */
 	int64_t apply_time_ns;		/* CLOCK_REALTIME at which every machine switches */
+	/* The cloud field's placement (sky_state.clouds.utc_s: whole seconds,
+	 * NAN where it stands), which each follower takes as it is: its own
+	 * clocks could floor the apply instant to another second. Absent from
+	 * a controller before it (cloud_placed_sent 0): placed here. */
+	int cloud_placed_sent;
+	double cloud_placed_utc_s;
 };
 
 /* Writes the state message of st under header h (its version is ignored:

@@ -150,9 +150,13 @@ int sync_msg_encode(const struct sky_state *st, const struct sync_msg_header *h,
 	buf[0] = 0;
 	format_overrides(st->weather.overridden, overrides, sizeof(overrides));
 	put(&w, "skysync=%d\ncontroller=%s\nsequence=%" PRIu64 "\ngeneration=%" PRIu64
-		"\napply_time_ns=%" PRId64 "\nlines=%" PRIu32 "\noverridden=%s\ncloud_factor=%.17g\n\n",
+		"\napply_time_ns=%" PRId64 "\nlines=%" PRIu32 "\noverridden=%s\ncloud_factor=%.17g\n",
 	    SYNC_FORMAT_VERSION, h->controller, h->sequence, h->generation, h->apply_time_ns, lines,
 	    overrides, st->weather.cloud_factor);
+	if (isnan(st->clouds.utc_s))
+		put(&w, "cloud_placed_utc_s=none\n\n");
+	else
+		put(&w, "cloud_placed_utc_s=%.17g\n\n", st->clouds.utc_s);
 	state_foreach_exact(st, emit_body, &w);
 	if (w.bad_utc)
 		return -ERANGE;		/* a simulated date outside years 0..9999 */
@@ -291,21 +295,42 @@ static enum sync_drop read_version(struct cursor *c, uint32_t *ret, char *why, s
 
 enum {
 	H_CONTROLLER, H_SEQUENCE, H_GENERATION, H_APPLY, H_LINES, H_OVERRIDDEN, H_CLOUD_FACTOR,
-	H_ONLINE, H_N
+	H_ONLINE, H_CLOUD_PLACED, H_N
 };
 static const char *const header_keys[H_N] = { "controller", "sequence", "generation",
 					      "apply_time_ns", "lines", "overridden",
-					      "cloud_factor", "online" };
+					      "cloud_factor", "online", "cloud_placed_utc_s" };
 
 /* Header lines up to a blank line or the end: the fields in want (a mask
- * of 1 << H_*) must all be there, once. Unknown fields are skipped: a
- * later revision of this version may add some. */
+ * of 1 << H_*) must all be there, once, those in optional at most once.
+ * Unknown fields are skipped: a later revision of this version may add
+ * some. */
 struct header {
 	char controller[SYNC_ID_MAX];
 	uint64_t v[H_N];
-	uint32_t overridden;
-	double cloud_factor;
+	uint32_t overridden, seen;
+	double cloud_factor, cloud_placed_utc_s;
 };
+
+/* "none" or a whole number of POSIX seconds within years 0..9999, as
+ * %.17g wrote it. */
+static int parse_placed(const char *v, double *ret)
+{
+	char *end;
+	double t;
+
+	if (strcmp(v, "none") == 0) {
+		*ret = NAN;
+		return 0;
+	}
+	if (!*v || strlen(v) > 32 || !((*v >= '0' && *v <= '9') || *v == '-'))
+		return -EINVAL;
+	t = strtod(v, &end);
+	if (*end || !(t >= -62167219200.0 && t < 253402300800.0) || t != floor(t))
+		return -EINVAL;
+	*ret = t;
+	return 0;
+}
 
 /* "none" or a comma list of override names (state_override_name), each once. */
 static int parse_overrides(const char *v, uint32_t *ret)
@@ -362,7 +387,10 @@ static enum sync_drop read_field(struct header *h, unsigned idx, const char *v, 
 			    "overridden: not none or a list of raw coefficient keys");
 	if (idx == H_CLOUD_FACTOR && parse_factor(v, &h->cloud_factor) < 0)
 		return drop(SYNC_DROP_RANGE, why, why_size, "cloud_factor: not a number in [0, 1]");
-	if (idx == H_OVERRIDDEN || idx == H_CLOUD_FACTOR)
+	if (idx == H_CLOUD_PLACED && parse_placed(v, &h->cloud_placed_utc_s) < 0)
+		return drop(SYNC_DROP_RANGE, why, why_size,
+			    "cloud_placed_utc_s: not none or a whole second of years 0..9999");
+	if (idx == H_OVERRIDDEN || idx == H_CLOUD_FACTOR || idx == H_CLOUD_PLACED)
 		return SYNC_DROP_NONE;
 	if (parse_u64(v, &h->v[idx]) < 0)
 		return drop(SYNC_DROP_MALFORMED, why, why_size, "%s=%s is not a number",
@@ -370,8 +398,8 @@ static enum sync_drop read_field(struct header *h, unsigned idx, const char *v, 
 	return SYNC_DROP_NONE;
 }
 
-static enum sync_drop read_header(struct cursor *c, unsigned want, struct header *h, char *why,
-				  size_t why_size)
+static enum sync_drop read_header(struct cursor *c, unsigned want, unsigned optional,
+				  struct header *h, char *why, size_t why_size)
 {
 	char line[SYNC_LINE_MAX], *v;
 	unsigned seen = 0;
@@ -382,7 +410,7 @@ static enum sync_drop read_header(struct cursor *c, unsigned want, struct header
 			return drop(SYNC_DROP_MALFORMED, why, why_size,
 				    "header line %u is not key=value", c->line_no);
 		for (unsigned i = 0; i < H_N; i++) {
-			if (!(want & (1u << i)) || strcmp(line, header_keys[i]) != 0)
+			if (!((want | optional) & (1u << i)) || strcmp(line, header_keys[i]) != 0)
 				continue;
 			if (seen & (1u << i))
 				return drop(SYNC_DROP_MALFORMED, why, why_size, "%s twice", line);
@@ -398,6 +426,7 @@ static enum sync_drop read_header(struct cursor *c, unsigned want, struct header
 		if ((want & ~seen) & (1u << i))
 			return drop(SYNC_DROP_MALFORMED, why, why_size, "no %s in the header",
 				    header_keys[i]);
+	h->seen = seen;
 	return SYNC_DROP_NONE;
 }
 
@@ -537,7 +566,7 @@ enum sync_drop sync_msg_decode(const void *payload, size_t len, struct sync_msg_
 	    (d = read_version(&c, &ret_header->version, why, why_size)) ||
 	    (d = read_header(&c, 1u << H_CONTROLLER | 1u << H_SEQUENCE | 1u << H_GENERATION |
 				     1u << H_APPLY | 1u << H_LINES | 1u << H_OVERRIDDEN |
-				     1u << H_CLOUD_FACTOR, &h, why, why_size)))
+				     1u << H_CLOUD_FACTOR, 1u << H_CLOUD_PLACED, &h, why, why_size)))
 		return d;
 	if (h.v[H_SEQUENCE] == 0 || h.v[H_GENERATION] == 0 || h.v[H_APPLY] == 0 ||
 	    h.v[H_APPLY] > INT64_MAX)
@@ -547,6 +576,8 @@ enum sync_drop sync_msg_decode(const void *payload, size_t len, struct sync_msg_
 	ret_header->sequence = h.v[H_SEQUENCE];
 	ret_header->generation = h.v[H_GENERATION];
 	ret_header->apply_time_ns = (int64_t)h.v[H_APPLY];
+	ret_header->cloud_placed_sent = (h.seen >> H_CLOUD_PLACED) & 1u;
+	ret_header->cloud_placed_utc_s = ret_header->cloud_placed_sent ? h.cloud_placed_utc_s : NAN;
 
 	if ((d = read_body(&c, h.v[H_LINES], ret_state, &ks, why, why_size)))
 		return d;
@@ -588,7 +619,7 @@ enum sync_drop sync_presence_decode(const void *payload, size_t len, struct sync
 		return SYNC_DROP_NONE;
 	if ((d = check_text(payload, len, why, why_size)) ||
 	    (d = read_version(&c, &version, why, why_size)) ||
-	    (d = read_header(&c, 1u << H_CONTROLLER | 1u << H_ONLINE, &h, why, why_size)))
+	    (d = read_header(&c, 1u << H_CONTROLLER | 1u << H_ONLINE, 0, &h, why, why_size)))
 		return d;
 	if (c.p != c.end)
 		return drop(SYNC_DROP_MALFORMED, why, why_size, "a body after the presence");

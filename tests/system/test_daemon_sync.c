@@ -670,26 +670,41 @@ static void same_frames(void)
 	CHECK(na > 0 && na == nb && memcmp(a, b, na) == 0);
 }
 
-/* A METAR with a broken layer, then a wind step, on the controller. */
+/* A METAR with a broken layer, then a wind step, on the controller; then
+ * a time 0.4 us before a whole second (the lights set by hand), which the
+ * controller places in the second before and the message, to the
+ * microsecond, in the next: the followers take the controller's
+ * placement. Their clocks differ by those 0.4 us, and so do the slots'
+ * checksums, which cover the state, and the sky tables' last bits: the
+ * field's place and the cloud tables do not. */
 static void scenario_clouds(void)
 {
-	const char *steps[2] = { "set utc=2026-06-21T10:00:00Z time_rate=0 "
+	const char *steps[3] = { "set utc=2026-06-21T10:00:00Z time_rate=0 "
 				 "metar=\"EGLL 241250Z 27015KT 9999 BKN030 12/06 Q1018\"",
-				 "set wind_speed_mps=20" };
+				 "set wind_speed_mps=20",
+				 "set utc=2026-06-21T10:00:05.9999996Z sun_elevation_deg=35 "
+				 "sun_azimuth_deg=160 moon_elevation_deg=-20" };
 	char buf[2048];
 
 	want_offset = NAN;
-	for (int n = 0; n < 2; n++) {
+	for (int n = 0; n < 3; n++) {
+		double before = want_offset, placed, off;
 		CHECK(request(0, steps[n], buf, sizeof(buf)) == 0);
 		CHECK(wait_until(0, moved, 0) == 0);
-		want_sum = cloud_slot(0, &want_offset);
-		for (int i = 1; i < N_SKYD; i++)
-			CHECK(wait_until(i, caught_up, i) == 0);
+		want_sum = cloud_slot(0, &placed);
+		want_offset = n < 2 ? placed : before;
+		for (int i = 1; i < N_SKYD; i++) {
+			CHECK(wait_until(i, n < 2 ? caught_up : moved, i) == 0);
+			CHECK(cloud_slot(i, &off) && off == placed);
+		}
+		want_offset = placed;
 		same_cloud_tables();
-		printf("%s: the three hold checksum %016llx, the field at %.6f km east\n", steps[n],
+		printf("%s: %s %016llx, the field at %.6f km east\n", steps[n],
+		       n < 2 ? "the three hold checksum" : "the controller's checksum",
 		       (unsigned long long)want_sum, want_offset);
+		if (n == 1)
+			same_frames();
 	}
-	same_frames();
 }
 
 int main(int argc, char **argv)

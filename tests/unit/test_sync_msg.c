@@ -399,6 +399,44 @@ static void test_header_fields(void)
 #undef FRESH
 }
 
+/* The field's placement travels in the header, exact: a follower's own
+ * clocks could floor the apply instant to another second. A message
+ * without it (a controller before it) still reads, the placement left to
+ * the follower. */
+static void test_cloud_placed(void)
+{
+	static const double placed[] = { 1782036005.0, NAN, -62167219200.0, 253402300799.0 };
+	struct sync_msg_header h;
+	struct sky_state a, b;
+	char why[256];
+	size_t len;
+
+	for (size_t i = 0; i < sizeof(placed) / sizeof(placed[0]); i++) {
+		state_default(&a);
+		scene_clouds(&a);
+		a.clouds.utc_s = placed[i];
+		len = encode(&a, 5, real_ns());
+		CHECK(sync_msg_decode(msg, len, &h, &b, why, sizeof(why)) == SYNC_DROP_NONE);
+		CHECK_EQ(h.cloud_placed_sent, 1);
+		CHECK(memcmp(&h.cloud_placed_utc_s, &placed[i], sizeof(double)) == 0);
+	}
+	len = edit(len, "cloud_placed_utc_s", NULL, 0);
+	CHECK(sync_msg_decode(msg, len, &h, &b, why, sizeof(why)) == SYNC_DROP_NONE);
+	CHECK_EQ(h.cloud_placed_sent, 0);
+	CHECK(isnan(h.cloud_placed_utc_s));
+	static const char *const bad[] = { "cloud_placed_utc_s=1782036005.5", "cloud_placed_utc_s=nan",
+					   "cloud_placed_utc_s=", "cloud_placed_utc_s=1e300",
+					   "cloud_placed_utc_s=253402300800" };
+	for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
+		len = encode(&a, 5, real_ns());
+		expect_drop(bad[i], edit(len, "cloud_placed_utc_s", bad[i], 0), SYNC_DROP_RANGE,
+			    "cloud_placed_utc_s");
+	}
+	len = encode(&a, 5, real_ns());
+	len = edit(len, "cloud_placed_utc_s", "cloud_placed_utc_s=1\ncloud_placed_utc_s=2", 0);
+	expect_drop("cloud_placed_utc_s twice", len, SYNC_DROP_MALFORMED, "twice");
+}
+
 static void test_presence(void)
 {
 	struct sync_presence p = { .online = 1 }, q;
@@ -521,6 +559,7 @@ int main(void)
 	test_utc_at_apply_time();
 	test_refusals();
 	test_header_fields();
+	test_cloud_placed();
 	test_presence();
 	test_url();
 	test_check();
