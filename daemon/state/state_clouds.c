@@ -215,6 +215,12 @@ int state_clouds_validate(const struct sky_state *s, char *err, size_t err_size)
 			return ERR_RANGE("cloud%d_base_m: %g leaves no room for a layer below %g m; give cloud%d_top_m",
 					 n, l->base_m, fmin(CLOUD_MAX_M, shell), n);
 	}
+	/* A METAR's wind group sets the speed without the key's check
+	 * (state_clouds_from_metar): the key's range, from its row. */
+	const struct state_key *k = state_key_find("wind_speed_mps");
+	double v = s->clouds.wind_speed_mps;
+	if (k && !(v >= k->min && v <= k->max))
+		return ERR_RANGE("wind_speed_mps: %g is outside [%g, %g]", v, k->min, k->max);
 	return 0;
 }
 

@@ -260,6 +260,16 @@ static void test_metar(void)
 	set(&s, "wind_speed_mps=3");
 	metar(&s, "EGLL 241250Z 9999 BKN030 12/06 Q1018");
 	CHECK_EQ(s.clouds.wind_speed_mps, 3.0);
+
+	/* A wind group beyond the key's range (999 kt) leaves a state that is
+	 * refused as the key would be: skyd refuses the report whole. */
+	char err[256] = "";
+	int r = state_set_metar(&s, "EGLL 241250Z 270999KT 9999 FEW010 12/06 Q1018", NULL, NULL, err,
+				sizeof(err));
+	if (r == 0)
+		r = state_validate(&s, 0, err, sizeof(err));
+	CHECK_EQ(r, -ERANGE);
+	CHECK(strstr(err, "wind_speed_mps: 513.93 is outside [0, 150]") != NULL);
 }
 
 /* The field is placed in whole simulated seconds while it moves, and the
