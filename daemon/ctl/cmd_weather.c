@@ -47,25 +47,39 @@ static void note_key(struct ctl_metar *note, size_t *o, const struct sky_state *
 			       *o ? " " : "", key, value);
 }
 
+/* Whether field f (layer_fields' order) of a layer differs between a and
+ * b, NAN against NAN the same. */
+static int layer_field_changed(const struct state_cloud_layer *a, const struct state_cloud_layer *b,
+			       int f)
+{
+	const double *x = f == 0 ? &a->oktas : f == 1 ? &a->base_m : &a->top_m;
+	const double *y = f == 0 ? &b->oktas : f == 1 ? &b->base_m : &b->top_m;
+	return f == 3 ? a->type != b->type : memcmp(x, y, sizeof(*x)) != 0;
+}
+
 int ctl_apply_metar(struct sky_state *s, const char *report, uint32_t *dirty,
 		    struct ctl_metar *note, char *err, size_t err_size)
 {
+	struct state_cloud_layer was[STATE_CLOUD_LAYERS];
 	struct metar *m = &note->report;
 	uint32_t d = 0;
+
+	memcpy(was, s->clouds.layer, sizeof(was));
 	int r = state_set_metar(s, report, m, &d, err, err_size);
 
 	if (r < 0)
 		return r;
 	/* What the report sets, in this order; the site's pressure and
-	 * temperature only when it had them; the layers it has, the wind
-	 * when it has one. */
+	 * temperature only when it had them; the layers it has (a top only
+	 * where it cleared one), and every key of the others it cleared; the
+	 * wind when it has one. */
 	const enum state_key_id applied[] = {
 		STATE_KEY_ID_VISIBILITY_KM, STATE_KEY_ID_RELATIVE_HUMIDITY, STATE_KEY_ID_AEROSOL,
 		STATE_KEY_ID_CLOUD_OKTAS,
 		isfinite(m->qnh_hpa) ? STATE_KEY_ID_PRESSURE_MBAR : STATE_KEY_ID_NONE,
 		isfinite(m->temperature_c) ? STATE_KEY_ID_TEMPERATURE_C : STATE_KEY_ID_NONE,
 	};
-	static const char *const layer_fields[] = { "oktas", "base_m", "type" };
+	static const char *const layer_fields[] = { "oktas", "base_m", "top_m", "type" };
 	size_t o = 0;
 	char key[32];
 	double dir_deg, speed_mps;
@@ -76,11 +90,15 @@ int ctl_apply_metar(struct sky_state *s, const char *report, uint32_t *dirty,
 	for (size_t i = 0; i < sizeof(applied) / sizeof(applied[0]); i++)
 		if (applied[i])
 			note_key(note, &o, s, state_key_name(applied[i]));
-	for (int i = 0; i < STATE_CLOUD_LAYERS && !isnan(s->clouds.layer[i].oktas); i++)
-		for (int f = 0; f < 3; f++) {
+	for (int i = 0; i < STATE_CLOUD_LAYERS; i++) {
+		int filled = !isnan(s->clouds.layer[i].oktas);
+		for (int f = 0; f < 4; f++) {
+			if (!layer_field_changed(&was[i], &s->clouds.layer[i], f) && (!filled || f == 2))
+				continue;
 			snprintf(key, sizeof(key), "cloud%d_%s", i + 1, layer_fields[f]);
 			note_key(note, &o, s, key);
 		}
+	}
 	if (metar_wind(m, &dir_deg, &speed_mps) == 0) {
 		if (!isnan(dir_deg))
 			note_key(note, &o, s, "wind_dir_deg");

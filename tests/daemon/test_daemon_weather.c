@@ -160,6 +160,15 @@ static void test_metar(struct conn *c, struct conn *ev)
 	CHECK(conn_request(c, "get pressure_mbar temperature_c", reply, sizeof(reply)) == 0);
 	CHECK(num("pressure_mbar") == 1018.0 && num("temperature_c") == 12.0);
 
+	/* A report clears what it does not fill, and says so: the top set on
+	 * the layer it fills, the second layer whole. */
+	change(c, ev, "set cloud1_top_m=2500 cloud2_oktas=3 cloud2_base_m=6000 cloud2_type=altostratus");
+	change(c, ev, "set metar=\"EGLL 241250Z 27008KT 9999 BKN030 12/06 Q1018\"");
+	CHECK(has("cloud1_oktas=6 cloud1_base_m=914.4 cloud1_top_m=auto cloud1_type=stratocumulus "
+		  "cloud2_oktas=auto cloud2_base_m=auto cloud2_type=stratocumulus wind_dir_deg=270"));
+	CHECK(conn_request(c, "get cloud1_top_m cloud2_oktas", reply, sizeof(reply)) == 0);
+	CHECK(has("cloud1_top_m: auto\n") && has("cloud2_oktas: auto\n"));
+
 	/* In a batch, a foggy report; end answers for it. */
 	send_line(c, "batch");
 	send_line(c, "set metar=\"EGLL 241250Z 0200 FG VV001 08/08 Q1020\"");
