@@ -47,14 +47,19 @@ static void note_key(struct ctl_metar *note, size_t *o, const struct sky_state *
 			       *o ? " " : "", key, value);
 }
 
+/* Number field f (layer_fields' order, 0..2) of a layer. */
+static const double *layer_number(const struct state_cloud_layer *l, int f)
+{
+	return f == 0 ? &l->oktas : f == 1 ? &l->base_m : &l->top_m;
+}
+
 /* Whether field f (layer_fields' order) of a layer differs between a and
  * b, NAN against NAN the same. */
 static int layer_field_changed(const struct state_cloud_layer *a, const struct state_cloud_layer *b,
 			       int f)
 {
-	const double *x = f == 0 ? &a->oktas : f == 1 ? &a->base_m : &a->top_m;
-	const double *y = f == 0 ? &b->oktas : f == 1 ? &b->base_m : &b->top_m;
-	return f == 3 ? a->type != b->type : memcmp(x, y, sizeof(*x)) != 0;
+	return f == 3 ? a->type != b->type
+		      : memcmp(layer_number(a, f), layer_number(b, f), sizeof(double)) != 0;
 }
 
 int ctl_apply_metar(struct sky_state *s, const char *report, uint32_t *dirty,

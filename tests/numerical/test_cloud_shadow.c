@@ -422,6 +422,20 @@ static void kept_light_bits(void)
 	}
 }
 
+/* The states of "lead layers" for each of the two leads; -1 when one is
+ * refused. */
+static int two_states(const char *const lead[2], const char *layers, struct sky_state ret[2])
+{
+	char pairs[512];
+
+	for (int k = 0; k < 2; k++) {
+		snprintf(pairs, sizeof(pairs), "%s %s", lead[k], layers);
+		if (probe_state_of(pairs, &ret[k]) < 0)
+			return -1;
+	}
+	return 0;
+}
+
 static void made_ahead(void)
 {
 	static const int tables[] = { STATE_SKYVIEW, STATE_AERIAL, STATE_CLOUD_COVERAGE, STATE_CLOUD_SHADOW };
@@ -429,51 +443,49 @@ static void made_ahead(void)
 			     "cloud1_oktas=5 cloud1_base_m=1000 cloud2_oktas=3 cloud2_base_m=4000 "
 			     "cloud2_type=altostratus";
 	const uint32_t lit = STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
-	struct sky_state now, next;
-	struct eng_timing t;
-	char pairs[512], err[512];
-	size_t bytes = 0;
-
 	/* 20 and 22 degrees: the next cell of the sun's grid but one (a
 	 * cell is about 1.3 degrees of elevation here). */
-	snprintf(pairs, sizeof(pairs), "sun_elevation_deg=20 %s", layers);
-	if (probe_state_of(pairs, &now) < 0)
+	static const char *const suns[2] = { "sun_elevation_deg=20", "sun_elevation_deg=22" };
+	struct sky_state two[2];
+	struct eng_timing t;
+	char err[512];
+	size_t bytes = 0;
+
+	if (two_states(suns, layers, two) < 0)
 		return;
-	snprintf(pairs, sizeof(pairs), "sun_elevation_deg=22 %s", layers);
-	if (probe_state_of(pairs, &next) < 0)
-		return;
-	CHECK(eng_compute(eng, &now, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	const struct sky_state *now = &two[0], *next = &two[1];
+	CHECK(eng_compute(eng, now, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
 	const void *shadow = eng_cloud_table(eng, STATE_CLOUD_SHADOW, &bytes);
 	void *before = shadow ? malloc(bytes) : NULL;
 	CHECK(before != NULL);
 	if (!before)
 		return;
 	memcpy(before, shadow, bytes);
-	CHECK_EQ(eng_clouds_made(eng, &now, NULL), ENG_CLOUDS_BOUND);
-	CHECK_EQ(eng_clouds_made(eng, &next, NULL), ENG_CLOUDS_NONE);
-	CHECK_EQ(eng_submit_ahead(eng, &next, NULL, err, sizeof(err)), 0);
+	CHECK_EQ(eng_clouds_made(eng, now, NULL), ENG_CLOUDS_BOUND);
+	CHECK_EQ(eng_clouds_made(eng, next, NULL), ENG_CLOUDS_NONE);
+	CHECK_EQ(eng_submit_ahead(eng, next, NULL, err, sizeof(err)), 0);
 	CHECK(eng_wait(eng, &t, err, sizeof(err)) == 0);
 	CHECK_EQ(t.computed & STATE_BIT(STATE_CLOUD_SHADOW), (uint32_t)STATE_BIT(STATE_CLOUD_SHADOW));
 	CHECK_EQ(t.computed & lit, 0u);
-	CHECK_EQ(eng_clouds_made(eng, &next, NULL), ENG_CLOUDS_AHEAD);
-	CHECK_EQ(eng_submit_ahead(eng, &next, NULL, err, sizeof(err)), 1);
+	CHECK_EQ(eng_clouds_made(eng, next, NULL), ENG_CLOUDS_AHEAD);
+	CHECK_EQ(eng_submit_ahead(eng, next, NULL, err, sizeof(err)), 1);
 	/* The bound tables are the last computation's still. */
 	shadow = eng_cloud_table(eng, STATE_CLOUD_SHADOW, &bytes);
 	CHECK(shadow && memcmp(shadow, before, bytes) == 0);
 	free(before);
 
-	CHECK(eng_compute(eng, &next, lit, &t, err, sizeof(err)) == 0);
+	CHECK(eng_compute(eng, next, lit, &t, err, sizeof(err)) == 0);
 	CHECK_EQ(t.clouds_ahead, 1);
 	CHECK_EQ(t.computed & STATE_CLOUD_TABLES, 0u);
 	struct eng *fresh = vk_or_skip();
-	CHECK(eng_compute(fresh, &next, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_compute(fresh, next, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
 	for (size_t i = 0; i < sizeof(tables) / sizeof(tables[0]); i++)
 		same_table(fresh, tables[i]);
 	/* Back: the tables the swap left are taken again. */
-	CHECK_EQ(eng_clouds_made(eng, &now, NULL), ENG_CLOUDS_AHEAD);
-	CHECK(eng_compute(eng, &now, lit, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(eng_clouds_made(eng, now, NULL), ENG_CLOUDS_AHEAD);
+	CHECK(eng_compute(eng, now, lit, &t, err, sizeof(err)) == 0);
 	CHECK_EQ(t.clouds_ahead, 1);
-	CHECK(eng_compute(fresh, &now, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_compute(fresh, now, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
 	for (size_t i = 0; i < sizeof(tables) / sizeof(tables[0]); i++)
 		same_table(fresh, tables[i]);
 	eng_free(fresh);
@@ -489,24 +501,23 @@ static void unlit_moon_ahead(void)
 	const char *layers = "moon_elevation_deg=40 moon_azimuth_deg=200 cloud1_oktas=5 cloud1_base_m=1000 "
 			     "cloud2_oktas=3 cloud2_base_m=4000 cloud2_type=altostratus";
 	const uint32_t lit = STATE_BIT(STATE_SKYVIEW) | STATE_BIT(STATE_AERIAL);
-	struct sky_state moonlit, moonless;
+	static const char *const moons[2] = { "sun_elevation_deg=20 moon_illuminance_lx=0.25",
+					      "sun_elevation_deg=22 moon_illuminance_lx=0" };
+	struct sky_state two[2];
 	struct eng_timing t;
-	char pairs[512], err[512];
+	char err[512];
 
-	snprintf(pairs, sizeof(pairs), "sun_elevation_deg=20 moon_illuminance_lx=0.25 %s", layers);
-	if (probe_state_of(pairs, &moonlit) < 0)
+	if (two_states(moons, layers, two) < 0)
 		return;
-	snprintf(pairs, sizeof(pairs), "sun_elevation_deg=22 moon_illuminance_lx=0 %s", layers);
-	if (probe_state_of(pairs, &moonless) < 0)
-		return;
-	CHECK(eng_compute(eng, &moonlit, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
-	CHECK(eng_compute(eng, &moonless, lit, &t, err, sizeof(err)) == 0);
+	const struct sky_state *moonlit = &two[0], *moonless = &two[1];
+	CHECK(eng_compute(eng, moonlit, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK(eng_compute(eng, moonless, lit, &t, err, sizeof(err)) == 0);
 	CHECK_EQ(t.clouds_ahead, 0);
 	struct eng *ahead = vk_or_skip();
-	CHECK(eng_compute(ahead, &moonlit, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
-	CHECK_EQ(eng_submit_ahead(ahead, &moonless, NULL, err, sizeof(err)), 0);
+	CHECK(eng_compute(ahead, moonlit, STATE_ALL_TABLES, &t, err, sizeof(err)) == 0);
+	CHECK_EQ(eng_submit_ahead(ahead, moonless, NULL, err, sizeof(err)), 0);
 	CHECK(eng_wait(ahead, &t, err, sizeof(err)) == 0);
-	CHECK(eng_compute(ahead, &moonless, lit, &t, err, sizeof(err)) == 0);
+	CHECK(eng_compute(ahead, moonless, lit, &t, err, sizeof(err)) == 0);
 	CHECK_EQ(t.clouds_ahead, 1);
 	for (size_t i = 0; i < sizeof(tables) / sizeof(tables[0]); i++)
 		same_table(ahead, tables[i]);
